@@ -1,0 +1,217 @@
+"""The ``composed-sim`` command."""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import signal
+import sys
+from pathlib import Path
+
+EXIT_USAGE = 2       # bad input: world file, plugin, CLI value
+EXIT_INTERRUPTED = 130
+
+
+class UserError(Exception):
+    """A mistake in what the user gave us: reported as one line, never a traceback."""
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be >= 1 (got {value})")
+    return value
+
+
+def _non_negative_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be >= 0 (got {value})")
+    return value
+
+
+def _positive_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f"must be > 0 (got {text})")
+    return value
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from composed_sim.hosts.composed import EXECUTORS
+
+    parser = argparse.ArgumentParser(prog="composed-sim", description=(
+        "Swarm simulator whose robot controllers are ROS 2 nodes, all hosted in one process."))
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    run = sub.add_parser("run", help="run a world file headless and write its results",
+                         description="Run a world: the simulator node and every controller node in "
+                                     "one process, in lockstep; writes summary.json, trajectories.npz, "
+                                     "violations.csv, world.yaml and arena.png into --out.")
+    run.add_argument("world", type=Path, help="world file (YAML), e.g. worlds/flocking.yaml")
+    run.add_argument("--robots", type=_positive_int, help="total number of robots (overrides the world)")
+    run.add_argument("--ticks", type=_positive_int, help="ticks to simulate (overrides length_ticks)")
+    run.add_argument("--seed", type=_non_negative_int, help="random seed (overrides the world)")
+    run.add_argument("--executor", choices=EXECUTORS, default="multi-threaded",
+                     help="rclpy executor running every node (default: %(default)s)")
+    run.add_argument("--watchdog", type=_positive_float, metavar="SECONDS",
+                     help="wall seconds to wait for a controller's answer before its fallback")
+    run.add_argument("--fallback", choices=("zero", "previous"), help="command given to a late robot")
+    run.add_argument("--domain-id", type=int, default=None,
+                     help="ROS domain (default: $ROS_DOMAIN_ID or 0)")
+    run.add_argument("--out", type=Path, default=Path("out"), help="output directory (default: %(default)s)")
+    run.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
+    run.add_argument("--no-picture", action="store_true", help="skip arena.png")
+    run.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
+
+    sub.add_parser("plugins", help="list the installed controller plugins")
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        if args.command == "plugins":
+            return cmd_plugins()
+        return cmd_run(args)
+    except UserError as e:
+        print(f"composed-sim: error: {e}", file=sys.stderr)
+        return EXIT_USAGE
+
+
+def cmd_plugins() -> int:
+    from composed_sim import plugins
+    try:
+        found = plugins.installed()
+    except plugins.PluginError as e:
+        raise UserError(str(e)) from None
+    for name, ep in found.items():
+        dist = getattr(ep, "dist", None)
+        print(f"{name:20s} {ep.value}  ({dist.name} {dist.version})" if dist else f"{name:20s} {ep.value}")
+    return 0
+
+
+def _domain_id(arg: int | None) -> int:
+    text = str(arg) if arg is not None else os.environ.get("ROS_DOMAIN_ID", "0") or "0"
+    try:
+        value = int(text)
+    except ValueError:
+        raise UserError(f"ROS_DOMAIN_ID: expected a whole number, got {text!r}") from None
+    if not 0 <= value <= 232:
+        raise UserError(f"--domain-id: must be within 0..232 (got {value})")
+    return value
+
+
+def _check_writable(out: Path) -> None:
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        probe = out / ".write-test"
+        probe.write_text("")
+        probe.unlink()
+    except OSError as e:
+        raise UserError(f"--out {out}: cannot write there ({e.strerror or e})") from None
+
+
+class _Interrupts:
+    """First Ctrl-C/SIGTERM: stop at the next tick boundary and write results. Second: exit now."""
+
+    def __init__(self):
+        self.requested = False
+
+    def __enter__(self):
+        self._old = {s: signal.signal(s, self._handle) for s in (signal.SIGINT, signal.SIGTERM)}
+        return self
+
+    def _handle(self, signum, frame):
+        if self.requested:
+            os._exit(EXIT_INTERRUPTED)
+        self.requested = True
+        print("\ncomposed-sim: stopping at the next tick (again to quit at once)", file=sys.stderr)
+
+    def __exit__(self, *exc):
+        for s, h in self._old.items():
+            signal.signal(s, h)
+
+
+def cmd_run(args) -> int:
+    from composed_sim import plugins
+    from composed_sim.core.placement import PlacementError
+    from composed_sim.hosts.composed import ComposedHost, HostError
+    from composed_sim.results import summarize, write_results
+    from composed_sim.world.loader import WorldFileError, load_world
+
+    try:
+        world = load_world(args.world, robots=args.robots, ticks=args.ticks, seed=args.seed)
+    except WorldFileError as e:
+        raise UserError(str(e)) from None
+    lockstep = {k: v for k, v in (("watchdog_s", args.watchdog), ("fallback", args.fallback)) if v is not None}
+    if lockstep:
+        world = world.model_copy(update={"lockstep": world.lockstep.model_copy(update=lockstep)})
+    domain_id = _domain_id(args.domain_id)
+    _check_writable(args.out)
+
+    with _Interrupts() as interrupts:
+        try:
+            host = ComposedHost(world, executor=args.executor, domain_id=domain_id)
+            with host:
+                progress = _progress_bar(world.length_ticks, disabled=args.no_progress)
+                try:
+                    result = host.run(progress=progress.update, should_stop=lambda: interrupts.requested)
+                finally:
+                    progress.close()
+                phases = {"physics_s": host.sim.times.physics_s, "sensing_s": host.sim.times.sensing_s}
+                setup_s = host.setup.setup_s
+        except (plugins.PluginError, PlacementError, HostError) as e:
+            raise UserError(str(e)) from None
+        summary = summarize(world, result, setup_s=setup_s, mode="composed", executor=args.executor,
+                            phases=phases)
+        summary["out"] = str(args.out)
+        write_results(args.out, world, result, summary, picture=not args.no_picture)
+    if args.json:
+        print(json.dumps(summary, indent=2))
+    else:
+        print(_human_summary(summary))
+    return EXIT_INTERRUPTED if result.interrupted else 0
+
+
+def _progress_bar(total: int, disabled: bool):
+    from tqdm import tqdm
+    return tqdm(total=total, unit="tick", file=sys.stderr, disable=disabled, dynamic_ncols=True,
+                desc="simulating")
+
+
+def _human_summary(s: dict) -> str:
+    ph = s["phases_s"]
+    lines = [
+        f"{s['world']}: {s['robots']} robots, {s['ticks']} ticks ({s['sim_time_s']:.1f} s sim time), "
+        f"{s['mode']} mode, {s['executor']} executor"
+        + ("  [interrupted]" if s["interrupted"] else ""),
+        f"  setup {s['setup_s']:.2f} s, ticks {s['ticks_wall_s']:.2f} s wall, "
+        f"real-time factor {s['real_time_factor'] or 0:.2f}, peak RSS {s['peak_rss_mb']:.0f} MB",
+        f"  per tick: physics {1e3 * ph['physics_s'] / max(s['ticks'], 1):.1f} ms, "
+        f"sensing {1e3 * ph['sensing_s'] / max(s['ticks'], 1):.1f} ms, "
+        f"ROS exchange {1e3 * ph['ros_exchange_s'] / max(s['ticks'], 1):.1f} ms",
+        f"  violations: {s['violations']}",
+    ]
+    final = s.get("swarm", {}).get("final", {})
+    initial = s.get("swarm", {}).get("initial", {})
+    if "centroid_to_light_m" in final:
+        lines.append(f"  centroid to light: {initial['centroid_to_light_m']:.2f} m → {final['centroid_to_light_m']:.2f} m")
+    if "mean_nearest_neighbour_m" in final:
+        lines.append(f"  mean nearest-neighbour distance: {final['mean_nearest_neighbour_m']:.3f} m, "
+                     f"closest pair {final['min_pair_distance_m']:.3f} m")
+    lines.append(f"  results in {s['out']}/ (summary.json, trajectories.npz, arena.png)")
+    return "\n".join(lines)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,173 @@
+"""The composed host: the simulator node and every controller node in one process, one rclpy
+context, one domain, one executor."""
+from __future__ import annotations
+
+import threading
+import time
+from dataclasses import dataclass
+from typing import Callable, Optional
+
+import rclpy
+from rclpy.context import Context
+from rclpy.executors import Executor, MultiThreadedExecutor, SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+
+from composed_sim import plugins
+from composed_sim.core.simulation import Simulation
+from composed_sim.hosts.lockstep import LoopResult, run_lockstep
+from composed_sim.ros import contract as c
+from composed_sim.ros.controller import PARAM_ROBOT_MODEL, PARAM_RUN_SEED
+from composed_sim.ros.simulator_node import SimulatorNode, quiet_node_options
+from composed_sim.world.schema import World
+
+EXECUTORS = ("multi-threaded", "single-threaded", "events")
+DISCOVERY_TIMEOUT_S = 60.0
+
+
+class HostError(Exception):
+    """The host cannot start: the message says what and why."""
+
+
+def make_executor(kind: str, context: Context) -> Executor:
+    if kind == "multi-threaded":
+        return MultiThreadedExecutor(context=context)
+    if kind == "single-threaded":
+        return SingleThreadedExecutor(context=context)
+    if kind == "events":
+        from rclpy.experimental import EventsExecutor
+        return EventsExecutor(context=context)
+    raise HostError(f"unknown executor {kind!r}; choose one of {', '.join(EXECUTORS)}")
+
+
+def controller_parameters(world: World, group_index: int) -> list[Parameter]:
+    group = world.robots[group_index]
+    params = [Parameter(k, value=v) for k, v in group.params.items()]
+    return params + [Parameter(PARAM_ROBOT_MODEL, value=group.model), Parameter(PARAM_RUN_SEED, value=world.seed)]
+
+
+def create_controller(cls: type[Node], name: str, world: World, group_index: int,
+                      context: Context, use_sim_time: bool = False) -> Node:
+    """Construct one plugin Node in the robot's namespace, and check the world's params exist."""
+    group = world.robots[group_index]
+    overrides = controller_parameters(world, group_index)
+    if use_sim_time:
+        overrides.append(Parameter("use_sim_time", value=True))
+    try:
+        node = cls(context=context, namespace=f"/{name}", parameter_overrides=overrides,
+                   use_global_arguments=False, **quiet_node_options())
+    except Exception as e:
+        raise plugins.PluginError(f"controller plugin {group.controller!r} failed to construct for "
+                                  f"{name}: {type(e).__name__}: {e}") from e
+    unknown = [k for k in group.params if not node.has_parameter(k)]
+    if unknown:
+        declared = sorted(p for p in node._parameters if p not in ("use_sim_time", PARAM_ROBOT_MODEL, PARAM_RUN_SEED))
+        node.destroy_node()
+        raise plugins.PluginError(f"robots[{group_index}].params: controller {group.controller!r} has no "
+                                  f"parameter {', '.join(map(repr, unknown))} (it declares: {', '.join(declared) or 'none'})")
+    return node
+
+
+@dataclass
+class SetupInfo:
+    setup_s: float          # context, simulator, nodes, discovery: until tick 0 can start
+    nodes: int
+
+
+class ComposedHost:
+    """Context manager owning the rclpy context, the nodes and the executor, destroyed in order."""
+
+    def __init__(self, world: World, *, executor: str = "multi-threaded", domain_id: int = 0):
+        if executor not in EXECUTORS:
+            raise HostError(f"unknown executor {executor!r}; choose one of {', '.join(EXECUTORS)}")
+        self.world = world
+        self.executor_kind = executor
+        self.domain_id = domain_id
+        self.context: Optional[Context] = None
+        self.sim: Optional[Simulation] = None
+        self.sim_node: Optional[SimulatorNode] = None
+        self.controllers: list[Node] = []
+        self.executor: Optional[Executor] = None
+        self._spin_thread: Optional[threading.Thread] = None
+        self.setup: Optional[SetupInfo] = None
+
+    def __enter__(self) -> "ComposedHost":
+        t0 = time.perf_counter()
+        try:
+            classes = {g.controller: plugins.load(g.controller) for g in self.world.robots}
+            self.sim = Simulation(self.world)
+            self.context = Context()
+            rclpy.init(context=self.context, domain_id=self.domain_id)
+            self.sim_node = SimulatorNode(self.sim.names, self.sim.models, context=self.context,
+                                          tick_ns=round(1e9 / self.world.ticks_per_second))
+            self.executor = make_executor(self.executor_kind, self.context)
+            self.executor.add_node(self.sim_node)
+            for name, group_index in zip(self.sim.names, self.world.group_of_robot()):
+                cls = classes[self.world.robots[group_index].controller]
+                node = create_controller(cls, name, self.world, group_index, self.context)
+                self.sim_node.drive_clock_of(node)
+                self.controllers.append(node)
+                self.executor.add_node(node)
+            self._wait_for_discovery()
+        except BaseException:
+            self.__exit__(None, None, None)
+            raise
+        self.setup = SetupInfo(time.perf_counter() - t0, len(self.controllers) + 1)
+        return self
+
+    def _wait_for_discovery(self) -> None:
+        """Every robot's answer topic has a publisher and its sensors a subscriber before tick 0."""
+        node, deadline = self.sim_node, time.monotonic() + DISCOVERY_TIMEOUT_S
+        for name in self.sim.names:
+            while not (node.count_publishers(c.topic_name(name, c.CMD_VEL)) >= 1 and
+                       any(node.count_subscribers(c.topic_name(name, t)) >= 1 for t in c.SENSOR_TOPICS)):
+                if time.monotonic() > deadline:
+                    raise HostError(f"robot {name}: its controller's topics were not discovered within "
+                                    f"{DISCOVERY_TIMEOUT_S:.0f} s (does it publish {c.CMD_VEL.name} and "
+                                    f"subscribe to a sensor?)")
+                time.sleep(0.001)
+
+    def run(self, ticks: Optional[int] = None, *, progress: Optional[Callable[[int], None]] = None,
+            should_stop: Callable[[], bool] = lambda: False) -> LoopResult:
+        ticks = self.world.length_ticks if ticks is None else ticks
+        if self.executor_kind == "events":
+            wait = self._spin_until_answered
+        else:
+            # The stock executors spin in their own thread (the reference shape: callbacks may run
+            # on worker threads); the tick loop waits for the simulator node's "all answered".
+            self._spin_thread = threading.Thread(target=self._spin, name="executor", daemon=True)
+            self._spin_thread.start()
+            wait = self.sim_node.wait_for_answers
+        return run_lockstep(self.sim, self.sim_node, wait, ticks, progress=progress, should_stop=should_stop)
+
+    def _spin(self) -> None:
+        try:
+            self.executor.spin()
+        except rclpy.executors.ExternalShutdownException:
+            pass
+
+    def _spin_until_answered(self, timeout_s: float) -> bool:
+        """The EventsExecutor is driven from this thread: its spin() in a background thread hung in
+        our probes (DESIGN.md), while spin_once from the caller's thread is reliable."""
+        deadline = time.monotonic() + timeout_s
+        while not self.sim_node.all_answered:
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                return False
+            self.executor.spin_once(timeout_sec=remaining)
+        return True
+
+    def __exit__(self, *exc) -> None:
+        if self.executor is not None:
+            self.executor.shutdown()
+        if self._spin_thread is not None:
+            self._spin_thread.join(timeout=5.0)
+        for node in self.controllers:
+            node.destroy_node()
+        self.controllers = []
+        if self.sim_node is not None:
+            self.sim_node.destroy_node()
+            self.sim_node = None
+        if self.context is not None and self.context.ok():
+            rclpy.shutdown(context=self.context)
+        self.context = None

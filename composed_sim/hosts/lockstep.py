@@ -1,0 +1,86 @@
+"""The lockstep tick loop shared by every host.
+
+Per tick, one way: sensors of tick k → messages → controllers → answers (or the watchdog's
+fallback) → actuator arrays → physics → sensors of tick k+1. A host supplies only how the
+controllers' callbacks get run while the loop waits (``wait_for_answers``).
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Callable, Optional
+
+import numpy as np
+
+from composed_sim.core.simulation import Simulation
+from composed_sim.ros.simulator_node import SimulatorNode, Violation
+
+
+@dataclass
+class Trajectories:
+    """Poses at ticks 0 … T (row t is the state after t physics steps)."""
+    names: list[str]
+    positions: np.ndarray     # [T+1, n, 2] m
+    headings: np.ndarray      # [T+1, n] rad
+    ticks_done: int = 0       # rows filled beyond the initial pose
+
+    @classmethod
+    def allocate(cls, sim: Simulation, ticks: int) -> "Trajectories":
+        t = cls(sim.names, np.zeros((ticks + 1, sim.n, 2)), np.zeros((ticks + 1, sim.n)))
+        t.positions[0], t.headings[0] = sim.positions, sim.headings
+        return t
+
+    def record(self, sim: Simulation) -> None:
+        self.ticks_done += 1
+        self.positions[self.ticks_done] = sim.positions
+        self.headings[self.ticks_done] = sim.headings
+
+    def filled(self) -> "Trajectories":
+        """Only the rows written so far (a run stopped early keeps what it has)."""
+        k = self.ticks_done + 1
+        return Trajectories(self.names, self.positions[:k], self.headings[:k], self.ticks_done)
+
+
+@dataclass
+class LoopTimes:
+    ros_exchange_s: float = 0.0    # publishing sensors, controllers' callbacks, collecting answers
+    ticks_wall_s: float = 0.0
+
+
+@dataclass
+class LoopResult:
+    trajectories: Trajectories
+    violations: list[Violation]
+    times: LoopTimes
+    interrupted: bool = False
+
+
+def run_lockstep(sim: Simulation, node: SimulatorNode, wait_for_answers: Callable[[float], bool],
+                 ticks: int, *, progress: Optional[Callable[[int], None]] = None,
+                 should_stop: Callable[[], bool] = lambda: False) -> LoopResult:
+    lockstep = sim.world.lockstep
+    traj = Trajectories.allocate(sim, ticks)
+    times = LoopTimes()
+    previous = (np.zeros(sim.n), np.zeros(sim.n))
+    frame = sim.sense()
+    interrupted = False
+    t_start = time.perf_counter()
+    for _ in range(ticks):
+        if should_stop():
+            interrupted = True
+            break
+        t0 = time.perf_counter()
+        node.publish_tick(frame)
+        wait_for_answers(lockstep.watchdog_s)
+        commands = node.close_tick(lockstep.fallback, previous)
+        for robot, colors in node.take_led_commands().items():
+            sim.set_led_colors(robot, colors)
+        times.ros_exchange_s += time.perf_counter() - t0
+        sim.set_velocity_commands(*commands)
+        previous = commands
+        frame = sim.step()
+        traj.record(sim)
+        if progress is not None:
+            progress(1)
+    times.ticks_wall_s = time.perf_counter() - t_start
+    return LoopResult(traj, list(node.violations), times, interrupted)

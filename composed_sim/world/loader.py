@@ -1,0 +1,371 @@
+"""Read and write world files (YAML) with errors a user can act on.
+
+Every problem becomes one line ``file:line: field.path: what is wrong (got value)``; the
+line comes from the YAML node marks, kept in a map from field path to line while loading.
+Only ``yaml.SafeLoader`` is used: a world file can never construct Python objects.
+"""
+from __future__ import annotations
+
+import json
+import numbers
+import os
+import reprlib
+import types
+from typing import Annotated, Any, Optional, Union, get_args, get_origin
+
+import yaml
+from pydantic import BaseModel, ValidationError
+
+from composed_sim.world.schema import World
+
+Path = tuple[Union[str, int], ...]      # a field path, e.g. ("robots", 0, "count")
+
+# Largest values of the command-line overrides, given as exclusive upper bounds.
+_SEED_LIMIT = 2**32
+
+
+class WorldFileError(Exception):
+    """A world file, a world dict or an override that cannot be used.
+
+    ``str(error)`` is the whole message for the user; ``problems`` holds its lines, one
+    ``file:line: path: message (got value)`` per problem.
+    """
+
+    def __init__(self, message: str, problems: Optional[list[str]] = None):
+        super().__init__(message)
+        self.problems = problems if problems is not None else [message]
+
+
+# --- public API ----------------------------------------------------------------------
+
+def load_world(path: str | os.PathLike, *, robots: Optional[int] = None,
+               ticks: Optional[int] = None, seed: Optional[int] = None) -> World:
+    """Load a world file, then apply the command-line overrides (see ``with_overrides``)."""
+    source = os.fspath(path)
+    data, lines = _parse(_read(source), source)
+    world = _validate(data, source, lines)
+    return with_overrides(world, robots=robots, ticks=ticks, seed=seed, source=source)
+
+
+def world_from_dict(data: Any, source: str = "<dict>") -> World:
+    """Validate an already parsed world (e.g. a run's saved configuration); no line numbers."""
+    return _validate(data, source, {})
+
+
+def dump_world(world: World) -> str:
+    """YAML text that ``load_world`` reads back to an equal World (every field written)."""
+    return yaml.dump(world.model_dump(mode="json"), Dumper=_Dumper, sort_keys=False,
+                     allow_unicode=True)
+
+
+class _Dumper(yaml.SafeDumper):
+    """Block style, except lists of scalars inline: `position: [0.0, 10.0]`."""
+
+
+_Dumper.add_representer(list, lambda dumper, value: dumper.represent_sequence(
+    "tag:yaml.org,2002:seq", value,
+    flow_style=not any(isinstance(v, (list, dict)) for v in value)))
+
+
+def with_overrides(world: World, *, robots: Optional[int] = None, ticks: Optional[int] = None,
+                   seed: Optional[int] = None, source: str = "<world>") -> World:
+    """Apply --robots (total robot count), --ticks (length_ticks) and --seed.
+
+    With several groups, --robots splits the total in proportion to the groups' counts
+    (largest remainder, ties to the earlier group). Groups with explicit positions cannot
+    be resized.
+    """
+    _check_override("robots", robots, 1, None)
+    _check_override("ticks", ticks, 1, None)
+    _check_override("seed", seed, 0, _SEED_LIMIT)
+    data = world.model_dump()
+    if robots is not None:
+        counts = split_count(robots, [g.count for g in world.robots])
+        for gi, (group, count) in enumerate(zip(world.robots, counts)):
+            if group.placement.method == "explicit" and count != group.count:
+                raise WorldFileError(
+                    f"--robots: cannot resize robots[{gi}] to {count}: its placement lists "
+                    f"exactly {group.count} explicit positions (got --robots {robots}); "
+                    f"edit the world file instead")
+            data["robots"][gi]["count"] = count
+    if ticks is not None:
+        data["length_ticks"] = ticks
+    if seed is not None:
+        data["seed"] = seed
+    flags = " ".join(f"--{k} {v}" for k, v in (("robots", robots), ("ticks", ticks),
+                                                ("seed", seed)) if v is not None)
+    return _validate(data, f"{source} (with {flags})", {}) if flags else world
+
+
+def split_count(total: int, counts: list[int]) -> list[int]:
+    """Split ``total`` in proportion to ``counts`` by largest remainder; equal if all are 0."""
+    if not counts:
+        raise WorldFileError("--robots: the world has no robot groups to resize")
+    weights = counts if sum(counts) > 0 else [1] * len(counts)
+    whole = sum(weights)
+    shares = [total * w // whole for w in weights]          # exact integer arithmetic
+    by_remainder = sorted(range(len(weights)), key=lambda i: (-(total * weights[i] % whole), i))
+    for i in by_remainder[:total - sum(shares)]:
+        shares[i] += 1
+    return shares
+
+
+# --- reading and parsing -------------------------------------------------------------
+
+def _read(source: str) -> str:
+    try:
+        with open(source, encoding="utf-8") as file:
+            return file.read()
+    except FileNotFoundError:
+        raise WorldFileError(f"{source}: no such world file") from None
+    except IsADirectoryError:
+        raise WorldFileError(f"{source}: is a directory, not a world file") from None
+    except UnicodeDecodeError as exc:
+        raise WorldFileError(f"{source}: not a UTF-8 text file (byte {exc.object[exc.start]:#04x} "
+                             f"at offset {exc.start})") from None
+    except OSError as exc:
+        raise WorldFileError(f"{source}: cannot read the world file: "
+                             f"{exc.strerror or exc}") from None
+
+
+def _parse(text: str, source: str) -> tuple[Any, dict[Path, int]]:
+    """(data as yaml.safe_load gives it, {field path: 1-based line})."""
+    try:
+        loader = yaml.SafeLoader(text)     # checks for unprintable characters at once
+    except yaml.reader.ReaderError as exc:
+        line = text.count("\n", 0, exc.position) + 1
+        raise WorldFileError(f"{source}:{line}: not valid YAML: character {exc.character:#06x} "
+                             f"is not allowed") from None
+    try:
+        node = loader.get_single_node()
+        data = None if node is None else loader.construct_document(node)
+    except yaml.MarkedYAMLError as exc:
+        mark = exc.problem_mark or exc.context_mark
+        where = f"{source}:{mark.line + 1}" if mark else source
+        context = f" ({exc.context} at line {exc.context_mark.line + 1})" \
+            if exc.context and exc.context_mark else ""
+        raise WorldFileError(f"{where}: not valid YAML: {exc.problem}{context}") from None
+    except Exception as exc:    # noqa: BLE001 - e.g. a date like 2021-02-30; all are bad YAML
+        raise WorldFileError(f"{source}: not valid YAML: {exc}") from None
+    finally:
+        loader.dispose()
+    return data, ({} if node is None else _line_map(loader, node))
+
+
+def _line_map(loader: yaml.SafeLoader, root: yaml.Node) -> dict[Path, int]:
+    # Walked after construction, so merge keys (<<) are already flattened into the nodes.
+    # A node reached twice (an alias) is walked once: that also stops recursive aliases.
+    lines: dict[Path, int] = {(): root.start_mark.line + 1}
+    seen: set[int] = set()
+    stack = [(root, ())]
+    while stack:
+        node, path = stack.pop()
+        if id(node) in seen:
+            continue
+        seen.add(id(node))
+        if isinstance(node, yaml.MappingNode):
+            # Duplicate keys: the last one wins, as in the data.
+            pairs = {_key(loader, k): (k, v) for k, v in node.value}
+            children = [(key, k.start_mark, v) for key, (k, v) in pairs.items()]
+        elif isinstance(node, yaml.SequenceNode):
+            children = [(i, v.start_mark, v) for i, v in enumerate(node.value)]
+        else:
+            continue
+        for key, mark, child in children:
+            lines[path + (key,)] = mark.line + 1
+            stack.append((child, path + (key,)))
+    return lines
+
+
+def _key(loader: yaml.SafeLoader, node: yaml.Node) -> Any:
+    try:
+        return loader.construct_object(node)   # the key as the data holds it (1, true, "x")
+    except Exception:   # noqa: BLE001 - already constructed once; fall back to its text
+        return getattr(node, "value", None)
+
+
+# --- validation and messages ---------------------------------------------------------
+
+def _validate(data: Any, source: str, lines: dict[Path, int]) -> World:
+    if data is None:
+        raise WorldFileError(f"{source}: the world file is empty; it needs at least `robots:`")
+    if not isinstance(data, dict):
+        raise WorldFileError(f"{_where(source, lines, ())}: the top level must be a mapping of "
+                             f"world fields (name, seed, robots, ...), got {_kind(data)} "
+                             f"{_show(data)}")
+    try:
+        return World.model_validate(data)
+    except ValidationError as exc:
+        problems = [p for err in exc.errors() for p in _problems(err)]
+    except RecursionError:      # a pathological alias structure
+        raise WorldFileError(f"{source}: the world refers to itself too deeply "
+                             f"(recursive YAML aliases?)") from None
+    rows = sorted({(_line(lines, path), _format_path(path), message, got)
+                   for path, message, got in problems}, key=lambda r: (r[0] or 0, r[1], r[2]))
+    texts = [f"{source}{f':{line}' if line else ''}: {path}{': ' if path else ''}{message}{got}"
+             for line, path, message, got in rows]
+    if len(texts) == 1:
+        raise WorldFileError(texts[0], texts)
+    raise WorldFileError(f"{source}: {len(texts)} problems:\n" + "\n".join(f"  {t}" for t in texts),
+                         texts)
+
+
+def _problems(err: dict) -> list[tuple[Path, str, str]]:
+    """(path the user wrote, message, " (got value)" or "") for one pydantic error."""
+    ctx = err.get("ctx") or {}
+    if err["type"] == "world":      # the schema's own checks, possibly several at once
+        out = []
+        for sub, message, value in ctx["problems"]:
+            path, _, _ = _resolve(tuple(err["loc"]) + tuple(sub))
+            out.append((path, message, _got(value)))
+        return out
+    path, owner, tp = _resolve(tuple(err["loc"]))
+    kind, value = err["type"], err.get("input")
+    if kind == "missing" and path and isinstance(path[-1], int):    # a tuple too short
+        parent = _resolve(tuple(err["loc"])[:-1])[2]
+        return [(path[:-1], f"must have exactly {len(get_args(parent))} items", _got(value))]
+    if kind == "too_long" and get_origin(tp) is tuple and Ellipsis not in get_args(tp):
+        return [(path, f"must have exactly {len(get_args(tp))} items", _got(value))]
+    if kind == "missing":
+        return [(path, "is required", "")]
+    if kind == "extra_forbidden":
+        allowed = ", ".join(owner.model_fields) if owner else "?"
+        return [(path, f"unknown field (allowed here: {allowed})", _got(value))]
+    if kind == "union_tag_invalid":
+        return [(path + ("type",), f"must be one of {ctx['expected_tags']}", _got(ctx["tag"]))]
+    if kind == "union_tag_not_found":
+        return [(path + ("type",), f"is required: one of {', '.join(map(repr, _tags(tp)))}", "")]
+    if kind == "invalid_key":
+        return [(path[:-1], "field names must be text", _got(value))]
+    return [(path, _MESSAGES.get(kind, _rephrase)(ctx, err["msg"]), _got(value))]
+
+
+_MESSAGES = {
+    "greater_than": lambda c, m: f"must be > {c['gt']}",
+    "greater_than_equal": lambda c, m: f"must be >= {c['ge']}",
+    "less_than": lambda c, m: f"must be < {c['lt']}",
+    "less_than_equal": lambda c, m: f"must be <= {c['le']}",
+    "int_type": lambda c, m: "must be a whole number",
+    "int_parsing": lambda c, m: "must be a whole number",
+    "int_from_float": lambda c, m: "must be a whole number",
+    "float_type": lambda c, m: "must be a number",
+    "float_parsing": lambda c, m: "must be a number",
+    "finite_number": lambda c, m: "must be a finite number",
+    "bool_type": lambda c, m: "must be true or false",
+    "bool_parsing": lambda c, m: "must be true or false",
+    "string_type": lambda c, m: "must be text",
+    "string_too_short": lambda c, m: "must not be empty",
+    "list_type": lambda c, m: "must be a list",
+    "tuple_type": lambda c, m: "must be a list",
+    "too_long": lambda c, m: f"must have at most {c['max_length']} items",
+    "too_short": lambda c, m: f"must have at least {c['min_length']} items",
+    "literal_error": lambda c, m: f"must be one of {c['expected']}",
+    "dict_type": lambda c, m: "must be a mapping (key: value lines)",
+    "model_type": lambda c, m: "must be a mapping (key: value lines)",
+    "model_attributes_type": lambda c, m: "must be a mapping (key: value lines)",
+    "recursion_loop": lambda c, m: "refers to itself (a recursive YAML alias)",
+}
+
+
+def _rephrase(ctx: dict, msg: str) -> str:
+    return msg.replace("Input should be", "must be").replace("Input should", "must")
+
+
+def _resolve(loc: tuple) -> tuple[Path, Optional[type[BaseModel]], Any]:
+    """Walk the schema along a pydantic loc.
+
+    Returns the path as the user wrote it (pydantic inserts the name of the union member it
+    tried, e.g. ``obstacles.0.box.size``: dropped), the model owning the last element, and
+    the type found at the end of the path (None once the path leaves the schema).
+    """
+    path: list = []
+    tp: Any = World
+    owner = None
+    for item in loc:
+        tp, owner = _unwrap(tp), None
+        if isinstance(tp, type) and issubclass(tp, BaseModel):
+            owner = tp
+            field = tp.model_fields.get(item) if isinstance(item, str) else None
+            tp = field.annotation if field else None
+        elif get_origin(tp) is Union and isinstance(item, str):
+            tp = {t: m for m in get_args(tp) for t in _tags(m)}.get(item)
+            continue            # a union member's name, not part of the user's path
+        elif get_origin(tp) in (list, tuple) and isinstance(item, int):
+            args = [a for a in get_args(tp) if a is not Ellipsis]
+            tp = args[min(item, len(args) - 1)] if args else None
+        elif get_origin(tp) is dict:
+            tp = get_args(tp)[1]
+        else:
+            tp = None
+        path.append(item)
+    return tuple(path), owner, _unwrap(tp)
+
+
+def _unwrap(tp: Any) -> Any:
+    """Strip Annotated[...] and Optional[...] wrappers."""
+    while True:
+        if get_origin(tp) is Annotated:
+            tp = get_args(tp)[0]
+        elif get_origin(tp) in (Union, types.UnionType) and type(None) in get_args(tp):
+            rest = [a for a in get_args(tp) if a is not type(None)]
+            tp = rest[0] if len(rest) == 1 else Union[tuple(rest)]
+        else:
+            return tp
+
+
+def _tags(tp: Any) -> list[str]:
+    """Discriminator values (the ``type`` field) of a model or of a union of models."""
+    members = get_args(tp) if get_origin(tp) is Union else (tp,)
+    return [m.model_fields["type"].default for m in members
+            if isinstance(m, type) and issubclass(m, BaseModel) and "type" in m.model_fields]
+
+
+def _line(lines: dict[Path, int], path: Path) -> Optional[int]:
+    """Line of the path, or of its nearest ancestor that the file has (e.g. a missing field)."""
+    for end in range(len(path), 0, -1):
+        line = lines.get(path[:end])
+        if line is not None:
+            return line
+    return None     # the top level: a line number would say nothing
+
+
+def _where(source: str, lines: dict[Path, int], path: Path) -> str:
+    line = lines.get(path)
+    return f"{source}:{line}" if line else source
+
+
+def _format_path(path: Path) -> str:
+    out = ""
+    for item in path:
+        out += f"[{item}]" if isinstance(item, int) and not isinstance(item, bool) else \
+            (f".{item}" if out else str(item))
+    return out
+
+
+def _check_override(name: str, value: Any, low: int, high: Optional[int]) -> None:
+    if value is None:
+        return
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+        raise WorldFileError(f"--{name}: must be a whole number (got {_show(value)})")
+    if value < low:
+        raise WorldFileError(f"--{name}: must be >= {low} (got {value})")
+    if high is not None and value >= high:
+        raise WorldFileError(f"--{name}: must be < {high} (got {value})")
+
+
+def _got(value: Any) -> str:
+    return f" (got {_show(value)})"
+
+
+def _show(value: Any, limit: int = 80) -> str:
+    """The value as the user would write it in YAML/JSON, shortened."""
+    try:
+        text = json.dumps(value, ensure_ascii=False, default=str)
+    except Exception:   # noqa: BLE001 - recursive or odd keys: Python's repr copes with all
+        text = reprlib.repr(value)
+    return text if len(text) <= limit else text[:limit - 3] + "..."
+
+
+def _kind(value: Any) -> str:
+    return {list: "a list", str: "text", bool: "true/false", int: "a number",
+            float: "a number"}.get(type(value), f"a {type(value).__name__}")

@@ -1,0 +1,282 @@
+"""The world file schema (pydantic v2): one model per section, unknown fields rejected.
+
+A loaded ``World`` is the resolved description of a run: the core, the hosts and the
+results all read it, and ``World.model_dump(mode="json")`` writes it back out so a run can
+be reproduced from its saved configuration. ``composed_sim.world.loader`` reads and writes
+the YAML files and turns validation errors into messages with file, line and field path.
+
+Checks that span several fields raise a ``PydanticCustomError`` of type ``"world"`` whose
+context carries ``problems``: ``(sub-path, message, value)`` triples relative to the model
+that raised it, so the loader can point at the exact field (and its line) of each problem.
+"""
+from __future__ import annotations
+
+import math
+import re
+from typing import Annotated, Any, Literal, Optional, Union
+
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic_core import PydanticCustomError
+
+from composed_sim.core.robot_models import MODELS
+
+Vec2 = tuple[float, float]
+PositiveFloat = Annotated[float, Field(gt=0)]
+NonNegativeFloat = Annotated[float, Field(ge=0)]
+RGB = tuple[Annotated[int, Field(ge=0, le=255)], Annotated[int, Field(ge=0, le=255)],
+            Annotated[int, Field(ge=0, le=255)]]
+
+# Robot names become ROS namespaces (<prefix><index>), so the prefix must be a ROS name token.
+_ROS_TOKEN = re.compile(r"[A-Za-z][A-Za-z0-9_]*")
+
+
+def _invalid(problems: list[tuple[tuple, str, Any]]) -> PydanticCustomError:
+    """One validation error carrying several (sub-path, message, value) problems."""
+    text = "; ".join(".".join(map(str, path)) + (": " if path else "") + message
+                     for path, message, _ in problems)
+    return PydanticCustomError("world", "{text}", {"text": text, "problems": problems})
+
+
+def _finite(x: float) -> bool:
+    try:
+        return math.isfinite(x)
+    except OverflowError:   # an int too large for a float
+        return False
+
+
+class Strict(BaseModel):
+    # NaN or infinity in a position or a size would only surface later as a physics blow-up.
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+
+class Arena(Strict):
+    center: Vec2 = (0.0, 0.0)
+    # Arena side lengths in metres. Required when walls are on; without walls it only
+    # bounds where lights may stand (None = unbounded). The walls stand inside this
+    # rectangle (outer faces on its edge): see inner_bounds() and wall_boxes().
+    size: Optional[tuple[PositiveFloat, PositiveFloat]] = None
+    walls: bool = False
+    wall_thickness_m: PositiveFloat = 0.1
+    wall_height_m: PositiveFloat = 0.5
+
+    @model_validator(mode="after")
+    def _walls_need_size(self) -> Arena:
+        if self.walls and self.size is None:
+            raise _invalid([(("walls",), "walls need arena.size (the side lengths in m)", True)])
+        if self.walls and 2 * self.wall_thickness_m >= min(self.size):
+            raise _invalid([(("wall_thickness_m",), f"two walls must fit in the arena size "
+                             f"{list(self.size)}", self.wall_thickness_m)])
+        return self
+
+    def contains(self, x: float, y: float) -> bool:
+        """True when (x, y) is inside the arena rectangle (always, when size is None)."""
+        if self.size is None:
+            return True
+        return (abs(x - self.center[0]) <= self.size[0] / 2
+                and abs(y - self.center[1]) <= self.size[1] / 2)
+
+    def inner_bounds(self) -> Optional[tuple[float, float, float, float]]:
+        """(x_min, y_min, x_max, y_max) of the floor inside the walls; None without walls."""
+        if not self.walls:
+            return None
+        hx = self.size[0] / 2 - self.wall_thickness_m
+        hy = self.size[1] / 2 - self.wall_thickness_m
+        cx, cy = self.center
+        return (cx - hx, cy - hy, cx + hx, cy + hy)
+
+    def wall_boxes(self) -> list[Box]:
+        """The four walls as static boxes (east, west, north, south); [] without walls."""
+        if not self.walls:
+            return []
+        (cx, cy), (sx, sy), t = self.center, self.size, self.wall_thickness_m
+        h = self.wall_height_m
+        return [Box(position=(cx + (sx - t) / 2, cy), size=(t, sy), height_m=h),
+                Box(position=(cx - (sx - t) / 2, cy), size=(t, sy), height_m=h),
+                Box(position=(cx, cy + (sy - t) / 2), size=(sx, t), height_m=h),
+                Box(position=(cx, cy - (sy - t) / 2), size=(sx, t), height_m=h)]
+
+
+class Light(Strict):
+    position: Vec2
+    height_m: NonNegativeFloat = 0.5
+    intensity: NonNegativeFloat = 1.0
+    color: RGB = (255, 255, 0)
+
+
+class Box(Strict):
+    type: Literal["box"] = "box"
+    position: Vec2
+    size: tuple[PositiveFloat, PositiveFloat]   # along its own x and y
+    height_m: PositiveFloat = 0.5
+    yaw_rad: float = 0.0
+
+
+class Cylinder(Strict):
+    type: Literal["cylinder"] = "cylinder"
+    position: Vec2
+    radius_m: PositiveFloat
+    height_m: PositiveFloat = 0.5
+
+
+Obstacle = Annotated[Union[Box, Cylinder], Field(discriminator="type")]
+
+
+class Placement(Strict):
+    """Where a group's robots start. Overlapping draws are re-drawn up to max_trials."""
+    method: Literal["uniform", "gaussian", "grid", "explicit"] = "uniform"
+    center: Vec2 = (0.0, 0.0)
+    # uniform: a rectangle of this size, or (when size is None) a square whose side grows
+    # with the count so that the density stays at `density` robots per square metre.
+    size: Optional[tuple[PositiveFloat, PositiveFloat]] = None
+    density: PositiveFloat = 5.0
+    std_m: PositiveFloat = 1.0                  # gaussian
+    # grid: ceil(sqrt(count)) columns, filled row-major (x first) from the lower-left,
+    # the whole block centred at `center`. Grid and explicit positions are never re-drawn.
+    spacing_m: PositiveFloat = 0.5
+    positions: Optional[list[Vec2]] = None      # explicit: exactly `count` positions
+    max_trials: Annotated[int, Field(ge=1)] = 100
+
+    @model_validator(mode="after")
+    def _positions_match_method(self) -> Placement:
+        if self.method == "explicit" and self.positions is None:
+            raise _invalid([(("method",), "explicit placement needs a `positions` list",
+                             self.method)])
+        if self.method != "explicit" and self.positions is not None:
+            raise _invalid([(("positions",), f"positions are only read by method: explicit "
+                             f"(method is {self.method})", self.positions)])
+        return self
+
+
+class Heading(Strict):
+    method: Literal["uniform", "constant", "gaussian"] = "uniform"
+    value_rad: float = 0.0      # constant, and the gaussian's mean
+    std_rad: NonNegativeFloat = 0.5
+
+
+class CameraConfig(Strict):
+    aperture_deg: Annotated[float, Field(gt=0, lt=90)] = 70.0
+
+
+ParamValue = Union[float, int, str, bool, list[float]]
+
+
+class RobotGroup(Strict):
+    model: str = "foot-bot"                          # a key of core.robot_models.MODELS
+    count: Annotated[int, Field(ge=0)]
+    name_prefix: str = "bot"
+    controller: Annotated[str, Field(min_length=1)]  # entry-point name in composed_sim.controllers
+    params: dict[str, ParamValue] = {}
+    placement: Placement = Placement()
+    heading: Heading = Heading()
+    camera: CameraConfig = CameraConfig()
+
+    @field_validator("model")
+    @classmethod
+    def _known_model(cls, value: str) -> str:
+        if value not in MODELS:
+            raise _invalid([((), f"unknown robot model; known: {', '.join(sorted(MODELS))}",
+                             value)])
+        return value
+
+    @field_validator("name_prefix")
+    @classmethod
+    def _ros_name(cls, value: str) -> str:
+        if not _ROS_TOKEN.fullmatch(value):
+            raise _invalid([((), "must be a ROS name: a letter, then letters, digits or _",
+                             value)])
+        return value
+
+    @field_validator("params", mode="before")
+    @classmethod
+    def _param_values(cls, value: Any) -> Any:
+        # Checked here rather than by the Union so that a bad value gets one message, not
+        # one per member of the Union.
+        if not isinstance(value, dict):
+            return value    # the dict validator reports it
+        problems = []
+        for key, item in value.items():
+            scalar = isinstance(item, (bool, int, float, str))
+            number_list = isinstance(item, list) and all(
+                isinstance(x, (int, float)) and not isinstance(x, bool) for x in item)
+            numbers = item if number_list else [item] if isinstance(item, float) else []
+            if not (scalar or number_list):
+                problems.append(((key,), "must be a number, a string, true/false or a list "
+                                 "of numbers", item))
+            elif not all(_finite(x) for x in numbers):
+                problems.append(((key,), "must be finite", item))
+        if problems:
+            raise _invalid(problems)
+        return value
+
+    @model_validator(mode="after")
+    def _explicit_count(self) -> RobotGroup:
+        positions = self.placement.positions
+        if positions is not None and len(positions) != self.count:
+            raise _invalid([(("placement", "positions"), f"must list exactly count = "
+                             f"{self.count} positions, lists {len(positions)}", positions)])
+        return self
+
+
+class Physics(Strict):
+    substeps: Annotated[int, Field(ge=1, le=100)] = 10
+    iterations: Annotated[int, Field(ge=1, le=100)] = 10
+
+
+class Lockstep(Strict):
+    # Wall-clock seconds the simulator waits for a controller's answer to a tick before it
+    # injects the fallback command and records a violation.
+    watchdog_s: PositiveFloat = 10.0
+    fallback: Literal["zero", "previous"] = "zero"
+
+
+class World(Strict):
+    name: str = "world"
+    seed: Annotated[int, Field(ge=0, lt=2**32)] = 0
+    ticks_per_second: Annotated[int, Field(ge=1, le=1000)] = 10
+    length_ticks: Annotated[int, Field(ge=1)] = 600
+    physics: Physics = Physics()
+    lockstep: Lockstep = Lockstep()
+    arena: Arena = Arena()
+    lights: list[Light] = []
+    obstacles: list[Obstacle] = []
+    robots: list[RobotGroup]
+
+    @model_validator(mode="after")
+    def _consistent(self) -> World:
+        problems = [(("lights", i, "position"), f"outside the arena (size {list(self.arena.size)} "
+                     f"centred at {list(self.arena.center)})", list(light.position))
+                    for i, light in enumerate(self.lights)
+                    if not self.arena.contains(*light.position)]
+        # Numbering runs on per prefix, so prefixes "bot" and "bot1" can both make "bot10".
+        seen: dict[str, int] = {}
+        for name, gi in zip(self.robot_names(), self.group_of_robot()):
+            first = seen.setdefault(name, gi)
+            if first != gi:
+                problems.append((("robots", gi, "name_prefix"), f"robot name {name} is also made "
+                                 f"by robots[{first}]", self.robots[gi].name_prefix))
+                break
+        if problems:
+            raise _invalid(problems)
+        return self
+
+    @property
+    def robot_count(self) -> int:
+        return sum(g.count for g in self.robots)
+
+    @property
+    def tick_s(self) -> float:
+        return 1.0 / self.ticks_per_second
+
+    def robot_names(self) -> list[str]:
+        """Names in group order; numbering per prefix runs on across groups (bot0 … botN-1)."""
+        counters: dict[str, int] = {}
+        names = []
+        for group in self.robots:
+            start = counters.get(group.name_prefix, 0)
+            names += [f"{group.name_prefix}{start + i}" for i in range(group.count)]
+            counters[group.name_prefix] = start + group.count
+        return names
+
+    def group_of_robot(self) -> list[int]:
+        """[n] index into ``robots`` of each robot's group."""
+        return [gi for gi, group in enumerate(self.robots) for _ in range(group.count)]

@@ -1,0 +1,38 @@
+"""Test-wide isolation: ROS traffic stays on this host and in a domain of this test process only,
+so parallel test runs on one machine never hear each other; plotting is headless."""
+import os
+import shutil
+import sys
+from pathlib import Path
+
+import pytest
+
+os.environ["ROS_DOMAIN_ID"] = str(1 + os.getpid() % 100)   # 1 … 100; multi-process tests use others
+os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+os.environ.pop("ROS_LOCALHOST_ONLY", None)                   # deprecated in Jazzy, conflicts with the above
+os.environ["MPLBACKEND"] = "Agg"
+
+PLUGIN_SOURCE = Path(__file__).parent / "plugin_pkg"
+
+
+@pytest.fixture
+def domain_id() -> int:
+    return int(os.environ["ROS_DOMAIN_ID"])
+
+
+@pytest.fixture
+def third_party_plugin(tmp_path, monkeypatch):
+    """Install the test package's controller the way pip would: a module plus a dist-info with an
+    entry point in ``composed_sim.controllers``, on sys.path (and PYTHONPATH for child processes)."""
+    site = tmp_path / "site"
+    site.mkdir()
+    shutil.copy(PLUGIN_SOURCE / "plain_forward.py", site / "plain_forward.py")
+    dist = site / "plain_forward_plugin-1.0.dist-info"
+    dist.mkdir()
+    (dist / "METADATA").write_text("Metadata-Version: 2.1\nName: plain-forward-plugin\nVersion: 1.0\n")
+    (dist / "entry_points.txt").write_text(
+        "[composed_sim.controllers]\nplain-forward = plain_forward:PlainForward\n")
+    monkeypatch.syspath_prepend(str(site))
+    monkeypatch.setenv("PYTHONPATH", os.pathsep.join(filter(None, [str(site), os.environ.get("PYTHONPATH")])))
+    yield "plain-forward"
+    sys.modules.pop("plain_forward", None)
