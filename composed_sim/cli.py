@@ -47,7 +47,7 @@ def _positive_float(text: str) -> float:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from composed_sim.hosts.composed import EXECUTORS
+    from composed_sim.hosts.composed import EXECUTORS, MODES
 
     parser = argparse.ArgumentParser(prog="composed-sim", description=(
         "Swarm simulator whose robot controllers are ROS 2 nodes, all hosted in one process."))
@@ -61,8 +61,13 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--robots", type=_positive_int, help="total number of robots (overrides the world)")
     run.add_argument("--ticks", type=_positive_int, help="ticks to simulate (overrides length_ticks)")
     run.add_argument("--seed", type=_non_negative_int, help="random seed (overrides the world)")
+    run.add_argument("--mode", choices=MODES, default="composed",
+                     help="composed: every controller in this process; multi-process: one process per "
+                          "controller over balanced ROS domains, as in the paper (default: %(default)s)")
     run.add_argument("--executor", choices=EXECUTORS, default="multi-threaded",
-                     help="rclpy executor running every node (default: %(default)s)")
+                     help="rclpy executor running the nodes (default: %(default)s)")
+    run.add_argument("--robots-per-domain", type=_positive_int, default=None,
+                     help="multi-process mode: robots per ROS domain (default: the world's, else 50)")
     run.add_argument("--watchdog", type=_positive_float, metavar="SECONDS",
                      help="wall seconds to wait for a controller's answer before its fallback")
     run.add_argument("--fallback", choices=("zero", "previous"), help="command given to a late robot")
@@ -74,6 +79,13 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
 
     sub.add_parser("plugins", help="list the installed controller plugins")
+
+    bench = sub.add_parser("bench", help="benchmark swarm sizes, modes and executors against the paper",
+                           description="Sweep swarm sizes, host modes and executors; measure setup, "
+                                       "wall time, CPU and peak memory of each run's process tree; write "
+                                       "CSV, JSON and figures side by side with the paper's results.")
+    from composed_sim import bench as bench_module
+    bench_module.add_arguments(bench)
     return parser
 
 
@@ -82,6 +94,9 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if args.command == "plugins":
             return cmd_plugins()
+        if args.command == "bench":
+            from composed_sim import bench
+            return bench.run(args)
         return cmd_run(args)
     except UserError as e:
         print(f"composed-sim: error: {e}", file=sys.stderr)
@@ -161,7 +176,12 @@ def cmd_run(args) -> int:
 
     with _Interrupts() as interrupts:
         try:
-            host = ComposedHost(world, executor=args.executor, domain_id=domain_id)
+            if args.mode == "multi-process":
+                from composed_sim.hosts.multiprocess import MultiProcessHost
+                host = MultiProcessHost(world, executor=args.executor, domain_id=domain_id,
+                                        robots_per_domain=args.robots_per_domain)
+            else:
+                host = ComposedHost(world, executor=args.executor, domain_id=domain_id)
             with host:
                 progress = _progress_bar(world.length_ticks, disabled=args.no_progress)
                 try:
@@ -172,7 +192,7 @@ def cmd_run(args) -> int:
                 setup_s = host.setup.setup_s
         except (plugins.PluginError, PlacementError, HostError) as e:
             raise UserError(str(e)) from None
-        summary = summarize(world, result, setup_s=setup_s, mode="composed", executor=args.executor,
+        summary = summarize(world, result, setup_s=setup_s, mode=args.mode, executor=args.executor,
                             phases=phases)
         summary["out"] = str(args.out)
         write_results(args.out, world, result, summary, picture=not args.no_picture)

@@ -48,9 +48,10 @@ def place_robots(world: World, rng: np.random.Generator) -> tuple[np.ndarray, np
     start = 0
     for gi, group in enumerate(world.robots):
         end = start + group.count
-        radii[start:end] = get_model(group.model).body_radius_m
-        positions[start:end] = _place_group(gi, group, radii[start], positions[:start],
+        radius = get_model(group.model).body_radius_m
+        positions[start:end] = _place_group(gi, group, radius, positions[:start],
                                             radii[:start], statics, rng)
+        radii[start:end] = radius
         headings[start:end] = _draw_headings(group, rng)
         start = end
     return positions, headings

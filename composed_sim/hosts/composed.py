@@ -22,6 +22,7 @@ from composed_sim.ros.simulator_node import SimulatorNode, quiet_node_options
 from composed_sim.world.schema import World
 
 EXECUTORS = ("multi-threaded", "single-threaded", "events")
+MODES = ("composed", "multi-process")
 DISCOVERY_TIMEOUT_S = 60.0
 
 

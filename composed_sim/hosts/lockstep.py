@@ -7,12 +7,12 @@ controllers' callbacks get run while the loop waits (``wait_for_answers``).
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
-from typing import Callable, Optional
+from dataclasses import dataclass
+from typing import Callable, Optional, Protocol
 
 import numpy as np
 
-from composed_sim.core.simulation import Simulation
+from composed_sim.core.simulation import SensorFrame, Simulation
 from composed_sim.ros.simulator_node import SimulatorNode, Violation
 
 
@@ -55,9 +55,21 @@ class LoopResult:
     interrupted: bool = False
 
 
-def run_lockstep(sim: Simulation, node: SimulatorNode, wait_for_answers: Callable[[float], bool],
+class Exchange(Protocol):
+    """The simulator's side of the ROS exchange: one SimulatorNode, or one per domain."""
+    violations: list[Violation]
+
+    def publish_tick(self, frame: SensorFrame) -> None: ...
+    def close_tick(self, fallback: str, previous: tuple[np.ndarray, np.ndarray],
+                   commands: tuple[np.ndarray, np.ndarray]) -> None: ...
+    def take_led_commands(self) -> dict[int, np.ndarray]: ...
+
+
+def run_lockstep(sim: Simulation, exchange: Exchange, wait_for_answers: Callable[[float], bool],
                  ticks: int, *, progress: Optional[Callable[[int], None]] = None,
                  should_stop: Callable[[], bool] = lambda: False) -> LoopResult:
+    """Run ``ticks`` lockstep ticks; ``wait_for_answers(timeout_s)`` runs or awaits the controllers
+    until every robot answered the published tick or the watchdog time is over."""
     lockstep = sim.world.lockstep
     traj = Trajectories.allocate(sim, ticks)
     times = LoopTimes()
@@ -70,10 +82,11 @@ def run_lockstep(sim: Simulation, node: SimulatorNode, wait_for_answers: Callabl
             interrupted = True
             break
         t0 = time.perf_counter()
-        node.publish_tick(frame)
+        exchange.publish_tick(frame)
         wait_for_answers(lockstep.watchdog_s)
-        commands = node.close_tick(lockstep.fallback, previous)
-        for robot, colors in node.take_led_commands().items():
+        commands = (np.empty(sim.n), np.empty(sim.n))
+        exchange.close_tick(lockstep.fallback, previous, commands)
+        for robot, colors in exchange.take_led_commands().items():
             sim.set_led_colors(robot, colors)
         times.ros_exchange_s += time.perf_counter() - t0
         sim.set_velocity_commands(*commands)
@@ -83,4 +96,4 @@ def run_lockstep(sim: Simulation, node: SimulatorNode, wait_for_answers: Callabl
         if progress is not None:
             progress(1)
     times.ticks_wall_s = time.perf_counter() - t_start
-    return LoopResult(traj, list(node.violations), times, interrupted)
+    return LoopResult(traj, list(exchange.violations), times, interrupted)

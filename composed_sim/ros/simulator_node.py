@@ -8,6 +8,7 @@ from __future__ import annotations
 import math
 import threading
 from dataclasses import dataclass
+from typing import Optional
 
 import numpy as np
 from rclpy.context import Context
@@ -34,7 +35,10 @@ def quiet_node_options() -> dict:
 
 
 class SimulatorNode(Node):
-    """Sensor publishers and command subscriptions for every robot, in one node.
+    """Sensor publishers and command subscriptions for a set of robots, in one node.
+
+    One node serves every robot in composed mode; in multi-process mode there is one per ROS
+    domain, each serving that domain's robots (``rows``: their rows in the simulation's arrays).
 
     Answers (``cmd_vel``) arrive through executor callbacks, possibly on worker threads; the
     host waits on ``wait_for_answers``. LED commands go to a separate inbox node that is never
@@ -43,15 +47,19 @@ class SimulatorNode(Node):
     """
 
     def __init__(self, names: list[str], models: list[RobotModel], *, context: Context,
-                 tick_ns: int, node_name: str = "composed_sim"):
+                 tick_ns: int, rows: Optional[np.ndarray] = None, node_name: str = "composed_sim"):
         super().__init__(node_name, context=context, **quiet_node_options())
         self._names = names
         self._models = models
         self._tick_ns = tick_ns
         n = len(names)
+        self.rows = np.arange(n) if rows is None else np.asarray(rows)
+        if len(self.rows) != n:
+            raise ValueError(f"{n} robots but {len(self.rows)} rows")
         self._inbox = Node(node_name + "_inbox", context=context, **quiet_node_options())
         self._clock_pub = self.create_publisher(Clock, c.CLOCK_TOPIC, 10)
         self._clock_msg = Clock()
+        self._driven_clocks = []
 
         self._proximity_pubs, self._light_pubs, self._blob_pubs = [], [], []
         self._proximity_msgs, self._light_msgs, self._blob_msgs = [], [], []
@@ -72,13 +80,14 @@ class SimulatorNode(Node):
         self.linear = np.zeros(n)       # [n] m/s
         self.angular = np.zeros(n)      # [n] rad/s
         self.answered = np.zeros(n, dtype=bool)
+        self.failed = np.zeros(n, dtype=bool)   # robots whose controller is gone: not waited for
         self._lock = threading.Lock()
         self._all_answered = threading.Event()
         self._n_answered = 0
+        self._n_expected = n
         self._current_key = -1
         self._current_tick = -1
         self.violations: list[Violation] = []
-        self._driven_clocks = []
 
     def drive_clock_of(self, node: Node) -> None:
         """Set a node's clock to sim time at each tick directly: a hosted node then sees sim time
@@ -86,6 +95,20 @@ class SimulatorNode(Node):
         clock = node.get_clock()
         clock._set_ros_time_is_active(True)
         self._driven_clocks.append(clock)
+
+    def mark_failed(self, robot: str, reason: str) -> None:
+        """A robot whose controller is gone: recorded once, then given the fallback every tick
+        without being waited for."""
+        i = self._names.index(robot)
+        with self._lock:
+            if self.failed[i]:
+                return
+            self.failed[i] = True
+            self._record(self._current_tick, i, f"controller failed: {reason}")
+            if not self.answered[i]:
+                self._n_expected -= 1
+                if self._n_answered >= self._n_expected:
+                    self._all_answered.set()
 
     # --- the tick exchange ----------------------------------------------------------------
 
@@ -95,7 +118,11 @@ class SimulatorNode(Node):
         with self._lock:
             self.answered[:] = False
             self._n_answered = 0
-            self._all_answered.clear()
+            self._n_expected = int(np.count_nonzero(~self.failed))
+            if self._n_expected == 0:
+                self._all_answered.set()
+            else:
+                self._all_answered.clear()
             self._current_key = c.stamp_key(stamp)
             self._current_tick = frame.tick
         self._clock_msg.clock = stamp
@@ -105,16 +132,17 @@ class SimulatorNode(Node):
             clock.set_ros_time_override(now)
         blobs = frame.blobs
         points = c.blob_points(blobs.angles, blobs.distances, blobs.colors)
-        for i in range(len(self._names)):
+        for i, row in enumerate(self.rows):
+            if self.failed[i]:
+                continue
             msg = self._proximity_msgs[i]
-            c.fill_proximity(msg, stamp, frame.proximity_distances[i], frame.proximity[i])
+            c.fill_proximity(msg, stamp, frame.proximity_distances[row], frame.proximity[row])
             self._proximity_pubs[i].publish(msg)
             msg = self._light_msgs[i]
-            c.fill_light(msg, stamp, frame.light[i])
+            c.fill_light(msg, stamp, frame.light[row])
             self._light_pubs[i].publish(msg)
-            lo, hi = blobs.offsets[i], blobs.offsets[i + 1]
             msg = self._blob_msgs[i]
-            c.fill_blobs(msg, stamp, points[lo:hi])
+            c.fill_blobs(msg, stamp, points[blobs.offsets[row]:blobs.offsets[row + 1]])
             self._blob_pubs[i].publish(msg)
 
     def wait_for_answers(self, timeout_s: float) -> bool:
@@ -128,6 +156,8 @@ class SimulatorNode(Node):
         key = c.stamp_key(msg.header.stamp)
         linear, angular = msg.twist.linear.x, msg.twist.angular.z
         with self._lock:
+            if self.failed[i]:
+                return
             if key != self._current_key:
                 self._record(self._current_tick, i, f"answer stamped {key} ns is not for the current tick")
                 return
@@ -140,38 +170,39 @@ class SimulatorNode(Node):
                 self.angular[i] = angular
             self.answered[i] = True
             self._n_answered += 1
-            if self._n_answered == len(self._names):
+            if self._n_answered >= self._n_expected:
                 self._all_answered.set()
 
-    def close_tick(self, fallback: str, previous: tuple[np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-        """End the answer window: robots that did not answer get the fallback, recorded.
-
-        Returns the (linear [n], angular [n]) commands to act on.
-        """
+    def close_tick(self, fallback: str, previous: tuple[np.ndarray, np.ndarray],
+                   commands: tuple[np.ndarray, np.ndarray]) -> None:
+        """End the answer window and write this node's robots' commands into ``commands``
+        (linear [N], angular [N], indexed by simulation row). Robots that did not answer get the
+        fallback (zero, or ``previous``), recorded as a violation unless already failed."""
         with self._lock:
-            late = np.flatnonzero(~self.answered)
             self._current_key = -1   # later answers to this tick are stale
+            answered, failed = self.answered.copy(), self.failed.copy()
             linear, angular = self.linear.copy(), self.angular.copy()
             tick = self._current_tick
-        for i in late:
+        for i in np.flatnonzero(~answered & ~failed):
             self._record(tick, i, "no answer before the watchdog")
-            if fallback == "previous":
-                linear[i], angular[i] = previous[0][i], previous[1][i]
-            else:
-                linear[i], angular[i] = 0.0, 0.0
-        return linear, angular
+        late = self.rows[~answered]
+        if fallback == "previous":
+            linear[~answered], angular[~answered] = previous[0][late], previous[1][late]
+        else:
+            linear[~answered], angular[~answered] = 0.0, 0.0
+        commands[0][self.rows] = linear
+        commands[1][self.rows] = angular
 
     def take_led_commands(self) -> dict[int, np.ndarray]:
-        """Drain the LED inbox: the latest valid colours per robot that sent any."""
+        """Drain the LED inbox: the latest valid colours per simulation row that sent any."""
         out = {}
         for i, sub in enumerate(self._led_subs):
             while True:
                 taken = sub.handle.take_message(sub.msg_type, sub.raw)
                 if taken is None:
                     break
-                msg = taken[0]
                 try:
-                    out[i] = c.decode_leds(msg, self._models[i].n_leds)
+                    out[int(self.rows[i])] = c.decode_leds(taken[0], self._models[i].n_leds)
                 except ValueError as e:
                     self._record(self._current_tick, i, f"leds: {e}")
         return out

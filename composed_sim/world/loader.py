@@ -18,7 +18,7 @@ from pydantic import BaseModel, ValidationError
 
 from composed_sim.world.schema import World
 
-Path = tuple[Union[str, int], ...]      # a field path, e.g. ("robots", 0, "count")
+FieldPath = tuple[Union[str, int], ...]      # a field path, e.g. ("robots", 0, "count")
 
 # Largest values of the command-line overrides, given as exclusive upper bounds.
 _SEED_LIMIT = 2**32
@@ -84,9 +84,9 @@ def with_overrides(world: World, *, robots: Optional[int] = None, ticks: Optiona
         for gi, (group, count) in enumerate(zip(world.robots, counts)):
             if group.placement.method == "explicit" and count != group.count:
                 raise WorldFileError(
-                    f"--robots: cannot resize robots[{gi}] to {count}: its placement lists "
-                    f"exactly {group.count} explicit positions (got --robots {robots}); "
-                    f"edit the world file instead")
+                    f"--robots: cannot resize robots[{gi}] from {group.count} to {count} robots "
+                    f"(got {robots}): its placement lists explicit positions; change them in "
+                    f"the world file instead")
             data["robots"][gi]["count"] = count
     if ticks is not None:
         data["length_ticks"] = ticks
@@ -128,7 +128,7 @@ def _read(source: str) -> str:
                              f"{exc.strerror or exc}") from None
 
 
-def _parse(text: str, source: str) -> tuple[Any, dict[Path, int]]:
+def _parse(text: str, source: str) -> tuple[Any, dict[FieldPath, int]]:
     """(data as yaml.safe_load gives it, {field path: 1-based line})."""
     try:
         loader = yaml.SafeLoader(text)     # checks for unprintable characters at once
@@ -152,10 +152,10 @@ def _parse(text: str, source: str) -> tuple[Any, dict[Path, int]]:
     return data, ({} if node is None else _line_map(loader, node))
 
 
-def _line_map(loader: yaml.SafeLoader, root: yaml.Node) -> dict[Path, int]:
+def _line_map(loader: yaml.SafeLoader, root: yaml.Node) -> dict[FieldPath, int]:
     # Walked after construction, so merge keys (<<) are already flattened into the nodes.
     # A node reached twice (an alias) is walked once: that also stops recursive aliases.
-    lines: dict[Path, int] = {(): root.start_mark.line + 1}
+    lines: dict[FieldPath, int] = {(): root.start_mark.line + 1}
     seen: set[int] = set()
     stack = [(root, ())]
     while stack:
@@ -186,7 +186,7 @@ def _key(loader: yaml.SafeLoader, node: yaml.Node) -> Any:
 
 # --- validation and messages ---------------------------------------------------------
 
-def _validate(data: Any, source: str, lines: dict[Path, int]) -> World:
+def _validate(data: Any, source: str, lines: dict[FieldPath, int]) -> World:
     if data is None:
         raise WorldFileError(f"{source}: the world file is empty; it needs at least `robots:`")
     if not isinstance(data, dict):
@@ -210,7 +210,7 @@ def _validate(data: Any, source: str, lines: dict[Path, int]) -> World:
                          texts)
 
 
-def _problems(err: dict) -> list[tuple[Path, str, str]]:
+def _problems(err: dict) -> list[tuple[FieldPath, str, str]]:
     """(path the user wrote, message, " (got value)" or "") for one pydantic error."""
     ctx = err.get("ctx") or {}
     if err["type"] == "world":      # the schema's own checks, possibly several at once
@@ -271,7 +271,7 @@ def _rephrase(ctx: dict, msg: str) -> str:
     return msg.replace("Input should be", "must be").replace("Input should", "must")
 
 
-def _resolve(loc: tuple) -> tuple[Path, Optional[type[BaseModel]], Any]:
+def _resolve(loc: tuple) -> tuple[FieldPath, Optional[type[BaseModel]], Any]:
     """Walk the schema along a pydantic loc.
 
     Returns the path as the user wrote it (pydantic inserts the name of the union member it
@@ -320,7 +320,7 @@ def _tags(tp: Any) -> list[str]:
             if isinstance(m, type) and issubclass(m, BaseModel) and "type" in m.model_fields]
 
 
-def _line(lines: dict[Path, int], path: Path) -> Optional[int]:
+def _line(lines: dict[FieldPath, int], path: FieldPath) -> Optional[int]:
     """Line of the path, or of its nearest ancestor that the file has (e.g. a missing field)."""
     for end in range(len(path), 0, -1):
         line = lines.get(path[:end])
@@ -329,12 +329,12 @@ def _line(lines: dict[Path, int], path: Path) -> Optional[int]:
     return None     # the top level: a line number would say nothing
 
 
-def _where(source: str, lines: dict[Path, int], path: Path) -> str:
+def _where(source: str, lines: dict[FieldPath, int], path: FieldPath) -> str:
     line = lines.get(path)
     return f"{source}:{line}" if line else source
 
 
-def _format_path(path: Path) -> str:
+def _format_path(path: FieldPath) -> str:
     out = ""
     for item in path:
         out += f"[{item}]" if isinstance(item, int) and not isinstance(item, bool) else \

@@ -199,7 +199,9 @@ class RobotGroup(Strict):
             number_list = isinstance(item, list) and all(
                 isinstance(x, (int, float)) and not isinstance(x, bool) for x in item)
             numbers = item if number_list else [item] if isinstance(item, float) else []
-            if not (scalar or number_list):
+            if not isinstance(key, str):
+                problems.append(((key,), "parameter names must be text", key))
+            elif not (scalar or number_list):
                 problems.append(((key,), "must be a number, a string, true/false or a list "
                                  "of numbers", item))
             elif not all(_finite(x) for x in numbers):
