@@ -48,10 +48,12 @@ PAPER_COLUMNS = ("Robots", "Repetition", "WallTime(s)", "CPU(%)", "MaxMem(kB)",
                  "ArgosCPU(%)", "Ros2CPU(%)", "ArgosMem(kB)", "Ros2Mem(kB)")
 OUR_COLUMNS = ("mode", "executor", "status", "ticks", "setup_s", "ticks_wall_s", "total_wall_s",
                "cpu_core_s", "real_time_factor", "per_robot_tick_us", "violations",
-               "physics_s", "sensing_s", "ros_exchange_s", "processes", "domain_id", "exit_code",
-               "reason")
+               "physics_s", "sensing_s", "ros_exchange_s", "processes", "other_load_cores", "domain_id",
+               "exit_code", "reason")
 COLUMNS = PAPER_COLUMNS + OUR_COLUMNS
 # status: ok | skipped | failed (non-zero exit or no summary) | timeout | interrupted
+# other_load_cores: cores kept busy by everything outside the run's tree during it, on average (the
+# machine is shared: a run next to a busy neighbour is slower, and this says so).
 
 PAPER_VARIANTS = {          # key: (file, label)
     "single": ("flocking.csv", "paper: ARGoS + ROS 2, 1 thread"),
@@ -262,7 +264,7 @@ def _num(v) -> Optional[float]:
 
 
 MEDIAN_FIELDS = ("WallTime(s)", "CPU(%)", "MaxMem(kB)", "setup_s", "ticks_wall_s", "total_wall_s",
-                 "cpu_core_s", "real_time_factor", "per_robot_tick_us", "processes")
+                 "cpu_core_s", "real_time_factor", "per_robot_tick_us", "processes", "other_load_cores")
 
 
 def aggregate(rows: Iterable[dict]) -> list[dict]:
@@ -307,6 +309,7 @@ class TreeMeasurement:
     timed_out: bool = False
     interrupted: bool = False
     leftovers_killed: int = 0         # descendants still alive LEFTOVER_GRACE_S after the root exited
+    other_cores: Optional[float] = None  # machine-wide busy CPU outside the tree / wall
 
 
 class _Tracked:
@@ -330,6 +333,7 @@ def measure_tree(cmd: list[str], *, env: dict, timeout_s: float, sample_s: float
     import psutil
 
     tracked: dict[int, _Tracked] = {}
+    retired: list[_Tracked] = []      # processes whose pid was reused by a later one
     peak_tree = peak_root = peak_others = 0
     max_processes = 0
 
@@ -347,6 +351,8 @@ def measure_tree(cmd: list[str], *, env: dict, timeout_s: float, sample_s: float
         for p in procs:
             t = tracked.get(p.pid)
             if t is None or t.proc is not p and not _same_process(t.proc, p):
+                if t is not None:
+                    retired.append(t)
                 t = tracked[p.pid] = _Tracked(p)
             try:
                 with t.proc.oneshot():
@@ -368,6 +374,7 @@ def measure_tree(cmd: list[str], *, env: dict, timeout_s: float, sample_s: float
 
     timed_out = interrupted = False
     with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err:
+        busy0 = _machine_busy_s()
         t0 = time.perf_counter()
         proc = subprocess.Popen(cmd, stdout=out, stderr=err, stdin=subprocess.DEVNULL, env=env)
         root = psutil.Process(proc.pid)
@@ -386,9 +393,10 @@ def measure_tree(cmd: list[str], *, env: dict, timeout_s: float, sample_s: float
         except KeyboardInterrupt:
             interrupted = True
             _signal(root, signal.SIGTERM)
-            _wait_gone([root], TERM_GRACE_S / 3)
-            _kill_all(t.proc for t in tracked.values())
+            if not _wait_exit(proc.pid, TERM_GRACE_S / 3):
+                _kill_all(t.proc for t in tracked.values())
         wall_s = time.perf_counter() - t0
+        busy1 = _machine_busy_s()
         # The root is a zombie now: its own times are final, and so are those of the descendants
         # it reaped (children_*), which wait4's rusage covers too.
         root_own = root_children = 0.0
@@ -402,31 +410,56 @@ def measure_tree(cmd: list[str], *, env: dict, timeout_s: float, sample_s: float
         tracked[proc.pid].cpu_s = max(tracked[proc.pid].cpu_s, root_own)
         exact = max(usage.ru_utime + usage.ru_stime, root_own + root_children)
 
-        # Descendants that outlived the root (orphans): give them time, then end them.
+        # Descendants that outlived the root (orphans, which its times cannot hold): give them
+        # time, then end them.
         leftovers = [t.proc for t in tracked.values() if t.proc is not root and _alive(t.proc)]
+        orphan_pids = {p.pid for p in leftovers}
         deadline = time.perf_counter() + leftover_grace_s
         while leftovers and time.perf_counter() < deadline:
             sample(root_alive=False)
             time.sleep(sample_s)
             leftovers = [p for p in leftovers if _alive(p)]
-        leftover_pids = {p.pid for p in leftovers}
         if leftovers:
             _kill_all(leftovers)
             _wait_gone(leftovers, 5.0)
-        orphans_cpu = sum(t.cpu_s for pid, t in tracked.items() if pid in leftover_pids)
-        sampled = sum(t.cpu_s for t in tracked.values())
+        orphans_cpu = sum(t.cpu_s for pid, t in tracked.items() if pid in orphan_pids)
+        sampled = sum(t.cpu_s for t in [*tracked.values(), *retired])
         out.seek(0)
         err.seek(0)
         stdout = out.read().decode(errors="replace")
         stderr = err.read().decode(errors="replace")
     peak_tree = max(peak_tree, usage.ru_maxrss * 1024)   # a run shorter than a sample period
+    cpu_core_s = max(exact + orphans_cpu, sampled)
+    other = None
+    if busy0 is not None and busy1 is not None and wall_s > 0:
+        other = max(busy1 - busy0 - cpu_core_s, 0.0) / wall_s
     return TreeMeasurement(
-        exit_code=exit_code, wall_s=wall_s, cpu_core_s=max(exact + orphans_cpu, sampled),
+        exit_code=exit_code, wall_s=wall_s, cpu_core_s=cpu_core_s, other_cores=other,
         root_cpu_s=max(root_own, tracked[proc.pid].cpu_s),
         peak_tree_rss_kb=peak_tree // 1024, peak_root_rss_kb=peak_root // 1024,
         peak_others_rss_kb=peak_others // 1024, max_processes=max_processes,
         stdout=stdout, stderr=stderr, timed_out=timed_out, interrupted=interrupted,
         leftovers_killed=len(leftovers))
+
+
+def _wait_exit(pid: int, timeout_s: float) -> bool:
+    """Wait until our child ``pid`` has exited, without reaping it (psutil's wait would)."""
+    deadline = time.perf_counter() + timeout_s
+    while os.waitid(os.P_PID, pid, os.WEXITED | os.WNOHANG | os.WNOWAIT) is None:
+        if time.perf_counter() > deadline:
+            return False
+        time.sleep(0.05)
+    return True
+
+
+def _machine_busy_s() -> Optional[float]:
+    """Core-seconds the whole machine has spent busy since boot (not idle, waiting or stolen)."""
+    import psutil
+    try:
+        t = psutil.cpu_times()
+    except Exception:
+        return None
+    return sum(getattr(t, k, 0.0) for k in ("user", "nice", "system", "irq", "softirq"))
 
 
 def _same_process(a, b) -> bool:
@@ -459,6 +492,7 @@ def _kill_all(procs) -> None:
 
 
 def _wait_gone(procs, timeout_s: float) -> None:
+    """Wait for processes that are not our children (psutil would reap a child)."""
     import psutil
     try:
         psutil.wait_procs([p for p in procs if _alive(p)], timeout=timeout_s)
@@ -518,6 +552,7 @@ class Sweep:
     domains: DomainAllocator
     estimate: MemoryEstimate = field(default_factory=MemoryEstimate)
     calibration: list = field(default_factory=list)
+    interrupted: bool = False         # the last run was ended because the sweep was interrupted
 
     def command(self, robots: int, mode: str, executor: str, domain: int, out: Path, ticks: int) -> list[str]:
         cmd = [sys.executable, "-m", "composed_sim.cli", "run", str(self.world), "--robots", str(robots),
@@ -557,6 +592,7 @@ class Sweep:
             "WallTime(s)": round(wall, 3), "CPU(%)": round(100 * m.cpu_core_s / wall, 1) if wall > 0 else None,
             "MaxMem(kB)": m.peak_tree_rss_kb, "total_wall_s": round(wall, 3), "cpu_core_s": round(m.cpu_core_s, 3),
             "processes": m.max_processes, "exit_code": m.exit_code,
+            "other_load_cores": None if m.other_cores is None else round(m.other_cores, 2),
         })
         if mode == "multi-process" and wall > 0:
             row.update({"ArgosCPU(%)": round(100 * m.root_cpu_s / wall, 1),
@@ -573,9 +609,13 @@ class Sweep:
         notes = []
         if m.interrupted:
             row["status"] = "interrupted"
+            notes.append("the sweep was interrupted (Ctrl-C or SIGTERM) during this run")
         elif m.timed_out:
             row["status"] = "timeout"
             notes.append(f"stopped after the {self.timeout_s:g} s timeout")
+        elif m.exit_code == 130:        # the run was stopped from outside the bench
+            row["status"] = "interrupted"
+            notes.append("the run was interrupted from outside the bench (exit code 130)")
         elif m.exit_code != 0:
             row["status"] = "failed"
             notes.append(f"exit code {m.exit_code}")
@@ -594,6 +634,7 @@ class Sweep:
         row["reason"] = "; ".join(notes) or None
         if mode == "multi-process" and row["status"] == "ok":
             self.estimate.update(row)
+        self.interrupted = m.interrupted
         return row
 
     def calibrate(self, executor: str) -> None:
@@ -730,6 +771,7 @@ def run(args) -> int:
     rows: list[dict] = []
     interrupted = False
     t_start = time.perf_counter()
+    old_term = _sigterm_interrupts()
     try:
         for i, (n, trial, mode, executor) in enumerate(plan, 1):
             first_multi = mode == "multi-process" and not any(r["mode"] == mode for r in rows)
@@ -737,14 +779,23 @@ def run(args) -> int:
                 print(f"bench: calibrating the multi-process memory cost with {CALIBRATION_ROBOTS} robots",
                       file=sys.stderr)
                 sweep.calibrate(executor)
+                cal = sweep.calibration[-1]
+                print(f"bench: calibration {cal['status']}: {sweep.estimate.per_process_mb:.1f} MB per process "
+                      f"({sweep.estimate.source})" + (f" — {cal['reason']}" if cal["reason"] else ""), file=sys.stderr)
+                if sweep.interrupted:
+                    interrupted = True
+                    break
             row = sweep.one(n, mode, executor, trial)
             rows.append(row)
             print(_progress_line(i, len(plan), row, args.trials), file=sys.stderr)
-            if row["status"] == "interrupted":
+            if sweep.interrupted:
                 interrupted = True
                 break
     except KeyboardInterrupt:
         interrupted = True
+    finally:
+        if old_term is not None:
+            signal.signal(signal.SIGTERM, old_term)
     elapsed = time.perf_counter() - t_start
 
     doc = {"command": command, "machine": machine, "settings": settings, "elapsed_s": round(elapsed, 1),
@@ -760,6 +811,17 @@ def run(args) -> int:
     if interrupted:
         return 130
     return 1 if bad else 0
+
+
+def _sigterm_interrupts():
+    """SIGTERM stops the sweep like Ctrl-C: the current run is ended, what ran so far is written.
+    Returns the previous handler (None when not on the main thread, where it cannot be set)."""
+    def handle(signum, frame):
+        raise KeyboardInterrupt
+    try:
+        return signal.signal(signal.SIGTERM, handle)
+    except ValueError:
+        return None
 
 
 def _progress_line(i: int, total: int, row: dict, trials: int) -> str:
@@ -934,15 +996,16 @@ def render_report(doc: dict, figures: dict[str, Path], raw: tuple[Path, Path]) -
         f"## Results (median over the ok trials; {ticks} ticks = {sim_s:g} s simulated)",
         "",
         "| N | mode | executor | ok/trials | setup s | ticks wall s | total wall s | real-time factor "
-        "| µs / robot-tick | CPU % of one core | CPU core-s | peak tree RSS MB | violations |",
-        "|---:|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
+        "| µs / robot-tick | CPU % of one core | CPU core-s | peak tree RSS MB | violations | other load (cores) |",
+        "|---:|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
     ]
     for a in agg:
         lines.append(
             f"| {a['Robots']} | {a['mode']} | {a['executor']} | {a['ok']}/{a['trials']} | {_f(a['setup_s'], 2)} "
             f"| {_f(a['ticks_wall_s'], 1)} | {_f(a['total_wall_s'], 1)} | {_f(a['real_time_factor'], 2)} "
             f"| {_f(a['per_robot_tick_us'], 0)} | {_f(a['CPU(%)'], 0)} | {_f(a['cpu_core_s'], 1)} "
-            f"| {_f(a['MaxMem(kB)'], 0, 1 / 1024)} | {'–' if a['violations'] is None else a['violations']} |")
+            f"| {_f(a['MaxMem(kB)'], 0, 1 / 1024)} | {'–' if a['violations'] is None else a['violations']} "
+            f"| {_f(a['other_load_cores'], 2)} |")
     odd = [r for r in rows if r["status"] != "ok"]
     if odd:
         lines += ["", "Runs that did not complete:", ""]
@@ -1023,6 +1086,8 @@ def render_report(doc: dict, figures: dict[str, Path], raw: tuple[Path, Path]) -
         f"- **peak memory** (`MaxMem(kB)`): the largest sum of the resident sets of every process of the tree over "
         f"samples every {SAMPLE_S:g} s (pages shared between processes count once per process, so multi-process "
         "totals are upper bounds).",
+        "- **other load**: core-seconds the machine spent busy outside the run's process tree during it, / total "
+        "wall: how much a neighbour (including the bench itself) competed for the cores.",
         "- The paper's `MaxMem` is `ArgosMem + Ros2Mem`, and its `Ros2Mem` stays between 37 MB (10 robots) and "
         "108 MB (1280 robots): it cannot hold every controller process's memory, so it likely counts one process "
         "of the ROS side, and the paper's memory curve leaves most of its controller processes out.",

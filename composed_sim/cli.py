@@ -174,28 +174,42 @@ def cmd_run(args) -> int:
     domain_id = _domain_id(args.domain_id)
     _check_writable(args.out)
 
+    try:
+        if args.mode == "multi-process":
+            from composed_sim.hosts.multiprocess import MultiProcessHost
+            host = MultiProcessHost(world, executor=args.executor, domain_id=domain_id,
+                                    robots_per_domain=args.robots_per_domain)
+        else:
+            host = ComposedHost(world, executor=args.executor, domain_id=domain_id)
+    except HostError as e:
+        raise UserError(str(e)) from None
+
+    def finish(result) -> dict:
+        summary = summarize(world, result, setup_s=host.setup.setup_s, mode=args.mode,
+                            executor=args.executor,
+                            phases={"physics_s": host.sim.times.physics_s, "sensing_s": host.sim.times.sensing_s})
+        summary["out"] = str(args.out)
+        write_results(args.out, world, result, summary, picture=not args.no_picture)
+        return summary
+
     with _Interrupts() as interrupts:
         try:
-            if args.mode == "multi-process":
-                from composed_sim.hosts.multiprocess import MultiProcessHost
-                host = MultiProcessHost(world, executor=args.executor, domain_id=domain_id,
-                                        robots_per_domain=args.robots_per_domain)
-            else:
-                host = ComposedHost(world, executor=args.executor, domain_id=domain_id)
             with host:
                 progress = _progress_bar(world.length_ticks, disabled=args.no_progress)
                 try:
                     result = host.run(progress=progress.update, should_stop=lambda: interrupts.requested)
+                except Exception as e:
+                    partial = getattr(e, "partial_result", None)
+                    if partial is not None:   # write what was simulated before the failure
+                        finish(partial)
+                        print(f"composed-sim: the run failed at tick {partial.trajectories.ticks_done}; "
+                              f"results so far are in {args.out}/", file=sys.stderr)
+                    raise
                 finally:
                     progress.close()
-                phases = {"physics_s": host.sim.times.physics_s, "sensing_s": host.sim.times.sensing_s}
-                setup_s = host.setup.setup_s
+                summary = finish(result)
         except (plugins.PluginError, PlacementError, HostError) as e:
             raise UserError(str(e)) from None
-        summary = summarize(world, result, setup_s=setup_s, mode=args.mode, executor=args.executor,
-                            phases=phases)
-        summary["out"] = str(args.out)
-        write_results(args.out, world, result, summary, picture=not args.no_picture)
     if args.json:
         print(json.dumps(summary, indent=2))
     else:

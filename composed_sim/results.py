@@ -150,8 +150,14 @@ def render_arena(world: World, t: Trajectories, path: Path) -> None:
     if world.arena.walls and world.arena.size:
         (cx, cy), (sx, sy) = world.arena.center, world.arena.size
         ax.add_patch(plt.Rectangle((cx - sx / 2, cy - sy / 2), sx, sy, fill=False, lw=2, color="black"))
+    # A square view around everything drawn, with a margin: tall or wide swarms stay readable.
     ax.set_aspect("equal")
     ax.autoscale_view()
+    (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
+    half = max(x1 - x0, y1 - y0) / 2 * 1.08
+    cx, cy = (x0 + x1) / 2, (y0 + y1) / 2
+    ax.set_xlim(cx - half, cx + half)
+    ax.set_ylim(cy - half, cy + half)
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
     ax.set_title(f"{world.name}: {pos.shape[1]} robots, tick {t.ticks_done} "

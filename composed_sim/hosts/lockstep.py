@@ -77,23 +77,29 @@ def run_lockstep(sim: Simulation, exchange: Exchange, wait_for_answers: Callable
     frame = sim.sense()
     interrupted = False
     t_start = time.perf_counter()
-    for _ in range(ticks):
-        if should_stop():
-            interrupted = True
-            break
-        t0 = time.perf_counter()
-        exchange.publish_tick(frame)
-        wait_for_answers(lockstep.watchdog_s)
-        commands = (np.empty(sim.n), np.empty(sim.n))
-        exchange.close_tick(lockstep.fallback, previous, commands)
-        for robot, colors in exchange.take_led_commands().items():
-            sim.set_led_colors(robot, colors)
-        times.ros_exchange_s += time.perf_counter() - t0
-        sim.set_velocity_commands(*commands)
-        previous = commands
-        frame = sim.step()
-        traj.record(sim)
-        if progress is not None:
-            progress(1)
+    try:
+        for _ in range(ticks):
+            if should_stop():
+                interrupted = True
+                break
+            t0 = time.perf_counter()
+            exchange.publish_tick(frame)
+            wait_for_answers(lockstep.watchdog_s)
+            commands = (np.empty(sim.n), np.empty(sim.n))
+            exchange.close_tick(lockstep.fallback, previous, commands)
+            for robot, colors in exchange.take_led_commands().items():
+                sim.set_led_colors(robot, colors)
+            times.ros_exchange_s += time.perf_counter() - t0
+            sim.set_velocity_commands(*commands)
+            previous = commands
+            frame = sim.step()
+            traj.record(sim)
+            if progress is not None:
+                progress(1)
+    except BaseException as e:
+        # Nothing is lost: whoever handles the error can still write what was simulated so far.
+        times.ticks_wall_s = time.perf_counter() - t_start
+        e.partial_result = LoopResult(traj.filled(), list(exchange.violations), times, True)
+        raise
     times.ticks_wall_s = time.perf_counter() - t_start
-    return LoopResult(traj, list(exchange.violations), times, interrupted)
+    return LoopResult(traj.filled(), list(exchange.violations), times, interrupted)

@@ -231,6 +231,20 @@ class Lockstep(Strict):
     fallback: Literal["zero", "previous"] = "zero"
 
 
+# Fast DDS on Linux: a domain's ports start at 7400 + 250 * domain, so 232 is the last domain
+# whose ports stay below 65535 (see composed_sim.hosts.domains).
+DomainId = Annotated[int, Field(ge=0, le=232)]
+
+
+class MultiProcess(Strict):
+    """Multi-process mode only: how the robots' controller processes spread over ROS domains."""
+    # Robots per domain when balancing automatically (the paper's 50); each also costs the
+    # domain a DDS participant, and Fast DDS fits at most 120 participants in one domain.
+    robots_per_domain: Annotated[int, Field(ge=1, le=119)] = 50
+    first_domain: Optional[DomainId] = None     # None: the run's domain id (--domain-id)
+    domains: dict[str, DomainId] = {}           # explicit robot name -> domain; the rest balanced
+
+
 class World(Strict):
     name: str = "world"
     seed: Annotated[int, Field(ge=0, lt=2**32)] = 0
@@ -238,6 +252,7 @@ class World(Strict):
     length_ticks: Annotated[int, Field(ge=1)] = 600
     physics: Physics = Physics()
     lockstep: Lockstep = Lockstep()
+    multi_process: MultiProcess = MultiProcess()
     arena: Arena = Arena()
     lights: list[Light] = []
     obstacles: list[Obstacle] = []

@@ -1,0 +1,352 @@
+"""The multi-process host: every robot's controller in its own OS process, as in the paper.
+
+Each controller process (``composed_sim.hosts.controller_process``) runs the very same plugin
+class on the very same topics as in composed mode, in the ROS domain ``domains.assign_domains``
+gives its robot. The simulator process joins each used domain with its own rclpy Context and one
+SimulatorNode serving that domain's robots, spun by its own executor thread; ``DomainExchange``
+makes those nodes look like one to ``run_lockstep``, so lockstep, the watchdog and the fallbacks
+are exactly the composed host's.
+
+Children never outlive the simulator: they run in their own process groups (a terminal's Ctrl-C
+reaches only the simulator, which stops at a tick boundary), get SIGTERM then SIGKILL in
+``__exit__`` (normal end, exceptions, KeyboardInterrupt), and PR_SET_PDEATHSIG covers the
+simulator being killed outright.
+"""
+from __future__ import annotations
+
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable, Optional
+
+import numpy as np
+import rclpy
+from rclpy.context import Context
+from rclpy.executors import Executor, SingleThreadedExecutor
+
+from composed_sim import plugins
+from composed_sim.core.simulation import SensorFrame, Simulation
+from composed_sim.hosts.composed import EXECUTORS, HostError, SetupInfo
+from composed_sim.hosts.domains import DomainError, assign_domains
+from composed_sim.hosts.lockstep import LoopResult, run_lockstep
+from composed_sim.ros import contract as c
+from composed_sim.ros.simulator_node import SimulatorNode, Violation
+from composed_sim.world.loader import dump_world
+from composed_sim.world.schema import World
+
+# Children in start-up at once: start-up is CPU-bound (interpreter, imports, DDS participant),
+# so a few per core keeps every core busy without thrashing a small machine.
+SPAWN_AT_ONCE = max(2, 2 * (os.cpu_count() or 1))
+STALL_TIMEOUT_S = 60.0     # start-up fails when no child became ready for this long
+POLL_S = 0.01              # while waiting for answers, look for dead children this often
+TERM_GRACE_S = 5.0         # SIGTERM → SIGKILL
+
+
+@dataclass
+class ControllerProcess:
+    robot: str
+    domain: int
+    popen: subprocess.Popen
+    log: Path                          # its stdout and stderr
+    ready_fd: Optional[int]            # read end of its "ready" pipe, until it reported
+    spawned: float = field(default_factory=time.perf_counter)
+    topics: Optional[list[str]] = None   # its contract topics, from its "ready" line
+    startup_s: Optional[float] = None    # spawn → matched on both sides
+    _buffer: bytes = b""
+
+    def read_ready(self) -> None:
+        try:
+            chunk = os.read(self.ready_fd, 65536)
+        except BlockingIOError:
+            return
+        self._buffer += chunk
+        if b"\n" in self._buffer:
+            self.topics = self._buffer.split(b"\n", 1)[0].decode().split()[1:]
+        if chunk == b"" or self.topics is not None:   # EOF (it died: poll() will say) or done
+            self.close_fd()
+
+    def close_fd(self) -> None:
+        if self.ready_fd is not None:
+            os.close(self.ready_fd)
+            self.ready_fd = None
+
+    def tail(self, chars: int = 2000) -> str:
+        try:
+            text = self.log.read_text(errors="replace")
+        except OSError:
+            return ""
+        return text[-chars:].strip()
+
+
+def exit_reason(code: int) -> str:
+    if code < 0:
+        try:
+            return f"process killed by {signal.Signals(-code).name}"
+        except ValueError:
+            return f"process killed by signal {-code}"
+    return f"process exited with code {code}"
+
+
+class DomainExchange:
+    """The ``Exchange`` of run_lockstep over one SimulatorNode per domain: each node publishes
+    and collects its own robots, writing into the shared (global-row) command arrays."""
+
+    def __init__(self, nodes: list[SimulatorNode], check_children: Callable[[], None]):
+        self.nodes = nodes
+        self._check_children = check_children
+
+    @property
+    def violations(self) -> list[Violation]:
+        # Stable sort: per tick, in domain order, each domain's in the order they happened.
+        return sorted((v for n in self.nodes for v in n.violations), key=lambda v: v.tick)
+
+    def publish_tick(self, frame: SensorFrame) -> None:
+        for node in self.nodes:
+            node.publish_tick(frame)
+
+    def wait_for_answers(self, timeout_s: float) -> bool:
+        """Until every domain's robots answered, under one watchdog deadline for all. Each time
+        a slice of POLL_S passes without that, dead children are looked for: a dead one is
+        marked failed, so it is not waited for (it gets the fallback from then on)."""
+        deadline = time.monotonic() + timeout_s
+        while True:
+            pending = [n for n in self.nodes if not n.all_answered]
+            if not pending:
+                return True
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                return False
+            if not pending[0].wait_for_answers(min(remaining, POLL_S)):
+                self._check_children()
+
+    def close_tick(self, fallback: str, previous: tuple[np.ndarray, np.ndarray],
+                   commands: tuple[np.ndarray, np.ndarray]) -> None:
+        for node in self.nodes:
+            node.close_tick(fallback, previous, commands)
+
+    def take_led_commands(self) -> dict[int, np.ndarray]:
+        out: dict[int, np.ndarray] = {}
+        for node in self.nodes:
+            out.update(node.take_led_commands())    # keyed by global row: no overlap
+        return out
+
+
+class MultiProcessHost:
+    """Context manager: the per-domain contexts and simulator nodes, and one child process per
+    robot; everything stopped and reaped in ``__exit__``. Same interface as ComposedHost.
+
+    ``executor`` is the controllers' executor (in each child). The simulator's per-domain nodes
+    use a single-threaded executor each: their callbacks only store an answer.
+    """
+
+    def __init__(self, world: World, *, executor: str = "multi-threaded", domain_id: int = 0,
+                 robots_per_domain: Optional[int] = None):
+        if executor not in EXECUTORS:
+            raise HostError(f"unknown executor {executor!r}; choose one of {', '.join(EXECUTORS)}")
+        self.world = world
+        self.executor_kind = executor
+        mp = world.multi_process
+        self.robots_per_domain = robots_per_domain or mp.robots_per_domain
+        first = mp.first_domain if mp.first_domain is not None else domain_id
+        try:
+            self.domains = assign_domains(world.robot_names(), self.robots_per_domain, first, mp.domains)
+        except DomainError as e:
+            raise HostError(f"multi-process mode: {e}") from None
+        self.sim: Optional[Simulation] = None
+        self.exchange: Optional[DomainExchange] = None
+        self.processes: list[ControllerProcess] = []
+        self.setup: Optional[SetupInfo] = None
+        self._contexts: list[Context] = []
+        self._nodes: dict[int, SimulatorNode] = {}
+        self._executors: list[Executor] = []
+        self._threads: list[threading.Thread] = []
+        self._tmp: Optional[Path] = None
+        self._last_check = 0.0
+
+    # --- start-up ---------------------------------------------------------------------------
+
+    def __enter__(self) -> "MultiProcessHost":
+        t0 = time.perf_counter()
+        try:
+            for g in self.world.robots:    # fail here, not in N children
+                plugins.load(g.controller)
+            self.sim = Simulation(self.world)
+            self._tmp = Path(tempfile.mkdtemp(prefix="composed_sim_mp_"))
+            world_file = self._tmp / "world.yaml"
+            world_file.write_text(dump_world(self.world), encoding="utf-8")
+            tick_ns = round(1e9 / self.world.ticks_per_second)
+            for d in sorted(set(self.domains.values())):
+                rows = [i for i, name in enumerate(self.sim.names) if self.domains[name] == d]
+                context = Context()
+                rclpy.init(context=context, domain_id=d)
+                self._contexts.append(context)
+                self._nodes[d] = SimulatorNode([self.sim.names[i] for i in rows],
+                                               [self.sim.models[i] for i in rows], context=context,
+                                               tick_ns=tick_ns, rows=np.array(rows, dtype=int),
+                                               node_name=f"composed_sim_d{d}")
+            self.exchange = DomainExchange(list(self._nodes.values()), self._check_children)
+            self._start_controllers(world_file)
+            for d, node in self._nodes.items():
+                executor = SingleThreadedExecutor(context=node.context)
+                executor.add_node(node)
+                thread = threading.Thread(target=_spin, args=(executor,), name=f"executor-d{d}", daemon=True)
+                thread.start()
+                self._executors.append(executor)
+                self._threads.append(thread)
+        except BaseException:
+            self.__exit__(None, None, None)
+            raise
+        self.setup = SetupInfo(time.perf_counter() - t0, len(self.processes) + len(self._nodes))
+        return self
+
+    def _start_controllers(self, world_file: Path) -> None:
+        """Spawn the children, SPAWN_AT_ONCE in start-up at a time, until each is matched on both
+        sides. Popen is called from this (the host's) thread on purpose: PR_SET_PDEATHSIG fires
+        when the thread that forked the child ends, not only the process."""
+        waiting = list(self.sim.names)
+        starting: dict[str, ControllerProcess] = {}
+        endpoints = {d: _endpoints_by_topic(node) for d, node in self._nodes.items()}
+        last_progress = time.monotonic()
+        while waiting or starting:
+            while waiting and len(starting) < SPAWN_AT_ONCE:
+                p = self._spawn(waiting.pop(0), world_file)
+                starting[p.robot] = p
+            for robot, p in list(starting.items()):
+                if p.ready_fd is not None:
+                    p.read_ready()
+                code = p.popen.poll()
+                if code is not None:
+                    raise HostError(f"the controller process of {robot} (domain {p.domain}) ended during "
+                                    f"start-up ({exit_reason(code)}):\n{p.tail() or '(no output)'}")
+                if p.topics is not None and all(_matched(endpoints[p.domain].get(t)) for t in p.topics):
+                    p.startup_s = time.perf_counter() - p.spawned
+                    del starting[robot]
+                    last_progress = time.monotonic()
+            if time.monotonic() - last_progress > STALL_TIMEOUT_S:
+                missing = sorted(starting, key=self.sim.names.index)
+                raise HostError(f"controllers of {', '.join(missing)} were not matched with the simulator "
+                                f"within {STALL_TIMEOUT_S:.0f} s (each must publish {c.CMD_VEL.name} and "
+                                f"subscribe to a sensor); {len(waiting)} more not started")
+            time.sleep(0.002)
+
+    def _spawn(self, robot: str, world_file: Path) -> ControllerProcess:
+        read_fd, write_fd = os.pipe()
+        log = self._tmp / f"{robot}.log"
+        cmd = [sys.executable, "-m", "composed_sim.hosts.controller_process", "--world", str(world_file),
+               "--robot", robot, "--domain", str(self.domains[robot]), "--executor", self.executor_kind,
+               "--parent-pid", str(os.getpid()), "--ready-fd", str(write_fd)]
+        try:
+            with open(log, "wb") as out:
+                # Own process group: a terminal's Ctrl-C goes to the simulator only (which stops
+                # the run at a tick boundary), and killpg reaches anything the child started.
+                popen = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=out, stderr=subprocess.STDOUT,
+                                         pass_fds=(write_fd,), process_group=0)
+        except BaseException:
+            os.close(read_fd)
+            raise
+        finally:
+            os.close(write_fd)
+        os.set_blocking(read_fd, False)
+        p = ControllerProcess(robot, self.domains[robot], popen, log, read_fd)
+        self.processes.append(p)
+        return p
+
+    @property
+    def startup_times_s(self) -> list[float]:
+        """Per child: spawn → its endpoints matched with the simulator's."""
+        return [p.startup_s for p in self.processes if p.startup_s is not None]
+
+    # --- the run ----------------------------------------------------------------------------
+
+    def run(self, ticks: Optional[int] = None, *, progress: Optional[Callable[[int], None]] = None,
+            should_stop: Callable[[], bool] = lambda: False) -> LoopResult:
+        ticks = self.world.length_ticks if ticks is None else ticks
+        return run_lockstep(self.sim, self.exchange, self.exchange.wait_for_answers, ticks,
+                            progress=progress, should_stop=should_stop)
+
+    def _check_children(self) -> None:
+        """A child that ended mid-run: its robot is marked failed (violation recorded once) and
+        gets the fallback every tick after. poll() also reaps it."""
+        now = time.monotonic()
+        if now - self._last_check < POLL_S:
+            return
+        self._last_check = now
+        for p in self.processes:
+            if p.popen.returncode is None and p.popen.poll() is not None:
+                self._nodes[p.domain].mark_failed(p.robot, exit_reason(p.popen.returncode))
+
+    # --- shutdown ---------------------------------------------------------------------------
+
+    def __exit__(self, *exc) -> None:
+        self._stop_children()
+        for executor in self._executors:
+            executor.shutdown()
+        for thread in self._threads:
+            thread.join(timeout=5.0)
+        self._executors, self._threads = [], []
+        for node in self._nodes.values():
+            node.destroy_node()
+        self._nodes = {}
+        for context in self._contexts:
+            if context.ok():
+                rclpy.shutdown(context=context)
+        self._contexts = []
+        if self._tmp is not None:
+            shutil.rmtree(self._tmp, ignore_errors=True)
+            self._tmp = None
+
+    def _stop_children(self) -> None:
+        """SIGTERM to every child's group, SIGKILL to whatever is left after TERM_GRACE_S, reap
+        all. Only unreaped children are signalled: a reaped child's pid may belong to another
+        process by now."""
+        for p in self.processes:
+            p.close_fd()
+        _signal_groups(self.processes, signal.SIGTERM)
+        deadline = time.monotonic() + TERM_GRACE_S
+        for p in self.processes:
+            try:
+                p.popen.wait(timeout=max(0.0, deadline - time.monotonic()))
+            except subprocess.TimeoutExpired:
+                pass
+        _signal_groups(self.processes, signal.SIGKILL)
+        for p in self.processes:
+            p.popen.wait()
+
+
+def _signal_groups(processes: list[ControllerProcess], sig: int) -> None:
+    for p in processes:
+        if p.popen.returncode is None:
+            try:
+                os.killpg(p.popen.pid, sig)
+            except ProcessLookupError:
+                pass
+
+
+def _spin(executor: Executor) -> None:
+    try:
+        executor.spin()
+    except rclpy.executors.ExternalShutdownException:
+        pass
+
+
+def _endpoints_by_topic(node: SimulatorNode) -> dict:
+    """The simulator side of each robot topic: sensor publishers, cmd_vel subscriptions and the
+    LED inbox's subscriptions (the inbox node is the SimulatorNode's own, never spun)."""
+    found = list(node.publishers) + list(node.subscriptions) + list(node._inbox.subscriptions)
+    return {e.topic_name: e for e in found if e.topic_name != c.CLOCK_TOPIC}
+
+
+def _matched(endpoint) -> bool:
+    """True for a topic the simulator does not serve (e.g. /clock, shared by all)."""
+    if endpoint is None:
+        return True
+    count = endpoint.get_subscription_count() if hasattr(endpoint, "get_subscription_count") \
+        else endpoint.get_publisher_count()
+    return count >= 1
