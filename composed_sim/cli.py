@@ -64,7 +64,7 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--mode", choices=MODES, default="composed",
                      help="composed: every controller in this process; multi-process: one process per "
                           "controller over balanced ROS domains, as in the paper (default: %(default)s)")
-    run.add_argument("--executor", choices=EXECUTORS, default="multi-threaded",
+    run.add_argument("--executor", choices=EXECUTORS, default="lockstep",
                      help="rclpy executor running the nodes (default: %(default)s)")
     run.add_argument("--robots-per-domain", type=_positive_int, default=None,
                      help="multi-process mode: robots per ROS domain (default: the world's, else 50)")

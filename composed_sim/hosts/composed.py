@@ -18,10 +18,11 @@ from composed_sim.core.simulation import Simulation
 from composed_sim.hosts.lockstep import LoopResult, run_lockstep
 from composed_sim.ros import contract as c
 from composed_sim.ros.controller import PARAM_ROBOT_MODEL, PARAM_RUN_SEED
+from composed_sim.ros.lockstep_executor import LockstepExecutor
 from composed_sim.ros.simulator_node import SimulatorNode, quiet_node_options
 from composed_sim.world.schema import World
 
-EXECUTORS = ("multi-threaded", "single-threaded", "events")
+EXECUTORS = ("lockstep", "events", "single-threaded", "multi-threaded")
 MODES = ("composed", "multi-process")
 DISCOVERY_TIMEOUT_S = 60.0
 
@@ -38,6 +39,8 @@ def make_executor(kind: str, context: Context) -> Executor:
     if kind == "events":
         from rclpy.experimental import EventsExecutor
         return EventsExecutor(context=context)
+    if kind == "lockstep":
+        return LockstepExecutor(context=context)
     raise HostError(f"unknown executor {kind!r}; choose one of {', '.join(EXECUTORS)}")
 
 
@@ -78,7 +81,7 @@ class SetupInfo:
 class ComposedHost:
     """Context manager owning the rclpy context, the nodes and the executor, destroyed in order."""
 
-    def __init__(self, world: World, *, executor: str = "multi-threaded", domain_id: int = 0):
+    def __init__(self, world: World, *, executor: str = "lockstep", domain_id: int = 0):
         if executor not in EXECUTORS:
             raise HostError(f"unknown executor {executor!r}; choose one of {', '.join(EXECUTORS)}")
         self.world = world
@@ -102,13 +105,15 @@ class ComposedHost:
             self.sim_node = SimulatorNode(self.sim.names, self.sim.models, context=self.context,
                                           tick_ns=round(1e9 / self.world.ticks_per_second))
             self.executor = make_executor(self.executor_kind, self.context)
-            self.executor.add_node(self.sim_node)
             for name, group_index in zip(self.sim.names, self.world.group_of_robot()):
                 cls = classes[self.world.robots[group_index].controller]
                 node = create_controller(cls, name, self.world, group_index, self.context)
                 self.sim_node.drive_clock_of(node)
                 self.controllers.append(node)
                 self.executor.add_node(node)
+            # Last, so that the lockstep executor's one ordered pass runs every controller on its
+            # sensors first and then collects the answers they just published.
+            self.executor.add_node(self.sim_node)
             self._wait_for_discovery()
         except BaseException:
             self.__exit__(None, None, None)
@@ -131,7 +136,7 @@ class ComposedHost:
     def run(self, ticks: Optional[int] = None, *, progress: Optional[Callable[[int], None]] = None,
             should_stop: Callable[[], bool] = lambda: False) -> LoopResult:
         ticks = self.world.length_ticks if ticks is None else ticks
-        if self.executor_kind == "events":
+        if self.executor_kind in ("events", "lockstep"):
             wait = self._spin_until_answered
         else:
             # The stock executors spin in their own thread (the reference shape: callbacks may run
@@ -148,8 +153,8 @@ class ComposedHost:
             pass
 
     def _spin_until_answered(self, timeout_s: float) -> bool:
-        """The EventsExecutor is driven from this thread: its spin() in a background thread hung in
-        our probes (DESIGN.md), while spin_once from the caller's thread is reliable."""
+        """Executors driven from this thread: the lockstep executor by design, the EventsExecutor
+        because its spin() in a background thread hung in our probes (DESIGN.md)."""
         deadline = time.monotonic() + timeout_s
         while not self.sim_node.all_answered:
             remaining = deadline - time.monotonic()

@@ -47,6 +47,7 @@ SPAWN_AT_ONCE = max(2, 2 * (os.cpu_count() or 1))
 STALL_TIMEOUT_S = 60.0     # start-up fails when no child became ready for this long
 POLL_S = 0.01              # while waiting for answers, look for dead children this often
 TERM_GRACE_S = 5.0         # SIGTERM → SIGKILL
+LATE_LEDS = "leds answering an earlier tick arrived after that tick closed: applied one tick late"
 
 
 @dataclass
@@ -101,6 +102,8 @@ class DomainExchange:
     def __init__(self, nodes: list[SimulatorNode], check_children: Callable[[], None]):
         self.nodes = nodes
         self._check_children = check_children
+        self._tick = -1
+        self._opened_ns: Optional[int] = None    # wall time the current tick's sensors went out
 
     @property
     def violations(self) -> list[Violation]:
@@ -108,6 +111,8 @@ class DomainExchange:
         return sorted((v for n in self.nodes for v in n.violations), key=lambda v: v.tick)
 
     def publish_tick(self, frame: SensorFrame) -> None:
+        self._tick = frame.tick
+        self._opened_ns = time.time_ns() if frame.tick > 0 else None   # nothing precedes tick 0
         for node in self.nodes:
             node.publish_tick(frame)
 
@@ -132,9 +137,32 @@ class DomainExchange:
             node.close_tick(fallback, previous, commands)
 
     def take_led_commands(self) -> dict[int, np.ndarray]:
+        """Each node's LED inbox, drained as SimulatorNode.take_led_commands does, plus a check
+        that composed mode does not need.
+
+        A controller publishes ``leds`` before its ``cmd_vel``, but these are two DDS writers and
+        DDS orders samples per writer only. In practice both go from the child's participant to
+        the same locator of ours and are received in order by one transport thread (we measured
+        no LED arriving after its tick's answer in 30,000+ LED-changing robot-ticks, also on an
+        overloaded machine); only a lost LED sample, re-sent at the writer's next heartbeat
+        (~3 s), could land after its tick closed, and it would then act one tick late. That can
+        be told for sure from the sample's source timestamp (same host clock): an LED published
+        before this tick's sensors went out answers an earlier tick. It is still applied (it is
+        the latest colour) and recorded as a violation, so "same world and seed ⇒ same
+        trajectories unless a violation is recorded" holds in this mode too.
+        """
         out: dict[int, np.ndarray] = {}
         for node in self.nodes:
-            out.update(node.take_led_commands())    # keyed by global row: no overlap
+            for i, sub in enumerate(node._led_subs):    # the node's never-spun inbox
+                robot = node._names[i]
+                while (taken := sub.handle.take_message(sub.msg_type, sub.raw)) is not None:
+                    msg, info = taken
+                    if self._opened_ns is not None and info["source_timestamp"] < self._opened_ns:
+                        node.violations.append(Violation(self._tick, robot, LATE_LEDS))
+                    try:
+                        out[int(node.rows[i])] = c.decode_leds(msg, node._models[i].n_leds)
+                    except ValueError as e:
+                        node.violations.append(Violation(self._tick, robot, f"leds: {e}"))
         return out
 
 
