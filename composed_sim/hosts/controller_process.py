@@ -1,7 +1,7 @@
 """One robot's controller in its own OS process (multi-process mode).
 
     python -m composed_sim.hosts.controller_process --world W.yaml --robot bot3 --domain 5 \\
-        --executor single-threaded [--parent-pid PID] [--ready-fd FD]
+        --executor lockstep [--parent-pid PID] [--ready-fd FD]
 
 It builds the very same plugin Node as the composed host (``create_controller``), in the robot's
 namespace, on the given domain, with ``use_sim_time`` so it follows the simulator's /clock like
@@ -42,7 +42,7 @@ def parse(argv: list[str] | None) -> argparse.Namespace:
     p.add_argument("--world", required=True, help="resolved world file (written by the host)")
     p.add_argument("--robot", required=True, help="robot name, e.g. bot3")
     p.add_argument("--domain", type=int, required=True, help="ROS domain id")
-    p.add_argument("--executor", default="single-threaded")
+    p.add_argument("--executor", default="lockstep")
     p.add_argument("--parent-pid", type=int, default=None)
     p.add_argument("--ready-fd", type=int, default=None,
                    help="pipe to write 'ready <topics>' to once matched with the simulator")
@@ -87,8 +87,9 @@ def main(argv: list[str] | None = None) -> int:
         if args.ready_fd is not None:
             if not report_ready(node, args.robot, args.ready_fd, stop):
                 return 0 if stop.is_set() else 1
-        if args.executor == "events":
-            # EventsExecutor.spin() in a thread hung in our probes (DESIGN.md): drive it from here.
+        if args.executor in ("events", "lockstep"):
+            # Driven from this thread, as the composed host does: the lockstep executor by design,
+            # the EventsExecutor because its spin() in a thread hung in our probes (DESIGN.md).
             while not stop.is_set():
                 executor.spin_once(timeout_sec=0.05)
         else:

@@ -174,7 +174,7 @@ class MultiProcessHost:
     use a single-threaded executor each: their callbacks only store an answer.
     """
 
-    def __init__(self, world: World, *, executor: str = "multi-threaded", domain_id: int = 0,
+    def __init__(self, world: World, *, executor: str = "lockstep", domain_id: int = 0,
                  robots_per_domain: Optional[int] = None):
         if executor not in EXECUTORS:
             raise HostError(f"unknown executor {executor!r}; choose one of {', '.join(EXECUTORS)}")

@@ -1,0 +1,463 @@
+"""Record a run as a rosbag2 directory (MCAP storage, sim-time stamps) and read it back.
+
+A recording is what ``ros2 bag info``, ``ros2 bag play`` and Foxglove open: ``DIR/metadata.yaml``
+plus ``DIR/DIR.mcap``. Every message is logged at its sim time (tick ``k`` at ``k * tick_ns``
+nanoseconds), so a bag starts at time 0, not at the wall-clock time of the run.
+
+Topics
+  /clock         rosgraph_msgs/msg/Clock          once per tick (``write_clock``)
+  /swarm/state   sensor_msgs/msg/PointCloud2      once per tick, every robot in one message
+                                                  (``write_swarm_state``; layout below)
+  any other      whatever rclpy message is given   only topics matching the recorder's globs
+                                                  (``wants``, ``write_message``)
+
+The swarm state is one PointCloud2 per tick, one point per robot in the order of
+``robot_names`` (frame ``world``): a standard type that Foxglove and RViz draw as coloured
+points without any plugin, that carries poses and colours of all robots in one message (one
+PoseArray would need a second message for the colours), and whose payload is one numpy
+buffer, so writing it costs the same for 10 or 1280 robots apart from the copy. Fields,
+``STATE_DTYPE`` (40 bytes per robot, little-endian):
+
+  x, y, z  float64  position in m (z = 0: the simulation is planar)
+  yaw      float64  heading in rad, CCW from the x axis
+  rgb      uint32   0x00RRGGBB, the robot's display LED colour (``display_colors``); 0 = no LED lit
+  id       uint32   the robot's index in ``robot_names``
+
+float64 keeps the recorded poses bit-identical to the run's trajectories, so a replay
+recomputes the same figures; the extra 16 bytes per robot are negligible (51 kB per tick
+at 1280 robots before zstd chunk compression).
+
+The recorder also stores, as rosbag2 ``custom_data`` (in metadata.yaml and in the MCAP's
+metadata record), what a replay needs without the results directory:
+``composed_sim.robot_names`` (JSON list), ``composed_sim.tick_s``, ``composed_sim.ticks``
+(clock messages written), ``composed_sim.world`` (the resolved world as YAML, when given).
+
+rosbags (pure Python) writes and reads the bag; message definitions and type hashes come from
+its ROS 2 Jazzy typestore, so the MCAP schemas are the real ``ros2msg`` definitions. A type the
+typestore lacks is loaded from the ``share/<package>/msg/<Type>.msg`` file of the installed
+interface package (the venv or $AMENT_PREFIX_PATH).
+"""
+from __future__ import annotations
+
+import fnmatch
+import json
+import math
+import os
+import re
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Iterable, Optional
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from composed_sim.world.schema import World
+
+CLOCK_TOPIC = "/clock"
+SWARM_STATE_TOPIC = "/swarm/state"
+SWARM_STATE_TYPE = "sensor_msgs/msg/PointCloud2"
+CLOCK_TYPE = "rosgraph_msgs/msg/Clock"
+FRAME_ID = "world"          # the fixed frame of the swarm state and of /swarm/markers
+
+# One point per robot; 40 bytes keeps every float64 8-byte aligned from point to point.
+STATE_DTYPE = np.dtype([("x", "<f8"), ("y", "<f8"), ("z", "<f8"), ("yaw", "<f8"),
+                        ("rgb", "<u4"), ("id", "<u4")])
+
+_KEY = "composed_sim."
+_NS_PER_S = 1_000_000_000
+_BAG_VERSION = 9            # the rosbag2 metadata version of ROS 2 Jazzy
+
+
+class RecordingError(Exception):
+    """A recording that cannot be written or read; the message names the bag and the problem."""
+
+
+# --- colours -----------------------------------------------------------------------------
+
+def display_colors(led_colors: np.ndarray) -> np.ndarray:
+    """The one colour that stands for each robot's LEDs → [n, 3] uint8.
+
+    led_colors: [n, L, 3] (ring LEDs first, beacon last, as in the topic contract) or
+    already [n, 3]. The beacon (the last LED) when it is lit, else the first lit ring LED,
+    else black (no LED lit).
+    """
+    c = np.asarray(led_colors)
+    c = c if c.dtype == np.uint8 else c.astype(np.uint8)
+    if c.ndim == 2 and c.shape[1] == 3:
+        return c
+    if c.ndim != 3 or c.shape[2] != 3 or c.shape[1] == 0:
+        raise ValueError(f"led_colors must be [n, L, 3] or [n, 3], got shape {c.shape}")
+    lit = (c[..., 0] | c[..., 1] | c[..., 2]) != 0               # [n, L]; faster than any(axis=2)
+    ring_first = np.argmax(lit[:, :-1], axis=1) if c.shape[1] > 1 else np.zeros(len(c), int)
+    # With nothing lit argmax gives LED 0, which is then black: the right answer.
+    first = np.where(lit[:, -1], c.shape[1] - 1, ring_first)      # [n]
+    return c[np.arange(len(c)), first]
+
+
+def pack_rgb(colors: np.ndarray) -> np.ndarray:
+    """[n, 3] uint8 → [n] uint32 0x00RRGGBB."""
+    c = colors.astype(np.uint32)
+    return (c[:, 0] << 16) | (c[:, 1] << 8) | c[:, 2]
+
+
+def unpack_rgb(rgb: np.ndarray) -> np.ndarray:
+    """[...] uint32 0x00RRGGBB → [..., 3] uint8."""
+    rgb = np.asarray(rgb, dtype=np.uint32)
+    return np.stack([(rgb >> 16) & 0xFF, (rgb >> 8) & 0xFF, rgb & 0xFF], axis=-1).astype(np.uint8)
+
+
+# --- message types -----------------------------------------------------------------------
+
+def ros_type_name(msg: Any) -> str:
+    """'geometry_msgs/msg/TwistStamped' for an rclpy message (or its class)."""
+    cls = msg if isinstance(msg, type) else type(msg)
+    parts = cls.__module__.split(".")
+    if len(parts) < 2 or parts[1] not in ("msg", "srv", "action"):
+        raise ValueError(f"not an rclpy message: {cls.__module__}.{cls.__qualname__}")
+    return f"{parts[0]}/{parts[1]}/{cls.__name__}"
+
+
+def _new_typestore():
+    from rosbags.typesys import Stores, get_typestore
+    return get_typestore(Stores.ROS2_JAZZY)
+
+
+def _interface_dirs() -> list[Path]:
+    """Where installed interface packages keep their .msg files (share/<pkg>/msg)."""
+    prefixes = [p for p in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep) if p]
+    prefixes.append(sys.prefix)
+    return [Path(p) / "share" for p in prefixes]
+
+
+def _ensure_type(typestore, name: str) -> None:
+    """Register ``name`` (and the types it uses) from its .msg file if the typestore lacks it."""
+    from rosbags.typesys import get_types_from_msg
+
+    pending, found = [name], {}
+    while pending:
+        typ = pending.pop()
+        if typ in typestore.fielddefs or typ in found:
+            continue
+        pkg, kind, short = typ.split("/")
+        path = next((d / pkg / kind / f"{short}.msg" for d in _interface_dirs()
+                     if (d / pkg / kind / f"{short}.msg").is_file()), None)
+        if path is None:
+            raise RecordingError(f"message type {typ}: not in the rosbags typestore and no "
+                                 f"{pkg}/{kind}/{short}.msg under {', '.join(map(str, _interface_dirs()))}")
+        parsed = get_types_from_msg(path.read_text(encoding="utf-8"), typ)
+        found.update(parsed)
+        pending += [t for t in _referenced_types(parsed) if t not in typestore.fielddefs]
+    typestore.register(found)
+
+
+def _referenced_types(typesdict: dict) -> set[str]:
+    """Every 'pkg/msg/Type' named inside parsed field definitions."""
+    out: set[str] = set()
+    stack: list = list(typesdict.values())
+    while stack:
+        item = stack.pop()
+        if isinstance(item, str):
+            if re.fullmatch(r"[A-Za-z]\w*/(msg|srv|action)/\w+", item):
+                out.add(item)
+        elif isinstance(item, (tuple, list)):
+            stack.extend(item)
+    return out
+
+
+def _qos_profiles():
+    """The contract's QoS (reliable, keep last 10, volatile), for `ros2 bag play`."""
+    from rosbags.interfaces import (Qos, QosDurability, QosHistory, QosLiveliness,
+                                    QosReliability, QosTime)
+    never = QosTime(sec=0, nsec=0)
+    return [Qos(history=QosHistory.KEEP_LAST, depth=10, reliability=QosReliability.RELIABLE,
+                durability=QosDurability.VOLATILE, deadline=never, lifespan=never,
+                liveliness=QosLiveliness.AUTOMATIC, liveliness_lease_duration=never,
+                avoid_ros_namespace_conventions=False)]
+
+
+# --- writing -----------------------------------------------------------------------------
+
+class BagRecorder:
+    """A rosbag2/MCAP recording of one run; a context manager that always leaves a readable bag.
+
+    ``path`` is the bag directory to create (it must not exist). ``topics_globs`` selects the
+    per-robot topics that ``write_message`` records (``fnmatch`` patterns on the full topic
+    name, ``*`` also matches ``/``: ``/bot1*/cmd_vel``, ``/*/leds``); ``/clock`` and
+    ``/swarm/state`` are always recorded. ``world``, when given, is stored in the bag so that
+    a replay needs nothing else. ``compress`` turns on zstd chunk compression (MCAP's own,
+    read by ros2 bag, Foxglove and rosbags).
+
+    Leaving the ``with`` block closes the bag, also on an exception or a KeyboardInterrupt:
+    a run stopped early leaves a bag with the ticks written so far.
+    """
+
+    def __init__(self, path: str | os.PathLike, *, robot_names: Iterable[str], tick_s: float,
+                 topics_globs: Iterable[str] = (), world: Optional["World"] = None,
+                 compress: bool = True):
+        from rosbags.rosbag2 import StoragePlugin, Writer
+        from rosbags.rosbag2.enums import CompressionFormat, CompressionMode
+
+        self.path = Path(path)
+        self.robot_names = list(robot_names)
+        if not (isinstance(tick_s, (int, float)) and math.isfinite(tick_s) and tick_s > 0):
+            raise ValueError(f"tick_s must be a positive number of seconds (got {tick_s!r})")
+        self.tick_s = float(tick_s)
+        self.tick_ns = round(self.tick_s * _NS_PER_S)
+        self.topics_globs = list(topics_globs)
+        self._patterns = [re.compile(fnmatch.translate(g)) for g in self.topics_globs]
+        self._wanted: dict[str, bool] = {}
+        if self.path.exists():
+            raise RecordingError(f"{self.path}: already exists; a recording needs a new directory")
+        self._typestore = _new_typestore()
+        self._writer = Writer(self.path, version=_BAG_VERSION, storage_plugin=StoragePlugin.MCAP)
+        if compress:
+            self._writer.set_compression(CompressionMode.STORAGE, CompressionFormat.ZSTD)
+        self._custom: dict[str, str] = {}
+        if world is not None:
+            from composed_sim.world.loader import dump_world
+            self._custom[_KEY + "world"] = dump_world(world)
+        try:
+            self._writer.open()
+        except Exception as e:
+            raise RecordingError(f"{self.path}: cannot create the recording: {e}") from None
+        self._closed = False
+        self._connections: dict[str, Any] = {}     # topic -> rosbags Connection
+        self.ticks_written = 0
+        self.counts: dict[str, int] = {}            # topic -> messages written
+        types = self._typestore.types
+        self._Clock, self._Time = types[CLOCK_TYPE], types["builtin_interfaces/msg/Time"]
+        self._Header, self._Cloud = types["std_msgs/msg/Header"], types[SWARM_STATE_TYPE]
+        field = types["sensor_msgs/msg/PointField"]
+        kinds = {"f8": field.FLOAT64, "u4": field.UINT32}
+        self._fields = [field(name=name, offset=STATE_DTYPE.fields[name][1],
+                              datatype=kinds[STATE_DTYPE.fields[name][0].str[1:]], count=1)
+                        for name in STATE_DTYPE.names]
+        self._points = np.zeros(len(self.robot_names), dtype=STATE_DTYPE)
+        self._points["id"] = np.arange(len(self.robot_names))
+        self._connection(CLOCK_TOPIC, CLOCK_TYPE)
+        self._connection(SWARM_STATE_TOPIC, SWARM_STATE_TYPE)
+
+    # -- context manager --
+
+    def __enter__(self) -> "BagRecorder":
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        if exc_type is None:
+            self.close()
+            return
+        try:                    # an interrupted run still leaves a readable bag
+            self.close()
+        except Exception:       # noqa: BLE001 - the original error matters more
+            self._abort()
+
+    @property
+    def closed(self) -> bool:
+        return self._closed
+
+    # -- topics --
+
+    def wants(self, topic: str) -> bool:
+        """True when ``topic`` matches one of the globs; the answer is cached per topic."""
+        hit = self._wanted.get(topic)
+        if hit is None:
+            hit = self._wanted[topic] = any(p.match(topic) for p in self._patterns)
+        return hit
+
+    def set_custom(self, key: str, value: str) -> None:
+        """Add a ``composed_sim.<key>`` entry to the bag's custom_data (written at close)."""
+        self._custom[_KEY + key] = str(value)
+
+    # -- writing --
+
+    def write_clock(self, tick: int, stamp_ns: Optional[int] = None) -> None:
+        """/clock for ``tick``; ``stamp_ns`` defaults to ``tick * tick_ns``."""
+        ns = tick * self.tick_ns if stamp_ns is None else int(stamp_ns)
+        msg = self._Clock(clock=self._stamp(ns))
+        self._write(CLOCK_TOPIC, ns, self._typestore.serialize_cdr(msg, CLOCK_TYPE))
+        self.ticks_written += 1
+
+    def write_swarm_state(self, stamp_ns: int, positions: np.ndarray, headings: np.ndarray,
+                          led_colors: Optional[np.ndarray] = None) -> None:
+        """/swarm/state: positions [n, 2] m, headings [n] rad, led_colors [n, L, 3] or [n, 3]
+        uint8 (None: no LED lit). n must equal ``len(robot_names)``."""
+        n = len(self.robot_names)
+        p = np.asarray(positions, dtype=float)
+        h = np.asarray(headings, dtype=float)
+        if p.shape != (n, 2):
+            raise ValueError(f"positions must be [{n}, 2], got shape {p.shape}")
+        if h.shape != (n,):
+            raise ValueError(f"headings must be [{n}], got shape {h.shape}")
+        pts = self._points
+        pts["x"], pts["y"], pts["yaw"] = p[:, 0], p[:, 1], h
+        if led_colors is None:
+            pts["rgb"] = 0
+        else:
+            colors = display_colors(led_colors)
+            if colors.shape != (n, 3):
+                raise ValueError(f"led_colors must hold {n} robots, got shape {np.shape(led_colors)}")
+            pts["rgb"] = pack_rgb(colors)
+        ns = int(stamp_ns)
+        msg = self._Cloud(header=self._Header(stamp=self._stamp(ns), frame_id=FRAME_ID),
+                          height=1, width=n, fields=self._fields, is_bigendian=False,
+                          point_step=STATE_DTYPE.itemsize, row_step=STATE_DTYPE.itemsize * n,
+                          data=pts.view(np.uint8), is_dense=True)
+        self._write(SWARM_STATE_TOPIC, ns, self._typestore.serialize_cdr(msg, SWARM_STATE_TYPE))
+
+    def write_message(self, topic: str, msg: Any, stamp_ns: int) -> bool:
+        """Record an rclpy message on ``topic`` if the globs select it; returns whether it did.
+
+        Ask ``wants(topic)`` first to skip building messages nobody records.
+        """
+        if not self.wants(topic):
+            return False
+        from rclpy.serialization import serialize_message
+        self._write(topic, int(stamp_ns), serialize_message(msg), ros_type_name(msg))
+        return True
+
+    def write_serialized(self, topic: str, msgtype: str, data: bytes, stamp_ns: int) -> bool:
+        """Like ``write_message`` for an already CDR-serialised message of type ``msgtype``."""
+        if not self.wants(topic):
+            return False
+        self._write(topic, int(stamp_ns), data, msgtype)
+        return True
+
+    def close(self) -> None:
+        """Write the MCAP index and metadata.yaml; the bag is complete afterwards. Idempotent."""
+        if self._closed:
+            return
+        self._closed = True
+        for key, value in self._custom.items():
+            self._writer.set_custom_data(key, value)
+        self._writer.set_custom_data(_KEY + "robot_names", json.dumps(self.robot_names))
+        self._writer.set_custom_data(_KEY + "tick_s", repr(self.tick_s))
+        self._writer.set_custom_data(_KEY + "ticks", str(self.ticks_written))
+        self._writer.close()
+
+    # -- internals --
+
+    def _abort(self) -> None:
+        self._closed = True
+        self._writer.abort()
+
+    def _stamp(self, ns: int):
+        return self._Time(sec=ns // _NS_PER_S, nanosec=ns % _NS_PER_S)
+
+    def _connection(self, topic: str, msgtype: str):
+        conn = self._connections.get(topic)
+        if conn is None:
+            if msgtype not in self._typestore.fielddefs:
+                _ensure_type(self._typestore, msgtype)
+            conn = self._writer.add_connection(topic, msgtype, typestore=self._typestore,
+                                               offered_qos_profiles=_qos_profiles())
+            self._connections[topic] = conn
+            self.counts[topic] = 0
+        elif conn.msgtype != msgtype:
+            raise RecordingError(f"{topic}: recorded as {conn.msgtype}, cannot also hold {msgtype}")
+        return conn
+
+    def _write(self, topic: str, ns: int, data: bytes, msgtype: Optional[str] = None) -> None:
+        if self._closed:
+            raise RecordingError(f"{self.path}: the recording is closed")
+        conn = self._connections[topic] if msgtype is None else self._connection(topic, msgtype)
+        self._writer.write(conn, ns, data)
+        self.counts[topic] += 1
+
+
+# --- reading -----------------------------------------------------------------------------
+
+@dataclass
+class Recording:
+    """A recording's swarm state, Trajectories-like (``positions``, ``headings``, ``names``)."""
+    names: list[str]
+    tick_s: float
+    stamps_ns: np.ndarray       # [T] sim time of each swarm state
+    positions: np.ndarray       # [T, n, 2] m
+    headings: np.ndarray        # [T, n] rad
+    led_colors: np.ndarray      # [T, n, 3] uint8 display colours (0 = no LED lit)
+    world: Optional["World"]    # the world stored at record time, if any
+    topics: dict[str, tuple[str, int]]    # topic -> (message type, message count)
+
+    @property
+    def ticks(self) -> np.ndarray:
+        """[T] tick number of each swarm state."""
+        return np.rint(self.stamps_ns / (self.tick_s * _NS_PER_S)).astype(int)
+
+    @property
+    def ticks_done(self) -> int:
+        """The last recorded tick (0 for an empty bag)."""
+        return int(self.ticks[-1]) if len(self.stamps_ns) else 0
+
+
+def read_recording(path: str | os.PathLike) -> Recording:
+    """Read a bag written by ``BagRecorder``: the swarm state of every tick and what it stored."""
+    from rosbags.rosbag2 import Reader
+
+    path = Path(path)
+    custom = _custom_data(path)
+    typestore = _new_typestore()
+    try:
+        with Reader(path) as reader:
+            topics = {name: (info.msgtype, info.msgcount) for name, info in reader.topics.items()}
+            conns = [c for c in reader.connections if c.topic == SWARM_STATE_TOPIC]
+            stamps, clouds = [], []
+            for conn, ns, raw in reader.messages(connections=conns):
+                msg = typestore.deserialize_cdr(raw, conn.msgtype)
+                stamps.append(ns)
+                clouds.append(_decode_state(msg, path, ns))
+    except RecordingError:
+        raise
+    except Exception as e:    # noqa: BLE001 - rosbags' reader errors and file-system errors alike
+        raise RecordingError(f"{path}: not a readable rosbag2 recording: {e}") from None
+    names = json.loads(custom[_KEY + "robot_names"]) if _KEY + "robot_names" in custom else \
+        [f"robot{i}" for i in range(len(clouds[0]) if clouds else 0)]
+    n = len(names)
+    if any(len(c) != n for c in clouds):
+        raise RecordingError(f"{path}: a swarm state does not hold the {n} recorded robots")
+    tick_s = float(custom.get(_KEY + "tick_s", "nan"))
+    if not math.isfinite(tick_s):
+        tick_s = (stamps[1] - stamps[0]) / _NS_PER_S if len(stamps) > 1 else 0.1
+    order = np.argsort(stamps, kind="stable")
+    pts = np.stack([clouds[i] for i in order]) if clouds else np.zeros((0, n), STATE_DTYPE)
+    world = None
+    if _KEY + "world" in custom:
+        import yaml
+        from composed_sim.world.loader import world_from_dict
+        world = world_from_dict(yaml.safe_load(custom[_KEY + "world"]),
+                                source=f"{path}/metadata.yaml custom_data {_KEY}world")
+    return Recording(names=names, tick_s=tick_s,
+                     stamps_ns=np.asarray(stamps, dtype=np.int64)[order],
+                     positions=np.stack([pts["x"], pts["y"]], axis=-1),
+                     headings=pts["yaw"].copy(), led_colors=unpack_rgb(pts["rgb"]),
+                     world=world, topics=topics)
+
+
+def read_swarm_states(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(stamps_ns [T], positions [T, n, 2], headings [T, n], led_colors [T, n, 3] uint8)."""
+    r = read_recording(path)
+    return r.stamps_ns, r.positions, r.headings, r.led_colors
+
+
+def _custom_data(path: Path) -> dict[str, str]:
+    import yaml
+    meta = path / "metadata.yaml"
+    try:
+        data = yaml.safe_load(meta.read_text(encoding="utf-8"))
+        return dict(data["rosbag2_bagfile_information"].get("custom_data") or {})
+    except FileNotFoundError:
+        raise RecordingError(f"{path}: no metadata.yaml; not a rosbag2 directory "
+                             f"(or the recording was killed before it was closed)") from None
+    except Exception as e:    # noqa: BLE001
+        raise RecordingError(f"{meta}: unreadable rosbag2 metadata: {e}") from None
+
+
+def _decode_state(msg: Any, path: Path, ns: int) -> np.ndarray:
+    layout = [(f.name, f.offset, f.datatype) for f in msg.fields]
+    expected = [(name, STATE_DTYPE.fields[name][1], None) for name in STATE_DTYPE.names]
+    if [(a, b) for a, b, _ in layout] != [(a, b) for a, b, _ in expected] \
+            or msg.point_step != STATE_DTYPE.itemsize or msg.is_bigendian:
+        raise RecordingError(f"{path}: {SWARM_STATE_TOPIC} at {ns} ns: unexpected point layout "
+                             f"{[(a, b) for a, b, _ in layout]} (point_step {msg.point_step})")
+    return np.frombuffer(np.asarray(msg.data, dtype=np.uint8).tobytes(), dtype=STATE_DTYPE,
+                         count=msg.width * msg.height)
