@@ -1,8 +1,8 @@
 """``composed-sim bench``: sweep swarm sizes, host modes and executors; measure each run's whole
 process tree; write CSV, JSON, figures and a markdown report side by side with the paper's results.
 
-Each run is its own ``composed-sim run ... --json`` subprocess on a fresh ROS domain (a block of
-domains in multi-process mode), watched with psutil every ``SAMPLE_S``:
+Each run is its own ``composed-sim run ... --json`` subprocess on a ROS domain (a block of domains
+in multi-process mode) that the previous run did not use, watched with psutil every ``SAMPLE_S``:
 
 WallTime(s)  spawn to exit of the run's root process: interpreter start, imports, setup, the ticks,
              writing the results; what the paper timed.
@@ -37,8 +37,9 @@ from pathlib import Path
 from typing import Callable, Iterable, Optional
 
 PAPER_SIZES = (3, 5, 10, 20, 40, 80, 160, 320, 640, 1280)
+# Display order of modes and executors; the choices themselves are the hosts' (hosts.composed).
 MODES = ("composed", "multi-process")
-EXECUTORS = ("multi-threaded", "single-threaded", "events")
+EXECUTORS = ("lockstep", "events", "single-threaded", "multi-threaded")
 
 # The paper's CSV columns, in its order, filled with our measurements (see the module docstring).
 # ArgosCPU/ArgosMem: the run's root process (the simulator); Ros2CPU/Ros2Mem: every other process
@@ -124,13 +125,14 @@ def _fraction(text: str) -> float:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from composed_sim.hosts.composed import EXECUTORS as executors, MODES as modes
     join = ",".join
     parser.add_argument("--sizes", type=_size_list, default=PAPER_SIZES, metavar="N,N,…",
                         help=f"swarm sizes (default: the paper's {join(map(str, PAPER_SIZES))})")
-    parser.add_argument("--modes", type=_choice_list(MODES), default=MODES, metavar="MODE,…",
-                        help=f"host modes among {join(MODES)} (default: both)")
-    parser.add_argument("--executors", type=_choice_list(EXECUTORS), default=EXECUTORS, metavar="EXECUTOR,…",
-                        help=f"rclpy executors among {join(EXECUTORS)} (default: all three)")
+    parser.add_argument("--modes", type=_choice_list(tuple(modes)), default=tuple(modes), metavar="MODE,…",
+                        help=f"host modes among {join(modes)} (default: all)")
+    parser.add_argument("--executors", type=_choice_list(tuple(executors)), default=tuple(executors),
+                        metavar="EXECUTOR,…", help=f"executors among {join(executors)} (default: all)")
     parser.add_argument("--trials", type=_positive(int), default=3, help="runs per size, mode and executor (default: %(default)s)")
     parser.add_argument("--ticks", type=_positive(int), default=600,
                         help="ticks per run (default: %(default)s, one simulated minute as in the paper)")
@@ -144,8 +146,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--report", type=Path, default=None, metavar="FILE.md",
                         help="also write a markdown report there, its figures and raw rows in figures/ beside it")
     parser.add_argument("--domain-id", type=int, default=None,
-                        help="first ROS domain; each run gets the next free one (a block in multi-process "
-                             "mode), disjoint from the previous run's (default: $ROS_DOMAIN_ID or 0)")
+                        help="first ROS domain: each run gets a domain (a block of them in multi-process "
+                             "mode) from here on, never one the previous run had (default: $ROS_DOMAIN_ID or 0)")
     parser.add_argument("--robots-per-domain", type=_positive(int), default=None,
                         help="multi-process mode: passed on to each run (default: the run's own default, "
                              f"{DEFAULT_ROBOTS_PER_DOMAIN})")
@@ -547,12 +549,13 @@ class Sweep:
     world: Path
     ticks: int
     timeout_s: float
-    robots_per_domain: Optional[int]
+    robots_per_domain: Optional[int]         # given on the bench's command line, passed on
     memory_fraction: float
     domains: DomainAllocator
     estimate: MemoryEstimate = field(default_factory=MemoryEstimate)
     calibration: list = field(default_factory=list)
     interrupted: bool = False         # the last run was ended because the sweep was interrupted
+    world_robots_per_domain: Optional[int] = None   # the world's multi_process.robots_per_domain
 
     def command(self, robots: int, mode: str, executor: str, domain: int, out: Path, ticks: int) -> list[str]:
         cmd = [sys.executable, "-m", "composed_sim.cli", "run", str(self.world), "--robots", str(robots),
@@ -573,7 +576,7 @@ class Sweep:
             if reason:
                 row.update(status="skipped", reason=reason)
                 return row
-        width = domains_needed(mode, robots, self.robots_per_domain)
+        width = domains_needed(mode, robots, self.robots_per_domain or self.world_robots_per_domain)
         domain = self.domains.take(width)
         if domain is None:
             row.update(status="skipped", reason=f"needs {width} ROS domains from --domain-id {self.domains.base}, "
@@ -758,7 +761,8 @@ def run(args) -> int:
     machine = machine_info()
     sweep = Sweep(world=world_path, ticks=args.ticks, timeout_s=args.timeout,
                   robots_per_domain=args.robots_per_domain, memory_fraction=args.memory_fraction,
-                  domains=domains)
+                  domains=domains,
+                  world_robots_per_domain=getattr(getattr(world, "multi_process", None), "robots_per_domain", None))
     plan = [(n, trial, mode, executor) for n in args.sizes for trial in range(1, args.trials + 1)
             for mode in args.modes for executor in args.executors]
     settings = {"sizes": list(args.sizes), "modes": list(args.modes), "executors": list(args.executors),
@@ -875,7 +879,8 @@ def write_outputs(doc: dict, out: Path, report: Optional[Path]) -> None:
         shutil.copyfile(out / "runs.csv", fig_dir / f"{stem}_runs.csv")
         shutil.copyfile(out / "runs.json", fig_dir / f"{stem}_runs.json")
         report.write_text(render_report(doc, {k: p.relative_to(report.parent) for k, p in copied.items()},
-                                        raw=(Path("figures") / f"{stem}_runs.csv", Path("figures") / f"{stem}_runs.json")))
+                                        raw=(Path("figures") / f"{stem}_runs.csv", Path("figures") / f"{stem}_runs.json"),
+                                        report=report))
 
 
 def write_csv(rows: list[dict], path: Path) -> None:
@@ -887,7 +892,8 @@ def write_csv(rows: list[dict], path: Path) -> None:
 
 
 def _series_style(mode: str, executor: str) -> dict:
-    colors = {"multi-threaded": "tab:blue", "single-threaded": "tab:orange", "events": "tab:green"}
+    colors = {"multi-threaded": "tab:blue", "single-threaded": "tab:orange", "events": "tab:green",
+              "lockstep": "tab:red"}
     return {"color": colors.get(executor, "tab:purple"), "linestyle": "-" if mode == "composed" else "--",
             "marker": "o" if mode == "composed" else "s"}
 
@@ -958,7 +964,54 @@ def _ratio(a, b, digits: int = 2) -> str:
     return "–" if x is None or y is None or y == 0 else f"{x / y:.{digits}g}" if x / y < 0.01 else f"{x / y:.{digits}f}"
 
 
-def render_report(doc: dict, figures: dict[str, Path], raw: tuple[Path, Path]) -> str:
+# DESIGN.md's performance budget for composed mode, 600 ticks of the flocking world:
+# N -> limits (None: no limit stated; the run must complete).
+BUDGET = {1280: {"ticks_wall_s": 60.0, "MaxMem(kB)": 1.5 * 2**20, "setup_s": 15.0},
+          10240: {"ticks_wall_s": None, "MaxMem(kB)": 12 * 2**20, "setup_s": None}}
+
+
+SATURATED = 0.95   # share of the machine's cores busy (the run's + others') above which a run is flagged
+
+
+def saturated(rec: dict, cores: int) -> bool:
+    """Whether the machine's cores were all busy during a run (or the median of runs): its CPU % of
+    one core / 100 + the other load >= SATURATED × cores."""
+    cpu, other = _num(rec.get("CPU(%)")), _num(rec.get("other_load_cores"))
+    if cpu is None or other is None or cores < 1:
+        return False
+    return cpu / 100 + other >= SATURATED * cores
+
+
+def _budget_section(agg: list[dict], rows: list[dict]) -> list[str]:
+    lines = ["", "## Against the design budget (composed mode, 600 ticks)", ""]
+    checked = [a for a in agg if a["mode"] == "composed" and a["Robots"] in BUDGET]
+    if not checked:
+        return lines + ["The budget is stated at N = " + " and ".join(map(str, BUDGET)) +
+                        "; this sweep ran neither."]
+    lines += ["| N | executor | ticks wall s | limit | setup s | limit | peak MB | limit | verdict |",
+              "|---:|---|---:|---:|---:|---:|---:|---:|---|"]
+    for a in checked:
+        limits = BUDGET[a["Robots"]]
+        ticks_ok = {r.get("ticks") for r in rows if r["Robots"] == a["Robots"]} == {600}
+        misses = []
+        if not a["ok"]:
+            misses.append("did not complete")
+        for key, label in (("ticks_wall_s", "ticks wall"), ("setup_s", "setup"), ("MaxMem(kB)", "peak memory")):
+            lim, val = limits[key], _num(a[key])
+            if lim is not None and val is not None and val > lim:
+                misses.append(label)
+        verdict = ("within budget" if not misses else "over: " + ", ".join(misses))
+        if not ticks_ok:
+            verdict += " (not 600 ticks)"
+        lim = lambda k, d, sc=1.0: "–" if limits[k] is None else f"≤ {limits[k] * sc:,.{d}f}"
+        lines.append(f"| {a['Robots']} | {a['executor']} | {_f(a['ticks_wall_s'], 1)} | {lim('ticks_wall_s', 0)} "
+                     f"| {_f(a['setup_s'], 1)} | {lim('setup_s', 0)} | {_f(a['MaxMem(kB)'], 0, 1 / 1024)} "
+                     f"| {lim('MaxMem(kB)', 0, 1 / 1024)} | {verdict} |")
+    return lines
+
+
+def render_report(doc: dict, figures: dict[str, Path], raw: tuple[Path, Path], report: Path) -> str:
+    """The markdown report; ``figures`` and ``raw`` (csv, json) are paths relative to its folder."""
     m, s = doc["machine"], doc.get("settings", {})
     rows = doc["rows"]
     agg = aggregate(rows)
@@ -991,7 +1044,8 @@ def render_report(doc: dict, figures: dict[str, Path], raw: tuple[Path, Path]) -
         "",
         f"{len(rows)} runs in {doc.get('elapsed_s', 0):.0f} s, each a `composed-sim run {Path(s.get('world', 'world')).name} "
         f"--ticks {ticks} --json` subprocess on its own ROS domain; raw rows: [{raw[0].name}]({raw[0].as_posix()}), "
-        f"[{raw[1].name}]({raw[1].as_posix()}) (redraw with `composed-sim bench --replot {raw[1].as_posix()}`).",
+        f"[{raw[1].name}]({raw[1].as_posix()}); `composed-sim bench --replot "
+        f"{(report.parent / raw[1]).as_posix()} --report {report.as_posix()}` redraws the figures and this report from them.",
         "",
         f"## Results (median over the ok trials; {ticks} ticks = {sim_s:g} s simulated)",
         "",
@@ -999,13 +1053,21 @@ def render_report(doc: dict, figures: dict[str, Path], raw: tuple[Path, Path]) -
         "| µs / robot-tick | CPU % of one core | CPU core-s | peak tree RSS MB | violations | other load (cores) |",
         "|---:|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
     ]
+    cores = m.get("logical_cores") or 0
+    any_saturated = False
     for a in agg:
+        mark = " †" if saturated(a, cores) else ""
+        any_saturated = any_saturated or bool(mark)
         lines.append(
             f"| {a['Robots']} | {a['mode']} | {a['executor']} | {a['ok']}/{a['trials']} | {_f(a['setup_s'], 2)} "
-            f"| {_f(a['ticks_wall_s'], 1)} | {_f(a['total_wall_s'], 1)} | {_f(a['real_time_factor'], 2)} "
+            f"| {_f(a['ticks_wall_s'], 1)} | {_f(a['total_wall_s'], 1)}{mark} | {_f(a['real_time_factor'], 2)} "
             f"| {_f(a['per_robot_tick_us'], 0)} | {_f(a['CPU(%)'], 0)} | {_f(a['cpu_core_s'], 1)} "
             f"| {_f(a['MaxMem(kB)'], 0, 1 / 1024)} | {'–' if a['violations'] is None else a['violations']} "
             f"| {_f(a['other_load_cores'], 2)} |")
+    if any_saturated:
+        lines += ["", f"† the machine was saturated during the run: its own CPU plus the other load reached "
+                      f"{SATURATED:.0%} of the {cores} cores, so the run may have waited for a core and its times "
+                      "are upper bounds."]
     odd = [r for r in rows if r["status"] != "ok"]
     if odd:
         lines += ["", "Runs that did not complete:", ""]
@@ -1022,6 +1084,7 @@ def render_report(doc: dict, figures: dict[str, Path], raw: tuple[Path, Path]) -
     by = {(a["Robots"], a["mode"], a["executor"]): a for a in agg}
     pairs = [(n, e) for (n, mode, e) in by if mode == "composed" and (n, "multi-process", e) in by
              and by[(n, "multi-process", e)]["ok"] and by[(n, mode, e)]["ok"]]
+    lines += _budget_section(agg, rows)
     lines += ["", "## Composed / multi-process (same executor, this run)", ""]
     if pairs:
         lines += ["Below 1 means the composed host needs less.", "",

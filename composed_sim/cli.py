@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import signal
@@ -57,7 +58,7 @@ def build_parser() -> argparse.ArgumentParser:
                          description="Run a world: the simulator node and every controller node in "
                                      "one process, in lockstep; writes summary.json, trajectories.npz, "
                                      "violations.csv, world.yaml and arena.png into --out.")
-    run.add_argument("world", type=Path, help="world file (YAML), e.g. worlds/flocking.yaml")
+    run.add_argument("world", type=Path, help="world file (YAML, e.g. worlds/flocking.yaml) or an ARGoS .argos file")
     run.add_argument("--robots", type=_positive_int, help="total number of robots (overrides the world)")
     run.add_argument("--ticks", type=_positive_int, help="ticks to simulate (overrides length_ticks)")
     run.add_argument("--seed", type=_non_negative_int, help="random seed (overrides the world)")
@@ -73,12 +74,37 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--fallback", choices=("zero", "previous"), help="command given to a late robot")
     run.add_argument("--domain-id", type=int, default=None,
                      help="ROS domain (default: $ROS_DOMAIN_ID or 0)")
+    run.add_argument("--controller", metavar="NAME",
+                     help="for an ARGoS .argos file: the controller plugin its robots run")
     run.add_argument("--out", type=Path, default=Path("out"), help="output directory (default: %(default)s)")
+    run.add_argument("--record", type=Path, metavar="DIR",
+                     help="record a rosbag2 (MCAP) directory: /clock, /swarm/state and --record-topics")
+    run.add_argument("--record-topics", nargs="+", default=[], metavar="GLOB",
+                     help="per-robot topics to record too, e.g. '/bot1*/cmd_vel' '/*/light'")
+    run.add_argument("--markers", action="store_true",
+                     help="publish the swarm as one visualization_msgs/MarkerArray on /swarm/markers")
     run.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
     run.add_argument("--no-picture", action="store_true", help="skip arena.png")
     run.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
 
     sub.add_parser("plugins", help="list the installed controller plugins")
+
+    render = sub.add_parser("render", help="draw a run's results or recording as PNG, GIF or MP4",
+                            description="Draw the arena, robots with heading and LED colour, trails and a "
+                                        "tick caption from a results directory (of `run`) or a recording.")
+    render.add_argument("source", type=Path, help="a results directory (--out of run) or a --record directory")
+    render.add_argument("--out", type=Path, required=True, help="run.mp4, run.gif or final.png")
+    _add_render_options(render)
+
+    replay = sub.add_parser("replay", help="re-render or re-check a recorded run without simulating it",
+                            description="Read a --record directory back: print what it holds, check it is "
+                                        "complete, and optionally render it.")
+    replay.add_argument("recording", type=Path, help="a --record directory (rosbag2 with MCAP)")
+    replay.add_argument("--out", type=Path, help="also render it: run.mp4, run.gif or final.png")
+    replay.add_argument("--check", action="store_true", help="exit 1 unless every tick of the world was recorded")
+    _add_render_options(replay)
+
+    sub.add_parser("worlds", help="list the shipped world files")
 
     bench = sub.add_parser("bench", help="benchmark swarm sizes, modes and executors against the paper",
                            description="Sweep swarm sizes, host modes and executors; measure setup, "
@@ -89,6 +115,13 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _add_render_options(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--fps", type=_positive_float, default=10.0, help="frames per second (default: %(default)s)")
+    parser.add_argument("--size", type=_positive_int, default=800, help="frame side in pixels (default: %(default)s)")
+    parser.add_argument("--trail", type=_non_negative_int, default=50, help="trail length in ticks (default: %(default)s)")
+    parser.add_argument("--every", type=_positive_int, default=1, help="draw every k-th tick (default: %(default)s)")
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
@@ -97,6 +130,12 @@ def main(argv: list[str] | None = None) -> int:
         if args.command == "bench":
             from composed_sim import bench
             return bench.run(args)
+        if args.command == "render":
+            return cmd_render(args)
+        if args.command == "replay":
+            return cmd_replay(args)
+        if args.command == "worlds":
+            return cmd_worlds()
         return cmd_run(args)
     except UserError as e:
         print(f"composed-sim: error: {e}", file=sys.stderr)
@@ -141,6 +180,7 @@ class _Interrupts:
 
     def __init__(self):
         self.requested = False
+        self.on_second = None    # called before a hard quit, e.g. to close a recording
 
     def __enter__(self):
         self._old = {s: signal.signal(s, self._handle) for s in (signal.SIGINT, signal.SIGTERM)}
@@ -148,6 +188,8 @@ class _Interrupts:
 
     def _handle(self, signum, frame):
         if self.requested:
+            if self.on_second is not None:
+                self.on_second()
             os._exit(EXIT_INTERRUPTED)
         self.requested = True
         print("\ncomposed-sim: stopping at the next tick (again to quit at once)", file=sys.stderr)
@@ -162,17 +204,17 @@ def cmd_run(args) -> int:
     from composed_sim.core.placement import PlacementError
     from composed_sim.hosts.composed import ComposedHost, HostError
     from composed_sim.results import summarize, write_results
-    from composed_sim.world.loader import WorldFileError, load_world
 
-    try:
-        world = load_world(args.world, robots=args.robots, ticks=args.ticks, seed=args.seed)
-    except WorldFileError as e:
-        raise UserError(str(e)) from None
+    world = _load_any_world(args)
     lockstep = {k: v for k, v in (("watchdog_s", args.watchdog), ("fallback", args.fallback)) if v is not None}
     if lockstep:
         world = world.model_copy(update={"lockstep": world.lockstep.model_copy(update=lockstep)})
     domain_id = _domain_id(args.domain_id)
     _check_writable(args.out)
+    if args.record is not None and args.record.exists():
+        raise UserError(f"--record {args.record}: already exists; a recording goes into a new directory")
+    if args.record_topics and args.record is None:
+        raise UserError("--record-topics: needs --record DIR")
 
     try:
         if args.mode == "multi-process":
@@ -192,12 +234,14 @@ def cmd_run(args) -> int:
         write_results(args.out, world, result, summary, picture=not args.no_picture)
         return summary
 
-    with _Interrupts() as interrupts:
+    with _Interrupts() as interrupts, contextlib.ExitStack() as outputs:
         try:
             with host:
+                observers = _run_observers(args, world, host, outputs, interrupts)
                 progress = _progress_bar(world.length_ticks, disabled=args.no_progress)
                 try:
-                    result = host.run(progress=progress.update, should_stop=lambda: interrupts.requested)
+                    result = host.run(progress=progress.update, should_stop=lambda: interrupts.requested,
+                                      **({"observers": observers} if observers else {}))
                 except Exception as e:
                     partial = getattr(e, "partial_result", None)
                     if partial is not None:   # write what was simulated before the failure
@@ -215,6 +259,135 @@ def cmd_run(args) -> int:
     else:
         print(_human_summary(summary))
     return EXIT_INTERRUPTED if result.interrupted else 0
+
+
+def _load_any_world(args):
+    """A YAML world file or an ARGoS experiment file, with the command line's overrides."""
+    from composed_sim.argos_import import is_argos_file, load_argos, warning_text
+    from composed_sim.world.loader import WorldFileError, load_world, with_overrides
+
+    try:
+        if is_argos_file(args.world):
+            world, warnings = load_argos(args.world, controller=args.controller)
+            text = warning_text(str(args.world), warnings)
+            if text:
+                print(f"composed-sim: warning: {text}", file=sys.stderr)
+            return with_overrides(world, robots=args.robots, ticks=args.ticks, seed=args.seed,
+                                  source=str(args.world))
+        if args.controller is not None:
+            raise UserError("--controller: only for ARGoS .argos files (a YAML world names its controllers)")
+        return load_world(args.world, robots=args.robots, ticks=args.ticks, seed=args.seed)
+    except WorldFileError as e:
+        raise UserError(str(e)) from None
+
+
+def _run_observers(args, world, host, outputs: contextlib.ExitStack, interrupts) -> list:
+    """The recording and live markers asked for on the command line, as tick observers."""
+    from composed_sim.hosts.observers import MarkerObserver, RecordingObserver
+
+    observers = []
+    tick_ns = round(1e9 / world.ticks_per_second)
+    recorder = None
+    if args.record is not None:
+        from composed_sim.recording import BagRecorder
+        recorder = outputs.enter_context(BagRecorder(args.record, robot_names=host.sim.names, tick_s=world.tick_s,
+                                                     topics_globs=args.record_topics, world=world))
+        interrupts.on_second = recorder.close_if_idle   # even a hard quit leaves a readable bag
+        observers.append(RecordingObserver(recorder, tick_ns))
+        if args.record_topics:
+            for node in host.simulator_nodes:
+                node.set_message_tap(recorder)
+    if args.markers:
+        observers.append(MarkerObserver(host.simulator_nodes[0], tick_ns, recorder))
+    return observers
+
+
+def cmd_render(args) -> int:
+    from composed_sim.render import render
+    out = _render_target(args.out)
+    traj, world, leds, tick_s = _load_results_or_recording(args.source)
+    frames = render(traj, world, out, led_colors=leds, fps=args.fps, size_px=args.size,
+                    trail_ticks=args.trail, every=args.every, tick_s=tick_s)
+    print(f"{out}: {frames} frame{'s' if frames != 1 else ''}")
+    return 0
+
+
+def cmd_replay(args) -> int:
+    from composed_sim.recording import read_recording
+    from composed_sim.render import render
+    from composed_sim.results import swarm_metrics
+    out = _render_target(args.out) if args.out else None
+    rec = _read_recording(args.recording)
+    n = len(rec.names)
+    print(f"{args.recording}: {rec.world.name if rec.world else 'unknown world'}, {n} robots, "
+          f"{rec.ticks_done} ticks recorded ({rec.ticks_done * rec.tick_s:.1f} s sim time); "
+          f"topics: {', '.join(sorted(rec.topics))}")
+    if rec.world is not None and n:
+        final = swarm_metrics(rec.world, rec.positions).get("final", {})
+        if "centroid_to_light_m" in final:
+            print(f"  final centroid to light: {final['centroid_to_light_m']:.2f} m")
+    if out is not None:
+        frames = render(rec, rec.world, out, led_colors=rec.led_colors, fps=args.fps, size_px=args.size,
+                        trail_ticks=args.trail, every=args.every, tick_s=rec.tick_s)
+        print(f"{out}: {frames} frames")
+    if args.check:
+        expected = rec.world.length_ticks if rec.world is not None else None
+        if expected is None or rec.ticks_done < expected:
+            print(f"composed-sim: check failed: {rec.ticks_done} of {expected} ticks recorded", file=sys.stderr)
+            return 1
+        print("  check: complete")
+    return 0
+
+
+def _render_target(out: Path) -> Path:
+    if out.suffix.lower() not in (".png", ".gif", ".mp4"):
+        raise UserError(f"--out {out}: the file must end in .png, .gif or .mp4")
+    _check_writable(out.parent if str(out.parent) else Path("."))
+    return out
+
+
+def _read_recording(path: Path):
+    from composed_sim.recording import RecordingError, read_recording
+    try:
+        return read_recording(path)
+    except (RecordingError, FileNotFoundError, NotADirectoryError) as e:
+        raise UserError(f"{path}: not a readable recording ({e})") from None
+
+
+def _load_results_or_recording(source: Path):
+    """(trajectories, world, led colours [T+1, n, 3] or None, tick_s) from either kind of directory."""
+    from composed_sim.results import TRAJECTORIES, WORLD, load_trajectories
+    from composed_sim.world.loader import WorldFileError, load_world
+    if (source / "metadata.yaml").exists():
+        rec = _read_recording(source)
+        return rec, rec.world, rec.led_colors, rec.tick_s
+    if not (source / TRAJECTORIES).exists():
+        raise UserError(f"{source}: neither a results directory ({TRAJECTORIES}) nor a recording (metadata.yaml)")
+    try:
+        world = load_world(source / WORLD)
+    except WorldFileError as e:
+        raise UserError(str(e)) from None
+    traj = load_trajectories(source / TRAJECTORIES)
+    return traj, world, traj.led_colors, world.tick_s
+
+
+def shipped_worlds() -> list[Path]:
+    """worlds/*.yaml and *.argos next to the package (a source checkout or an editable install)."""
+    here = Path(__file__).resolve().parent.parent / "worlds"
+    return sorted(p for p in here.glob("*") if p.suffix in (".yaml", ".argos")) if here.is_dir() else []
+
+
+def cmd_worlds() -> int:
+    from composed_sim.argos_import import is_argos_file
+    worlds = shipped_worlds()
+    if not worlds:
+        raise UserError("no shipped worlds found next to the package (install from a source checkout)")
+    for path in worlds:
+        first = next((line.lstrip("# ").strip() for line in path.read_text().splitlines()
+                      if line.startswith("#") or line.startswith("<!--")), "")
+        kind = "ARGoS" if is_argos_file(path) else "YAML"
+        print(f"{path}  [{kind}]  {first.strip('<!- >')}")
+    return 0
 
 
 def _progress_bar(total: int, disabled: bool):

@@ -51,6 +51,8 @@ from typing import TYPE_CHECKING, Any, Iterable, Optional
 
 import numpy as np
 
+from composed_sim.core.robot_models import display_colors
+
 if TYPE_CHECKING:
     from composed_sim.world.schema import World
 
@@ -74,26 +76,6 @@ class RecordingError(Exception):
 
 
 # --- colours -----------------------------------------------------------------------------
-
-def display_colors(led_colors: np.ndarray) -> np.ndarray:
-    """The one colour that stands for each robot's LEDs → [n, 3] uint8.
-
-    led_colors: [n, L, 3] (ring LEDs first, beacon last, as in the topic contract) or
-    already [n, 3]. The beacon (the last LED) when it is lit, else the first lit ring LED,
-    else black (no LED lit).
-    """
-    c = np.asarray(led_colors)
-    c = c if c.dtype == np.uint8 else c.astype(np.uint8)
-    if c.ndim == 2 and c.shape[1] == 3:
-        return c
-    if c.ndim != 3 or c.shape[2] != 3 or c.shape[1] == 0:
-        raise ValueError(f"led_colors must be [n, L, 3] or [n, 3], got shape {c.shape}")
-    lit = (c[..., 0] | c[..., 1] | c[..., 2]) != 0               # [n, L]; faster than any(axis=2)
-    ring_first = np.argmax(lit[:, :-1], axis=1) if c.shape[1] > 1 else np.zeros(len(c), int)
-    # With nothing lit argmax gives LED 0, which is then black: the right answer.
-    first = np.where(lit[:, -1], c.shape[1] - 1, ring_first)      # [n]
-    return c[np.arange(len(c)), first]
-
 
 def pack_rgb(colors: np.ndarray) -> np.ndarray:
     """[n, 3] uint8 → [n] uint32 0x00RRGGBB."""
@@ -200,9 +182,13 @@ class BagRecorder:
 
         self.path = Path(path)
         self.robot_names = list(robot_names)
-        if not (isinstance(tick_s, (int, float)) and math.isfinite(tick_s) and tick_s > 0):
+        try:
+            seconds = float(tick_s)
+        except (TypeError, ValueError):
+            seconds = math.nan
+        if not (math.isfinite(seconds) and seconds > 0):
             raise ValueError(f"tick_s must be a positive number of seconds (got {tick_s!r})")
-        self.tick_s = float(tick_s)
+        self.tick_s = seconds
         self.tick_ns = round(self.tick_s * _NS_PER_S)
         self.topics_globs = list(topics_globs)
         self._patterns = [re.compile(fnmatch.translate(g)) for g in self.topics_globs]
@@ -222,7 +208,10 @@ class BagRecorder:
         except Exception as e:
             raise RecordingError(f"{self.path}: cannot create the recording: {e}") from None
         self._closed = False
+        self._busy = False                          # inside a write: see close_if_idle
         self._connections: dict[str, Any] = {}     # topic -> rosbags Connection
+        self._definitions: dict[str, tuple[str, str]] = {}   # msgtype -> (msgdef, rihs01)
+        self._qos = _qos_profiles()
         self.ticks_written = 0
         self.counts: dict[str, int] = {}            # topic -> messages written
         types = self._typestore.types
@@ -335,6 +324,15 @@ class BagRecorder:
         self._writer.set_custom_data(_KEY + "ticks", str(self.ticks_written))
         self._writer.close()
 
+    def close_if_idle(self) -> bool:
+        """Close unless a write is under way; for a signal handler about to end the process
+        (``os._exit``), which would otherwise leave a bag without index and metadata.yaml.
+        Returns whether the bag is closed."""
+        if self._busy:
+            return False
+        self.close()
+        return True
+
     # -- internals --
 
     def _abort(self) -> None:
@@ -347,10 +345,14 @@ class BagRecorder:
     def _connection(self, topic: str, msgtype: str):
         conn = self._connections.get(topic)
         if conn is None:
-            if msgtype not in self._typestore.fielddefs:
-                _ensure_type(self._typestore, msgtype)
-            conn = self._writer.add_connection(topic, msgtype, typestore=self._typestore,
-                                               offered_qos_profiles=_qos_profiles())
+            definition = self._definitions.get(msgtype)
+            if definition is None:      # generated once per type: per topic it costs ~5 ms
+                if msgtype not in self._typestore.fielddefs:
+                    _ensure_type(self._typestore, msgtype)
+                msgdef, _ = self._typestore.generate_msgdef(msgtype, ros_version=2)
+                definition = self._definitions[msgtype] = (msgdef, self._typestore.hash_rihs01(msgtype))
+            conn = self._writer.add_connection(topic, msgtype, msgdef=definition[0],
+                                               rihs01=definition[1], offered_qos_profiles=self._qos)
             self._connections[topic] = conn
             self.counts[topic] = 0
         elif conn.msgtype != msgtype:
@@ -360,9 +362,13 @@ class BagRecorder:
     def _write(self, topic: str, ns: int, data: bytes, msgtype: Optional[str] = None) -> None:
         if self._closed:
             raise RecordingError(f"{self.path}: the recording is closed")
-        conn = self._connections[topic] if msgtype is None else self._connection(topic, msgtype)
-        self._writer.write(conn, ns, data)
-        self.counts[topic] += 1
+        self._busy = True
+        try:
+            conn = self._connections[topic] if msgtype is None else self._connection(topic, msgtype)
+            self._writer.write(conn, ns, data)
+            self.counts[topic] += 1
+        finally:
+            self._busy = False
 
 
 # --- reading -----------------------------------------------------------------------------

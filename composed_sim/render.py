@@ -3,13 +3,14 @@
 ``render(trajectories, world, out, ...)`` picks the format from ``out``'s suffix
 (``.png``: the final tick; ``.gif``, ``.mp4``: every ``every``-th tick and the last one).
 
-Each frame shows the arena (its floor rectangle dashed, walls), boxes (with their yaw),
-cylinders, lights (a star, and a dotted circle where the foot-bot light sensor still sees it:
-2.5 × intensity m), every robot as a disc in its display LED colour (the beacon when lit, else
-the first lit ring LED: ``composed_sim.recording.display_colors``; ``DEFAULT_COLOR`` when no LED
-is lit or no colours are given) with a black heading line, each robot's trail over the last
-``trail_ticks`` ticks (fading with age), and a caption with the tick and the sim time. The view
-is fixed for the whole video: a square around everything that is drawn at any tick.
+Each frame shows the arena (its walls, or its floor rectangle dashed when it has none), boxes
+(with their yaw), cylinders, lights (a star, and a dotted circle where the foot-bot light sensor
+still sees it: 2.5 × intensity m), every robot as a disc in its display LED colour (the beacon
+when lit, else the first lit ring LED: ``composed_sim.core.robot_models.display_colors``;
+``DEFAULT_COLOR`` when no LED is lit or no colours are given) with a black heading line, each
+robot's trail over the last ``trail_ticks`` ticks (fading with age), and a caption with the tick
+and the sim time. The view is fixed for the whole video: a square around the robots (at every
+tick), walls, obstacles and lights; a PNG is drawn at 3× and averaged down (anti-aliased).
 
 How it stays fast at 1280 robots × 600 ticks: matplotlib (Agg, headless) draws the static scene
 and the axes once; per frame only the caption is redrawn (blitting), and the robots and trails
@@ -85,17 +86,16 @@ def render(trajectories: Any, world: World, out: str | Path, *, led_colors: Opti
     scale = _SUPERSAMPLE_PNG if suffix == ".png" else 1
     out.parent.mkdir(parents=True, exist_ok=True)
 
-    import matplotlib
-    matplotlib.use("Agg")   # headless, whatever backend the caller had
-
+    # Figure + FigureCanvasAgg directly: headless, and the caller's pyplot backend is untouched.
     canvas = _Canvas(world, positions, headings, colors, size_px, scale, trail_ticks, title,
                      _robot_radii(world, n))
 
     def frames():
         for t in ticks:
-            yield canvas.frame(t, f"tick {t}/{last}   {t * tick_s:.1f} s")
+            frame = canvas.frame(t, f"tick {t}/{last}   {t * tick_s:.1f} s")
             if progress is not None:
                 progress(1)
+            yield frame
 
     if suffix == ".png":
         import imageio.v3 as iio
@@ -103,8 +103,8 @@ def render(trajectories: Any, world: World, out: str | Path, *, led_colors: Opti
     elif suffix == ".mp4":
         _write_mp4(out, frames(), fps)
     else:
-        _write_gif(out, frames(), fps, palette_from=[canvas.frame(ticks[0], ""),
-                                                    canvas.frame(ticks[-1], "")])
+        _write_gif(out, frames(), fps, palette_from=[canvas.frame(ticks[0], "tick 0"),
+                                                    canvas.frame(ticks[-1], "tick 0")])
     return len(ticks)
 
 
@@ -114,7 +114,7 @@ def _frame_colors(led_colors: Optional[np.ndarray], shape: tuple[int, int]) -> O
     """[T+1, n, 3] uint8 display colours, or None."""
     if led_colors is None:
         return None
-    from composed_sim.recording import display_colors
+    from composed_sim.core.robot_models import display_colors
     c = np.asarray(led_colors)
     if c.shape[:2] != shape or c.shape[-1] != 3 or c.ndim not in (3, 4):
         raise ValueError(f"led_colors must be [{shape[0]}, {shape[1]}, 3] or "
@@ -136,7 +136,12 @@ def _robot_radii(world: World, n: int) -> np.ndarray:
 # --- drawing -------------------------------------------------------------------------
 
 class _Canvas:
-    """The static scene drawn once by matplotlib; robots rasterised per frame with numpy."""
+    """The static scene drawn once by matplotlib; robots rasterised per frame with numpy.
+
+    Pixels are addressed by flat index (row * width + column) into a buffer with one spare
+    pixel at the end: anything outside the axes is sent there, so no per-point masking is
+    needed in the per-frame paths.
+    """
 
     def __init__(self, world: World, positions: np.ndarray, headings: np.ndarray,
                  colors: Optional[np.ndarray], size_px: int, scale: int, trail_ticks: int,
@@ -145,10 +150,8 @@ class _Canvas:
         from matplotlib.figure import Figure
 
         self.scale, self.trail_ticks, self.colors = scale, trail_ticks, colors
-        self.size_px = size_px
-        side = size_px * scale
-        dpi = 100 * scale
-        fig = Figure(figsize=(size_px / 100, size_px / 100), dpi=dpi, facecolor="white")
+        side = self.side = size_px * scale
+        fig = Figure(figsize=(size_px / 100, size_px / 100), dpi=100 * scale, facecolor="white")
         self.agg = FigureCanvasAgg(fig)
         k = size_px / 800                                   # font sizes follow the frame size
         ax = fig.add_axes((0.09, 0.06, 0.88, 0.86))
@@ -170,41 +173,56 @@ class _Canvas:
         self.agg.draw()
         self.background = self.agg.copy_from_bbox(fig.bbox)
         self.fig = fig
+        self.buf = np.empty((side * side + 1, 3), dtype=np.uint8)   # the frame + one spare pixel
+        self.base = np.asarray(self.agg.buffer_rgba())[..., :3].reshape(-1, 3).copy()
         # data → pixel (column, row from the top), both axis-aligned and linear
         (ox, oy), (px1, py1) = ax.transData.transform([(0.0, 0.0), (1.0, 1.0)])
         sx, sy = px1 - ox, py1 - oy
-        self.px_per_m = sx
         b = ax.bbox.extents                                 # display x0, y0, x1, y1
-        self.clip = (int(math.ceil(b[0])), int(math.ceil(side - b[3])),
-                     int(math.floor(b[2])), int(math.floor(side - b[1])))   # c0, r0, c1, r1
+        self.clip = (int(math.ceil(b[0])) + 1, int(math.ceil(side - b[3])) + 1,
+                     int(math.floor(b[2])) - 1, int(math.floor(side - b[1])) - 1)  # c0, r0, c1, r1
+        self.band = max(0, self.clip[1] - 2)               # rows above the axes: the caption band
         self.cols = (ox + sx * positions[..., 0]).astype(np.float32)        # [T+1, n]
         self.rows = ((side - oy) - sy * positions[..., 1]).astype(np.float32)
         self.headings = headings
         self.valid = np.isfinite(self.cols) & np.isfinite(self.rows)
-        self.cols[~self.valid] = -1e6                       # outside every clip box
-        self.rows[~self.valid] = -1e6
+        self.cols[~self.valid] = -1.0                       # outside every clip box
+        self.rows[~self.valid] = -1.0
+        self.flat = self._flat(self.rows.astype(np.int32), self.cols.astype(np.int32))  # [T+1, n]
         # One pair of disc stencils (outline, fill) per distinct radius.
         r_px = np.maximum(radii * sx, 1.2 * scale)
         self.radius_px = r_px
-        self.groups = [(np.flatnonzero(r_px == r), _disc(r), _disc(r - 1.0 * scale) if r > 2.5 * scale else None)
+        self.groups = [(np.flatnonzero(r_px == r), _disc(r),
+                        _disc(r - 1.0 * scale) if r > 2.5 * scale else None)
                        for r in np.unique(r_px)]
         self.default = np.array(DEFAULT_COLOR, dtype=np.uint8)
+        self.outline = np.array(OUTLINE_COLOR, dtype=np.uint8)
 
     def frame(self, t: int, caption: str) -> np.ndarray:
-        """The picture at tick t → [size_px, size_px, 3] uint8."""
-        self.agg.restore_region(self.background)
-        self.caption.set_text(caption)
-        self.fig.draw_artist(self.caption)
-        img = np.asarray(self.agg.buffer_rgba())[..., :3].copy()
+        """The picture at tick t → [size_px, size_px, 3] uint8 (a new array)."""
+        buf = self.buf
+        buf[:-1] = self.base
+        img = buf[:-1].reshape(self.side, self.side, 3)
+        if caption and self.band:       # redraw only the caption, copy only the band above the axes
+            self.agg.restore_region(self.background)
+            self.caption.set_text(caption)
+            self.fig.draw_artist(self.caption)
+            img[:self.band] = np.asarray(self.agg.buffer_rgba())[:self.band, :, :3]
         colors = self._colors(t)
         if self.trail_ticks and t > 0:
-            self._trails(img, t, colors)
+            self._trails(t, colors)
         self._bodies(img, t, colors)
         if self.scale > 1:
-            s, side = self.scale, img.shape[0] // self.scale
-            img = (img.reshape(side, s, side, s, 3).sum(axis=(1, 3), dtype=np.uint32)
-                   // (s * s)).astype(np.uint8)
-        return img
+            s, side = self.scale, self.side // self.scale
+            return (img.reshape(side, s, side, s, 3).sum(axis=(1, 3), dtype=np.uint32)
+                    // (s * s)).astype(np.uint8)
+        return img.copy()
+
+    def _flat(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+        """Flat pixel indices; the spare pixel for anything outside the axes."""
+        c0, r0, c1, r1 = self.clip
+        inside = (cols >= c0) & (cols < c1) & (rows >= r0) & (rows < r1)
+        return np.where(inside, rows * self.side + cols, self.side * self.side).astype(np.int64)
 
     def _colors(self, t: int) -> np.ndarray:
         n = self.cols.shape[1]
@@ -213,33 +231,35 @@ class _Canvas:
         c = self.colors[t]
         return np.where((c != 0).any(axis=1, keepdims=True), c, self.default)
 
-    def _trails(self, img: np.ndarray, t: int, colors: np.ndarray) -> None:
+    def _trails(self, t: int, colors: np.ndarray) -> None:
         t0 = max(0, t - self.trail_ticks)
-        a_c, b_c = self.cols[t0:t], self.cols[t0 + 1:t + 1]          # [k, n] segment ends
-        a_r, b_r = self.rows[t0:t], self.rows[t0 + 1:t + 1]
+        k = t - t0
+        # Samples per segment so that consecutive ones are < 1 output pixel apart (at most 16);
+        # at 800 px a foot-bot moves well under a pixel per tick, so one (the segment's start).
+        dc = np.diff(self.cols[t0:t + 1], axis=0)
+        dr = np.diff(self.rows[t0:t + 1], axis=0)
         ok = self.valid[t0:t] & self.valid[t0 + 1:t + 1]
-        seg = np.hypot(b_c - a_c, b_r - a_r)
-        longest = float(seg[ok].max()) if ok.any() else 0.0
-        # Enough samples per segment that consecutive ones are < 1 px apart, at most 16.
-        samples = int(min(16, max(1, math.ceil(longest / max(1.0, 0.75 * self.scale)))))
-        k, n = a_c.shape
-        f = (np.arange(samples, dtype=np.float32) / samples)[:, None, None]
-        cols = (a_c + f * (b_c - a_c)).transpose(1, 0, 2)            # [k, samples, n], oldest first
-        rows = (a_r + f * (b_r - a_r)).transpose(1, 0, 2)
-        age = (t - (t0 + np.arange(k)))[:, None, None]               # ticks behind the current one
-        alpha = np.broadcast_to(TRAIL_ALPHA * (1.0 - (age - 1) / self.trail_ticks),
-                                (k, samples, n)).astype(np.float32)
-        keep = np.broadcast_to(ok[:, None, :], (k, samples, n))
-        col = np.broadcast_to(colors[None, None, :, :], (k, samples, n, 3))
-        c, r = cols.astype(np.int32), rows.astype(np.int32)
-        c0, r0, c1, r1 = self.clip
-        keep = keep & (c >= c0) & (c < c1) & (r >= r0) & (r < r1)
-        c, r, a, col = c[keep], r[keep], alpha[keep][:, None], col[keep]
-        for dr in range(self.scale):          # a 1-px line at the output size
-            for dc in range(self.scale):
-                rr, cc = np.minimum(r + dr, r1 - 1), np.minimum(c + dc, c1 - 1)
-                under = img[rr, cc].astype(np.float32)
-                img[rr, cc] = (under + a * (col - under)).astype(np.uint8)
+        longest = float(np.max(np.abs(dc) + np.abs(dr), where=ok, initial=0.0))
+        samples = int(min(16, max(1, math.ceil(longest / (0.75 * self.scale)))))
+        age = (t - (t0 + np.arange(k)))                     # [k] ticks behind the current one
+        alpha = (TRAIL_ALPHA * (1.0 - (age - 1) / self.trail_ticks)).astype(np.float32)
+        if samples == 1 and self.scale == 1:
+            idx = self.flat[t0:t][:, None, :]               # [k, 1, n]
+        else:
+            f = (np.arange(samples, dtype=np.float32) / samples)[None, :, None]
+            cols = self.cols[t0:t][:, None, :] + f * dc[:, None, :]   # [k, samples, n]
+            rows = self.rows[t0:t][:, None, :] + f * dr[:, None, :]
+            cols[~np.broadcast_to(ok[:, None, :], cols.shape)] = -1.0
+            idx = self._flat(rows.astype(np.int32), cols.astype(np.int32))
+        brush = [(r, c) for r in range(self.scale) for c in range(self.scale)]
+        shift = np.array([r * self.side + c for r, c in brush])
+        spare = self.side * self.side
+        col = colors.astype(np.float32)[None, None, :, :]  # [1, 1, n, 3]
+        a = alpha[:, None, None, None]                      # [k, 1, 1, 1], oldest first
+        for d in shift:                                     # a 1-px line at the output size
+            j = np.where(idx == spare, spare, idx + d) if d else idx
+            under = self.buf[j].astype(np.float32)          # [k, samples, n, 3]
+            self.buf[j] = (under + a * (col - under)).astype(np.uint8)
 
     def _bodies(self, img: np.ndarray, t: int, colors: np.ndarray) -> None:
         c0, r0, c1, r1 = self.clip
@@ -250,8 +270,7 @@ class _Canvas:
             if fill is None:          # too small for an outline: the disc in its colour only
                 _stamp(img, rr, cc, outline, colors[members], self.clip)
             else:
-                _stamp(img, rr, cc, outline, np.broadcast_to(np.array(OUTLINE_COLOR, np.uint8),
-                                                             (len(members), 3)), self.clip)
+                _stamp(img, rr, cc, outline, np.broadcast_to(self.outline, (len(members), 3)), self.clip)
                 _stamp(img, rr, cc, fill, colors[members], self.clip)
         # Heading: a line from the centre to 1.3 radii ahead, so its tip shows past the rim.
         h = self.headings[t]
@@ -260,6 +279,7 @@ class _Canvas:
         f = np.linspace(0.0, 1.0, steps, dtype=np.float32)[None, :]
         lc = self.cols[t][:, None] + f * (length * np.cos(h))[:, None]
         lr = self.rows[t][:, None] - f * (length * np.sin(h))[:, None]
+        lc[~self.valid[t]] = -1.0
         c, r = lc.astype(np.int32).ravel(), lr.astype(np.int32).ravel()
         for dr in range(self.scale):
             for dc in range(self.scale):
@@ -289,14 +309,14 @@ def _stamp(img: np.ndarray, rows: np.ndarray, cols: np.ndarray, stencil, colors:
 
 
 def _view(world: World, positions: np.ndarray, radii: np.ndarray) -> tuple[tuple[float, float], tuple[float, float]]:
-    """Square x and y limits around robots (at every tick), arena, obstacles and lights."""
+    """Square x and y limits around robots (at every tick), walls, obstacles and lights."""
     xs, ys = [], []
     finite = positions[np.isfinite(positions).all(axis=2)]           # [m, 2]
     if len(finite):
         r = float(radii.max()) if len(radii) else 0.0
         xs += [finite[:, 0].min() - r, finite[:, 0].max() + r]
         ys += [finite[:, 1].min() - r, finite[:, 1].max() + r]
-    if world.arena.size is not None:
+    if world.arena.walls:        # an open arena's size only bounds the lights: not worth the room
         (cx, cy), (sx, sy) = world.arena.center, world.arena.size
         xs += [cx - sx / 2, cx + sx / 2]
         ys += [cy - sy / 2, cy + sy / 2]
@@ -318,7 +338,7 @@ def _draw_scene(ax, world: World, k: float) -> None:
     """Arena, walls, obstacles and lights as matplotlib artists (drawn once)."""
     from matplotlib.patches import Circle, Polygon, Rectangle
 
-    if world.arena.size is not None:
+    if world.arena.size is not None and not world.arena.walls:
         (cx, cy), (sx, sy) = world.arena.center, world.arena.size
         ax.add_patch(Rectangle((cx - sx / 2, cy - sy / 2), sx, sy, fill=False, ls="--",
                                lw=0.8 * k, ec="0.55"))

@@ -3,7 +3,8 @@
 summary.json     figures of the run (sizes, times per phase, real-time factor, violations count,
                  swarm metrics) plus what reproduces it (seed, versions)
 world.yaml       the resolved world, loadable as is to re-run the same experiment
-trajectories.npz positions [T+1, n, 2], headings [T+1, n], names [n], tick_s
+trajectories.npz positions [T+1, n, 2], headings [T+1, n], led_colors [T+1, n, 3] (each robot's
+                 display colour), names [n], tick_s
 violations.csv   tick, robot, reason for each watchdog or contract violation
 arena.png        the arena: trails, final poses, lights, obstacles
 """
@@ -57,7 +58,7 @@ def swarm_metrics(world: World, positions: np.ndarray) -> dict:
             light = np.asarray(world.lights[0].position)
             m["centroid_to_light_m"] = float(np.linalg.norm(p.mean(axis=0) - light))
         return m
-    if positions.shape[1] == 0:
+    if positions.shape[0] == 0 or positions.shape[1] == 0:
         return {}
     return {"initial": at(positions[0]), "final": at(positions[-1])}
 
@@ -95,8 +96,9 @@ def write_results(out_dir: Path, world: World, result: LoopResult, summary: dict
     out_dir.mkdir(parents=True, exist_ok=True)
     (out_dir / WORLD).write_text(dump_world(world))
     t = result.trajectories
+    extra = {} if t.led_colors is None else {"led_colors": t.led_colors}
     np.savez_compressed(out_dir / TRAJECTORIES, positions=t.positions, headings=t.headings,
-                        names=np.asarray(t.names), tick_s=world.tick_s)
+                        names=np.asarray(t.names), tick_s=world.tick_s, **extra)
     with open(out_dir / VIOLATIONS, "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(["tick", "robot", "reason"])
@@ -109,7 +111,8 @@ def write_results(out_dir: Path, world: World, result: LoopResult, summary: dict
 def load_trajectories(path: Path) -> Trajectories:
     with np.load(path) as data:
         positions = data["positions"]
-        return Trajectories(list(data["names"]), positions, data["headings"], len(positions) - 1)
+        leds = data["led_colors"] if "led_colors" in data else None
+        return Trajectories(list(data["names"]), positions, data["headings"], len(positions) - 1, leds)
 
 
 def render_arena(world: World, t: Trajectories, path: Path) -> None:

@@ -50,8 +50,13 @@ def test_fast_dds_participants_per_domain_bound_the_robots_per_domain():
     assert capacity(0) == capacity(231) == 119 and capacity(232) == 62
     with pytest.raises(DomainError, match="domain 5 would hold 130 robots, but at most 119"):
         assign_domains(names(130), 1, 0, {n: 5 for n in names(130)})
-    # Auto balancing never exceeds a domain's capacity, even if k would.
-    assert Counter(assign_domains(names(100), 119, 232 - 1).values()) == {231: 100}
+    with pytest.raises(DomainError, match=r"robots per domain must be within 1\.\.119.*\(got 150\)"):
+        assign_domains(names(300), 150, 0)
+    # The last domain takes fewer.
+    assert Counter(assign_domains(names(150), 100, 231).values()) == {231: 100, 232: 50}
+    assert Counter(assign_domains(names(62), 100, 232).values()) == {232: 62}
+    with pytest.raises(DomainError, match="cannot fit 63 robots at 100 per domain from domain 232"):
+        assign_domains(names(63), 100, 232)
 
 
 def test_multi_process_section_loads_round_trips_and_reaches_the_host(tmp_path):

@@ -98,3 +98,23 @@ def get_model(name: str) -> RobotModel:
         return MODELS[name]
     except KeyError:
         raise ValueError(f"unknown robot model {name!r}; known: {', '.join(sorted(MODELS))}") from None
+
+
+def display_colors(led_colors: np.ndarray) -> np.ndarray:
+    """The one colour that stands for each robot's LEDs → [n, 3] uint8.
+
+    led_colors: [n, L, 3] (ring LEDs first, beacon last, as in the topic contract) or
+    already [n, 3]. The beacon (the last LED) when it is lit, else the first lit ring LED,
+    else black (no LED lit).
+    """
+    c = np.asarray(led_colors)
+    c = c if c.dtype == np.uint8 else c.astype(np.uint8)
+    if c.ndim == 2 and c.shape[1] == 3:
+        return c
+    if c.ndim != 3 or c.shape[2] != 3 or c.shape[1] == 0:
+        raise ValueError(f"led_colors must be [n, L, 3] or [n, 3], got shape {c.shape}")
+    lit = (c[..., 0] | c[..., 1] | c[..., 2]) != 0               # [n, L]; faster than any(axis=2)
+    ring_first = np.argmax(lit[:, :-1], axis=1) if c.shape[1] > 1 else np.zeros(len(c), int)
+    # With nothing lit argmax gives LED 0, which is then black: the right answer.
+    first = np.where(lit[:, -1], c.shape[1] - 1, ring_first)      # [n]
+    return c[np.arange(len(c)), first]

@@ -5,7 +5,7 @@ from __future__ import annotations
 import threading
 import time
 from dataclasses import dataclass
-from typing import Callable, Optional
+from typing import Callable, Optional, Sequence
 
 import rclpy
 from rclpy.context import Context
@@ -15,7 +15,7 @@ from rclpy.parameter import Parameter
 
 from composed_sim import plugins
 from composed_sim.core.simulation import Simulation
-from composed_sim.hosts.lockstep import LoopResult, run_lockstep
+from composed_sim.hosts.lockstep import LoopResult, TickObserver, run_lockstep
 from composed_sim.ros import contract as c
 from composed_sim.ros.controller import PARAM_ROBOT_MODEL, PARAM_RUN_SEED
 from composed_sim.ros.lockstep_executor import LockstepExecutor
@@ -58,8 +58,8 @@ def create_controller(cls: type[Node], name: str, world: World, group_index: int
     if use_sim_time:
         overrides.append(Parameter("use_sim_time", value=True))
     try:
-        node = cls(context=context, namespace=f"/{name}", parameter_overrides=overrides,
-                   use_global_arguments=False, **quiet_node_options())
+        node = cls(context=context, namespace=f"/{name}", use_global_arguments=False,
+                   **quiet_node_options(overrides))
     except Exception as e:
         raise plugins.PluginError(f"controller plugin {group.controller!r} failed to construct for "
                                   f"{name}: {type(e).__name__}: {e}") from e
@@ -121,20 +121,22 @@ class ComposedHost:
         self.setup = SetupInfo(time.perf_counter() - t0, len(self.controllers) + 1)
         return self
 
+    @property
+    def simulator_nodes(self) -> list[SimulatorNode]:
+        return [self.sim_node]
+
     def _wait_for_discovery(self) -> None:
         """Every robot's answer topic has a publisher and its sensors a subscriber before tick 0."""
-        node, deadline = self.sim_node, time.monotonic() + DISCOVERY_TIMEOUT_S
-        for name in self.sim.names:
-            while not (node.count_publishers(c.topic_name(name, c.CMD_VEL)) >= 1 and
-                       any(node.count_subscribers(c.topic_name(name, t)) >= 1 for t in c.SENSOR_TOPICS)):
-                if time.monotonic() > deadline:
-                    raise HostError(f"robot {name}: its controller's topics were not discovered within "
-                                    f"{DISCOVERY_TIMEOUT_S:.0f} s (does it publish {c.CMD_VEL.name} and "
-                                    f"subscribe to a sensor?)")
-                time.sleep(0.001)
+        deadline = time.monotonic() + DISCOVERY_TIMEOUT_S
+        while missing := self.sim_node.unmatched_robots():
+            if time.monotonic() > deadline:
+                raise HostError(f"the controllers of {', '.join(missing[:5])}{' …' if len(missing) > 5 else ''} "
+                                f"were not connected within {DISCOVERY_TIMEOUT_S:.0f} s: each must publish "
+                                f"{c.CMD_VEL.name} and subscribe to at least one sensor topic")
+            time.sleep(0.01)
 
     def run(self, ticks: Optional[int] = None, *, progress: Optional[Callable[[int], None]] = None,
-            should_stop: Callable[[], bool] = lambda: False) -> LoopResult:
+            should_stop: Callable[[], bool] = lambda: False, observers: Sequence[TickObserver] = ()) -> LoopResult:
         ticks = self.world.length_ticks if ticks is None else ticks
         if self.executor_kind in ("events", "lockstep"):
             wait = self._spin_until_answered
@@ -144,7 +146,8 @@ class ComposedHost:
             self._spin_thread = threading.Thread(target=self._spin, name="executor", daemon=True)
             self._spin_thread.start()
             wait = self.sim_node.wait_for_answers
-        return run_lockstep(self.sim, self.sim_node, wait, ticks, progress=progress, should_stop=should_stop)
+        return run_lockstep(self.sim, self.sim_node, wait, ticks, progress=progress, should_stop=should_stop,
+                            observers=observers)
 
     def _spin(self) -> None:
         try:

@@ -1,14 +1,16 @@
 """One robot's controller in its own OS process (multi-process mode).
 
     python -m composed_sim.hosts.controller_process --world W.yaml --robot bot3 --domain 5 \\
-        --executor lockstep [--parent-pid PID] [--ready-fd FD]
+        --executor lockstep [--parent-pid PID] [--report-fd FD]
 
 It builds the very same plugin Node as the composed host (``create_controller``), in the robot's
 namespace, on the given domain, with ``use_sim_time`` so it follows the simulator's /clock like
-any ROS node. With ``--ready-fd`` it reports on that pipe once its contract endpoints are matched
-with the simulator's, so the host can start tick 0 knowing no message will be lost. It exits
-cleanly (nodes destroyed, context shut down, code 0) on SIGTERM or SIGINT, and with its parent:
-``PR_SET_PDEATHSIG`` turns the parent's death, even by SIGKILL, into a SIGTERM here.
+any ROS node. With ``--report-fd`` it reports its start-up on that pipe: ``created`` once its node
+exists, ``ready <topics>`` once its contract endpoints are matched with the simulator's (so the
+host can start tick 0 knowing no message will be lost), then closes it. It exits
+cleanly (node destroyed, context shut down, code 0) on SIGTERM (and on SIGINT when run by hand),
+and with its parent: ``PR_SET_PDEATHSIG`` turns the parent's death, even by SIGKILL, into a
+SIGTERM here.
 """
 from __future__ import annotations
 
@@ -22,7 +24,7 @@ import time
 
 PR_SET_PDEATHSIG = 1
 READY_TIMEOUT_S = 120.0
-EXIT_PLUGIN = 3         # the plugin could not be built; the reason is on stderr
+EXIT_SETUP = 3          # the controller could not be built; the reason is on stderr
 
 
 def die_with_parent(parent_pid: int | None) -> None:
@@ -44,8 +46,8 @@ def parse(argv: list[str] | None) -> argparse.Namespace:
     p.add_argument("--domain", type=int, required=True, help="ROS domain id")
     p.add_argument("--executor", default="lockstep")
     p.add_argument("--parent-pid", type=int, default=None)
-    p.add_argument("--ready-fd", type=int, default=None,
-                   help="pipe to write 'ready <topics>' to once matched with the simulator")
+    p.add_argument("--report-fd", type=int, default=None,
+                   help="pipe for start-up reports: 'created', then 'ready <topics>'")
     return p.parse_args(argv)
 
 
@@ -53,11 +55,15 @@ def main(argv: list[str] | None = None) -> int:
     args = parse(argv)
     die_with_parent(args.parent_pid)
     stop = threading.Event()
-    # SIGTERM (the host's cleanup, or PDEATHSIG) and SIGINT (someone signalling us directly; the
-    # host starts us in our own process group, so a terminal's Ctrl-C does not reach us and the
-    # host stops us itself at a tick boundary). Python runs the handler in the main thread.
-    for sig in (signal.SIGTERM, signal.SIGINT):
-        signal.signal(sig, lambda *_: stop.set())
+    # SIGTERM (the host's cleanup, or PDEATHSIG) stops us cleanly; Python runs the handler in the
+    # main thread. SIGINT too when run by hand. Under a host (--parent-pid) SIGINT is ignored: a
+    # Ctrl-C is for the simulator, which stops at a tick boundary and then stops us. We are in a
+    # process group of our own, but a terminal's SIGINT can still hit us between fork and
+    # setpgid; the host spawns us with SIGINT blocked, so such a signal waits, pending, until
+    # here, where ignoring it discards it.
+    signal.signal(signal.SIGTERM, lambda *_: stop.set())
+    signal.signal(signal.SIGINT, signal.SIG_IGN if args.parent_pid is not None else lambda *_: stop.set())
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
 
     import rclpy
     from rclpy.context import Context
@@ -70,7 +76,7 @@ def main(argv: list[str] | None = None) -> int:
     names = world.robot_names()
     if args.robot not in names:
         print(f"robot {args.robot!r} is not in {args.world}", file=sys.stderr)
-        return EXIT_PLUGIN
+        return EXIT_SETUP
     group_index = world.group_of_robot()[names.index(args.robot)]
     context = Context()
     rclpy.init(context=context, domain_id=args.domain)   # a non-default context: no rclpy handlers
@@ -81,12 +87,19 @@ def main(argv: list[str] | None = None) -> int:
             node = create_controller(cls, args.robot, world, group_index, context, use_sim_time=True)
         except plugins.PluginError as e:
             print(e, file=sys.stderr)
-            return EXIT_PLUGIN
+            return EXIT_SETUP
         executor = make_executor(args.executor, context)
         executor.add_node(node)
-        if args.ready_fd is not None:
-            if not report_ready(node, args.robot, args.ready_fd, stop):
-                return 0 if stop.is_set() else 1
+        if args.report_fd is not None:
+            try:
+                with os.fdopen(args.report_fd, "w", buffering=1) as report:
+                    report.write("created\n")
+                    if not wait_until_matched(node, args.robot, stop):
+                        return 0 if stop.is_set() else 1
+                    topics = sorted({e.topic_name for e in contract_endpoints(node, args.robot)})
+                    report.write(" ".join(["ready"] + topics) + "\n")
+            except BrokenPipeError:     # the host gave up on the start-up and is stopping us
+                return 0
         if args.executor in ("events", "lockstep"):
             # Driven from this thread, as the composed host does: the lockstep executor by design,
             # the EventsExecutor because its spin() in a thread hung in our probes (DESIGN.md).
@@ -125,15 +138,15 @@ def contract_endpoints(node, robot: str) -> list:
     return [e for e in list(node.publishers) + list(node.subscriptions) if e.topic_name in topics]
 
 
-def report_ready(node, robot: str, fd: int, stop: threading.Event) -> bool:
+def wait_until_matched(node, robot: str, stop: threading.Event) -> bool:
     """Wait until each contract endpoint of ours is matched with the simulator's (a publisher
-    has a matched subscription, a subscription a matched publisher), then write
-    ``ready <topic> …`` on the pipe: the host then checks its side of the same topics.
-    Without this, a tick-0 sensor or the first LED message could go to a not-yet-matched
-    endpoint and be lost (topics are volatile)."""
+    has a matched subscription, a subscription a matched publisher); the host then checks its
+    side of the same topics. Without this a tick-0 sensor, an answer or the first LED message
+    could go to a not-yet-matched endpoint and be lost (topics are volatile)."""
     from rclpy.publisher import Publisher
     endpoints = contract_endpoints(node, robot)
     deadline = time.monotonic() + READY_TIMEOUT_S
+    pause = 0.002
     while not all((e.get_subscription_count() if isinstance(e, Publisher) else e.get_publisher_count()) >= 1
                   for e in endpoints):
         if stop.is_set():
@@ -141,9 +154,8 @@ def report_ready(node, robot: str, fd: int, stop: threading.Event) -> bool:
         if time.monotonic() > deadline:
             print(f"{robot}: no simulator matched within {READY_TIMEOUT_S:.0f} s", file=sys.stderr)
             return False
-        time.sleep(0.002)
-    with os.fdopen(fd, "w") as pipe:
-        pipe.write("ready " + " ".join(sorted({e.topic_name for e in endpoints})) + "\n")
+        time.sleep(pause)
+        pause = min(2 * pause, 0.05)     # hundreds of children may be waiting at once
     return True
 
 

@@ -43,13 +43,16 @@ def assign_domains(names: Iterable[str], robots_per_domain: int, first_domain: i
 
     Robots listed in ``explicit`` go to their domain. The others, in order, fill domains
     ``first_domain``, ``first_domain + 1``, … with ``robots_per_domain`` robots each (counting
-    the explicitly placed ones), as the paper's "50 robots per domain": bot0–bot49 in the first.
+    the explicitly placed ones; fewer in domain 232, which has fewer ports), as the paper's
+    "50 robots per domain": bot0–bot49 in the first.
     """
     names = list(names)
     explicit = dict(explicit or {})
     n = len(names)
-    if robots_per_domain < 1:
-        raise DomainError(f"robots per domain must be >= 1 (got {robots_per_domain})")
+    if not 1 <= robots_per_domain <= capacity(0):
+        raise DomainError(f"robots per domain must be within 1..{capacity(0)}: Fast DDS fits "
+                          f"{MAX_PARTICIPANTS_PER_DOMAIN} participants in a domain, one of them the "
+                          f"simulator (got {robots_per_domain})")
     if not MIN_DOMAIN <= first_domain <= MAX_DOMAIN:
         raise DomainError(f"first domain {first_domain} is outside the valid ROS domain ids "
                           f"{MIN_DOMAIN}..{MAX_DOMAIN}")

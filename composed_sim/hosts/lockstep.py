@@ -8,10 +8,11 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
-from typing import Callable, Optional, Protocol
+from typing import Callable, Optional, Protocol, Sequence
 
 import numpy as np
 
+from composed_sim.core.robot_models import display_colors
 from composed_sim.core.simulation import SensorFrame, Simulation
 from composed_sim.ros.simulator_node import SimulatorNode, Violation
 
@@ -23,22 +24,27 @@ class Trajectories:
     positions: np.ndarray     # [T+1, n, 2] m
     headings: np.ndarray      # [T+1, n] rad
     ticks_done: int = 0       # rows filled beyond the initial pose
+    led_colors: Optional[np.ndarray] = None   # [T+1, n, 3] uint8: each robot's display colour
 
     @classmethod
     def allocate(cls, sim: Simulation, ticks: int) -> "Trajectories":
-        t = cls(sim.names, np.zeros((ticks + 1, sim.n, 2)), np.zeros((ticks + 1, sim.n)))
+        t = cls(sim.names, np.zeros((ticks + 1, sim.n, 2)), np.zeros((ticks + 1, sim.n)),
+                led_colors=np.zeros((ticks + 1, sim.n, 3), dtype=np.uint8))
         t.positions[0], t.headings[0] = sim.positions, sim.headings
+        t.led_colors[0] = display_colors(sim.led_colors)
         return t
 
     def record(self, sim: Simulation) -> None:
         self.ticks_done += 1
         self.positions[self.ticks_done] = sim.positions
         self.headings[self.ticks_done] = sim.headings
+        self.led_colors[self.ticks_done] = display_colors(sim.led_colors)
 
     def filled(self) -> "Trajectories":
         """Only the rows written so far (a run stopped early keeps what it has)."""
         k = self.ticks_done + 1
-        return Trajectories(self.names, self.positions[:k], self.headings[:k], self.ticks_done)
+        leds = None if self.led_colors is None else self.led_colors[:k]
+        return Trajectories(self.names, self.positions[:k], self.headings[:k], self.ticks_done, leds)
 
 
 @dataclass
@@ -55,6 +61,11 @@ class LoopResult:
     interrupted: bool = False
 
 
+class TickObserver(Protocol):
+    """Watches the world after each tick (tick 0 included): recording, live markers."""
+    def on_tick(self, sim: Simulation) -> None: ...
+
+
 class Exchange(Protocol):
     """The simulator's side of the ROS exchange: one SimulatorNode, or one per domain."""
     violations: list[Violation]
@@ -67,7 +78,8 @@ class Exchange(Protocol):
 
 def run_lockstep(sim: Simulation, exchange: Exchange, wait_for_answers: Callable[[float], bool],
                  ticks: int, *, progress: Optional[Callable[[int], None]] = None,
-                 should_stop: Callable[[], bool] = lambda: False) -> LoopResult:
+                 should_stop: Callable[[], bool] = lambda: False,
+                 observers: Sequence[TickObserver] = ()) -> LoopResult:
     """Run ``ticks`` lockstep ticks; ``wait_for_answers(timeout_s)`` runs or awaits the controllers
     until every robot answered the published tick or the watchdog time is over."""
     lockstep = sim.world.lockstep
@@ -75,6 +87,8 @@ def run_lockstep(sim: Simulation, exchange: Exchange, wait_for_answers: Callable
     times = LoopTimes()
     previous = (np.zeros(sim.n), np.zeros(sim.n))
     frame = sim.sense()
+    for observer in observers:
+        observer.on_tick(sim)
     interrupted = False
     t_start = time.perf_counter()
     try:
@@ -94,6 +108,8 @@ def run_lockstep(sim: Simulation, exchange: Exchange, wait_for_answers: Callable
             previous = commands
             frame = sim.step()
             traj.record(sim)
+            for observer in observers:
+                observer.on_tick(sim)
             if progress is not None:
                 progress(1)
     except BaseException as e:

@@ -15,6 +15,7 @@ simulator being killed outright.
 from __future__ import annotations
 
 import os
+import selectors
 import shutil
 import signal
 import subprocess
@@ -29,7 +30,7 @@ from typing import Callable, Optional
 import numpy as np
 import rclpy
 from rclpy.context import Context
-from rclpy.executors import Executor, SingleThreadedExecutor
+from rclpy.executors import Executor
 
 from composed_sim import plugins
 from composed_sim.core.simulation import SensorFrame, Simulation
@@ -37,6 +38,7 @@ from composed_sim.hosts.composed import EXECUTORS, HostError, SetupInfo
 from composed_sim.hosts.domains import DomainError, assign_domains
 from composed_sim.hosts.lockstep import LoopResult, run_lockstep
 from composed_sim.ros import contract as c
+from composed_sim.ros.lockstep_executor import LockstepExecutor
 from composed_sim.ros.simulator_node import SimulatorNode, Violation
 from composed_sim.world.loader import dump_world
 from composed_sim.world.schema import World
@@ -56,27 +58,28 @@ class ControllerProcess:
     domain: int
     popen: subprocess.Popen
     log: Path                          # its stdout and stderr
-    ready_fd: Optional[int]            # read end of its "ready" pipe, until it reported
+    pipe: Optional[int]                # read end of its start-up pipe, until EOF
     spawned: float = field(default_factory=time.perf_counter)
-    topics: Optional[list[str]] = None   # its contract topics, from its "ready" line
+    created: bool = False                # its node exists: the CPU-heavy part of start-up is done
+    topics: Optional[list[str]] = None   # its contract topics, once matched on its side
     startup_s: Optional[float] = None    # spawn → matched on both sides
     _buffer: bytes = b""
 
-    def read_ready(self) -> None:
-        try:
-            chunk = os.read(self.ready_fd, 65536)
-        except BlockingIOError:
-            return
+    def read_pipe(self) -> bool:
+        """Read what the child reported ("created", then "ready <topics>"); False at EOF."""
+        chunk = os.read(self.pipe, 65536)
         self._buffer += chunk
-        if b"\n" in self._buffer:
-            self.topics = self._buffer.split(b"\n", 1)[0].decode().split()[1:]
-        if chunk == b"" or self.topics is not None:   # EOF (it died: poll() will say) or done
-            self.close_fd()
+        *lines, self._buffer = self._buffer.split(b"\n")
+        for words in (line.decode().split() for line in lines):
+            self.created = True
+            if words and words[0] == "ready":
+                self.topics = words[1:]
+        return chunk != b""
 
-    def close_fd(self) -> None:
-        if self.ready_fd is not None:
-            os.close(self.ready_fd)
-            self.ready_fd = None
+    def close_pipe(self) -> None:
+        if self.pipe is not None:
+            os.close(self.pipe)
+            self.pipe = None
 
     def tail(self, chars: int = 2000) -> str:
         try:
@@ -170,8 +173,9 @@ class MultiProcessHost:
     """Context manager: the per-domain contexts and simulator nodes, and one child process per
     robot; everything stopped and reaped in ``__exit__``. Same interface as ComposedHost.
 
-    ``executor`` is the controllers' executor (in each child). The simulator's per-domain nodes
-    use a single-threaded executor each: their callbacks only store an answer.
+    ``executor`` is the controllers' executor (in each child). Each of the simulator's
+    per-domain nodes is spun by a LockstepExecutor in a thread of its own: it takes the answers
+    that are ready without rebuilding a wait set per message, and its callbacks only store them.
     """
 
     def __init__(self, world: World, *, executor: str = "lockstep", domain_id: int = 0,
@@ -197,6 +201,7 @@ class MultiProcessHost:
         self._threads: list[threading.Thread] = []
         self._tmp: Optional[Path] = None
         self._last_check = 0.0
+        self._startup_interrupted = False
 
     # --- start-up ---------------------------------------------------------------------------
 
@@ -220,9 +225,11 @@ class MultiProcessHost:
                                                tick_ns=tick_ns, rows=np.array(rows, dtype=int),
                                                node_name=f"composed_sim_d{d}")
             self.exchange = DomainExchange(list(self._nodes.values()), self._check_children)
-            self._start_controllers(world_file)
+            with _InterruptWatch() as interrupts:
+                self._start_controllers(world_file, interrupts)
+            self._startup_interrupted = interrupts.requested
             for d, node in self._nodes.items():
-                executor = SingleThreadedExecutor(context=node.context)
+                executor = LockstepExecutor(context=node.context)
                 executor.add_node(node)
                 thread = threading.Thread(target=_spin, args=(executor,), name=f"executor-d{d}", daemon=True)
                 thread.start()
@@ -234,54 +241,72 @@ class MultiProcessHost:
         self.setup = SetupInfo(time.perf_counter() - t0, len(self.processes) + len(self._nodes))
         return self
 
-    def _start_controllers(self, world_file: Path) -> None:
-        """Spawn the children, SPAWN_AT_ONCE in start-up at a time, until each is matched on both
-        sides. Popen is called from this (the host's) thread on purpose: PR_SET_PDEATHSIG fires
-        when the thread that forked the child ends, not only the process."""
+    def _start_controllers(self, world_file: Path, interrupts: "_InterruptWatch") -> None:
+        """Spawn the children and wait until each is matched on both sides.
+
+        At most SPAWN_AT_ONCE children are in the CPU-heavy part of start-up (interpreter,
+        imports, node) at a time; waiting for DDS discovery (0.1–3 s, Fast DDS's resend periods)
+        costs no CPU, so children in that phase do not count. Popen is called from this (the
+        host's) thread on purpose: PR_SET_PDEATHSIG fires when the thread that forked the child
+        ends, not only when the process does. A Ctrl-C ends the start-up early (see run()).
+        """
         waiting = list(self.sim.names)
-        starting: dict[str, ControllerProcess] = {}
+        unmatched: dict[str, ControllerProcess] = {}
         endpoints = {d: _endpoints_by_topic(node) for d, node in self._nodes.items()}
         last_progress = time.monotonic()
-        while waiting or starting:
-            while waiting and len(starting) < SPAWN_AT_ONCE:
-                p = self._spawn(waiting.pop(0), world_file)
-                starting[p.robot] = p
-            for robot, p in list(starting.items()):
-                if p.ready_fd is not None:
-                    p.read_ready()
-                code = p.popen.poll()
-                if code is not None:
-                    raise HostError(f"the controller process of {robot} (domain {p.domain}) ended during "
-                                    f"start-up ({exit_reason(code)}):\n{p.tail() or '(no output)'}")
-                if p.topics is not None and all(_matched(endpoints[p.domain].get(t)) for t in p.topics):
-                    p.startup_s = time.perf_counter() - p.spawned
-                    del starting[robot]
-                    last_progress = time.monotonic()
-            if time.monotonic() - last_progress > STALL_TIMEOUT_S:
-                missing = sorted(starting, key=self.sim.names.index)
-                raise HostError(f"controllers of {', '.join(missing)} were not matched with the simulator "
-                                f"within {STALL_TIMEOUT_S:.0f} s (each must publish {c.CMD_VEL.name} and "
-                                f"subscribe to a sensor); {len(waiting)} more not started")
-            time.sleep(0.002)
+        with selectors.DefaultSelector() as pipes:
+            while (waiting or unmatched) and not interrupts.requested:
+                while waiting and sum(not p.created for p in unmatched.values()) < SPAWN_AT_ONCE:
+                    p = self._spawn(waiting.pop(0), world_file)
+                    unmatched[p.robot] = p
+                    pipes.register(p.pipe, selectors.EVENT_READ, p)
+                for key, _ in pipes.select(timeout=0.01):
+                    p = key.data
+                    if not p.read_pipe():       # EOF: it wrote "ready" and closed, or it died
+                        pipes.unregister(p.pipe)
+                        p.close_pipe()
+                        if p.topics is None:
+                            self._failed_start(p)
+                for robot, p in list(unmatched.items()):
+                    if p.topics is not None and all(_matched(endpoints[p.domain].get(t)) for t in p.topics):
+                        p.startup_s = time.perf_counter() - p.spawned
+                        del unmatched[robot]
+                        last_progress = time.monotonic()
+                if time.monotonic() - last_progress > STALL_TIMEOUT_S:
+                    missing = sorted(unmatched, key=self.sim.names.index)
+                    raise HostError(f"controllers of {', '.join(missing)} were not matched with the simulator "
+                                    f"within {STALL_TIMEOUT_S:.0f} s (each must publish {c.CMD_VEL.name} and "
+                                    f"subscribe to a sensor); {len(waiting)} more not started")
+
+    def _failed_start(self, p: ControllerProcess) -> None:
+        try:
+            code = p.popen.wait(timeout=5.0)
+        except subprocess.TimeoutExpired:
+            raise HostError(f"the controller process of {p.robot} closed its start-up pipe without "
+                            f"reporting:\n{p.tail() or '(no output)'}") from None
+        raise HostError(f"the controller process of {p.robot} (domain {p.domain}) ended during "
+                        f"start-up ({exit_reason(code)}):\n{p.tail() or '(no output)'}")
 
     def _spawn(self, robot: str, world_file: Path) -> ControllerProcess:
-        read_fd, write_fd = os.pipe()
+        read_fd, write_fd = os.pipe()    # its start-up reports; EOF when it is done or dead
         log = self._tmp / f"{robot}.log"
         cmd = [sys.executable, "-m", "composed_sim.hosts.controller_process", "--world", str(world_file),
                "--robot", robot, "--domain", str(self.domains[robot]), "--executor", self.executor_kind,
-               "--parent-pid", str(os.getpid()), "--ready-fd", str(write_fd)]
+               "--parent-pid", str(os.getpid()), "--report-fd", str(write_fd)]
+        # Own process group: a terminal's Ctrl-C goes to the simulator only (which stops the run
+        # at a tick boundary), and killpg reaches anything the child started. SIGINT blocked while
+        # forking: one arriving before the child's setpgid stays pending until the child ignores it.
+        mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
         try:
             with open(log, "wb") as out:
-                # Own process group: a terminal's Ctrl-C goes to the simulator only (which stops
-                # the run at a tick boundary), and killpg reaches anything the child started.
                 popen = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=out, stderr=subprocess.STDOUT,
                                          pass_fds=(write_fd,), process_group=0)
         except BaseException:
             os.close(read_fd)
             raise
         finally:
+            signal.pthread_sigmask(signal.SIG_SETMASK, mask)
             os.close(write_fd)
-        os.set_blocking(read_fd, False)
         p = ControllerProcess(robot, self.domains[robot], popen, log, read_fd)
         self.processes.append(p)
         return p
@@ -296,6 +321,8 @@ class MultiProcessHost:
     def run(self, ticks: Optional[int] = None, *, progress: Optional[Callable[[int], None]] = None,
             should_stop: Callable[[], bool] = lambda: False) -> LoopResult:
         ticks = self.world.length_ticks if ticks is None else ticks
+        if self._startup_interrupted:      # stopped before tick 0: an interrupted run of 0 ticks
+            should_stop = lambda: True     # noqa: E731
         return run_lockstep(self.sim, self.exchange, self.exchange.wait_for_answers, ticks,
                             progress=progress, should_stop=should_stop)
 
@@ -335,7 +362,7 @@ class MultiProcessHost:
         all. Only unreaped children are signalled: a reaped child's pid may belong to another
         process by now."""
         for p in self.processes:
-            p.close_fd()
+            p.close_pipe()
         _signal_groups(self.processes, signal.SIGTERM)
         deadline = time.monotonic() + TERM_GRACE_S
         for p in self.processes:
@@ -346,6 +373,39 @@ class MultiProcessHost:
         _signal_groups(self.processes, signal.SIGKILL)
         for p in self.processes:
             p.popen.wait()
+
+
+class _InterruptWatch:
+    """Notices SIGINT/SIGTERM during the start-up (minutes for hundreds of children) and still
+    hands them to whoever handled them before: the CLI then stops at the next tick (here: before
+    tick 0) and writes its results, Python's default handler raises KeyboardInterrupt. Only the
+    main thread can install handlers; elsewhere nothing changes."""
+
+    def __init__(self):
+        self.requested = False
+        self._old: dict = {}
+
+    def __enter__(self) -> "_InterruptWatch":
+        if threading.current_thread() is threading.main_thread():
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                old = signal.getsignal(sig)
+                if old is not None:            # None: not installed from Python, leave it alone
+                    self._old[sig] = old
+                    signal.signal(sig, self._handle)
+        return self
+
+    def _handle(self, signum, frame) -> None:
+        self.requested = True
+        old = self._old[signum]
+        if callable(old):
+            old(signum, frame)
+        elif old == signal.SIG_DFL:           # what would have happened: die (children follow)
+            signal.signal(signum, signal.SIG_DFL)
+            os.kill(os.getpid(), signum)
+
+    def __exit__(self, *exc) -> None:
+        for sig, old in self._old.items():
+            signal.signal(sig, old)
 
 
 def _signal_groups(processes: list[ControllerProcess], sig: int) -> None:

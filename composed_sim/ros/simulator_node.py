@@ -8,11 +8,13 @@ from __future__ import annotations
 import math
 import threading
 from dataclasses import dataclass
-from typing import Optional
+from typing import Optional, Protocol, Sequence
 
 import numpy as np
 from rclpy.context import Context
 from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.type_description_service import START_TYPE_DESCRIPTION_SERVICE_PARAM
 from rclpy.time import Time as RosTime
 from rosgraph_msgs.msg import Clock
 
@@ -22,6 +24,11 @@ from composed_sim.ros import contract as c
 
 
 
+class MessageTap(Protocol):
+    def wants(self, topic: str) -> bool: ...
+    def write_message(self, topic: str, msg, stamp_ns: int) -> object: ...
+
+
 @dataclass
 class Violation:
     tick: int
@@ -29,9 +36,13 @@ class Violation:
     reason: str
 
 
-def quiet_node_options() -> dict:
-    """Thousands of nodes: no parameter services, no /rosout (each costs endpoints and discovery)."""
-    return dict(start_parameter_services=False, enable_rosout=False)
+def quiet_node_options(parameter_overrides: Sequence[Parameter] = ()) -> dict:
+    """Node options for thousands of nodes: no parameter services, no /rosout and no
+    ~/get_type_description service. Each would add endpoints, and every new endpoint is
+    announced to the whole participant, so node creation would grow quadratically."""
+    return dict(start_parameter_services=False, enable_rosout=False,
+                parameter_overrides=[*parameter_overrides,
+                                     Parameter(START_TYPE_DESCRIPTION_SERVICE_PARAM, value=False)])
 
 
 class SimulatorNode(Node):
@@ -60,10 +71,11 @@ class SimulatorNode(Node):
         self._clock_pub = self.create_publisher(Clock, c.CLOCK_TOPIC, 10)
         self._clock_msg = Clock()
         self._driven_clocks = []
+        self._tap: Optional[MessageTap] = None
 
         self._proximity_pubs, self._light_pubs, self._blob_pubs = [], [], []
         self._proximity_msgs, self._light_msgs, self._blob_msgs = [], [], []
-        self._led_subs = []
+        self._led_subs, self._cmd_subs = [], []
         for i, (name, model) in enumerate(zip(names, models)):
             self._proximity_pubs.append(self.create_publisher(c.PROXIMITY.msg_type, c.topic_name(name, c.PROXIMITY), c.QOS))
             self._light_pubs.append(self.create_publisher(c.LIGHT.msg_type, c.topic_name(name, c.LIGHT), c.QOS))
@@ -71,8 +83,8 @@ class SimulatorNode(Node):
             self._proximity_msgs.append(c.ring_scan(model.proximity.angles_rad, name, model.proximity.range_m))
             self._light_msgs.append(c.ring_scan(model.light.angles_rad, name, 0.0))
             self._blob_msgs.append(c.blob_cloud(name))
-            self.create_subscription(c.CMD_VEL.msg_type, c.topic_name(name, c.CMD_VEL),
-                                     lambda msg, i=i: self._on_cmd_vel(i, msg), c.QOS)
+            self._cmd_subs.append(self.create_subscription(
+                c.CMD_VEL.msg_type, c.topic_name(name, c.CMD_VEL), lambda msg, i=i: self._on_cmd_vel(i, msg), c.QOS))
             self._led_subs.append(self._inbox.create_subscription(
                 c.LEDS.msg_type, c.topic_name(name, c.LEDS), lambda msg: None, c.QOS))
 
@@ -85,7 +97,8 @@ class SimulatorNode(Node):
         self._all_answered = threading.Event()
         self._n_answered = 0
         self._n_expected = n
-        self._current_key = -1
+        self._current_key = -1          # stamp (ns) answers must carry; -1 once the window closed
+        self._tick_key = 0              # stamp (ns) of the last published tick
         self._current_tick = -1
         self.violations: list[Violation] = []
 
@@ -95,6 +108,18 @@ class SimulatorNode(Node):
         clock = node.get_clock()
         clock._set_ros_time_is_active(True)
         self._driven_clocks.append(clock)
+
+    def set_message_tap(self, tap: "MessageTap") -> None:
+        """Hand every per-robot message the tap wants (sensors out, answers in) to it, e.g. a bag."""
+        self._tap_lock = threading.Lock()
+        self._tap = tap
+        self._tapped = {topic.name: [tap.wants(c.topic_name(name, topic)) for name in self._names]
+                        for topic in c.TOPICS.values()}
+
+    def _tap_message(self, topic: c.Topic, i: int, msg, stamp_ns: int) -> None:
+        if self._tap is not None and self._tapped[topic.name][i]:
+            with self._tap_lock:   # answers may arrive on executor worker threads
+                self._tap.write_message(c.topic_name(self._names[i], topic), msg, stamp_ns)
 
     def mark_failed(self, robot: str, reason: str) -> None:
         """A robot whose controller is gone: recorded once, then given the fallback every tick
@@ -123,7 +148,7 @@ class SimulatorNode(Node):
                 self._all_answered.set()
             else:
                 self._all_answered.clear()
-            self._current_key = c.stamp_key(stamp)
+            self._current_key = self._tick_key = c.stamp_key(stamp)
             self._current_tick = frame.tick
         self._clock_msg.clock = stamp
         self._clock_pub.publish(self._clock_msg)
@@ -132,18 +157,30 @@ class SimulatorNode(Node):
             clock.set_ros_time_override(now)
         blobs = frame.blobs
         points = c.blob_points(blobs.angles, blobs.distances, blobs.colors)
+        stamp_ns = self._current_key
         for i, row in enumerate(self.rows):
             if self.failed[i]:
                 continue
             msg = self._proximity_msgs[i]
             c.fill_proximity(msg, stamp, frame.proximity_distances[row], frame.proximity[row])
             self._proximity_pubs[i].publish(msg)
+            self._tap_message(c.PROXIMITY, i, msg, stamp_ns)
             msg = self._light_msgs[i]
             c.fill_light(msg, stamp, frame.light[row])
             self._light_pubs[i].publish(msg)
+            self._tap_message(c.LIGHT, i, msg, stamp_ns)
             msg = self._blob_msgs[i]
             c.fill_blobs(msg, stamp, points[blobs.offsets[row]:blobs.offsets[row + 1]])
             self._blob_pubs[i].publish(msg)
+            self._tap_message(c.BLOBS, i, msg, stamp_ns)
+
+    def unmatched_robots(self) -> list[str]:
+        """Robots whose controller is not connected yet: no publisher matched on its cmd_vel, or no
+        subscriber on any of its sensors. Matched counts are local to each endpoint (O(1))."""
+        return [name for i, name in enumerate(self._names)
+                if self._cmd_subs[i].get_publisher_count() < 1
+                or not any(p[i].get_subscription_count() >= 1
+                           for p in (self._proximity_pubs, self._light_pubs, self._blob_pubs))]
 
     def wait_for_answers(self, timeout_s: float) -> bool:
         return self._all_answered.wait(timeout_s)
@@ -163,6 +200,7 @@ class SimulatorNode(Node):
                 return
             if self.answered[i]:
                 return  # a second answer to the same tick: the first one counts
+            self._tap_message(c.CMD_VEL, i, msg, key)
             if not (math.isfinite(linear) and math.isfinite(angular)):
                 self._record(self._current_tick, i, "non-finite velocity command rejected")
             else:
@@ -201,6 +239,7 @@ class SimulatorNode(Node):
                 taken = sub.handle.take_message(sub.msg_type, sub.raw)
                 if taken is None:
                     break
+                self._tap_message(c.LEDS, i, taken[0], self._tick_key)
                 try:
                     out[int(self.rows[i])] = c.decode_leds(taken[0], self._models[i].n_leds)
                 except ValueError as e:

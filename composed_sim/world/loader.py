@@ -43,13 +43,13 @@ def load_world(path: str | os.PathLike, *, robots: Optional[int] = None,
     """Load a world file, then apply the command-line overrides (see ``with_overrides``)."""
     source = os.fspath(path)
     data, lines = _parse(_read(source), source)
-    world = _validate(data, source, lines)
+    world = validate(data, source, lines)
     return with_overrides(world, robots=robots, ticks=ticks, seed=seed, source=source)
 
 
 def world_from_dict(data: Any, source: str = "<dict>") -> World:
     """Validate an already parsed world (e.g. a run's saved configuration); no line numbers."""
-    return _validate(data, source, {})
+    return validate(data, source, {})
 
 
 def dump_world(world: World) -> str:
@@ -94,7 +94,7 @@ def with_overrides(world: World, *, robots: Optional[int] = None, ticks: Optiona
         data["seed"] = seed
     flags = " ".join(f"--{k} {v}" for k, v in (("robots", robots), ("ticks", ticks),
                                                 ("seed", seed)) if v is not None)
-    return _validate(data, f"{source} (with {flags})", {}) if flags else world
+    return validate(data, f"{source} (with {flags})", {}) if flags else world
 
 
 def split_count(total: int, counts: list[int]) -> list[int]:
@@ -186,7 +186,7 @@ def _key(loader: yaml.SafeLoader, node: yaml.Node) -> Any:
 
 # --- validation and messages ---------------------------------------------------------
 
-def _validate(data: Any, source: str, lines: dict[FieldPath, int]) -> World:
+def validate(data: Any, source: str, lines: dict[FieldPath, int]) -> World:
     if data is None:
         raise WorldFileError(f"{source}: the world file is empty; it needs at least `robots:`")
     if not isinstance(data, dict):

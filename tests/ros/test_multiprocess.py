@@ -29,7 +29,15 @@ def mp_domain() -> int:
 
 
 def children() -> list[psutil.Process]:
-    return [p for p in psutil.Process().children(recursive=True) if p.status() != psutil.STATUS_ZOMBIE]
+    """Live (not zombie) descendants of this test process."""
+    alive = []
+    for p in psutil.Process().children(recursive=True):
+        try:
+            if p.status() != psutil.STATUS_ZOMBIE:
+                alive.append(p)
+        except psutil.NoSuchProcess:
+            pass
+    return alive
 
 
 def composed(world, domain_id, executor="lockstep"):
@@ -94,6 +102,33 @@ def test_killed_controller_falls_back_and_the_run_finishes(mp_domain):
     assert np.linalg.norm(pos[-1, [0, 2]] - pos[failed_at + 1, [0, 2]], axis=1).min() > 0.01
 
 
+def test_a_stalled_controller_meets_the_shared_watchdog_and_catches_up(mp_domain):
+    world = load_world(FLOCKING, robots=3, ticks=20, seed=2)
+    world = world.model_copy(update={"lockstep": world.lockstep.model_copy(update={"watchdog_s": 0.3})})
+    with MultiProcessHost(world, domain_id=mp_domain, robots_per_domain=2) as host:
+        stalled = next(p for p in host.processes if p.robot == "bot2").popen.pid   # alone in its domain
+        done = []
+
+        def progress(n):
+            done.append(n)
+            if len(done) == 5:
+                os.kill(stalled, signal.SIGSTOP)
+            if len(done) == 8:
+                os.kill(stalled, signal.SIGCONT)
+        t0 = time.perf_counter()
+        result = host.run(progress=progress)
+        wall = time.perf_counter() - t0
+    assert result.trajectories.ticks_done == 20 and children() == []
+    late = [v for v in result.violations if v.reason == "no answer before the watchdog"]
+    # Stopped during ticks 5–7; on resuming, the base controller finds ticks 5–8 queued per sensor
+    # topic, never a complete set of one stamp, so it also misses tick 8, then keeps up again.
+    assert {v.robot for v in late} == {"bot2"} and {v.tick for v in late} <= {5, 6, 7, 8}, result.violations
+    assert len(late) >= 3
+    assert 0.3 * len(late) <= wall < 0.3 * len(late) + 5.0    # one deadline for all domains per tick
+    assert {v.robot for v in result.violations} == {"bot2"}
+    assert max(v.tick for v in result.violations) <= 9
+
+
 def test_a_controller_that_cannot_start_is_a_clear_error(mp_domain):
     world = load_world(FLOCKING, robots=2, ticks=5)
     bad = with_controller(world, "flocking", {**world.robots[0].params, "gian": 3.0})
@@ -104,10 +139,10 @@ def test_a_controller_that_cannot_start_is_a_clear_error(mp_domain):
     assert children() == []
 
 
-def start_cli_run(tmp_path, mp_domain) -> tuple[subprocess.Popen, Path]:
-    """`composed-sim run` in multi-process mode, returned once it is ticking."""
+def start_cli_run(tmp_path, mp_domain, robots=3, ticking=True) -> tuple[subprocess.Popen, Path]:
+    """`composed-sim run` in multi-process mode, returned once it is ticking (or at once)."""
     log = tmp_path / "stderr.txt"
-    cmd = [sys.executable, "-m", "composed_sim.cli", "run", str(FLOCKING), "--robots", "3",
+    cmd = [sys.executable, "-m", "composed_sim.cli", "run", str(FLOCKING), "--robots", str(robots),
            "--ticks", "100000", "--mode", "multi-process", "--domain-id", str(mp_domain),
            "--out", str(tmp_path / "out"), "--no-picture"]
     # Its own session and process group, like a job in a terminal; Ctrl-C goes to that group.
@@ -115,7 +150,7 @@ def start_cli_run(tmp_path, mp_domain) -> tuple[subprocess.Popen, Path]:
     with open(log, "wb") as err:
         cli = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=err, start_new_session=True, env=env)
     deadline = time.monotonic() + 60
-    while not re.search(r"\b([1-9]\d*)/100000\b", log.read_text(errors="replace")):   # the progress bar
+    while ticking and not re.search(r"\b([1-9]\d*)/100000\b", log.read_text(errors="replace")):   # the progress bar
         if cli.poll() is not None or time.monotonic() > deadline:
             os.killpg(cli.pid, signal.SIGKILL)
             pytest.fail(log.read_text())
@@ -125,7 +160,30 @@ def start_cli_run(tmp_path, mp_domain) -> tuple[subprocess.Popen, Path]:
 
 def gone(processes: list[psutil.Process], timeout_s: float = 10.0) -> bool:
     _, alive = psutil.wait_procs(processes, timeout=timeout_s)
-    return all(p.status() == psutil.STATUS_ZOMBIE for p in alive if p.is_running())
+    return children_of_run(processes) == [] if alive else True
+
+
+def children_of_run(processes) -> list[int]:
+    """Pids still running (not zombie) among ``processes``."""
+    left = []
+    for p in processes:
+        try:
+            if p.is_running() and p.status() != psutil.STATUS_ZOMBIE:
+                left.append(p.pid)
+        except psutil.NoSuchProcess:
+            pass
+    return left
+
+
+def controllers_started_by(pid: int) -> list[int]:
+    """Controller processes whose parent was ``pid`` (found even once re-parented)."""
+    found = []
+    for p in psutil.process_iter(["cmdline"]):
+        cmd = p.info["cmdline"] or []
+        if "composed_sim.hosts.controller_process" in cmd and "--parent-pid" in cmd \
+                and cmd[cmd.index("--parent-pid") + 1] == str(pid):
+            found.append(p)
+    return children_of_run(found)
 
 
 def test_simulator_killed_outright_takes_its_children_along(tmp_path, mp_domain):
@@ -134,7 +192,22 @@ def test_simulator_killed_outright_takes_its_children_along(tmp_path, mp_domain)
     assert len(tree) == 3
     cli.kill()                      # SIGKILL: no cleanup code runs; PR_SET_PDEATHSIG does the job
     cli.wait()
-    assert gone(tree), [p.pid for p in tree if p.is_running()]
+    assert gone(tree), children_of_run(tree)
+    assert controllers_started_by(cli.pid) == []
+
+
+def test_ctrl_c_during_start_up_ends_it_without_a_tick(tmp_path, mp_domain):
+    cli, log = start_cli_run(tmp_path, mp_domain, robots=8, ticking=False)
+    deadline = time.monotonic() + 30
+    while not psutil.Process(cli.pid).children():
+        assert time.monotonic() < deadline and cli.poll() is None, log.read_text()
+        time.sleep(0.01)
+    os.killpg(cli.pid, signal.SIGINT)
+    assert cli.wait(timeout=60) == 130, log.read_text()
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert summary["interrupted"] is True and summary["ticks"] == 0
+    assert not list(tmp_path.glob("composed_sim_mp_*"))     # its temp dir went too
+    assert controllers_started_by(cli.pid) == []
 
 
 def test_ctrl_c_stops_at_a_tick_boundary_writes_the_summary_and_leaves_no_process(tmp_path, mp_domain):
@@ -153,4 +226,4 @@ def test_ctrl_c_stops_at_a_tick_boundary_writes_the_summary_and_leaves_no_proces
     assert 0 < summary["ticks"] < 100000
     # The children were not interrupted before the simulator stopped: no violation at all.
     assert summary["violations"] == 0, (out / "violations.csv").read_text()
-    assert gone(tree, timeout_s=0.0)
+    assert gone(tree, timeout_s=0.0) and controllers_started_by(cli.pid) == []

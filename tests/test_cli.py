@@ -1,0 +1,67 @@
+"""The composed-sim command as a user runs it: outputs, recordings, rendering, errors."""
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+FLOCKING = ROOT / "worlds" / "flocking.yaml"
+
+
+def cli(*args, timeout=300):
+    return subprocess.run([sys.executable, "-m", "composed_sim.cli", *map(str, args)], cwd=ROOT,
+                          capture_output=True, text=True, timeout=timeout)
+
+
+def test_run_records_a_bag_that_replays_and_renders(tmp_path):
+    out, bag = tmp_path / "out", tmp_path / "bag"
+    run = cli("run", FLOCKING, "--robots", 8, "--ticks", 15, "--out", out, "--record", bag,
+              "--record-topics", "/bot1*/cmd_vel", "/bot0/light", "--markers", "--no-progress", "--json")
+    assert run.returncode == 0, run.stderr[-2000:]
+    summary = json.loads(run.stdout)
+    assert summary["ticks"] == 15 and summary["robots"] == 8 and summary["violations"] == 0
+    with np.load(out / "trajectories.npz") as t:
+        assert t["positions"].shape == (16, 8, 2) and t["led_colors"].shape == (16, 8, 3)
+        assert (t["led_colors"][-1] == (255, 0, 0)).all()        # every beacon lit red by the flocking plugin
+    replay = cli("replay", bag, "--check")
+    assert replay.returncode == 0, replay.stderr
+    assert "15 ticks recorded" in replay.stdout and "/bot1/cmd_vel" in replay.stdout
+    assert "/bot0/light" in replay.stdout and "/bot2/cmd_vel" not in replay.stdout
+    for target in ("final.png", "run.gif"):
+        r = cli("render", out, "--out", tmp_path / target)
+        assert r.returncode == 0, r.stderr
+        assert (tmp_path / target).stat().st_size > 1000
+
+
+def test_argos_experiment_runs_with_a_controller_mapping(tmp_path):
+    r = cli("run", ROOT / "worlds" / "flocking.argos", "--controller", "flocking", "--ticks", 10,
+            "--out", tmp_path, "--no-progress", "--no-picture", "--json")
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert json.loads(r.stdout)["ticks"] == 10
+
+
+def test_worlds_lists_the_shipped_worlds():
+    r = cli("worlds")
+    assert r.returncode == 0
+    assert "flocking.yaml" in r.stdout and "flocking.argos" in r.stdout
+
+
+@pytest.mark.parametrize("args, message", [
+    (("run", "nope.yaml"), "nope.yaml: no such world file"),
+    (("run", FLOCKING, "--robots", "0"), "--robots: must be >= 1 (got 0)"),
+    (("run", FLOCKING, "--controller", "flocking"), "--controller: only for ARGoS .argos files"),
+    (("render", ROOT, "--out", "x.avi"), "must end in .png, .gif or .mp4"),
+    (("replay", ROOT / "worlds"), "not a readable recording"),
+])
+def test_user_mistakes_are_one_line_and_exit_2(args, message):
+    r = cli(*args)
+    assert r.returncode == 2, (r.returncode, r.stderr)
+    assert message in r.stderr and "Traceback" not in r.stderr
+
+
+def test_recording_into_an_existing_directory_is_refused(tmp_path):
+    r = cli("run", FLOCKING, "--robots", 2, "--ticks", 2, "--out", tmp_path / "o", "--record", tmp_path)
+    assert r.returncode == 2 and "already exists" in r.stderr
