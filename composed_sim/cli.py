@@ -48,7 +48,7 @@ def _positive_float(text: str) -> float:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from composed_sim.hosts.composed import EXECUTORS, MODES
+    from composed_sim.hosts.controllers import EXECUTORS, MODES
 
     parser = argparse.ArgumentParser(prog="composed-sim", description=(
         "Swarm simulator whose robot controllers are ROS 2 nodes, all hosted in one process."))
@@ -202,7 +202,8 @@ class _Interrupts:
 def cmd_run(args) -> int:
     from composed_sim import plugins
     from composed_sim.core.placement import PlacementError
-    from composed_sim.hosts.composed import ComposedHost, HostError
+    from composed_sim.hosts.composed import ComposedHost
+    from composed_sim.hosts.controllers import HostError
     from composed_sim.results import summarize, write_results
 
     world = _load_any_world(args)

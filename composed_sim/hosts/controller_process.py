@@ -69,7 +69,7 @@ def main(argv: list[str] | None = None) -> int:
     from rclpy.context import Context
 
     from composed_sim import plugins
-    from composed_sim.hosts.composed import create_controller, make_executor
+    from composed_sim.hosts.controllers import create_controller, make_executor
     from composed_sim.world.loader import load_world
 
     world = load_world(args.world)

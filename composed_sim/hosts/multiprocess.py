@@ -25,7 +25,7 @@ import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Optional
+from typing import Callable, Optional, Sequence
 
 import numpy as np
 import rclpy
@@ -34,9 +34,10 @@ from rclpy.executors import Executor
 
 from composed_sim import plugins
 from composed_sim.core.simulation import SensorFrame, Simulation
-from composed_sim.hosts.composed import EXECUTORS, HostError, SetupInfo
+from composed_sim.hosts.composed import SetupInfo
+from composed_sim.hosts.controllers import EXECUTORS, HostError
 from composed_sim.hosts.domains import DomainError, assign_domains
-from composed_sim.hosts.lockstep import LoopResult, run_lockstep
+from composed_sim.hosts.lockstep import LoopResult, TickObserver, run_lockstep
 from composed_sim.ros import contract as c
 from composed_sim.ros.lockstep_executor import LockstepExecutor
 from composed_sim.ros.simulator_node import SimulatorNode, Violation
@@ -49,7 +50,6 @@ SPAWN_AT_ONCE = max(2, 2 * (os.cpu_count() or 1))
 STALL_TIMEOUT_S = 60.0     # start-up fails when no child became ready for this long
 POLL_S = 0.01              # while waiting for answers, look for dead children this often
 TERM_GRACE_S = 5.0         # SIGTERM → SIGKILL
-LATE_LEDS = "leds answering an earlier tick arrived after that tick closed: applied one tick late"
 
 
 @dataclass
@@ -105,8 +105,6 @@ class DomainExchange:
     def __init__(self, nodes: list[SimulatorNode], check_children: Callable[[], None]):
         self.nodes = nodes
         self._check_children = check_children
-        self._tick = -1
-        self._opened_ns: Optional[int] = None    # wall time the current tick's sensors went out
 
     @property
     def violations(self) -> list[Violation]:
@@ -114,8 +112,6 @@ class DomainExchange:
         return sorted((v for n in self.nodes for v in n.violations), key=lambda v: v.tick)
 
     def publish_tick(self, frame: SensorFrame) -> None:
-        self._tick = frame.tick
-        self._opened_ns = time.time_ns() if frame.tick > 0 else None   # nothing precedes tick 0
         for node in self.nodes:
             node.publish_tick(frame)
 
@@ -140,32 +136,9 @@ class DomainExchange:
             node.close_tick(fallback, previous, commands)
 
     def take_led_commands(self) -> dict[int, np.ndarray]:
-        """Each node's LED inbox, drained as SimulatorNode.take_led_commands does, plus a check
-        that composed mode does not need.
-
-        A controller publishes ``leds`` before its ``cmd_vel``, but these are two DDS writers and
-        DDS orders samples per writer only. In practice both go from the child's participant to
-        the same locator of ours and are received in order by one transport thread (we measured
-        no LED arriving after its tick's answer in 30,000+ LED-changing robot-ticks, also on an
-        overloaded machine); only a lost LED sample, re-sent at the writer's next heartbeat
-        (~3 s), could land after its tick closed, and it would then act one tick late. That can
-        be told for sure from the sample's source timestamp (same host clock): an LED published
-        before this tick's sensors went out answers an earlier tick. It is still applied (it is
-        the latest colour) and recorded as a violation, so "same world and seed ⇒ same
-        trajectories unless a violation is recorded" holds in this mode too.
-        """
         out: dict[int, np.ndarray] = {}
         for node in self.nodes:
-            for i, sub in enumerate(node._led_subs):    # the node's never-spun inbox
-                robot = node._names[i]
-                while (taken := sub.handle.take_message(sub.msg_type, sub.raw)) is not None:
-                    msg, info = taken
-                    if self._opened_ns is not None and info["source_timestamp"] < self._opened_ns:
-                        node.violations.append(Violation(self._tick, robot, LATE_LEDS))
-                    try:
-                        out[int(node.rows[i])] = c.decode_leds(msg, node._models[i].n_leds)
-                    except ValueError as e:
-                        node.violations.append(Violation(self._tick, robot, f"leds: {e}"))
+            out.update(node.take_led_commands())
         return out
 
 
@@ -318,13 +291,17 @@ class MultiProcessHost:
 
     # --- the run ----------------------------------------------------------------------------
 
+    @property
+    def simulator_nodes(self) -> list[SimulatorNode]:
+        return list(self.exchange.nodes)
+
     def run(self, ticks: Optional[int] = None, *, progress: Optional[Callable[[int], None]] = None,
-            should_stop: Callable[[], bool] = lambda: False) -> LoopResult:
+            should_stop: Callable[[], bool] = lambda: False, observers: Sequence[TickObserver] = ()) -> LoopResult:
         ticks = self.world.length_ticks if ticks is None else ticks
         if self._startup_interrupted:      # stopped before tick 0: an interrupted run of 0 ticks
             should_stop = lambda: True     # noqa: E731
         return run_lockstep(self.sim, self.exchange, self.exchange.wait_for_answers, ticks,
-                            progress=progress, should_stop=should_stop)
+                            progress=progress, should_stop=should_stop, observers=observers)
 
     def _check_children(self) -> None:
         """A child that ended mid-run: its robot is marked failed (violation recorded once) and

@@ -13,7 +13,8 @@ import numpy as np
 import psutil
 import pytest
 
-from composed_sim.hosts.composed import ComposedHost, HostError
+from composed_sim.hosts.composed import ComposedHost
+from composed_sim.hosts.controllers import HostError
 from composed_sim.hosts.multiprocess import MultiProcessHost
 from composed_sim.world.loader import load_world
 
