@@ -52,15 +52,14 @@ from typing import TYPE_CHECKING, Any, Iterable, Optional
 import numpy as np
 
 from composed_sim.core.robot_models import display_colors
+from composed_sim.ros.contract import CLOCK_TOPIC, SWARM_STATE_TOPIC
+from composed_sim.ros.contract import WORLD_FRAME as FRAME_ID
 
 if TYPE_CHECKING:
     from composed_sim.world.schema import World
 
-CLOCK_TOPIC = "/clock"
-SWARM_STATE_TOPIC = "/swarm/state"
 SWARM_STATE_TYPE = "sensor_msgs/msg/PointCloud2"
 CLOCK_TYPE = "rosgraph_msgs/msg/Clock"
-FRAME_ID = "world"          # the fixed frame of the swarm state and of /swarm/markers
 
 # One point per robot; 40 bytes keeps every float64 8-byte aligned from point to point.
 STATE_DTYPE = np.dtype([("x", "<f8"), ("y", "<f8"), ("z", "<f8"), ("yaw", "<f8"),

@@ -19,6 +19,8 @@ actuators, published by the controller:
   /<r>/leds       std_msgs/UInt8MultiArray LED colours, [n_leds, 3] RGB, ring LEDs then beacon
 global:
   /clock          rosgraph_msgs/Clock      sim time, once per tick
+  /swarm/state    sensor_msgs/PointCloud2  (recordings) one point per robot: x, y, z, yaw, rgb, id
+  /swarm/markers  visualization_msgs/MarkerArray  (with --markers) bodies and headings, frame "world"
 """
 from __future__ import annotations
 
@@ -69,6 +71,11 @@ ACTUATOR_TOPICS: tuple[Topic, ...] = (CMD_VEL, LEDS)
 TOPICS: dict[str, Topic] = {t.name: t for t in SENSOR_TOPICS + ACTUATOR_TOPICS}
 CLOCK_TOPIC = "/clock"
 CLOCK_TYPE = Clock
+
+# Optional global topics, for people watching or recording a run (never read by controllers).
+SWARM_STATE_TOPIC = "/swarm/state"      # in a --record bag: every robot's pose and LED colour per tick
+SWARM_MARKERS_TOPIC = "/swarm/markers"  # live with --markers: the swarm as one MarkerArray
+WORLD_FRAME = "world"                   # the fixed frame of both
 
 # One point per blob. float32 coordinates are ample for a camera with cm-level range.
 BLOB_DTYPE = np.dtype([("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("rgb", "<u4")])

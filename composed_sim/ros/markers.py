@@ -34,9 +34,10 @@ from std_msgs.msg import ColorRGBA
 from visualization_msgs.msg import Marker, MarkerArray
 
 from composed_sim.core.robot_models import display_colors
-from composed_sim.recording import FRAME_ID
+from composed_sim.ros.contract import SWARM_MARKERS_TOPIC
+from composed_sim.ros.contract import WORLD_FRAME as FRAME_ID
 
-MARKERS_TOPIC = "/swarm/markers"
+MARKERS_TOPIC = SWARM_MARKERS_TOPIC
 MARKERS_TYPE = "visualization_msgs/msg/MarkerArray"
 DEFAULT_COLOR = (0.12, 0.47, 0.71)      # matplotlib's tab:blue, for robots with every LED off
 HEADING_LENGTH = 1.5                    # heading segment length in body radii

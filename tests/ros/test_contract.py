@@ -21,6 +21,8 @@ def test_every_topic_is_documented_with_its_type_and_nothing_else():
     rows = dict(re.findall(r"^\| `(/[^`]+)` \| `([^`]+)` \|", doc, flags=re.M))
     expected = {f"/<robot>/{t.name}": ros_type_name(t.msg_type) for t in c.TOPICS.values()}
     expected[c.CLOCK_TOPIC] = ros_type_name(c.CLOCK_TYPE)
+    expected[c.SWARM_STATE_TOPIC] = "sensor_msgs/msg/PointCloud2"
+    expected[c.SWARM_MARKERS_TOPIC] = "visualization_msgs/msg/MarkerArray"
     assert rows == expected
 
 
