@@ -8,6 +8,7 @@ import sys
 
 import numpy as np
 import pytest
+from reference_geometry import ref_span_box, ref_span_circle
 from scipy.spatial import cKDTree
 
 from composed_sim.core.geometry import StaticScene
@@ -52,35 +53,6 @@ def wrap(a):
     return a - math.pi                                  # (-pi, pi]
 
 
-def span_circle(p0, p1, centre, radius):
-    dx, dy = p1[0] - p0[0], p1[1] - p0[1]
-    fx, fy = p0[0] - centre[0], p0[1] - centre[1]
-    a, b, c = dx * dx + dy * dy, 2 * (fx * dx + fy * dy), fx * fx + fy * fy - radius * radius
-    if a == 0:
-        return (0.0, 1.0) if c <= 0 else None
-    disc = b * b - 4 * a * c
-    if disc < 0:
-        return None
-    lo, hi = max(0.0, (-b - math.sqrt(disc)) / (2 * a)), min(1.0, (-b + math.sqrt(disc)) / (2 * a))
-    return (lo, hi) if lo <= hi else None
-
-
-def span_box(p0, p1, centre, size, yaw):
-    c, s = math.cos(-yaw), math.sin(-yaw)
-    q = [((x - centre[0]) * c - (y - centre[1]) * s, (x - centre[0]) * s + (y - centre[1]) * c)
-         for x, y in (p0[:2], p1[:2])]
-    lo, hi = 0.0, 1.0
-    for ax in (0, 1):
-        d, half = q[1][ax] - q[0][ax], size[ax] / 2
-        if d == 0:
-            if abs(q[0][ax]) > half:
-                return None
-        else:
-            t0, t1 = (-half - q[0][ax]) / d, (half - q[0][ax]) / d
-            lo, hi = max(lo, min(t0, t1)), min(hi, max(t0, t1))
-    return (lo, hi) if lo <= hi else None
-
-
 def static_bodies(world):
     """[(kind, args, height)] of the world's static bodies, walls laid out as physics.py does."""
     out = []
@@ -99,7 +71,7 @@ def static_bodies(world):
 
 
 def span(kind, args, p0, p1):
-    return span_box(p0, p1, *args) if kind == "box" else span_circle(p0, p1, *args)
+    return ref_span_box(p0, p1, *args) if kind == "box" else ref_span_circle(p0, p1, *args)
 
 
 def blocked(p0, p1, bodies):
