@@ -1,5 +1,6 @@
 """The composed-sim command as a user runs it: outputs, recordings, rendering, errors."""
 import json
+import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -65,3 +66,43 @@ def test_user_mistakes_are_one_line_and_exit_2(args, message):
 def test_recording_into_an_existing_directory_is_refused(tmp_path):
     r = cli("run", FLOCKING, "--robots", 2, "--ticks", 2, "--out", tmp_path / "o", "--record", tmp_path)
     assert r.returncode == 2 and "already exists" in r.stderr
+
+
+def test_live_markers_reach_a_subscriber_in_another_process(tmp_path, domain_id):
+    """What an RViz or Foxglove user does: subscribe to /swarm/markers while a run goes on."""
+    import time
+
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.node import Node
+    from visualization_msgs.msg import MarkerArray
+
+    ctx = Context()
+    rclpy.init(context=ctx, domain_id=domain_id)
+    node = Node("watcher", context=ctx, start_parameter_services=False, enable_rosout=False)
+    received = []
+    node.create_subscription(MarkerArray, "/swarm/markers", received.append, 10)
+    executor = SingleThreadedExecutor(context=ctx)
+    executor.add_node(node)
+    # A run far longer than needed; once markers arrive the test stops it as a user would (Ctrl-C).
+    run = subprocess.Popen([sys.executable, "-m", "composed_sim.cli", "run", str(FLOCKING), "--robots", "6",
+                            "--ticks", "100000", "--markers", "--out", str(tmp_path), "--no-progress",
+                            "--no-picture", "--domain-id", str(domain_id)], cwd=ROOT,
+                           stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 120
+        while not received and run.poll() is None and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.1)
+        run.send_signal(signal.SIGINT)
+        assert run.wait(timeout=120) == 130, run.stderr.read()[-2000:]
+        assert json.loads((tmp_path / "summary.json").read_text())["interrupted"] is True
+    finally:
+        if run.poll() is None:
+            run.kill()
+        node.destroy_node()
+        rclpy.shutdown(context=ctx)
+    assert received, "no MarkerArray arrived while the run was going"
+    bodies, headings = received[0].markers
+    assert len(bodies.points) == 6 and len(bodies.colors) == 6 and len(headings.points) == 12
+    assert bodies.header.frame_id == "world"
