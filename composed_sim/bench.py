@@ -910,6 +910,7 @@ def plot_figures(doc: dict, out: Path) -> dict[str, Path]:
     ticks = settings.get("ticks", 600)
     sim_s = ticks * settings.get("tick_s", 0.1)
     paper = {k: load_paper_results(f) for k, (f, _) in PAPER_VARIANTS.items()}
+    cores = machine.get("logical_cores") or 0
     footer = (f"this machine: {machine.get('cpu_model')}, {machine.get('logical_cores')} logical cores, "
               f"{machine.get('memory_total_mb', 0) / 1024:.0f} GB, {machine.get('date', '')[:10]}; "
               f"{ticks} ticks per run; median of ok trials.  Paper: mean of 10 trials, 600 ticks, "
@@ -929,10 +930,21 @@ def plot_figures(doc: dict, out: Path) -> dict[str, Path]:
         series: dict[tuple, list] = {}
         for a in agg:
             if a[col] is not None:
-                series.setdefault((a["mode"], a["executor"]), []).append((a["Robots"], a[col] * scale))
+                series.setdefault((a["mode"], a["executor"]), []).append(
+                    (a["Robots"], a[col] * scale, saturated(a, cores)))
+        any_saturated = False
         for (mode, executor), pts in series.items():
-            xs, ys = zip(*sorted(pts))
-            ax.plot(xs, ys, label=f"{mode}, {executor}", **_series_style(mode, executor))
+            xs, ys, sat = zip(*sorted(pts))
+            style = _series_style(mode, executor)
+            ax.plot(xs, ys, label=f"{mode}, {executor}", **style)
+            hollow = [(x, y) for x, y, s in zip(xs, ys, sat) if s]
+            if hollow:          # the machine was saturated: times are upper bounds
+                any_saturated = True
+                ax.plot(*zip(*hollow), linestyle="none", marker=style["marker"], markerfacecolor="white",
+                        markeredgecolor=style["color"], markersize=7)
+        if any_saturated:
+            ax.plot([], [], linestyle="none", marker="o", markerfacecolor="white", markeredgecolor="grey",
+                    label="hollow: machine saturated during the run")
         if key == "wall_time":
             ax.axhline(sim_s, color="black", linestyle="--", linewidth=1, label=f"real time ({sim_s:g} s)")
         if key == "memory" and machine.get("memory_total_mb"):
@@ -1070,7 +1082,7 @@ def render_report(doc: dict, figures: dict[str, Path], raw: tuple[Path, Path], r
                       "are upper bounds."]
     odd = [r for r in rows if r["status"] != "ok"]
     if odd:
-        lines += ["", "Runs that did not complete:", ""]
+        lines += ["", "Runs skipped or not completed:", ""]
         for r in odd:
             lines.append(f"- N={r['Robots']} {r['mode']} {r['executor']} trial {r['Repetition']}: "
                          f"**{r['status']}** — {str(r.get('reason') or '').replace('|', '/')[:400]}")

@@ -276,7 +276,7 @@ def _run_observers(args, world, host, outputs: contextlib.ExitStack, interrupts)
     from composed_sim.hosts.observers import MarkerObserver, RecordingObserver
 
     observers = []
-    tick_ns = round(1e9 / world.ticks_per_second)
+    tick_ns = world.tick_ns
     recorder = None
     if args.record is not None:
         from composed_sim.recording import BagRecorder
@@ -303,7 +303,6 @@ def cmd_render(args) -> int:
 
 
 def cmd_replay(args) -> int:
-    from composed_sim.recording import read_recording
     from composed_sim.render import render
     from composed_sim.results import swarm_metrics
     out = _render_target(args.out) if args.out else None

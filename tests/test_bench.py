@@ -5,7 +5,6 @@ import json
 import statistics
 import sys
 import textwrap
-from pathlib import Path
 
 import pytest
 

@@ -22,6 +22,7 @@ from composed_sim.world.schema import World
 
 DISCOVERY_TIMEOUT_S = 60.0
 
+
 @dataclass
 class SetupInfo:
     setup_s: float          # context, simulator, nodes, discovery: until tick 0 can start
@@ -53,7 +54,7 @@ class ComposedHost:
             self.context = Context()
             rclpy.init(context=self.context, domain_id=self.domain_id)
             self.sim_node = SimulatorNode(self.sim.names, self.sim.models, context=self.context,
-                                          tick_ns=round(1e9 / self.world.ticks_per_second))
+                                          tick_ns=self.world.tick_ns)
             self.executor = make_executor(self.executor_kind, self.context)
             for name, group_index in zip(self.sim.names, self.world.group_of_robot()):
                 cls = classes[self.world.robots[group_index].controller]

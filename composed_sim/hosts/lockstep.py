@@ -14,7 +14,7 @@ import numpy as np
 
 from composed_sim.core.robot_models import display_colors
 from composed_sim.core.simulation import SensorFrame, Simulation
-from composed_sim.ros.simulator_node import SimulatorNode, Violation
+from composed_sim.ros.simulator_node import Violation
 
 
 @dataclass

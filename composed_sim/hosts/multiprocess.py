@@ -187,7 +187,7 @@ class MultiProcessHost:
             self._tmp = Path(tempfile.mkdtemp(prefix="composed_sim_mp_"))
             world_file = self._tmp / "world.yaml"
             world_file.write_text(dump_world(self.world), encoding="utf-8")
-            tick_ns = round(1e9 / self.world.ticks_per_second)
+            tick_ns = self.world.tick_ns
             for d in sorted(set(self.domains.values())):
                 rows = [i for i, name in enumerate(self.sim.names) if self.domains[name] == d]
                 context = Context()

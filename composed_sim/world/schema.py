@@ -284,6 +284,11 @@ class World(Strict):
     def tick_s(self) -> float:
         return 1.0 / self.ticks_per_second
 
+    @property
+    def tick_ns(self) -> int:
+        """A tick in integer nanoseconds: sim-time stamps are tick · tick_ns exactly."""
+        return round(1e9 / self.ticks_per_second)
+
     def robot_names(self) -> list[str]:
         """Names in group order; numbering per prefix runs on across groups (bot0 … botN-1)."""
         counters: dict[str, int] = {}

@@ -77,7 +77,7 @@ def test_plain_node_plugin_from_another_package_drives_robots(third_party_plugin
         update={"controller": third_party_plugin, "params": {"speed": 0.08}})]})
     result = run(world, domain_id=domain_id)
     assert result.violations == []
-    pos, head = result.trajectories.positions, result.trajectories.headings
+    pos = result.trajectories.positions
     moved = np.linalg.norm(pos[-1] - pos[0], axis=1)
     # 40 ticks at up to 8 cm/s, one tick of latency: about 0.31 m each unless something was close.
     assert np.median(moved) > 0.2, moved
