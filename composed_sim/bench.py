@@ -106,15 +106,8 @@ def _choice_list(allowed: tuple[str, ...]) -> Callable[[str], tuple[str, ...]]:
 
 
 def _positive(kind: type) -> Callable[[str], float]:
-    def parse(text: str):
-        try:
-            value = kind(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected a {'whole ' if kind is int else ''}number, got {text!r}") from None
-        if not value > 0:
-            raise argparse.ArgumentTypeError(f"must be > 0 (got {text})")
-        return value
-    return parse
+    from composed_sim.cli import number_arg   # the CLI imports this module only once it is loaded
+    return number_arg(kind, minimum=0, inclusive=False)
 
 
 def _fraction(text: str) -> float:
