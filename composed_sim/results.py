@@ -6,7 +6,7 @@ world.yaml       the resolved world, loadable as is to re-run the same experimen
 trajectories.npz positions [T+1, n, 2], headings [T+1, n], led_colors [T+1, n, 3] (each robot's
                  display colour), names [n], tick_s
 violations.csv   tick, robot, reason for each watchdog or contract violation
-arena.png        the arena: trails, final poses, lights, obstacles
+arena.png        the arena: whole-run trails, final poses with LED colours, lights, obstacles (render.py)
 """
 from __future__ import annotations
 
@@ -105,7 +105,10 @@ def write_results(out_dir: Path, world: World, result: LoopResult, summary: dict
         w.writerows((v.tick, v.robot, v.reason) for v in result.violations)
     (out_dir / SUMMARY).write_text(json.dumps(summary, indent=2) + "\n")
     if picture:
-        render_arena(world, t, out_dir / PICTURE)
+        from composed_sim.render import render
+        # The whole run's trails: the picture summarises the run, not its last seconds.
+        render(t, world, out_dir / PICTURE, led_colors=t.led_colors, trail_ticks=t.ticks_done,
+               tick_s=world.tick_s)
 
 
 def load_trajectories(path: Path) -> Trajectories:
@@ -113,59 +116,3 @@ def load_trajectories(path: Path) -> Trajectories:
         positions = data["positions"]
         leds = data["led_colors"] if "led_colors" in data else None
         return Trajectories(list(data["names"]), positions, data["headings"], len(positions) - 1, leds)
-
-
-def render_arena(world: World, t: Trajectories, path: Path) -> None:
-    """A top view: each robot's trail faded, its final pose as a disc with a heading tick."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    from matplotlib.collections import LineCollection, PatchCollection
-    from matplotlib.patches import Circle, Polygon
-
-    from composed_sim.core.robot_models import get_model
-
-    radius = get_model(world.robots[0].model).body_radius_m if world.robots else 0.085
-    pos, head = t.positions, t.headings
-    fig, ax = plt.subplots(figsize=(8, 8), dpi=120)
-    if pos.shape[1]:
-        # Trails: at most ~200 points per robot keeps big swarms quick to draw.
-        stride = max(1, len(pos) // 200)
-        trails = np.transpose(pos[::stride], (1, 0, 2))          # [n, T', 2]
-        ax.add_collection(LineCollection(trails, colors="tab:blue", alpha=0.25, linewidths=0.6))
-        final, yaw = pos[-1], head[-1]
-        ax.add_collection(PatchCollection([Circle(p, radius) for p in final], facecolor="tab:red",
-                                          edgecolor="black", linewidths=0.3))
-        tips = final + 2 * radius * np.stack([np.cos(yaw), np.sin(yaw)], axis=1)
-        ax.add_collection(LineCollection(np.stack([final, tips], axis=1), colors="black", linewidths=0.6))
-        ax.plot(*pos[0].T, ".", color="grey", markersize=1.5, label="start")
-    for light in world.lights:
-        ax.plot(*light.position, marker="*", markersize=18, color="gold", markeredgecolor="black",
-                label=f"light (intensity {light.intensity:g})")
-    for ob in world.obstacles:
-        if ob.type == "cylinder":
-            ax.add_patch(Circle(ob.position, ob.radius_m, color="dimgrey"))
-        else:
-            c, s = np.cos(ob.yaw_rad), np.sin(ob.yaw_rad)
-            hx, hy = ob.size[0] / 2, ob.size[1] / 2
-            corners = np.array([[-hx, -hy], [hx, -hy], [hx, hy], [-hx, hy]]) @ np.array([[c, s], [-s, c]])
-            ax.add_patch(Polygon(corners + ob.position, color="dimgrey"))
-    if world.arena.walls and world.arena.size:
-        (cx, cy), (sx, sy) = world.arena.center, world.arena.size
-        ax.add_patch(plt.Rectangle((cx - sx / 2, cy - sy / 2), sx, sy, fill=False, lw=2, color="black"))
-    # A square view around everything drawn, with a margin: tall or wide swarms stay readable.
-    ax.set_aspect("equal")
-    ax.autoscale_view()
-    (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
-    half = max(x1 - x0, y1 - y0) / 2 * 1.08
-    cx, cy = (x0 + x1) / 2, (y0 + y1) / 2
-    ax.set_xlim(cx - half, cx + half)
-    ax.set_ylim(cy - half, cy + half)
-    ax.set_xlabel("x (m)")
-    ax.set_ylabel("y (m)")
-    ax.set_title(f"{world.name}: {pos.shape[1]} robots, tick {t.ticks_done} "
-                 f"({t.ticks_done * world.tick_s:.1f} s sim time)")
-    ax.legend(loc="upper right", fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path)
-    plt.close(fig)
