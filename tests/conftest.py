@@ -20,19 +20,31 @@ def domain_id() -> int:
     return int(os.environ["ROS_DOMAIN_ID"])
 
 
-@pytest.fixture
-def third_party_plugin(tmp_path, monkeypatch):
-    """Install the test package's controller the way pip would: a module plus a dist-info with an
+def install_plugin(tmp_path, monkeypatch, module: str, entry_point: str) -> str:
+    """Install a test package's controller the way pip would: a module plus a dist-info with an
     entry point in ``composed_sim.controllers``, on sys.path (and PYTHONPATH for child processes)."""
-    site = tmp_path / "site"
+    site = tmp_path / f"site_{module}"
     site.mkdir()
-    shutil.copy(PLUGIN_SOURCE / "plain_forward.py", site / "plain_forward.py")
-    dist = site / "plain_forward_plugin-1.0.dist-info"
+    shutil.copy(PLUGIN_SOURCE / f"{module}.py", site / f"{module}.py")
+    name = module.replace("_", "-")
+    dist = site / f"{module}_plugin-1.0.dist-info"
     dist.mkdir()
-    (dist / "METADATA").write_text("Metadata-Version: 2.1\nName: plain-forward-plugin\nVersion: 1.0\n")
-    (dist / "entry_points.txt").write_text(
-        "[composed_sim.controllers]\nplain-forward = plain_forward:PlainForward\n")
+    (dist / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {name}-plugin\nVersion: 1.0\n")
+    (dist / "entry_points.txt").write_text(f"[composed_sim.controllers]\n{name} = {module}:{entry_point}\n")
     monkeypatch.syspath_prepend(str(site))
     monkeypatch.setenv("PYTHONPATH", os.pathsep.join(filter(None, [str(site), os.environ.get("PYTHONPATH")])))
-    yield "plain-forward"
+    return name
+
+
+@pytest.fixture
+def third_party_plugin(tmp_path, monkeypatch):
+    """A plain-Node controller from another package (tests/plugin_pkg/plain_forward.py)."""
+    yield install_plugin(tmp_path, monkeypatch, "plain_forward", "PlainForward")
     sys.modules.pop("plain_forward", None)
+
+
+@pytest.fixture
+def faulty_plugin(tmp_path, monkeypatch):
+    """The fault-injecting controller (tests/plugin_pkg/faulty.py)."""
+    yield install_plugin(tmp_path, monkeypatch, "faulty", "Faulty")
+    sys.modules.pop("faulty", None)

@@ -14,6 +14,7 @@ from rclpy.node import Node
 
 from composed_sim import plugins
 from composed_sim.core.simulation import Simulation
+from composed_sim.hosts.callback_guard import CallbackGuard
 from composed_sim.hosts.controllers import EXECUTORS, HostError, create_controller, make_executor
 from composed_sim.hosts.lockstep import LoopResult, TickObserver, run_lockstep
 from composed_sim.ros import contract as c
@@ -43,6 +44,7 @@ class ComposedHost:
         self.sim_node: Optional[SimulatorNode] = None
         self.controllers: list[Node] = []
         self.executor: Optional[Executor] = None
+        self.guard: Optional[CallbackGuard] = None
         self._spin_thread: Optional[threading.Thread] = None
         self.setup: Optional[SetupInfo] = None
 
@@ -53,12 +55,18 @@ class ComposedHost:
             self.sim = Simulation(self.world)
             self.context = Context()
             rclpy.init(context=self.context, domain_id=self.domain_id)
+            lockstep = self.world.lockstep
             self.sim_node = SimulatorNode(self.sim.names, self.sim.models, context=self.context,
-                                          tick_ns=self.world.tick_ns)
+                                          tick_ns=self.world.tick_ns, unresponsive_s=lockstep.unresponsive_s,
+                                          max_violations=lockstep.max_violations)
+            self.guard = CallbackGuard(self.sim_node, lockstep.watchdog_s, lockstep.unresponsive_s)
+            self.sim_node.on_failed.append(self.guard.stop_worker)
             self.executor = make_executor(self.executor_kind, self.context)
-            for name, group_index in zip(self.sim.names, self.world.group_of_robot()):
+            robots = frozenset(self.sim.names)
+            for row, (name, group_index) in enumerate(zip(self.sim.names, self.world.group_of_robot())):
                 cls = classes[self.world.robots[group_index].controller]
-                node = create_controller(cls, name, self.world, group_index, self.context)
+                node = create_controller(cls, name, self.world, group_index, self.context, robots=robots)
+                self.guard.guard(node, name, row)
                 self.sim_node.drive_clock_of(node)
                 self.controllers.append(node)
                 self.executor.add_node(node)
@@ -89,16 +97,17 @@ class ComposedHost:
     def run(self, ticks: Optional[int] = None, *, progress: Optional[Callable[[int], None]] = None,
             should_stop: Callable[[], bool] = lambda: False, observers: Sequence[TickObserver] = ()) -> LoopResult:
         ticks = self.world.length_ticks if ticks is None else ticks
-        if self.executor_kind in ("events", "lockstep"):
+        if self.executor_kind != "multi-threaded":
             wait = self._spin_until_answered
         else:
-            # The stock executors spin in their own thread (the reference shape: callbacks may run
-            # on worker threads); the tick loop waits for the simulator node's "all answered".
+            # Its callbacks run on its worker threads, as it is made for; the tick loop waits for
+            # the simulator node's "all answered".
             self._spin_thread = threading.Thread(target=self._spin, name="executor", daemon=True)
             self._spin_thread.start()
             wait = self.sim_node.wait_for_answers
-        return run_lockstep(self.sim, self.sim_node, wait, ticks, progress=progress, should_stop=should_stop,
-                            observers=observers)
+        with self.guard.interrupting_hangs(self._spin_thread is None):
+            return run_lockstep(self.sim, self.sim_node, wait, ticks, progress=progress,
+                                should_stop=should_stop, observers=observers)
 
     def _spin(self) -> None:
         try:
@@ -108,13 +117,27 @@ class ComposedHost:
 
     def _spin_until_answered(self, timeout_s: float) -> bool:
         """Executors driven from this thread: the lockstep executor by design, the EventsExecutor
-        because its spin() in a background thread hung in our probes (DESIGN.md)."""
+        because its spin() in a background thread hung in our probes (DESIGN.md), and the
+        single-threaded one like them, so that the callback guard can interrupt a hung callback.
+
+        Past the watchdog, the callbacks already queued still run before the tick closes: in one
+        thread a late callback delays the ones behind it, and its lateness is its own (the guard
+        rejects its answer), not theirs."""
         deadline = time.monotonic() + timeout_s
+        drain_left = 4 * len(self.controllers) + 16     # bounded: a busy timer cannot keep the tick open
+        idle = 0
         while not self.sim_node.all_answered:
             remaining = deadline - time.monotonic()
-            if remaining <= 0:
+            if remaining > 0:
+                self.executor.spin_once(timeout_sec=remaining)
+                continue
+            before = (self.guard.calls, self.sim_node.answered_count)
+            self.executor.spin_once(timeout_sec=0)
+            drain_left -= 1
+            # Twice: a stock executor's spin_once may come back empty once, to rebuild its wait set.
+            idle = idle + 1 if (self.guard.calls, self.sim_node.answered_count) == before else 0
+            if drain_left <= 0 or idle >= 2:
                 return False
-            self.executor.spin_once(timeout_sec=remaining)
         return True
 
     def __exit__(self, *exc) -> None:

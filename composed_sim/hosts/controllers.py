@@ -2,12 +2,15 @@
 and by each controller process of the multi-process host (which therefore imports no physics)."""
 from __future__ import annotations
 
+from typing import Container, Optional
+
 from rclpy.context import Context
 from rclpy.executors import Executor, MultiThreadedExecutor, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 from composed_sim import plugins
+from composed_sim.ros import contract as c
 from composed_sim.ros.controller import PARAM_ROBOT_MODEL, PARAM_RUN_SEED
 from composed_sim.ros.lockstep_executor import LockstepExecutor
 from composed_sim.ros.simulator_node import quiet_node_options
@@ -40,13 +43,34 @@ def controller_parameters(world: World, group_index: int) -> list[Parameter]:
     return params + [Parameter(PARAM_ROBOT_MODEL, value=group.model), Parameter(PARAM_RUN_SEED, value=world.seed)]
 
 
+class ContractViolation(Exception):
+    """A controller tried to publish what the topic contract does not allow it to."""
+
+
+def guard_publishers(node: Node, robot: str, robots: Container[str]) -> None:
+    """Make ``node.create_publisher`` refuse another robot's topic, a sensor topic or a wrong
+    type on its own actuator topic (``contract.publisher_problem``): the fault is the
+    publishing robot's, found where it starts, and no other robot ever receives a foreign answer."""
+    create = node.create_publisher
+
+    def create_publisher(msg_type, topic, *args, **kwargs):
+        problem = c.publisher_problem(robot, node.resolve_topic_name(topic), msg_type, robots)
+        if problem is not None:
+            raise ContractViolation(problem)
+        return create(msg_type, topic, *args, **kwargs)
+    node.create_publisher = create_publisher
+
+
 def create_controller(cls: type[Node], name: str, world: World, group_index: int,
-                      context: Context, use_sim_time: bool = False) -> Node:
-    """Construct one plugin Node in the robot's namespace, and check the world's params exist."""
+                      context: Context, use_sim_time: bool = False,
+                      robots: Optional[Container[str]] = None) -> Node:
+    """Construct one plugin Node in the robot's namespace, and check the world's params exist.
+    ``robots``: every robot's name (a set; computed from ``world`` when not given)."""
     group = world.robots[group_index]
     overrides = controller_parameters(world, group_index)
     if use_sim_time:
         overrides.append(Parameter("use_sim_time", value=True))
+    robots = frozenset(world.robot_names()) if robots is None else robots
     try:
         node = cls(context=context, namespace=f"/{name}", use_global_arguments=False,
                    **quiet_node_options(overrides))
@@ -59,4 +83,12 @@ def create_controller(cls: type[Node], name: str, world: World, group_index: int
         node.destroy_node()
         raise plugins.PluginError(f"robots[{group_index}].params: controller {group.controller!r} has no "
                                   f"parameter {', '.join(map(repr, unknown))} (it declares: {', '.join(declared) or 'none'})")
+    # The constructor's publishers are checked here (nothing it published can answer a tick:
+    # no tick is open yet); the ones it creates later are refused when created.
+    for publisher in node.publishers:
+        problem = c.publisher_problem(name, publisher.topic_name, publisher.msg_type, robots)
+        if problem is not None:
+            node.destroy_node()
+            raise plugins.PluginError(f"controller plugin {group.controller!r} for {name}: {problem}")
+    guard_publishers(node, name, robots)
     return node

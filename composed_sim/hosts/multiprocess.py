@@ -89,6 +89,12 @@ class ControllerProcess:
         return text[-chars:].strip()
 
 
+def died_reason(p: ControllerProcess) -> str:
+    """How a child ended, with the last line it wrote (a plugin's exception, usually)."""
+    lines = p.tail(500).splitlines()
+    return exit_reason(p.popen.returncode) + (f": {lines[-1].strip()}" if lines else "")
+
+
 def exit_reason(code: int) -> str:
     if code < 0:
         try:
@@ -187,7 +193,7 @@ class MultiProcessHost:
             self._tmp = Path(tempfile.mkdtemp(prefix="composed_sim_mp_"))
             world_file = self._tmp / "world.yaml"
             world_file.write_text(dump_world(self.world), encoding="utf-8")
-            tick_ns = self.world.tick_ns
+            tick_ns, lockstep = self.world.tick_ns, self.world.lockstep
             for d in sorted(set(self.domains.values())):
                 rows = [i for i, name in enumerate(self.sim.names) if self.domains[name] == d]
                 context = Context()
@@ -196,7 +202,10 @@ class MultiProcessHost:
                 self._nodes[d] = SimulatorNode([self.sim.names[i] for i in rows],
                                                [self.sim.models[i] for i in rows], context=context,
                                                tick_ns=tick_ns, rows=np.array(rows, dtype=int),
-                                               node_name=f"composed_sim_d{d}")
+                                               node_name=f"composed_sim_d{d}",
+                                               unresponsive_s=lockstep.unresponsive_s,
+                                               max_violations=lockstep.max_violations)
+                self._nodes[d].on_failed.append(self._stop_failed)
             self.exchange = DomainExchange(list(self._nodes.values()), self._check_children)
             with _InterruptWatch() as interrupts:
                 self._start_controllers(world_file, interrupts)
@@ -312,7 +321,13 @@ class MultiProcessHost:
         self._last_check = now
         for p in self.processes:
             if p.popen.returncode is None and p.popen.poll() is not None:
-                self._nodes[p.domain].mark_failed(p.robot, exit_reason(p.popen.returncode))
+                self._nodes[p.domain].mark_failed(p.robot, died_reason(p))
+
+    def _stop_failed(self, robot: str) -> None:
+        """A robot failed by the simulator (hung, silent, too many violations): its process goes,
+        as its callbacks would stop being run in composed mode."""
+        p = next(p for p in self.processes if p.robot == robot)
+        _signal_groups([p], signal.SIGKILL)
 
     # --- shutdown ---------------------------------------------------------------------------
 

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import array
 from dataclasses import dataclass
-from typing import Sequence
+from typing import Container, Optional, Sequence
 
 import numpy as np
 from builtin_interfaces.msg import Time
@@ -93,6 +93,30 @@ def topic_name(robot: str, topic: Topic) -> str:
 
 def base_link(robot: str) -> str:
     return f"{robot}/base_link"
+
+
+def type_name(msg_type: type) -> str:
+    """``geometry_msgs/msg/TwistStamped``, as ROS tools print it."""
+    return f"{msg_type.__module__.split('.')[0]}/msg/{msg_type.__name__}"
+
+
+def publisher_problem(robot: str, topic: str, msg_type: type, robots: Container[str]) -> Optional[str]:
+    """Why ``robot``'s controller may not publish ``msg_type`` on the resolved ``topic``, or None.
+
+    A controller publishes its own actuator topics only, with their contract types: another
+    robot's topic would make its answers ambiguous (DDS tells a subscriber nothing about which
+    writer a sample came from), and a wrong type never matches the simulator's endpoint."""
+    parts = topic.split("/")
+    if len(parts) != 3 or parts[0] or parts[2] not in TOPICS:
+        return None                        # not a contract topic: the controller's own business
+    owner, contract = parts[1], TOPICS[parts[2]]
+    if owner != robot:
+        return f"{topic} is a topic of {owner}, not of {robot}" if owner in robots else None
+    if contract.direction == "sensor":
+        return f"{topic} is published by the simulator only"
+    if msg_type is not contract.msg_type:
+        return f"{topic} carries {type_name(contract.msg_type)} (the topic contract), not {type_name(msg_type)}"
+    return None
 
 
 def stamp_of(tick: int, tick_ns: int) -> Time:

@@ -9,7 +9,7 @@ import math
 import threading
 import time
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Optional, Protocol, Sequence
+from typing import TYPE_CHECKING, Callable, Optional, Protocol, Sequence
 
 import numpy as np
 from rclpy.context import Context
@@ -63,9 +63,13 @@ class SimulatorNode(Node):
     """
 
     def __init__(self, names: list[str], models: list[RobotModel], *, context: Context,
-                 tick_ns: int, rows: Optional[np.ndarray] = None, node_name: str = "composed_sim"):
+                 tick_ns: int, rows: Optional[np.ndarray] = None, node_name: str = "composed_sim",
+                 unresponsive_s: float = math.inf, max_violations: Optional[int] = None):
         super().__init__(node_name, context=context, **quiet_node_options())
         self._names = names
+        self._index = {name: i for i, name in enumerate(names)}
+        self._unresponsive_s = unresponsive_s
+        self._max_violations = max_violations
         self._models = models
         self._tick_ns = tick_ns
         n = len(names)
@@ -96,9 +100,14 @@ class SimulatorNode(Node):
         # Answers to the current tick, written by callbacks (any thread), read by the host.
         self.linear = np.zeros(n)       # [n] m/s
         self.angular = np.zeros(n)      # [n] rad/s
-        self.answered = np.zeros(n, dtype=bool)
-        self.failed = np.zeros(n, dtype=bool)   # robots whose controller is gone: not waited for
-        self._lock = threading.Lock()
+        self.answered = np.zeros(n, dtype=bool)  # the robot's part of this tick is settled
+        self.rejected = np.zeros(n, dtype=bool)  # … by a violation: it gets the fallback
+        self.failed = np.zeros(n, dtype=bool)    # stopped for good: not waited for, zero command
+        self.on_failed: list[Callable[[str], None]] = []   # hosts stop what is left of a failed controller
+        self._violation_counts = np.zeros(n, dtype=int)
+        self._last_accepted_s = np.full(n, math.inf)     # monotonic time of each robot's last good answer
+        # Re-entrant: a violation recorded under the lock may fail its robot (max_violations).
+        self._lock = threading.RLock()
         self._all_answered = threading.Event()
         self._n_answered = 0
         self._n_expected = n
@@ -128,18 +137,41 @@ class SimulatorNode(Node):
                 self._tap.write_message(c.topic_name(self._names[i], topic), msg, stamp_ns)
 
     def mark_failed(self, robot: str, reason: str) -> None:
-        """A robot whose controller is gone: recorded once, then given the fallback every tick
-        without being waited for."""
-        i = self._names.index(robot)
+        """Stop a robot for good (its controller is gone, hung or past max_violations): recorded
+        once, then stopped (zero command) every tick, never waited for; its sensors are no longer
+        published."""
         with self._lock:
-            if self.failed[i]:
+            self._fail(self._index[robot], reason)
+
+    def reject_answer(self, robot: str, reason: str) -> None:
+        """Settle a robot's part of the open tick as a violation: it gets the fallback, whatever
+        it answered or will answer to this tick (e.g. its callback overran the watchdog)."""
+        i = self._index[robot]
+        with self._lock:
+            if self._current_key < 0 or self.failed[i]:
                 return
-            self.failed[i] = True
-            self._record(self._current_tick, i, f"controller failed: {reason}")
-            if not self.answered[i]:
-                self._n_expected -= 1
-                if self._n_answered >= self._n_expected:
-                    self._all_answered.set()
+            self.rejected[i] = True
+            self._settle(i)
+            self._record(self._current_tick, i, reason)
+
+    def _settle(self, i: int) -> None:
+        if not self.answered[i]:
+            self.answered[i] = True
+            self._n_answered += 1
+            if self._n_answered >= self._n_expected:
+                self._all_answered.set()
+
+    def _fail(self, i: int, reason: str) -> None:
+        if self.failed[i]:
+            return
+        self.failed[i] = True
+        self._record(self._current_tick, i, f"controller failed: {reason}")
+        if not self.answered[i]:
+            self._n_expected -= 1
+            if self._n_answered >= self._n_expected:
+                self._all_answered.set()
+        for hook in self.on_failed:
+            hook(self._names[i])
 
     # --- the tick exchange ----------------------------------------------------------------
 
@@ -148,6 +180,7 @@ class SimulatorNode(Node):
         stamp = c.stamp_of(frame.tick, self._tick_ns)
         with self._lock:
             self.answered[:] = False
+            self.rejected[:] = False
             self._n_answered = 0
             self._n_expected = int(np.count_nonzero(~self.failed))
             if self._n_expected == 0:
@@ -158,6 +191,8 @@ class SimulatorNode(Node):
             self._current_tick = frame.tick
             # Wall time the sensors went out (DDS source timestamps use it); nothing precedes tick 0.
             self._opened_ns = time.time_ns() if frame.tick > 0 else None
+            if frame.tick == 0:   # unresponsiveness counts from the first tick on
+                self._last_accepted_s[:] = time.monotonic()
         self._clock_msg.clock = stamp
         self._clock_pub.publish(self._clock_msg)
         now = RosTime.from_msg(stamp)
@@ -197,6 +232,10 @@ class SimulatorNode(Node):
     def all_answered(self) -> bool:
         return self._all_answered.is_set()
 
+    @property
+    def answered_count(self) -> int:
+        return self._n_answered
+
     def _on_cmd_vel(self, i: int, msg) -> None:
         key = c.stamp_key(msg.header.stamp)
         linear, angular = msg.twist.linear.x, msg.twist.angular.z
@@ -204,20 +243,24 @@ class SimulatorNode(Node):
             if self.failed[i]:
                 return
             if key != self._current_key:
-                self._record(self._current_tick, i, f"answer stamped {key} ns is not for the current tick")
+                # An answer to an earlier tick comes from a robot whose miss of that tick is
+                # recorded already; any other stamp is a contract violation of its own.
+                if not (key <= self._tick_key and key % self._tick_ns == 0):
+                    self._record(self._current_tick, i, f"answer stamped {key} ns answers no tick "
+                                 f"published so far (the last is {self._tick_key} ns)")
                 return
             if self.answered[i]:
-                return  # a second answer to the same tick: the first one counts
+                return  # a second answer to the same tick, or one already rejected: the first counts
             self._tap_message(c.CMD_VEL, i, msg, key)
             if not (math.isfinite(linear) and math.isfinite(angular)):
-                self._record(self._current_tick, i, "non-finite velocity command rejected")
+                self.rejected[i] = True
+                self._record(self._current_tick, i, f"non-finite velocity command rejected "
+                             f"(linear {linear}, angular {angular})")
             else:
                 self.linear[i] = linear
                 self.angular[i] = angular
-            self.answered[i] = True
-            self._n_answered += 1
-            if self._n_answered >= self._n_expected:
-                self._all_answered.set()
+                self._last_accepted_s[i] = time.monotonic()
+            self._settle(i)
 
     def close_tick(self, fallback: str, previous: tuple[np.ndarray, np.ndarray],
                    commands: tuple[np.ndarray, np.ndarray]) -> None:
@@ -226,16 +269,21 @@ class SimulatorNode(Node):
         fallback (zero, or ``previous``), recorded as a violation unless already failed."""
         with self._lock:
             self._current_key = -1   # later answers to this tick are stale
-            answered, failed = self.answered.copy(), self.failed.copy()
-            linear, angular = self.linear.copy(), self.angular.copy()
             tick = self._current_tick
-        for i in np.flatnonzero(~answered & ~failed):
-            self._record(tick, i, "no answer before the watchdog")
-        late = self.rows[~answered]
+            for i in np.flatnonzero(~self.answered & ~self.failed):
+                self._record(tick, i, "no answer before the watchdog")
+            good = self.answered & ~self.rejected & ~self.failed
+            now = time.monotonic()
+            for i in np.flatnonzero(~good & (now - self._last_accepted_s >= self._unresponsive_s)):
+                self._fail(i, f"unresponsive: no accepted answer for {now - self._last_accepted_s[i]:.1f} s")
+            linear, angular = self.linear.copy(), self.angular.copy()
+            stopped = self.failed.copy()
+        bad = ~good & ~stopped
         if fallback == "previous":
-            linear[~answered], angular[~answered] = previous[0][late], previous[1][late]
+            linear[bad], angular[bad] = previous[0][self.rows[bad]], previous[1][self.rows[bad]]
         else:
-            linear[~answered], angular[~answered] = 0.0, 0.0
+            linear[bad], angular[bad] = 0.0, 0.0
+        linear[stopped], angular[stopped] = 0.0, 0.0
         commands[0][self.rows] = linear
         commands[1][self.rows] = angular
 
@@ -256,17 +304,24 @@ class SimulatorNode(Node):
         for i, sub in enumerate(self._led_subs):
             while (taken := sub.handle.take_message(sub.msg_type, sub.raw)) is not None:
                 msg, info = taken
+                if self.failed[i]:
+                    continue
                 self._tap_message(c.LEDS, i, msg, self._tick_key)
-                if self._opened_ns is not None and info["source_timestamp"] < self._opened_ns:
-                    self._record(self._current_tick, i, LATE_LEDS)
-                try:
-                    out[int(self.rows[i])] = c.decode_leds(msg, self._models[i].n_leds)
-                except ValueError as e:
-                    self._record(self._current_tick, i, f"leds: {e}")
+                with self._lock:
+                    if self._opened_ns is not None and info["source_timestamp"] < self._opened_ns:
+                        self._record(self._current_tick, i, LATE_LEDS)
+                    try:
+                        out[int(self.rows[i])] = c.decode_leds(msg, self._models[i].n_leds)
+                    except ValueError as e:
+                        self._record(self._current_tick, i, f"leds: {e}")
         return out
 
     def _record(self, tick: int, i: int, reason: str) -> None:
+        """Called with the lock held."""
         self.violations.append(Violation(tick, self._names[i], reason))
+        self._violation_counts[i] += 1
+        if self._max_violations is not None and self._violation_counts[i] >= self._max_violations:
+            self._fail(i, f"stopped after {self._violation_counts[i]} violations (max_violations)")
 
     def destroy_node(self) -> None:
         self._inbox.destroy_node()

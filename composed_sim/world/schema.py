@@ -229,6 +229,23 @@ class Lockstep(Strict):
     # injects the fallback command and records a violation.
     watchdog_s: PositiveFloat = 10.0
     fallback: Literal["zero", "previous"] = "zero"
+    # A robot with no accepted answer for this many wall-clock seconds (a hung or silent
+    # controller) is marked failed: stopped, no longer waited for, its callbacks no longer run
+    # (its process is stopped in multi-process mode). None: three watchdog periods.
+    unresponsive_after_s: Optional[PositiveFloat] = None
+    # A robot with this many violations is stopped and marked failed. None: never.
+    max_violations: Optional[Annotated[int, Field(ge=1)]] = None
+
+    @property
+    def unresponsive_s(self) -> float:
+        return self.unresponsive_after_s if self.unresponsive_after_s is not None else 3.0 * self.watchdog_s
+
+    @model_validator(mode="after")
+    def _unresponsive_after_the_watchdog(self) -> "Lockstep":
+        if self.unresponsive_after_s is not None and self.unresponsive_after_s < self.watchdog_s:
+            raise _invalid([(("unresponsive_after_s",), f"must be at least watchdog_s "
+                             f"({self.watchdog_s})", self.unresponsive_after_s)])
+        return self
 
 
 # Fast DDS on Linux: a domain's ports start at 7400 + 250 * domain, so 232 is the last domain

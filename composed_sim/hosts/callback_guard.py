@@ -1,0 +1,132 @@
+"""One robot's faulty callback stays that robot's fault (composed host).
+
+Every controller runs in the host's process, so a callback that raises, overruns or never returns
+would otherwise stop the executor and with it the whole swarm. The guard wraps each controller's
+subscription and timer callbacks:
+
+- a callback that raises marks its robot failed (in multi-process mode its process would die);
+- a callback that returns after more than the watchdog gets its robot's answer to this tick
+  rejected: the fallback and a violation, as a late answer gets across processes. The other
+  robots' callbacks run after it, so they are not affected;
+- a callback still running after ``unresponsive_s`` is interrupted and its robot marked failed.
+  The interruption is a ``ControllerHung`` exception raised inside the callback by a SIGALRM
+  handler, which only works where callbacks run in the main thread (the lockstep, events and
+  single-threaded executors, which the composed host drives from it). Signals interrupt sleeps
+  and lock waits too; only a callback stuck inside C code that ignores signals cannot be
+  stopped. The multi-threaded executor runs callbacks on worker threads: a hung one there is
+  failed by the simulator's unresponsive rule, and then interrupted by an asynchronous
+  exception in its thread, which takes effect as soon as it runs Python code again (a callback
+  blocked forever inside C keeps its worker thread).
+- a failed robot's callbacks are not run any more.
+"""
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import signal
+import threading
+import time
+from typing import Callable, Optional
+
+import numpy as np
+from rclpy.node import Node
+from rclpy.subscription import Subscription
+
+from composed_sim.ros.simulator_node import SimulatorNode
+
+
+class ControllerHung(BaseException):
+    """Raised inside a callback that ran too long. A BaseException, so that a plugin's own
+    ``except Exception`` does not swallow it."""
+
+
+class CallbackGuard:
+    def __init__(self, sim_node: SimulatorNode, watchdog_s: float, unresponsive_s: float):
+        self._sim_node = sim_node
+        self._watchdog_s = watchdog_s
+        self._unresponsive_s = unresponsive_s
+        self._failed: np.ndarray = sim_node.failed     # shared, read-only here
+        self._running: Optional[str] = None            # robot whose callback runs in the main thread
+        self._started = 0.0
+        self._main = threading.main_thread()
+        self._workers: dict[str, int] = {}             # robot → worker thread running its callback
+        self._workers_lock = threading.Lock()
+        self.calls = 0                                 # callbacks run: lets a waiter see progress
+
+    def guard(self, node: Node, robot: str, row: int) -> None:
+        """Wrap the callbacks of every subscription and timer ``node`` has (a controller creates
+        them in its constructor)."""
+        for sub in node.subscriptions:
+            with_info = sub._callback_type is Subscription.CallbackType.WithMessageInfo
+            sub.callback = self._wrap(sub.callback, robot, row, with_info)
+        for timer in node.timers:
+            timer.callback = self._wrap(timer.callback, robot, row, False, arity=0)
+
+    def _wrap(self, callback: Callable, robot: str, row: int, with_info: bool, arity: int = 1) -> Callable:
+        def run(*args):
+            if self._failed[row]:
+                return None
+            in_main = threading.current_thread() is self._main
+            started = time.monotonic()
+            if in_main:
+                self._running, self._started = robot, started
+            else:
+                self._workers[robot] = threading.get_ident()
+            self.calls += 1
+            try:
+                try:
+                    result = callback(*args)
+                finally:
+                    if in_main:
+                        self._running = None
+                    else:
+                        with self._workers_lock:   # after this, stop_worker cannot reach us
+                            self._workers.pop(robot, None)
+            except ControllerHung:
+                self._running = None
+                self._sim_node.mark_failed(robot, f"hung: callback still running after "
+                                                  f"{time.monotonic() - started:.1f} s, interrupted")
+                return None
+            except Exception as e:
+                self._sim_node.mark_failed(robot, f"callback raised {type(e).__name__}: {e}")
+                return None
+            took = time.monotonic() - started
+            # Worker threads (multi-threaded executor) meet the tick's wall-clock deadline instead.
+            if in_main and took > self._watchdog_s:
+                self._sim_node.reject_answer(robot, f"late: a callback took {took:.2f} s, more than "
+                                                    f"the watchdog's {self._watchdog_s} s")
+            return result
+        # rclpy picks a subscription's call signature from the callback's: keep the original's.
+        if arity == 0:
+            return lambda: run()
+        return (lambda msg, info: run(msg, info)) if with_info else (lambda msg: run(msg))
+
+    def stop_worker(self, robot: str) -> None:
+        """Interrupt ``robot``'s callback if it runs on a worker thread (a SimulatorNode.on_failed
+        hook: the robot has just been failed, e.g. as unresponsive)."""
+        with self._workers_lock:
+            ident = self._workers.get(robot)
+            if ident is not None:
+                ctypes.pythonapi.PyThreadState_SetAsyncExc(ctypes.c_ulong(ident), ctypes.py_object(ControllerHung))
+
+    # --- interrupting a hung callback in the main thread ---------------------------------------
+
+    @contextlib.contextmanager
+    def interrupting_hangs(self, callbacks_in_this_thread: bool):
+        """While running ticks: a periodic SIGALRM checks on the callback running in the main
+        thread, if that is where callbacks run (and this is the main thread)."""
+        if not (callbacks_in_this_thread and threading.current_thread() is self._main):
+            yield
+            return
+        old_handler = signal.signal(signal.SIGALRM, self._on_alarm)
+        period = max(0.05, self._unresponsive_s / 4)
+        signal.setitimer(signal.ITIMER_REAL, period, period)
+        try:
+            yield
+        finally:
+            signal.setitimer(signal.ITIMER_REAL, 0, 0)
+            signal.signal(signal.SIGALRM, old_handler)
+
+    def _on_alarm(self, signum, frame) -> None:
+        if self._running is not None and time.monotonic() - self._started >= self._unresponsive_s:
+            raise ControllerHung(self._running)
