@@ -18,6 +18,7 @@ import os
 from typing import MutableMapping, Optional
 
 RANGES = ("subnet", "localhost", "off", "system_default")
+DEFAULT_DISCOVERY_TIMEOUT_S = 120.0   # simulator waiting for shards, shard waiting for a simulator
 MAX_STATIC_PEERS = 32        # RMW_DISCOVERY_PARAMS_MAX_PEERS in rmw
 
 

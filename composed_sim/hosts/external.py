@@ -22,6 +22,7 @@ from composed_sim.core.simulation import Simulation
 from composed_sim.hosts.composed import SetupInfo
 from composed_sim.hosts.lockstep import LoopResult, TickObserver, run_lockstep
 from composed_sim.hosts.controllers import HostError
+from composed_sim.hosts.discovery import DEFAULT_DISCOVERY_TIMEOUT_S
 from composed_sim.hosts.multiprocess import DomainExchange, _endpoints_by_topic, _InterruptWatch, _matched, _spin
 from composed_sim.hosts.robot_ranges import format_ranges
 from composed_sim.hosts.shard_announce import ShardInfo, ShardRegistry, world_fingerprint
@@ -30,7 +31,6 @@ from composed_sim.ros.lockstep_executor import LockstepExecutor
 from composed_sim.ros.simulator_node import SimulatorNode
 from composed_sim.world.schema import World
 
-DEFAULT_DISCOVERY_TIMEOUT_S = 120.0
 GONE_REASON = "its shard is gone (no cmd_vel publisher left)"
 
 
