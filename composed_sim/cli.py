@@ -75,6 +75,27 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
     run.add_argument("--no-picture", action="store_true", help="skip arena.png")
     run.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
+    run.add_argument("--external-controllers", action="store_true",
+                     help="run the simulator only; the controllers are hosted by `composed-sim host` shards "
+                          "(on this or other machines), waited for before tick 0 (docs/distributed.md)")
+    _add_distributed_options(run, "with --external-controllers: ")
+
+    host = sub.add_parser("host", help="host a range of robots' controllers for a simulator elsewhere",
+                          description="Host some robots' controller nodes in this process (one context, one "
+                                      "executor) for a simulator started with `run --external-controllers`, on "
+                                      "this or another machine; ends when that simulator is gone, or on "
+                                      "Ctrl-C/SIGTERM (docs/distributed.md).")
+    host.add_argument("world", type=Path, help="the simulator's world file (YAML or ARGoS)")
+    host.add_argument("--robots", required=True, metavar="RANGES",
+                      help="robot indices to host: 0-639, 5 or 0-9,20-29")
+    host.add_argument("--world-robots", type=_positive_int, metavar="N",
+                      help="total number of robots, when the simulator was given --robots N")
+    host.add_argument("--seed", type=_non_negative_int, help="random seed, when the simulator was given --seed")
+    host.add_argument("--controller", metavar="NAME", help="for an ARGoS .argos file: the controller plugin")
+    host.add_argument("--executor", choices=EXECUTORS, default="lockstep",
+                      help="rclpy executor running the hosted nodes (default: %(default)s)")
+    host.add_argument("--domain-id", type=int, default=None, help="ROS domain (default: $ROS_DOMAIN_ID or 0)")
+    _add_distributed_options(host, "")
 
     sub.add_parser("plugins", help="list the installed controller plugins")
 
@@ -104,6 +125,19 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _add_distributed_options(parser: argparse.ArgumentParser, prefix: str) -> None:
+    from composed_sim.hosts.discovery import DEFAULT_DISCOVERY_TIMEOUT_S, RANGES
+    parser.add_argument("--discovery-timeout", type=_positive_float, metavar="SECONDS",
+                        default=DEFAULT_DISCOVERY_TIMEOUT_S,
+                        help=f"{prefix}how long to wait for the other side before giving up (default: %(default)s)")
+    parser.add_argument("--discovery-range", choices=RANGES, type=str.lower, default=None,
+                        help=f"{prefix}ROS_AUTOMATIC_DISCOVERY_RANGE (default: the environment's, else subnet)")
+    parser.add_argument("--static-peers", metavar="ADDR;ADDR",
+                        help=f"{prefix}ROS_STATIC_PEERS: addresses of the other machines, for networks without multicast")
+    parser.add_argument("--discovery-server", metavar="ADDR:PORT",
+                        help=f"{prefix}ROS_DISCOVERY_SERVER: a Fast DDS discovery server")
+
+
 def _add_render_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--fps", type=_positive_float, default=10.0, help="frames per second (default: %(default)s)")
     parser.add_argument("--size", type=_positive_int, default=800, help="frame side in pixels (default: %(default)s)")
@@ -125,6 +159,8 @@ def main(argv: list[str] | None = None) -> int:
             return cmd_replay(args)
         if args.command == "worlds":
             return cmd_worlds()
+        if args.command == "host":
+            return cmd_host(args)
         return cmd_run(args)
     except UserError as e:
         print(f"composed-sim: error: {e}", file=sys.stderr)
@@ -167,9 +203,10 @@ def _check_writable(out: Path) -> None:
 class _Interrupts:
     """First Ctrl-C/SIGTERM: stop at the next tick boundary and write results. Second: exit now."""
 
-    def __init__(self):
+    def __init__(self, message: str = "stopping at the next tick"):
         self.requested = False
         self.on_second = None    # called before a hard quit, e.g. to close a recording
+        self.message = message
 
     def __enter__(self):
         self._old = {s: signal.signal(s, self._handle) for s in (signal.SIGINT, signal.SIGTERM)}
@@ -181,7 +218,7 @@ class _Interrupts:
                 self.on_second()
             os._exit(EXIT_INTERRUPTED)
         self.requested = True
-        print("\ncomposed-sim: stopping at the next tick (again to quit at once)", file=sys.stderr)
+        print(f"\ncomposed-sim: {self.message} (again to quit at once)", file=sys.stderr)
 
     def __exit__(self, *exc):
         for s, h in self._old.items():
@@ -205,9 +242,16 @@ def cmd_run(args) -> int:
         raise UserError(f"--record {args.record}: already exists; a recording goes into a new directory")
     if args.record_topics and args.record is None:
         raise UserError("--record-topics: needs --record DIR")
+    if not args.external_controllers:
+        _check_no_distributed_flags(args)
 
+    distributed = _distributed_settings(args) if args.external_controllers else None
     try:
-        if args.mode == "multi-process":
+        if args.external_controllers:
+            from composed_sim.hosts.external import ExternalControllersHost
+            host = ExternalControllersHost(world, domain_id=domain_id, discovery_timeout_s=args.discovery_timeout,
+                                           discovery=distributed)
+        elif args.mode == "multi-process":
             from composed_sim.hosts.multiprocess import MultiProcessHost
             host = MultiProcessHost(world, executor=args.executor, domain_id=domain_id,
                                     robots_per_domain=args.robots_per_domain)
@@ -217,7 +261,8 @@ def cmd_run(args) -> int:
         raise UserError(str(e)) from None
 
     def finish(result) -> dict:
-        summary = summarize(world, result, setup_s=host.setup.setup_s, mode=args.mode,
+        mode = "external-controllers" if args.external_controllers else args.mode
+        summary = summarize(world, result, setup_s=host.setup.setup_s, mode=mode,
                             executor=args.executor,
                             phases={"physics_s": host.sim.times.physics_s, "sensing_s": host.sim.times.sensing_s})
         summary["out"] = str(args.out)
@@ -249,6 +294,62 @@ def cmd_run(args) -> int:
     else:
         print(_human_summary(summary))
     return EXIT_INTERRUPTED if result.interrupted else 0
+
+
+def _distributed_settings(args) -> str:
+    """Check the flags of a distributed run and put its discovery settings into the environment."""
+    from composed_sim.hosts.discovery import DiscoveryError, configure
+    if args.command == "run" and args.mode != "composed":
+        raise UserError("--external-controllers: the controllers are in `composed-sim host` shards, "
+                        "so --mode multi-process does not apply")
+    try:
+        description, warning = configure(discovery_range=args.discovery_range, static_peers=args.static_peers,
+                                         discovery_server=args.discovery_server)
+    except DiscoveryError as e:
+        raise UserError(str(e)) from None
+    if warning:
+        print(f"composed-sim: note: {warning}", file=sys.stderr)
+    return description
+
+
+def _check_no_distributed_flags(args) -> None:
+    given = [flag for flag, value in (("--discovery-range", args.discovery_range), ("--static-peers", args.static_peers),
+                                      ("--discovery-server", args.discovery_server)) if value is not None]
+    if given:
+        raise UserError(f"{given[0]}: only for a distributed run (with --external-controllers)")
+
+
+def cmd_host(args) -> int:
+    """A controller shard: serves until the simulator is gone (0) or Ctrl-C/SIGTERM (130)."""
+    from composed_sim import plugins
+    from composed_sim.hosts.controllers import HostError
+    from composed_sim.hosts.robot_ranges import RangeError, parse_ranges
+    from composed_sim.hosts.shard import ShardHost
+
+    world = _load_any_world(argparse.Namespace(world=args.world, robots=args.world_robots, ticks=None,
+                                               seed=args.seed, controller=args.controller))
+    try:
+        robots = parse_ranges(args.robots, len(world.robot_names()))
+    except RangeError as e:
+        raise UserError(f"--robots: {e}") from None
+    domain_id = _domain_id(args.domain_id)
+    discovery = _distributed_settings(args)
+    with _Interrupts("stopping the shard") as interrupts:
+        try:
+            with ShardHost(world, robots, executor=args.executor, domain_id=domain_id,
+                           should_stop=lambda: interrupts.requested) as shard:
+                print(f"composed-sim host: {len(robots)} controllers ({args.robots}) in ROS domain {domain_id}, "
+                      f"discovery {discovery}; waiting for the simulator", file=sys.stderr)
+                if shard.wait_for_simulator(args.discovery_timeout):
+                    print("composed-sim host: matched with the simulator; serving", file=sys.stderr)
+                    ended = shard.serve()
+                else:
+                    ended = "stopped"
+        except (plugins.PluginError, HostError) as e:
+            raise UserError(str(e)) from None
+    print(f"composed-sim host: {'the simulator is gone' if ended == 'simulator gone' else 'stopped'}; done",
+          file=sys.stderr)
+    return EXIT_INTERRUPTED if ended == "stopped" else 0
 
 
 def _load_any_world(args):

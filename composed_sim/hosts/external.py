@@ -1,0 +1,171 @@
+"""The simulator alone, its controllers hosted by shards on this or other machines
+(``composed-sim run WORLD --external-controllers``; the shards: ``composed_sim.hosts.shard``).
+
+The simulator node and the tick loop are the composed host's; the exchange is multi-process mode's
+``DomainExchange`` over the one simulator node, spun by a LockstepExecutor in its own thread, so
+lockstep, the shared watchdog and the fallbacks are exactly as on one machine. Before tick 0 it
+waits until every robot is hosted by exactly one shard of the same world whose endpoints are
+matched on both sides (the shard announces when its side is). During the run, a robot whose
+``cmd_vel`` publisher has disappeared (its shard ended, or DDS lost it after the participant
+lease) is marked failed: a violation, then the fallback every tick, never a stall.
+"""
+from __future__ import annotations
+
+import threading
+import time
+from typing import Callable, Optional, Sequence
+
+import rclpy
+from rclpy.context import Context
+
+from composed_sim.core.simulation import Simulation
+from composed_sim.hosts.composed import SetupInfo
+from composed_sim.hosts.lockstep import LoopResult, TickObserver, run_lockstep
+from composed_sim.hosts.controllers import HostError
+from composed_sim.hosts.discovery import DEFAULT_DISCOVERY_TIMEOUT_S
+from composed_sim.hosts.multiprocess import DomainExchange, _endpoints_by_topic, _InterruptWatch, _matched, _spin
+from composed_sim.hosts.robot_ranges import format_ranges
+from composed_sim.hosts.shard_announce import ShardInfo, ShardRegistry, world_fingerprint
+from composed_sim.ros import contract as c
+from composed_sim.ros.lockstep_executor import LockstepExecutor
+from composed_sim.ros.simulator_node import SimulatorNode
+from composed_sim.world.schema import World
+
+GONE_REASON = "its shard is gone (no cmd_vel publisher left)"
+
+
+class ExternalControllersHost:
+    """Context manager: the simulation, its node and its executor thread; same interface as
+    ComposedHost. ``discovery`` only words the errors (the settings are in the environment)."""
+
+    def __init__(self, world: World, *, domain_id: int = 0,
+                 discovery_timeout_s: float = DEFAULT_DISCOVERY_TIMEOUT_S, discovery: str = ""):
+        self.world = world
+        self.domain_id = domain_id
+        self.discovery_timeout_s = discovery_timeout_s
+        self.discovery = discovery
+        self.sim: Optional[Simulation] = None
+        self.sim_node: Optional[SimulatorNode] = None
+        self.exchange: Optional[DomainExchange] = None
+        self.shards: dict[str, ShardInfo] = {}
+        self.setup: Optional[SetupInfo] = None
+        self._context: Optional[Context] = None
+        self._registry: Optional[ShardRegistry] = None
+        self._executor: Optional[LockstepExecutor] = None
+        self._thread: Optional[threading.Thread] = None
+        self._cmd_subs: list = []
+        self._startup_interrupted = False
+
+    def __enter__(self) -> "ExternalControllersHost":
+        t0 = time.perf_counter()
+        try:
+            self.sim = Simulation(self.world)
+            self._context = Context()
+            rclpy.init(context=self._context, domain_id=self.domain_id)
+            self.sim_node = SimulatorNode(self.sim.names, self.sim.models, context=self._context,
+                                          tick_ns=self.world.tick_ns)
+            endpoints = _endpoints_by_topic(self.sim_node)
+            self._cmd_subs = [endpoints[c.topic_name(name, c.CMD_VEL)] for name in self.sim.names]
+            self._registry = ShardRegistry(self._context, self.sim.n)
+            with _InterruptWatch() as interrupts:
+                self._wait_for_shards(endpoints, lambda: interrupts.requested)
+            self._startup_interrupted = interrupts.requested
+            self.exchange = DomainExchange([self.sim_node], self._check_shards)
+            self._executor = LockstepExecutor(context=self._context)
+            self._executor.add_node(self.sim_node)
+            self._thread = threading.Thread(target=_spin, args=(self._executor,), name="executor", daemon=True)
+            self._thread.start()
+        except BaseException:
+            self.__exit__(None, None, None)
+            raise
+        self.setup = SetupInfo(time.perf_counter() - t0, 1)
+        return self
+
+    @property
+    def simulator_nodes(self) -> list[SimulatorNode]:
+        return [self.sim_node]
+
+    # --- before tick 0 ----------------------------------------------------------------------
+
+    def _wait_for_shards(self, endpoints: dict, interrupted: Callable[[], bool]) -> None:
+        names = self.sim.names
+        fingerprint = world_fingerprint(self.world)
+        deadline = time.monotonic() + self.discovery_timeout_s
+        while not interrupted():
+            self.shards = self._registry.poll()
+            if self._registry.malformed:
+                raise HostError(f"a controller shard does not fit this world: {self._registry.malformed[0]}")
+            other = [s for s in self.shards.values() if s.world != fingerprint]
+            if other:
+                raise HostError(f"controller shard {other[0].shard} (robots {format_ranges(other[0].robots)}) was "
+                                f"built from another world: start it with the same world file and the same "
+                                f"--seed and robot count as the simulator")
+            host_of: dict[int, ShardInfo] = {}
+            for info in self.shards.values():     # arrival order: a restarted shard replaces its predecessor
+                host_of.update({i: info for i in info.robots})
+            doubled = [i for i in range(self.sim.n) if self._cmd_subs[i].get_publisher_count() > 1]
+            if doubled:
+                raise HostError(f"robots {format_ranges(doubled)} have more than one cmd_vel publisher: "
+                                f"two shards (or another run in ROS domain {self.domain_id}) host them")
+            unmatched_sim_side = set(names.index(r) for r in self.sim_node.unmatched_robots())
+            unmatched_sim_side |= {i for i, info in host_of.items()
+                                   if not all(_matched(endpoints.get(c.topic_name(names[i], c.TOPICS[t])))
+                                              for t in info.topics.get(i, []) if t in c.TOPICS)}
+            missing = [i for i in range(self.sim.n) if i not in host_of]
+            if not missing and not unmatched_sim_side:
+                return
+            if time.monotonic() > deadline:
+                raise HostError(self._discovery_error(missing, sorted(unmatched_sim_side - set(missing))))
+            time.sleep(0.02)
+
+    def _discovery_error(self, missing: list[int], unmatched: list[int]) -> str:
+        names = self.sim.names
+        found = "; ".join(f"{s.shard} hosts {format_ranges(s.robots)}" for s in self.shards.values()) or "none"
+        parts = []
+        if missing:
+            parts.append(f"no controller shard hosts robots {format_ranges(missing)} ({_names(names, missing)})")
+        if unmatched:
+            parts.append(f"robots {format_ranges(unmatched)} are announced but their topics are not matched here")
+        return (f"{' and '.join(parts)} after {self.discovery_timeout_s:g} s (shards found: {found}). Start "
+                f"`composed-sim host WORLD --robots {format_ranges(missing or unmatched)}` with the same world "
+                f"in ROS domain {self.domain_id}{'; discovery: ' + self.discovery if self.discovery else ''} "
+                f"(see docs/distributed.md)")
+
+    # --- the run ----------------------------------------------------------------------------
+
+    def run(self, ticks: Optional[int] = None, *, progress: Optional[Callable[[int], None]] = None,
+            should_stop: Callable[[], bool] = lambda: False, observers: Sequence[TickObserver] = ()) -> LoopResult:
+        ticks = self.world.length_ticks if ticks is None else ticks
+        if self._startup_interrupted:      # stopped before tick 0: an interrupted run of 0 ticks
+            should_stop = lambda: True     # noqa: E731
+        return run_lockstep(self.sim, self.exchange, self.exchange.wait_for_answers, ticks,
+                            progress=progress, should_stop=should_stop, observers=observers)
+
+    def _check_shards(self) -> None:
+        """Called while answers are late: a waited-for robot with no cmd_vel publisher left has
+        lost its shard. Matched counts are local to each endpoint (O(1) each)."""
+        node = self.sim_node
+        waiting = ~node.answered & ~node.failed
+        for i in waiting.nonzero()[0]:
+            if self._cmd_subs[i].get_publisher_count() == 0:
+                node.mark_failed(self.sim.names[i], GONE_REASON)
+
+    def __exit__(self, *exc) -> None:
+        if self._executor is not None:
+            self._executor.shutdown()
+        if self._thread is not None:
+            self._thread.join(timeout=5.0)
+        self._executor, self._thread = None, None
+        if self._registry is not None:
+            self._registry.destroy()
+            self._registry = None
+        if self.sim_node is not None:
+            self.sim_node.destroy_node()
+            self.sim_node = None
+        if self._context is not None and self._context.ok():
+            rclpy.shutdown(context=self._context)
+        self._context = None
+
+
+def _names(names: list[str], rows: list[int]) -> str:
+    return ", ".join(names[i] for i in rows) if len(rows) <= 4 else f"{names[rows[0]]} … {names[rows[-1]]}"

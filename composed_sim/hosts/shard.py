@@ -1,0 +1,187 @@
+"""A controller shard: some robots' controller nodes in one process, serving a simulator that runs
+elsewhere (``composed-sim host WORLD --robots 0-639``; the simulator runs with
+``composed-sim run WORLD --external-controllers``).
+
+It is the composed host without the simulator: one rclpy context, one executor, the very same
+plugin nodes (``create_controller``) on the very same topics. DDS carries the topics between
+machines; nothing else crosses. Sim time: one ``/clock`` subscription per shard sets every hosted
+node's clock (as the composed host does from the simulator node), instead of one per node.
+
+Life cycle: build the nodes → wait until every hosted controller's contract endpoints are matched
+with a simulator's → announce the shard (``shard_announce``) → serve ticks until the simulator's
+``/clock`` publisher is gone (the run ended, failed or was killed: DDS reports the writer's removal
+at once on a clean exit, after the participant lease on a crash) or a stop is requested
+(SIGINT/SIGTERM in the CLI).
+"""
+from __future__ import annotations
+
+import os
+import re
+import socket
+import threading
+import time
+from typing import Callable, Optional
+
+import rclpy
+from rclpy.clock import Clock as RosClock
+from rclpy.context import Context
+from rclpy.executors import Executor
+from rclpy.node import Node
+from rclpy.publisher import Publisher
+from rclpy.time import Time as RosTime
+
+from composed_sim import plugins
+from composed_sim.hosts.controller_process import contract_endpoints
+from composed_sim.hosts.controllers import EXECUTORS, HostError, create_controller, make_executor
+from composed_sim.hosts.robot_ranges import format_ranges
+from composed_sim.hosts.shard_announce import ShardAnnouncer, ShardInfo, world_fingerprint
+from composed_sim.ros import contract as c
+from composed_sim.world.schema import World
+
+LIVENESS_PERIOD_S = 0.2      # how often a serving shard looks whether its simulator is still there
+
+
+class ShardHost:
+    """Context manager owning the shard's context, nodes and executor, destroyed in order."""
+
+    def __init__(self, world: World, robots: list[int], *, executor: str = "lockstep", domain_id: int = 0,
+                 should_stop: Callable[[], bool] = lambda: False):
+        if executor not in EXECUTORS:
+            raise HostError(f"unknown executor {executor!r}; choose one of {', '.join(EXECUTORS)}")
+        if not robots:
+            raise HostError("a shard needs at least one robot")
+        self.world = world
+        self.robots = list(robots)
+        self.executor_kind = executor
+        self.domain_id = domain_id
+        self.should_stop = should_stop
+        self.shard_id = f"{socket.gethostname()}:{os.getpid()}"
+        self.context: Optional[Context] = None
+        self.announcer: Optional[ShardAnnouncer] = None
+        self.controllers: list[Node] = []
+        self.executor: Optional[Executor] = None
+        self._clocks: list[RosClock] = []
+        self._clock_sub = None
+        self._spin_thread: Optional[threading.Thread] = None
+
+    def __enter__(self) -> "ShardHost":
+        try:
+            names = self.world.robot_names()
+            groups = self.world.group_of_robot()
+            classes = {self.world.robots[groups[i]].controller: None for i in self.robots}
+            classes = {name: plugins.load(name) for name in classes}
+            self.context = Context()
+            rclpy.init(context=self.context, domain_id=self.domain_id)
+            node_name = "composed_sim_shard_" + re.sub(r"\W", "_", self.shard_id)
+            self.announcer = ShardAnnouncer(self.context, node_name)
+            self._clock_sub = self.announcer.node.create_subscription(
+                c.CLOCK_TYPE, c.CLOCK_TOPIC, self._on_clock, 10)
+            self.executor = make_executor(self.executor_kind, self.context)
+            # First: the lockstep executor's ordered walk then moves the clocks to a tick's time
+            # before the controllers read that tick's sensors.
+            self.executor.add_node(self.announcer.node)
+            for i in self.robots:
+                if self.should_stop():
+                    break
+                group = groups[i]
+                node = create_controller(classes[self.world.robots[group].controller], names[i], self.world,
+                                         group, self.context)
+                clock = node.get_clock()
+                clock._set_ros_time_is_active(True)    # as SimulatorNode.drive_clock_of
+                self._clocks.append(clock)
+                self.controllers.append(node)
+                self.executor.add_node(node)
+        except BaseException:
+            self.__exit__(None, None, None)
+            raise
+        return self
+
+    def _on_clock(self, msg) -> None:
+        now = RosTime.from_msg(msg.clock)
+        for clock in self._clocks:
+            clock.set_ros_time_override(now)
+
+    # --- start-up: match, then announce -----------------------------------------------------
+
+    def wait_for_simulator(self, timeout_s: float) -> bool:
+        """Until every hosted controller's contract endpoints (and our /clock subscription) are
+        matched with a simulator's; then announce. False if a stop was requested first. Without
+        this a tick-0 sensor or answer could go to a not yet matched endpoint and be lost."""
+        names = self.world.robot_names()
+        endpoints = [(i, e) for i, node in zip(self.robots, self.controllers)
+                     for e in contract_endpoints(node, names[i])]
+        deadline = time.monotonic() + timeout_s
+        pause = 0.002
+        while True:
+            unmatched = sorted({i for i, e in endpoints if not _matched(e)})
+            if not unmatched and self._clock_sub.get_publisher_count() >= 1:
+                break
+            if self.should_stop():
+                return False
+            if time.monotonic() > deadline:
+                what = (f"the controllers of robots {format_ranges(unmatched)} found no matching simulator "
+                        f"endpoints" if unmatched else "no simulator /clock publisher was found")
+                raise HostError(f"shard {format_ranges(self.robots)}: {what} within {timeout_s:g} s in ROS "
+                                f"domain {self.domain_id}; start `composed-sim run WORLD --external-controllers` "
+                                f"with the same world and domain, and check the discovery settings "
+                                f"(docs/distributed.md)")
+            time.sleep(pause)
+            pause = min(2 * pause, 0.05)
+        topics = {}
+        for i, e in endpoints:
+            if e.topic_name != c.CLOCK_TOPIC:
+                topics.setdefault(i, set()).add(e.topic_name.rsplit("/", 1)[1])
+        self.announcer.announce(ShardInfo(self.shard_id, self.robots, world_fingerprint(self.world),
+                                          {i: sorted(t) for i, t in topics.items()}))
+        return True
+
+    # --- serving ----------------------------------------------------------------------------
+
+    def serve(self) -> str:
+        """Run the controllers until the simulator is gone ("simulator gone") or a stop is
+        requested ("stopped")."""
+        if self.executor_kind not in ("events", "lockstep"):
+            # The stock executors spin in their own thread, as in the composed host.
+            self._spin_thread = threading.Thread(target=self._spin, name="executor", daemon=True)
+            self._spin_thread.start()
+        next_check = time.monotonic() + LIVENESS_PERIOD_S
+        while True:
+            if self.should_stop():
+                return "stopped"
+            if time.monotonic() >= next_check:
+                if self._clock_sub.get_publisher_count() == 0:
+                    return "simulator gone"
+                next_check = time.monotonic() + LIVENESS_PERIOD_S
+            if self._spin_thread is None:
+                # Driven from this thread: the lockstep executor by design, the EventsExecutor
+                # because its spin() in a thread hung in our probes (DESIGN.md).
+                self.executor.spin_once(timeout_sec=LIVENESS_PERIOD_S / 4)
+            else:
+                time.sleep(LIVENESS_PERIOD_S / 4)
+
+    def _spin(self) -> None:
+        try:
+            self.executor.spin()
+        except rclpy.executors.ExternalShutdownException:
+            pass
+
+    def __exit__(self, *exc) -> None:
+        if self.executor is not None:
+            self.executor.shutdown()
+        if self._spin_thread is not None:
+            self._spin_thread.join(timeout=5.0)
+        for node in self.controllers:
+            node.destroy_node()
+        self.controllers = []
+        if self.announcer is not None:
+            self.announcer.destroy()
+            self.announcer = None
+        if self.context is not None and self.context.ok():
+            rclpy.shutdown(context=self.context)
+        self.context = None
+
+
+def _matched(endpoint) -> bool:
+    if isinstance(endpoint, Publisher):
+        return endpoint.get_subscription_count() >= 1
+    return endpoint.get_publisher_count() >= 1
