@@ -68,13 +68,17 @@ class Floor:
     paint: tuple[tuple[str, int, float], ...] = ()
 
     @classmethod
-    def from_world(cls, floor, base_dir: str = ".") -> "Floor":
-        """From a schema ``Floor`` section; a relative image path is read from ``base_dir``."""
+    def from_world(cls, floor, *, arena_size=None, base_dir: str = ".") -> "Floor":
+        """From a schema ``Floor`` section; a relative image path is read from ``base_dir``, and
+        an image without ``image_size_m`` is stretched over ``arena_size``."""
         import os
         image = None
         if floor.image is not None:
             path = floor.image if os.path.isabs(floor.image) else os.path.join(base_dir, floor.image)
-            image = FloorImage.read(path, floor.image_center, floor.image_size_m)
+            size = floor.image_size_m or arena_size
+            if size is None:
+                raise ValueError("an image floor needs floor.image_size_m or arena.size")
+            image = FloorImage.read(path, floor.image_center, size)
         circles, rects, paint = [], [], []
         for shape in floor.shapes:
             if shape.type == "circle":
