@@ -6,8 +6,8 @@ emitters are closer than B's range and, with occlusion checking on, the segment 
 crosses no third body. A reading holds the range, the horizontal bearing in A's frame in
 [-π, π], the vertical bearing (elevation above A's horizontal plane, as ARGoS's
 ``CCI_RangeAndBearingSensor::SPacket`` defines it) and B's payload bytes. One message per sender
-per tick, no queue. Receiver noise: a random vector of length N(0, σ) in a uniformly random 3D
-direction added to the sender's relative position; packet drop: each message is lost with the
+per tick, no queue. Receiver noise: a random vector of length N(0, σ), inclination uniform in
+[0, π] and azimuth uniform in [0, 2π) (as ARGoS draws it), added to the sender's relative position; packet drop: each message is lost with the
 receiver's probability. Units are SI (ARGoS's cm ranges are metres here).
 
 The medium works on the emitters' positions after physics and on the payloads set before the
