@@ -224,12 +224,16 @@ def _with_floor_image(world: World, source: str, lines: dict[FieldPath, int]) ->
         raise WorldFileError(f"{where}: no such image file {path}{_got(image)}")
     try:
         import imageio.v3 as iio     # only worlds with an image floor pay for the import
-        props = iio.improps(path)
+        shape = tuple(iio.improps(path).shape)
+        problem = None
     except Exception as exc:    # noqa: BLE001 - any reader failure means the same to the user
-        raise WorldFileError(f"{where}: cannot read {path} as an image: {exc}{_got(image)}") from None
-    if len(props.shape) not in (2, 3) or (len(props.shape) == 3 and props.shape[2] not in (3, 4)):
-        raise WorldFileError(f"{where}: {path} is not a grey or RGB(A) image (shape "
-                             f"{list(props.shape)}){_got(image)}")
+        shape, problem = (), str(exc)
+    if problem is None and (len(shape) not in (2, 3) or 0 in shape
+                            or (len(shape) == 3 and shape[2] not in (3, 4))):
+        problem = f"pixels of shape {list(shape)}, not [rows, columns] grey or [rows, columns, 3 or 4]"
+    if problem is not None:
+        raise WorldFileError(f"{where}: cannot read {path} as a grey or RGB(A) image: {problem}"
+                             f"{_got(image)}")
     return world.model_copy(update={"floor": world.floor.model_copy(update={"image": path})})
 
 
