@@ -18,7 +18,7 @@ from typing import Optional
 import numpy as np
 from scipy.spatial import cKDTree
 
-from composed_sim.core.geometry import StaticScene, ray_circle_distance
+from composed_sim.core.geometry import StaticScene
 from composed_sim.core.robot_models import Lidar
 from composed_sim.core.sensors import _both_ways, _ranges
 
@@ -56,6 +56,7 @@ def lidar_scan(positions: np.ndarray, headings: np.ndarray, radii: np.ndarray, h
                                   min_height=mz).reshape(m, r)
     n = len(positions)
     if n > 1 and m:
+        dist = np.ascontiguousarray(dist)     # _robot_hits writes through a flat view of it
         _robot_hits(dist, positions, radii, heights, observers, origins, h, rel, lidar, tree)
     dist[dist > reach] = np.inf
     if noise_std_m > 0.0:
@@ -67,7 +68,7 @@ def lidar_scan(positions: np.ndarray, headings: np.ndarray, radii: np.ndarray, h
 
 
 def _robot_hits(dist, positions, radii, heights, observers, origins, h, rel, lidar: Lidar, tree):
-    """Lower dist [m, r] in place by the robots the rays meet.
+    """Lower dist [m, r] (C-contiguous) in place by the robots the rays meet.
 
     Pairs (scanner, robot) come from the KD-tree; for each pair only the rays whose direction
     falls in the robot's angular extent seen from the mount are tested, so the work follows
@@ -94,6 +95,14 @@ def _robot_hits(dist, positions, radii, heights, observers, origins, h, rel, lid
     else:   # a partial fan (rare): every ray of the pair is tested
         first = np.zeros(len(rows), dtype=np.intp)
         count = np.full(len(rows), r, dtype=np.intp)
+    # Per pair, in the scanner's frame with the mount at the origin: the ray t·u meets the circle
+    # where t² - 2 t (u·c) + |c|² - r² = 0, c the target's centre.
+    cx, cy = rel_c[:, 0], rel_c[:, 1]
+    c2 = d * d - radii[tgt] ** 2                                  # <= 0: the mount is inside
+    # Ray directions in the world frame, [m, r] each, gathered per candidate (no trig per candidate).
+    ang = h[:, None] + rel[None, :]
+    ux_all, uy_all = np.cos(ang).ravel(), np.sin(ang).ravel()
+    flat_out = dist.reshape(-1)
     ends = np.cumsum(count)
     start = 0
     while start < len(rows):
@@ -101,9 +110,11 @@ def _robot_hits(dist, positions, radii, heights, observers, origins, h, rel, lid
         stop = max(start + 1, int(np.searchsorted(ends, done + _LIDAR_CHUNK, "right")))
         pair, within = _ranges(count[start:stop])
         pair += start
-        ray = np.mod(first[pair] + within, r)
-        ang = h[rows[pair]] + rel[ray]
-        dirs = np.column_stack([np.cos(ang), np.sin(ang)])
-        hit = ray_circle_distance(origins[rows[pair]], dirs, positions[tgt[pair]], radii[tgt[pair]])
-        np.minimum.at(dist, (rows[pair], ray), hit)
+        cell = rows.take(pair) * r + np.mod(first.take(pair) + within, r)     # flat (scanner, ray)
+        b = ux_all.take(cell) * cx.take(pair) + uy_all.take(cell) * cy.take(pair)   # u·c
+        c = c2.take(pair)
+        disc = b * b - c
+        hit = np.where(c <= 0.0, 0.0, np.where((disc >= 0.0) & (b > 0.0), b - np.sqrt(np.maximum(disc, 0.0)),
+                                               np.inf))
+        np.minimum.at(flat_out, cell, hit)
         start = stop

@@ -24,7 +24,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from composed_sim.core.geometry import StaticScene
-from composed_sim.core.sensors import _both_ways, _pair_order, blocked_by_robots, wrap_angle
+from composed_sim.core.sensors import _pair_order, blocked_by_robots, wrap_angle
 
 Mode = Literal["local", "global"]
 
@@ -98,17 +98,24 @@ def range_and_bearing(positions: np.ndarray, headings: np.ndarray, radii: np.nda
         tree = cKDTree(positions) if tree is None else tree
         # Planar pairs within the longest range; the 3D test below is exact (emitters differ in height).
         reach = float(np.max(ranges[members]))
-        rx, tx = _both_ways(tree.query_pairs(reach, output_type="ndarray"))
-        both = equipped[rx] & equipped[tx]
-        rx, tx = rx[both], tx[both]
-        v = emitters[tx] - emitters[rx]
-        within = np.einsum("ij,ij->i", v, v) < ranges[tx] ** 2
-        rx, tx = rx[within], tx[within]
-        if check_occlusions and len(rx):
-            p0, p1 = emitters[rx], emitters[tx]
-            hidden = scene.blocks(p0, p1) | blocked_by_robots(p0, p1, rx, tx, positions, np.asarray(radii, float),
-                                                              np.asarray(heights, float), tree)
-            rx, tx = rx[~hidden], tx[~hidden]
+        pairs = tree.query_pairs(reach, output_type="ndarray").astype(np.intp)
+        a, b = pairs[:, 0], pairs[:, 1]
+        both = np.flatnonzero(equipped[a] & equipped[b])
+        a, b = a[both], b[both]
+        v = emitters[b] - emitters[a]
+        d2 = np.einsum("ij,ij->i", v, v)
+        a_hears_b, b_hears_a = d2 < ranges[b] ** 2, d2 < ranges[a] ** 2
+        either = np.flatnonzero(a_hears_b | b_hears_a)
+        a, b, a_hears_b, b_hears_a = a[either], b[either], a_hears_b[either], b_hears_a[either]
+        if check_occlusions and len(a):
+            # The segment between two emitters is the same both ways: test each pair once.
+            p0, p1 = emitters[a], emitters[b]
+            clear = ~(scene.blocks(p0, p1) | blocked_by_robots(p0, p1, a, b, positions, np.asarray(radii, float),
+                                                                np.asarray(heights, float), tree))
+            a_hears_b &= clear
+            b_hears_a &= clear
+        rx = np.concatenate([a[a_hears_b], b[b_hears_a]])
+        tx = np.concatenate([b[a_hears_b], a[b_hears_a]])
         order = _pair_order(rx, tx, n)
         rx, tx = rx[order], tx[order]
 
