@@ -207,3 +207,12 @@ def test_switching_devices_and_noise_is_deterministic_per_seed():
     np.testing.assert_array_equal(a.groups[0].proximity, b.groups[0].proximity)
     np.testing.assert_array_equal(a.pose.positions, b.pose.positions)
     assert not np.array_equal(a.groups[0].ground, c.groups[0].ground)
+
+
+def test_the_device_modules_import_neither_ros_nor_plotting_nor_imageio():
+    import subprocess
+    import sys
+    code = ("import sys, composed_sim.core.simulation; "
+            "bad = [m for m in ('rclpy', 'matplotlib', 'imageio') if m in sys.modules]; "
+            "assert not bad, bad")
+    subprocess.run([sys.executable, "-c", code], check=True)
