@@ -15,8 +15,9 @@ What maps to what (ARGoS units → SI; ARGoS angles are degrees "yaw,pitch,roll"
                      → length_ticks = length × ticks_per_second (truncated, as ARGoS), seed
   <arena size center>                    → arena.size, arena.center (x, y; no walls: ARGoS walls
                                            are boxes, and import as boxes)
-  <box size movable><body position orientation/>   → a static box (size x, y; height z; yaw)
-  <cylinder radius height><body .../>              → a static cylinder
+  <box size movable mass><body position orientation/>   → a box (size x, y; height z; yaw),
+                                                      movable with its mass when ARGoS's is
+  <cylinder radius height movable mass><body .../>     → a cylinder, likewise
   <light position color intensity>       → a light (z → height_m)
   <foot-bot id omnidirectional_camera_aperture><body/><controller config/>
                      → a group with explicit placement and a constant heading (consecutive
@@ -588,28 +589,31 @@ class _Importer:
                       "only the yaw is used")
         return _Pose(x, y, yaw)
 
-    def obstacle_common(self, node: Node) -> None:
-        if self.boolean(node, "movable", False):
-            self.warn(node, f"{node.tag}/movable", "movable obstacles are simulated as static")
+    def obstacle_common(self, node: Node) -> dict:
+        """The movable flag and mass (kg; ARGoS requires it for a movable body)."""
         for child in node.children:
             if child.tag != "body":
                 self.warn(child, f"{node.tag}/{child.tag}", "not supported, ignored")
+        if not self.boolean(node, "movable", False):
+            return {}
+        return {"movable": True, "mass_kg": self.number(node, "mass", positive=True, unit=" (kg)")}
 
     def box(self, node: Node, pose: Optional[_Pose]) -> dict:
         self.unknown(node, {"id", "size", "movable", "mass"}, "box")
         size = self.vector(node, "size", positive=True, unit=" in m")
-        self.obstacle_common(node)
+        movable = self.obstacle_common(node)
         p = self.body(node, pose)
         return {"type": "box", "position": [p.x, p.y], "size": [size[0], size[1]],
-                "height_m": size[2], "yaw_rad": math.radians(p.yaw_deg)}
+                "height_m": size[2], "yaw_rad": math.radians(p.yaw_deg), **movable}
 
     def cylinder(self, node: Node, pose: Optional[_Pose]) -> dict:
         self.unknown(node, {"id", "radius", "height", "movable", "mass"}, "cylinder")
         radius = self.number(node, "radius", positive=True, unit=" (m)")
         height = self.number(node, "height", positive=True, unit=" (m)")
-        self.obstacle_common(node)
+        movable = self.obstacle_common(node)
         p = self.body(node, pose)
-        return {"type": "cylinder", "position": [p.x, p.y], "radius_m": radius, "height_m": height}
+        return {"type": "cylinder", "position": [p.x, p.y], "radius_m": radius, "height_m": height,
+                **movable}
 
     def light(self, node: Node, pose: Optional[_Pose], z: float = 0.0) -> dict:
         self.unknown(node, {"id", "position", "orientation", "color", "intensity", "medium"}, "light")

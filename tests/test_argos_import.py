@@ -282,12 +282,12 @@ def test_unsupported_elements_and_attributes_are_listed_not_dropped():
   <media><led id="leds" /><range_and_bearing id="rab" /></media>""")
     world, warnings = load(text)
     assert world.robot_count == 5 and len(world.obstacles) == 1
+    assert world.obstacles[0].movable and world.obstacles[0].mass_kg == 2.0   # imported, not a warning
     expected = {
         "range_and_bearing": "<range_and_bearing implementation",
         "foot-bot/rab_range": 'rab_range="3"',
         "floor": "<floor",
         "e-puck": "<e-puck",
-        "box/movable": '<box id="m"',
         "loop_functions": "<loop_functions",
         "physics_engines/dynamics3d": "<dynamics3d",
         "media/range_and_bearing": '<range_and_bearing id="rab"',

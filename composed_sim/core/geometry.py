@@ -111,7 +111,8 @@ def points_in_polygons(points: np.ndarray, polygons: np.ndarray) -> np.ndarray:
 
 def _low_end(z0: np.ndarray, z1: np.ndarray, t_lo: np.ndarray, t_hi: np.ndarray) -> np.ndarray:
     """The lowest z of a segment on [t_lo, t_hi]: z is linear along it, so the lower end."""
-    return np.minimum(z0 + t_lo * (z1 - z0), z0 + t_hi * (z1 - z0))
+    with np.errstate(invalid="ignore"):   # inf * 0 for a level segment that misses; masked by callers
+        return np.minimum(z0 + t_lo * (z1 - z0), z0 + t_hi * (z1 - z0))
 
 
 def segments_blocked_by_cylinders(p0: np.ndarray, p1: np.ndarray, centres: np.ndarray,
@@ -196,8 +197,10 @@ class StaticScene:
                                  ((cx - (sx + t) / 2, cy), (t, sy))):
                 boxes.append(box_corners(centre, size, 0.0))
                 heights.append(arena.wall_height_m)
-        cyls = [ob for ob in world.obstacles if isinstance(ob, Cylinder)]
-        for ob in world.obstacles:
+        # Movable objects are not static: the simulation adds them at their pose of each tick.
+        fixed = [ob for ob in world.obstacles if not ob.movable]
+        cyls = [ob for ob in fixed if isinstance(ob, Cylinder)]
+        for ob in fixed:
             if isinstance(ob, Box):
                 boxes.append(box_corners(ob.position, ob.size, ob.yaw_rad))
                 heights.append(ob.height_m)
@@ -206,6 +209,16 @@ class StaticScene:
                    cyl_heights=np.array([ob.height_m for ob in cyls], dtype=float),
                    box_corners=np.array(boxes, dtype=float).reshape(-1, 4, 2),
                    box_heights=np.array(heights, dtype=float))
+
+    def with_bodies(self, cyl_centres: np.ndarray, cyl_radii: np.ndarray, cyl_heights: np.ndarray,
+                    box_corners: np.ndarray, box_heights: np.ndarray) -> "StaticScene":
+        """This scene plus more bodies (e.g. the movable objects where they are this tick):
+        cyl_centres [c, 2], cyl_radii [c], cyl_heights [c], box_corners [b, 4, 2] CCW, box_heights [b]."""
+        return StaticScene(cyl_centres=np.concatenate([self.cyl_centres, np.reshape(cyl_centres, (-1, 2))]),
+                           cyl_radii=np.concatenate([self.cyl_radii, cyl_radii]),
+                           cyl_heights=np.concatenate([self.cyl_heights, cyl_heights]),
+                           box_corners=np.concatenate([self.box_corners, np.reshape(box_corners, (-1, 4, 2))]),
+                           box_heights=np.concatenate([self.box_heights, box_heights]))
 
     @property
     def n_bodies(self) -> int:

@@ -28,6 +28,12 @@ from composed_sim.world.schema import Box, Cylinder, World
 
 # ARGoS static box/cylinder models: "e = 0.0; u = 0.1 // Little contact friction to help sliding away"
 STATIC_FRICTION = 0.1
+# ARGoS movable box/cylinder models: "u = 0.7 // Lots of friction", like the robots.
+MOVABLE_FRICTION = 0.7
+# dynamics2d engine defaults (box/cylinder linear and angular friction, argos-models.md):
+# the caps of the velocity-only pivot and gear joints that tie a movable body to the ground.
+MOVABLE_GROUND_FORCE_N = 1.49
+MOVABLE_GROUND_TORQUE_NM = 1.49
 
 _FIELDS = (pymunk.batch.BodyFields.POSITION | pymunk.batch.BodyFields.ANGLE
            | pymunk.batch.BodyFields.VELOCITY | pymunk.batch.BodyFields.ANGULAR_VELOCITY)
@@ -41,7 +47,7 @@ def wrap_angle(a: np.ndarray) -> np.ndarray:
 
 
 class PhysicsWorld:
-    """pymunk (Chipmunk) space: foot-bot-style differential-drive robots plus static obstacles.
+    """pymunk (Chipmunk) space: differential-drive robots, static obstacles and movable objects.
 
     Robot ``i`` is the ``i``-th dynamic body of the space; obstacles hang off the space's
     static body, so ``pymunk.batch`` returns the robots first, in order. ``space`` is
@@ -103,8 +109,13 @@ class PhysicsWorld:
             self._control_bodies.append(control)
             self._control_ptrs.append(control._body)
 
+        # Added after the robots, so the batch rows are robots first, then movable objects.
+        self.movable = [ob for ob in world.obstacles if ob.movable]
+        self._add_movable_objects(self.movable)
+
         self._buffer = pymunk.batch.Buffer()
         self._state = np.zeros((n, _N_FIELDS))   # [n, 6] x, y, angle, vx, vy, w after the last step
+        self._movable_state = np.zeros((len(self.movable), _N_FIELDS))   # [k, 6] the same for movables
         self._read_state()
         if not (np.array_equal(self._state[:, 0:2], positions)
                 and np.array_equal(self._state[:, 2], headings)):
@@ -115,7 +126,7 @@ class PhysicsWorld:
         static = self.space.static_body
         shapes: list[pymunk.Shape] = []
         # The schema owns the wall geometry (inside the arena rectangle); they are boxes too.
-        for ob in [*world.arena.wall_boxes(), *world.obstacles]:
+        for ob in [*world.arena.wall_boxes(), *(ob for ob in world.obstacles if not ob.movable)]:
             if isinstance(ob, Box):
                 shapes.append(_box_shape(static, ob.position, ob.size, ob.yaw_rad))
             elif isinstance(ob, Cylinder):
@@ -126,6 +137,30 @@ class PhysicsWorld:
             s.elasticity = 0.0
             s.friction = STATIC_FRICTION
         self.space.add(*shapes)
+
+    def _add_movable_objects(self, objects) -> None:
+        """Dynamic boxes/cylinders held by ground friction (ARGoS dynamics2d_box_model.cpp and
+        dynamics2d_cylinder_model.cpp): velocity-only pivot and gear joints to a static body,
+        capped, so a push stronger than the caps slides the object and friction stops it."""
+        ground = self.space.static_body
+        for ob in objects:
+            if isinstance(ob, Box):
+                body = pymunk.Body(ob.mass_kg, pymunk.moment_for_box(ob.mass_kg, ob.size))
+                shape = _box_shape(body, (0.0, 0.0), ob.size, 0.0)
+                body.angle = ob.yaw_rad
+            else:
+                body = pymunk.Body(ob.mass_kg, pymunk.moment_for_circle(ob.mass_kg, 0.0, ob.radius_m))
+                shape = pymunk.Circle(body, ob.radius_m)
+            body.position = ob.position
+            shape.elasticity = 0.0
+            shape.friction = MOVABLE_FRICTION
+            linear = pymunk.PivotJoint(ground, body, (0.0, 0.0), (0.0, 0.0))
+            linear.max_bias = 0.0
+            linear.max_force = MOVABLE_GROUND_FORCE_N
+            angular = pymunk.GearJoint(ground, body, 0.0, 1.0)
+            angular.max_bias = 0.0
+            angular.max_force = MOVABLE_GROUND_TORQUE_NM
+            self.space.add(body, shape, linear, angular)
 
     def set_wheel_speeds(self, left_mps: np.ndarray, right_mps: np.ndarray) -> None:
         """Store wheel speeds [n] each (m/s); they act from the start of the next step()."""
@@ -164,10 +199,21 @@ class PhysicsWorld:
         # the static ones (the space's static body), so the robots are the first n rows.
         flat = np.frombuffer(self._buffer.float_buf(), dtype=np.float64)
         self._state[:] = flat[: self.n * _N_FIELDS].reshape(self.n, _N_FIELDS)
+        if len(self.movable):
+            k = len(self.movable)
+            self._movable_state[:] = flat[self.n * _N_FIELDS:(self.n + k) * _N_FIELDS].reshape(k, _N_FIELDS)
 
     def poses(self) -> tuple[np.ndarray, np.ndarray]:
         """Positions [n, 2] (m) and headings [n] (rad, wrapped to (-pi, pi])."""
         return self._state[:, 0:2].copy(), wrap_angle(self._state[:, 2])
+
+    def wheel_speeds(self) -> tuple[np.ndarray, np.ndarray]:
+        """The left and right wheel speeds [n] each (m/s) that the next step() applies."""
+        return self._left_mps, self._right_mps
+
+    def movable_poses(self) -> tuple[np.ndarray, np.ndarray]:
+        """Positions [k, 2] (m) and yaws [k] (rad, wrapped) of the movable objects, world order."""
+        return self._movable_state[:, 0:2].copy(), wrap_angle(self._movable_state[:, 2])
 
     def velocities(self) -> tuple[np.ndarray, np.ndarray]:
         """Linear velocities [n, 2] (m/s, world frame) and angular velocities [n] (rad/s)."""

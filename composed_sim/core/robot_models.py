@@ -1,13 +1,17 @@
 """Robot models as data: dimensions, drive limits and device layouts.
 
-One place for every robot fact. Numbers for the foot-bot come from the ARGoS 3
-sources (``plugins/robots/foot-bot``); see ``shared/reference/argos-models.md``.
+One place for every robot fact, with its source next to it: the foot-bot and the TurtleBot 3
+burger from ``shared/reference/argos-models.md`` (read from the ARGoS 3 sources and the paper's
+bridge), the e-puck from ARGoS's own e-puck plugin, the Thymio II from the Enki simulator and
+the manufacturer where the reference is silent. A model lists the devices it carries; which
+of them run is the world file's choice (``default_devices`` when it says nothing).
 Units are SI (REP-103): metres, radians, kilograms; x forward, y left, angles CCW.
 """
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Literal, Optional
 
 import numpy as np
 
@@ -16,12 +20,26 @@ def _ring_angles(first_deg: float, step_deg: float, count: int) -> tuple[float, 
     return tuple(math.radians(first_deg + step_deg * i) for i in range(count))
 
 
+# Device names as the world file and the sensor frames spell them.
+PROXIMITY, LIGHT, CAMERA, GROUND = "proximity", "light", "camera", "ground"
+RANGE_AND_BEARING, LIDAR = "range_and_bearing", "lidar"
+# Every model has these: they need no layout (the wheels are the drive itself).
+DIFFERENTIAL_STEERING, POSITIONING, ODOMETRY = "differential_steering", "positioning", "odometry"
+ALWAYS_ON = (DIFFERENTIAL_STEERING, POSITIONING, ODOMETRY)
+
+# How a proximity ray's distance becomes a reading; one calibration per robot family.
+ProximityCalibration = Literal["foot-bot", "e-puck", "exponential"]
+
+
 @dataclass(frozen=True)
 class ProximityRing:
-    """IR rays cast radially outward from the body rim."""
-    angles_rad: tuple[float, ...]   # [k] CCW from the front
-    range_m: float                   # ray length measured from the rim
+    """IR rays cast outward from the body: radially from the rim, or from given body-frame points."""
+    angles_rad: tuple[float, ...]   # [k] ray directions, CCW from the front
+    range_m: float                   # ray length measured from the ray's origin
     elevation_m: float               # height of the rays: lower bodies are not seen
+    # [k] (x, y) body-frame ray origins; None: on the rim, at the ray's own angle.
+    origins_m: Optional[tuple[tuple[float, float], ...]] = None
+    calibration: ProximityCalibration = "foot-bot"
 
 
 @dataclass(frozen=True)
@@ -37,9 +55,41 @@ class BlobCamera:
 
 
 @dataclass(frozen=True)
+class GroundSensors:
+    """Downward sensors reading the floor's grey level under body-frame points."""
+    offsets_m: tuple[tuple[float, float], ...]   # [s] (x, y) body frame
+
+
+@dataclass(frozen=True)
+class RangeAndBearingDevice:
+    """Range-and-bearing emitter/receiver pair on the robot's vertical axis."""
+    elevation_m: float      # above the robot's origin (floor level)
+    range_m: float          # default emission range; a world file may change it per group
+
+
+@dataclass(frozen=True)
+class Lidar:
+    """A planar scanning range finder: ``n_rays`` evenly spaced from ``angle_min_rad``."""
+    n_rays: int
+    angle_min_rad: float
+    angle_max_rad: float        # the last ray's angle (angle_min + (n_rays - 1) * increment)
+    min_range_m: float
+    max_range_m: float
+    mount_m: tuple[float, float, float]   # (x, y, z) of the scan centre in the body frame
+
+    @property
+    def angle_increment_rad(self) -> float:
+        return (self.angle_max_rad - self.angle_min_rad) / max(1, self.n_rays - 1)
+
+    def angles_array(self) -> np.ndarray:
+        """[r] ray angles in the body frame."""
+        return self.angle_min_rad + self.angle_increment_rad * np.arange(self.n_rays)
+
+
+@dataclass(frozen=True)
 class RobotModel:
     name: str
-    body_radius_m: float
+    body_radius_m: float           # the footprint is a circle (the dynamics2d robots are)
     body_height_m: float
     mass_kg: float
     wheel_separation_m: float      # distance between the two wheels (ARGoS "interwheel distance")
@@ -48,11 +98,28 @@ class RobotModel:
     max_force_n: float             # pivot joint cap: how hard the drive can push
     max_torque_nm: float           # gear joint cap
     friction: float
-    proximity: ProximityRing
-    light: LightRing
-    camera: BlobCamera
+    proximity: Optional[ProximityRing] = None
+    light: Optional[LightRing] = None
+    camera: Optional[BlobCamera] = None
+    ground: Optional[GroundSensors] = None
+    range_and_bearing: Optional[RangeAndBearingDevice] = None
+    lidar: Optional[Lidar] = None
     # [n_leds, 3] body-frame (x, y, z) positions; ring LEDs first, beacon last.
     led_positions_m: tuple[tuple[float, float, float], ...] = field(default=())
+    # Devices a group of this model runs when its world file says nothing about them.
+    default_devices: frozenset[str] = frozenset()
+
+    def __post_init__(self):
+        missing = sorted(d for d in self.default_devices if d not in self.devices)
+        if missing:
+            raise ValueError(f"{self.name}: default devices {missing} are not fitted")
+
+    @property
+    def devices(self) -> tuple[str, ...]:
+        """Names of the devices this model carries (the always-on ones included)."""
+        fitted = [name for name in (PROXIMITY, LIGHT, CAMERA, GROUND, RANGE_AND_BEARING, LIDAR)
+                  if getattr(self, name) is not None]
+        return tuple(fitted) + ALWAYS_ON
 
     @property
     def n_leds(self) -> int:
@@ -63,13 +130,12 @@ class RobotModel:
         return np.asarray(self.led_positions_m, dtype=float).reshape(-1, 3)
 
 
+def _led_ring(radius_m: float, first_deg: float, count: int, height_m: float):
+    return tuple((radius_m * math.cos(a), radius_m * math.sin(a), height_m)
+                 for a in _ring_angles(first_deg, 360.0 / count, count))
+
+
 # --- foot-bot (ARGoS 3, plugins/robots/foot-bot/simulator) ---------------------------
-_FOOTBOT_RING_LEDS = tuple(
-    (0.090 * math.cos(math.radians(15.0 + 30.0 * i)),
-     0.090 * math.sin(math.radians(15.0 + 30.0 * i)),
-     0.085)
-    for i in range(12)
-)
 FOOTBOT_BEACON_LED_INDEX = 12
 
 FOOTBOT = RobotModel(
@@ -87,10 +153,94 @@ FOOTBOT = RobotModel(
                             elevation_m=0.06),           # footbot_entity.cpp: proximity sensors at 6 cm
     light=LightRing(angles_rad=_ring_angles(7.5, 15.0, 24)),
     camera=BlobCamera(height_m=0.288699733, aperture_rad=math.radians(70.0)),
-    led_positions_m=_FOOTBOT_RING_LEDS + ((0.0, 0.0, 0.1742),),
+    # argos-models.md "Motor ground sensor": the foot-bot's four sensors under the body.
+    ground=GroundSensors(offsets_m=((0.063, 0.0116), (-0.063, 0.0116), (-0.063, -0.0116),
+                                    (0.063, -0.0116))),
+    # argos-models.md "Range-and-bearing": 0.1 m above the origin, 3 m default range.
+    range_and_bearing=RangeAndBearingDevice(elevation_m=0.1, range_m=3.0),
+    # argos-models.md: 12 ring LEDs at r = 0.090 m, 15° + 30°·i, z = 0.085; beacon at z = 0.1742.
+    led_positions_m=_led_ring(0.090, 15.0, 12, 0.085) + ((0.0, 0.0, 0.1742),),
+    # The flocking experiments' sensor set; the others cost time and are switched on per world.
+    default_devices=frozenset({PROXIMITY, LIGHT, CAMERA}),
 )
 
-MODELS: dict[str, RobotModel] = {FOOTBOT.name: FOOTBOT}
+# --- e-puck (ARGoS 3 core, plugins/robots/e-puck/simulator) --------------------------
+# Not in argos-models.md; numbers from ARGoS's own e-puck, as the reference's other robots.
+EPUCK = RobotModel(
+    name="e-puck",
+    body_radius_m=0.035,                # epuck_entity.cpp BODY_RADIUS (manufacturer: 70 mm diameter)
+    body_height_m=0.086,                # epuck_entity.cpp BODY_HEIGHT
+    mass_kg=0.4,                        # dynamics2d_epuck_model.cpp m_fMass
+    wheel_separation_m=0.053,           # epuck_entity.cpp INTERWHEEL_DISTANCE
+    wheel_radius_m=0.0205,              # epuck_entity.cpp WHEEL_RADIUS
+    max_wheel_speed_mps=0.128,          # GCtronic e-puck: 1000 steps/s at 0.13 mm/step ≈ 12.8 cm/s
+    max_force_n=1.5,                    # dynamics2d_epuck_model.cpp EPUCK_MAX_FORCE
+    max_torque_nm=1.5,                  # EPUCK_MAX_TORQUE
+    friction=0.7,                       # dynamics2d_epuck_model.cpp: u = 0.7
+    # epuck_entity.cpp: 8 sensors on the rim from π/16, 45° apart, at 6 cm, 10 cm range;
+    # epuck_proximity_default_sensor.cpp: its own calibration (see sensors.proximity_reading).
+    proximity=ProximityRing(angles_rad=_ring_angles(22.5, 45.0, 8), range_m=0.10,
+                            elevation_m=0.06, calibration="e-puck"),
+    light=LightRing(angles_rad=_ring_angles(22.5, 45.0, 8)),   # epuck_entity.cpp: same ring
+    ground=GroundSensors(offsets_m=((0.03, -0.009), (0.03, 0.0), (0.03, 0.009))),   # epuck_entity.cpp
+    # epuck_entity.cpp: RAB at the LED ring's elevation, default rab_range 0.8 m.
+    range_and_bearing=RangeAndBearingDevice(elevation_m=0.086, range_m=0.8),
+    # epuck_entity.cpp: 8 red ring LEDs at r = R + 7 mm from π/16, z = 0.086.
+    led_positions_m=_led_ring(0.035 + 0.007, 22.5, 8, 0.086),
+    default_devices=frozenset({PROXIMITY, GROUND}),
+)
+
+# --- TurtleBot 3 burger (argos-models.md "TurtleBot 3 (burger)") ---------------------
+TURTLEBOT3_BURGER = RobotModel(
+    name="turtlebot3-burger",
+    body_radius_m=0.08,                 # argos-models.md: base radius 0.08 m
+    body_height_m=0.192,                # argos-models.md: height 0.192 m
+    mass_kg=1.0,                        # ROBOTIS e-Manual, TurtleBot3 burger specifications: 1 kg
+    wheel_separation_m=0.160,           # argos-models.md
+    wheel_radius_m=0.033,               # argos-models.md
+    max_wheel_speed_mps=0.22,           # argos-models.md: 0.22 m/s (and 2.84 rad/s) on the real robot
+    # No ARGoS model of the burger: the foot-bot's drive caps (a robot of similar mass).
+    max_force_n=15.0,
+    max_torque_nm=150.0,
+    friction=0.7,
+    # argos-models.md: 360 rays, 0.12-3.5 m, mounted at (-0.064, 0, 0.122). One ray per degree
+    # over the full turn (the LDS-01's scan), so the last ray is 1° short of 360°.
+    lidar=Lidar(n_rays=360, angle_min_rad=0.0, angle_max_rad=math.radians(359.0),
+                min_range_m=0.12, max_range_m=3.5, mount_m=(-0.064, 0.0, 0.122)),
+    # The reference gives the burger no IR ring, LEDs or RAB: it senses neighbours by LiDAR.
+    default_devices=frozenset({LIDAR}),
+)
+
+# --- Thymio II -------------------------------------------------------------------------
+# Not in argos-models.md and not in ARGoS core. Numbers from the Enki simulator's Thymio2
+# model (enki-community/enki, enki/robots/thymio2/Thymio2.cpp, in cm there), which Mobsya's
+# own Aseba playground uses, unless noted. Its footprint (front arc of 8 cm radius, flat back
+# 3 cm behind the axle) is approximated by a circle: the physics engine's robots are circles.
+_THYMIO_IR = (((0.062, 0.0485), 0.69813), ((0.075, 0.0255), 0.34906), ((0.0795, 0.0), 0.0),
+              ((0.075, -0.0255), -0.34906), ((0.062, -0.0485), -0.69813),
+              ((-0.0295, 0.0295), math.pi), ((-0.0295, -0.0295), math.pi))
+THYMIO2 = RobotModel(
+    name="thymio2",
+    body_radius_m=0.056,                # half the manufacturer's 11.2 cm width (Mobsya Thymio II: 11 x 11.2 x 5.3 cm)
+    body_height_m=0.053,                # Mobsya: 5.3 cm
+    mass_kg=0.2,                        # Enki Thymio2: hull mass 200 g
+    wheel_separation_m=0.094,           # Enki Thymio2: DifferentialWheeled(9.4 cm, ...)
+    wheel_radius_m=0.022,               # ARGoS Thymio plugin (resilient-swarms/thymio, Thymio_measures.cpp)
+    max_wheel_speed_mps=0.166,          # Enki Thymio2: max speed 16.6 cm/s
+    max_force_n=1.5,                    # no ARGoS dynamics2d Thymio: the e-puck's caps (a robot of similar size)
+    max_torque_nm=1.5,
+    friction=0.7,
+    # Enki Thymio2: 5 front and 2 back horizontal IR sensors at these body points and
+    # directions, about 14 cm range, at the body's mid height. The reading follows ARGoS's
+    # generic proximity sensor (exp(-d)), which the ARGoS Thymio plugin uses as is.
+    proximity=ProximityRing(angles_rad=tuple(a for _, a in _THYMIO_IR), range_m=0.14,
+                            elevation_m=0.03, origins_m=tuple(p for p, _ in _THYMIO_IR),
+                            calibration="exponential"),
+    ground=GroundSensors(offsets_m=((0.072, 0.012), (0.072, -0.012))),   # Enki Thymio2 ground sensors
+    default_devices=frozenset({PROXIMITY, GROUND}),
+)
+
+MODELS: dict[str, RobotModel] = {m.name: m for m in (FOOTBOT, EPUCK, TURTLEBOT3_BURGER, THYMIO2)}
 
 
 def get_model(name: str) -> RobotModel:

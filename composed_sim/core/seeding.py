@@ -21,3 +21,8 @@ def stream(seed: int, purpose: int) -> np.random.Generator:
 def robot_rng(seed: int, robot: str) -> np.random.Generator:
     """A controller's own generator: depends on the run seed and its robot name only."""
     return np.random.default_rng([seed, STREAM_CONTROLLERS, zlib.crc32(robot.encode())])
+
+
+def device_rng(seed: int, device: str) -> np.random.Generator:
+    """A device's noise generator: its draws never shift another device's or the placement's."""
+    return np.random.default_rng([seed, STREAM_NOISE, zlib.crc32(device.encode())])

@@ -47,6 +47,34 @@ def footbot_proximity_reading(distances: np.ndarray) -> np.ndarray:
     return np.where(distances < 0.009889556, 1.0, 0.0100527 / (distances + 0.000163144))
 
 
+def epuck_proximity_reading(distances: np.ndarray) -> np.ndarray:
+    """[...] distance (m, inf = nothing) → [...] reading: ARGoS epuck_proximity_default_sensor.cpp,
+    298.701 d² − 36.8961 d + 1.08212 up to 5 cm, else 0, clamped to [0, 1]."""
+    with np.errstate(invalid="ignore"):   # inf * 0 never happens: inf fails d <= 0.05 first
+        value = np.where(distances <= 0.05, (298.701 * distances - 36.8961) * distances + 1.08212, 0.0)
+    return np.clip(value, 0.0, 1.0)
+
+
+def exponential_proximity_reading(distances: np.ndarray) -> np.ndarray:
+    """[...] distance (m, inf = nothing) → [...] exp(-d), 0 for no hit: ARGoS's generic
+    proximity_default_sensor.cpp CalculateReading."""
+    return np.exp(-distances)
+
+
+PROXIMITY_READINGS = {"foot-bot": footbot_proximity_reading, "e-puck": epuck_proximity_reading,
+                      "exponential": exponential_proximity_reading}
+
+
+def _observer_rows(observers, n: int):
+    """observers [m] robot indices or None (all) → (observers [m], row of each robot [n], -1 if none)."""
+    if observers is None:
+        return None, None
+    observers = np.asarray(observers, dtype=np.intp)
+    row_of = np.full(n, -1, dtype=np.intp)
+    row_of[observers] = np.arange(len(observers))
+    return observers, row_of
+
+
 def _robots(positions, headings, radii, heights) -> tuple[np.ndarray, ...]:
     """Check and convert the per-robot arrays: positions [n, 2], headings/radii/heights [n]."""
     positions = np.asarray(positions, dtype=np.float64)
@@ -162,48 +190,64 @@ def blocked_by_robots(p0: np.ndarray, p1: np.ndarray, skip_a: np.ndarray, skip_b
 
 def proximity_ring(positions, headings, radii, heights, ring: ProximityRing, scene: StaticScene, *,
                    noise: float = 0.0, rng: Optional[np.random.Generator] = None,
-                   tree: Optional[cKDTree] = None) -> tuple[np.ndarray, np.ndarray]:
-    """IR rays cast radially outward from the rim of every robot.
+                   tree: Optional[cKDTree] = None, observers=None) -> tuple[np.ndarray, np.ndarray]:
+    """IR rays cast outward from the body of every robot (or of ``observers`` [m] only).
 
-    positions [n, 2], headings [n], radii [n], heights [n] → (distances [n, k] m from the rim,
-    inf when nothing is hit within ``ring.range_m``; readings [n, k] in [0, 1]). A ray sees
-    other robots and static bodies taller than ``ring.elevation_m``; starting inside one reads 0 m.
+    positions [n, 2], headings [n], radii [n], heights [n] of all robots → (distances [m, k] m
+    from the ray's origin, inf when nothing is hit within ``ring.range_m``; readings [m, k] in
+    [0, 1] by the ring's calibration). Rays start on the rim at their own angle, or at
+    ``ring.origins_m`` (body frame) when given. A ray sees other robots and static bodies
+    taller than ``ring.elevation_m``; starting inside one reads 0 m.
     Noise: uniform(-noise, noise) added to every reading, then clamped (ARGoS).
     """
     positions, headings, radii, heights = _robots(positions, headings, radii, heights)
     _check_noise("noise", noise, rng)
-    n, reach, elevation_m = len(positions), ring.range_m, ring.elevation_m
+    observers, row_of = _observer_rows(observers, len(positions))
+    obs_pos = positions if observers is None else positions[observers]
+    obs_head = headings if observers is None else headings[observers]
+    n, reach, elevation_m = len(obs_pos), ring.range_m, ring.elevation_m
     sensor = np.asarray(ring.angles_rad)                                                 # [k]
     k = len(sensor)
     # cos(h + a) expanded: n + k trig calls instead of n * k
-    ch, sh = np.cos(headings)[:, None], np.sin(headings)[:, None]
+    ch, sh = np.cos(obs_head)[:, None], np.sin(obs_head)[:, None]
     ca, sa = np.cos(sensor)[None, :], np.sin(sensor)[None, :]
     dirs = np.stack([ch * ca - sh * sa, sh * ca + ch * sa], axis=-1)                     # [n, k, 2]
-    rim = radii[:, None, None] * dirs                                                    # [n, k, 2]
+    if ring.origins_m is None:
+        obs_radii = radii if observers is None else radii[observers]
+        rim = obs_radii[:, None, None] * dirs                                            # [n, k, 2]
+    else:
+        ox, oy = np.asarray(ring.origins_m, dtype=np.float64).T[:, None, :]              # [1, k] each
+        rim = np.stack([ch * ox - sh * oy, sh * ox + ch * oy], axis=-1)                  # [n, k, 2]
     dist = np.full((n, k), np.inf)
     if scene.n_bodies:
-        origins = (positions[:, None, :] + rim).reshape(-1, 2)
+        origins = (obs_pos[:, None, :] + rim).reshape(-1, 2)
         dist = scene.ray_distance(origins, dirs.reshape(-1, 2), reach, min_height=elevation_m).reshape(n, k)
-    if n > 1:
+    if len(positions) > 1 and n:
         tree = cKDTree(positions) if tree is None else tree
-        obs, tgt = _both_ways(tree.query_pairs(2.0 * radii.max() + reach, output_type="ndarray"))
-        seen = np.flatnonzero(heights[tgt] > elevation_m)
+        lever = radii.max() if ring.origins_m is None else float(np.hypot(*np.asarray(ring.origins_m).T).max())
+        obs, tgt = _both_ways(tree.query_pairs(lever + radii.max() + reach, output_type="ndarray"))
+        seen = heights[tgt] > elevation_m
+        if observers is not None:
+            seen &= row_of[obs] >= 0
+        seen = np.flatnonzero(seen)
         obs, tgt = obs[seen], tgt[seen]
-        # In the observer's frame (small numbers): rim points vs the target's relative centre.
+        row = obs if observers is None else row_of[obs]
+        # In the observer's frame (small numbers): ray origins vs the target's relative centre.
         centre = positions.take(tgt, axis=0) - positions.take(obs, axis=0)               # [p, 2]
-        d = ray_circle_distance(rim.take(obs, axis=0), dirs.take(obs, axis=0), centre[:, None, :],
+        d = ray_circle_distance(rim.take(row, axis=0), dirs.take(row, axis=0), centre[:, None, :],
                                 radii[tgt][:, None])                                     # [p, k]
-        np.minimum.at(dist, obs, d)
+        np.minimum.at(dist, row, d)
     dist[dist > reach] = np.inf
-    return dist, _uniform_noise(footbot_proximity_reading(dist), noise, rng)
+    return dist, _uniform_noise(PROXIMITY_READINGS[ring.calibration](dist), noise, rng)
 
 
 # --- light ----------------------------------------------------------------------------------
 
 def light_ring(positions, headings, radii, heights, ring: LightRing, lights: Sequence[Light],
                scene: StaticScene, *, noise: float = 0.0, rng: Optional[np.random.Generator] = None,
-               tree: Optional[cKDTree] = None) -> np.ndarray:
-    """positions [n, 2], headings [n], radii [n], heights [n] → readings [n, k] in [0, 1].
+               tree: Optional[cKDTree] = None, observers=None) -> np.ndarray:
+    """positions [n, 2], headings [n], radii [n], heights [n] → readings [n, k] in [0, 1]
+    (or [m, k] for the robots ``observers`` [m] only; all robots can block the light).
 
     For each light with intensity I > 0 whose ray from the robot's origin on the floor (z = 0)
     to the light is not blocked by another robot or a static body: d' = (3D distance) / I,
@@ -214,7 +258,9 @@ def light_ring(positions, headings, radii, heights, ring: LightRing, lights: Seq
     """
     positions, headings, radii, heights = _robots(positions, headings, radii, heights)
     _check_noise("noise", noise, rng)
-    n = len(positions)
+    observers, _ = _observer_rows(observers, len(positions))
+    everyone = np.arange(len(positions)) if observers is None else observers             # [m]
+    n = len(everyone)
     sensor = np.asarray(ring.angles_rad)                                                 # [k]
     k = len(sensor)
     out = np.zeros((n, k))
@@ -222,8 +268,8 @@ def light_ring(positions, headings, radii, heights, ring: LightRing, lights: Seq
     if n == 0 or not lights:
         return _uniform_noise(out, noise, rng)
     tree = cKDTree(positions) if tree is None else tree
-    origin = np.column_stack([positions, np.zeros(n)])                                   # [n, 3]
-    everyone = np.arange(n)
+    origin = np.column_stack([positions[everyone], np.zeros(n)])                         # [m, 3]
+    obs_head = headings if observers is None else headings[everyone]
     for light in lights:
         target = np.array([light.position[0], light.position[1], light.height_m])
         to_light = target - origin                                                       # [n, 3]
@@ -233,7 +279,7 @@ def light_ring(positions, headings, radii, heights, ring: LightRing, lights: Seq
         blocked = scene.blocks(p0, p1) | blocked_by_robots(p0, p1, everyone[idx], np.full(len(idx), -1),
                                                            positions, radii, heights, tree)
         idx = idx[~blocked]
-        bearing = np.arctan2(to_light[idx, 1], to_light[idx, 0]) - headings[idx]
+        bearing = np.arctan2(to_light[idx, 1], to_light[idx, 0]) - obs_head[idx]
         delta = np.abs(wrap_angle(bearing[:, None] - sensor[None, :]))                 # [m, k]
         nearest = np.argmin(delta, axis=1)
         off = (np.arange(k)[None, :] - nearest[:, None]) % k
@@ -280,8 +326,10 @@ def led_world_positions(positions: np.ndarray, headings: np.ndarray, led_body: n
 
 def blob_camera(positions, headings, radii, heights, camera_heights, half_windows, led_world,
                 led_colors, scene: StaticScene, *, noise_std: float = 0.0,
-                rng: Optional[np.random.Generator] = None, tree: Optional[cKDTree] = None) -> BlobReadings:
-    """The omnidirectional camera's blobs for every robot.
+                rng: Optional[np.random.Generator] = None, tree: Optional[cKDTree] = None,
+                observers=None) -> BlobReadings:
+    """The omnidirectional camera's blobs for every robot (or, CSR over ``observers`` [m], for
+    those robots only: every robot's LEDs are still seen).
 
     positions [n, 2], headings [n], radii [n], heights [n], camera_heights [n] m,
     half_windows [n] m (= height · tan(aperture)), led_world [n, L, 3] world-frame LED
@@ -312,7 +360,7 @@ def blob_camera(positions, headings, radii, heights, camera_heights, half_window
     rgb = led_colors.astype(np.uint8, copy=False)
     own, led = np.nonzero(rgb[..., 0] | rgb[..., 1] | rgb[..., 2])   # sorted by owner, then LED
     if n < 2 or len(own) == 0:
-        return BlobReadings.empty(n)
+        return BlobReadings.empty(n if observers is None else len(observers))
     n_lit = np.bincount(own, minlength=n)
     first_lit = np.cumsum(n_lit) - n_lit
     flat = led_world.reshape(-1, 3)                             # [n * L, 3]
@@ -323,8 +371,13 @@ def blob_camera(positions, headings, radii, heights, camera_heights, half_window
     if len(own) < n:
         keep = np.flatnonzero(n_lit[owner] > 0)
         obs, owner = obs[keep], owner[keep]
+    observers, row_of = _observer_rows(observers, n)
+    if observers is not None:
+        keep = np.flatnonzero(row_of[obs] >= 0)
+        obs, owner = obs[keep], owner[keep]
+    n_out = n if observers is None else len(observers)
     if len(obs) == 0:
-        return BlobReadings.empty(n)
+        return BlobReadings.empty(n_out)
     order = _pair_order(obs, owner, n)                # the output order: observer, owner, LED
     obs, owner = obs[order], owner[order]
     # Chunks of about _BLOB_CHUNK (observer, LED) candidates: with every LED lit, 10^4 robots
@@ -342,8 +395,10 @@ def blob_camera(positions, headings, radii, heights, camera_heights, half_window
         length = np.sqrt(rx * rx + ry * ry) * rng.normal(0.0, noise_std, len(rx))
         direction = rng.uniform(0.0, 2.0 * math.pi, len(rx))
         rx, ry = rx + length * np.cos(direction), ry + length * np.sin(direction)
-    offsets = np.zeros(n + 1, dtype=np.int64)
-    np.cumsum(np.bincount(i, minlength=n), out=offsets[1:])
+    counts = np.bincount(i, minlength=n)
+    offsets = np.zeros(n_out + 1, dtype=np.int64)
+    # Blobs are ordered by observer, so an observer subset's rows are already contiguous.
+    np.cumsum(counts if observers is None else counts[observers], out=offsets[1:])
     return BlobReadings(offsets=offsets,
                         angles=wrap_angle(np.arctan2(ry, rx) - headings[i]),
                         distances=np.sqrt(rx * rx + ry * ry),

@@ -194,12 +194,14 @@ def validate(data: Any, source: str, lines: dict[FieldPath, int]) -> World:
                              f"world fields (name, seed, robots, ...), got {_kind(data)} "
                              f"{_show(data)}")
     try:
-        return World.model_validate(data)
+        world = World.model_validate(data)
     except ValidationError as exc:
         problems = [p for err in exc.errors() for p in _problems(err)]
     except RecursionError:      # a pathological alias structure
         raise WorldFileError(f"{source}: the world refers to itself too deeply "
                              f"(recursive YAML aliases?)") from None
+    else:
+        return _with_floor_image(world, source, lines)
     rows = sorted({(_line(lines, path), _format_path(path), message, got)
                    for path, message, got in problems}, key=lambda r: (r[0] or 0, r[1], r[2]))
     texts = [f"{source}{f':{line}' if line else ''}: {path}{': ' if path else ''}{message}{got}"
@@ -208,6 +210,31 @@ def validate(data: Any, source: str, lines: dict[FieldPath, int]) -> World:
         raise WorldFileError(texts[0], texts)
     raise WorldFileError(f"{source}: {len(texts)} problems:\n" + "\n".join(f"  {t}" for t in texts),
                          texts)
+
+
+def _with_floor_image(world: World, source: str, lines: dict[FieldPath, int]) -> World:
+    """Make floor.image absolute (relative to the world file) and check it is a readable image."""
+    image = world.floor.image
+    if image is None:
+        return world
+    base = os.path.dirname(os.path.abspath(source)) if os.path.isfile(source) else os.getcwd()
+    path = os.path.normpath(os.path.join(base, os.path.expanduser(image)))
+    where = f"{_where(source, lines, ('floor', 'image'))}: floor.image"
+    if not os.path.isfile(path):
+        raise WorldFileError(f"{where}: no such image file {path}{_got(image)}")
+    try:
+        import imageio.v3 as iio     # only worlds with an image floor pay for the import
+        shape = tuple(iio.improps(path).shape)
+        problem = None
+    except Exception as exc:    # noqa: BLE001 - any reader failure means the same to the user
+        shape, problem = (), str(exc)
+    if problem is None and (len(shape) not in (2, 3) or 0 in shape
+                            or (len(shape) == 3 and shape[2] not in (3, 4))):
+        problem = f"pixels of shape {list(shape)}, not [rows, columns] grey or [rows, columns, 3 or 4]"
+    if problem is not None:
+        raise WorldFileError(f"{where}: cannot read {path} as a grey or RGB(A) image: {problem}"
+                             f"{_got(image)}")
+    return world.model_copy(update={"floor": world.floor.model_copy(update={"image": path})})
 
 
 def _problems(err: dict) -> list[tuple[FieldPath, str, str]]:

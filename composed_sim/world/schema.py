@@ -18,7 +18,7 @@ from typing import Annotated, Any, Literal, Optional, Union
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 from pydantic_core import PydanticCustomError
 
-from composed_sim.core.robot_models import MODELS
+from composed_sim.core.robot_models import MODELS, RobotModel
 
 Vec2 = tuple[float, float]
 PositiveFloat = Annotated[float, Field(gt=0)]
@@ -109,6 +109,10 @@ class Box(Strict):
     size: tuple[PositiveFloat, PositiveFloat]   # along its own x and y
     height_m: PositiveFloat = 0.5
     yaw_rad: float = 0.0
+    # A movable body is pushed by robots and held back by ground friction (ARGoS dynamics2d);
+    # its mass only matters when it moves.
+    movable: bool = False
+    mass_kg: PositiveFloat = 1.0
 
 
 class Cylinder(Strict):
@@ -116,9 +120,48 @@ class Cylinder(Strict):
     position: Vec2
     radius_m: PositiveFloat
     height_m: PositiveFloat = 0.5
+    movable: bool = False
+    mass_kg: PositiveFloat = 1.0
 
 
 Obstacle = Annotated[Union[Box, Cylinder], Field(discriminator="type")]
+
+
+class FloorCircle(Strict):
+    type: Literal["circle"] = "circle"
+    position: Vec2
+    radius_m: PositiveFloat
+    color: RGB
+
+
+class FloorRectangle(Strict):
+    type: Literal["rectangle"] = "rectangle"
+    position: Vec2
+    size: tuple[PositiveFloat, PositiveFloat]   # along its own x and y
+    yaw_rad: float = 0.0
+    color: RGB
+
+
+FloorShape = Annotated[Union[FloorCircle, FloorRectangle], Field(discriminator="type")]
+
+
+class Floor(Strict):
+    """What the ground sensors read: a colour, an image stretched over a rectangle, shapes on top."""
+    color: RGB = (255, 255, 255)
+    # An image file (PNG, JPEG, ...; read with imageio). A relative path is relative to the
+    # world file; the loader makes it absolute and checks that it is a readable image.
+    image: Optional[str] = None
+    image_size_m: Optional[tuple[PositiveFloat, PositiveFloat]] = None   # None: the arena's size
+    image_center: Vec2 = (0.0, 0.0)
+    shapes: list[FloorShape] = []               # painted in this order, over the image
+
+
+class RangeAndBearingMedium(Strict):
+    """How range-and-bearing messages travel between the robots whose device is on."""
+    # local: within the sender's range and line of sight; global: everyone hears everyone.
+    mode: Literal["local", "global"] = "local"
+    payload_bytes: Annotated[int, Field(ge=1, le=65535)] = 10   # argos-models.md: 10 by default
+    check_occlusions: bool = True
 
 
 class Placement(Strict):
@@ -157,6 +200,89 @@ class CameraConfig(Strict):
     aperture_deg: Annotated[float, Field(gt=0, lt=90)] = 70.0
 
 
+Probability = Annotated[float, Field(ge=0, le=1)]
+
+
+class DeviceSwitch(Strict):
+    """Present in the world file: the device runs (unless enabled: false)."""
+    enabled: bool = True
+
+
+class ProximityConfig(DeviceSwitch):
+    noise: NonNegativeFloat = 0.0        # uniform(-noise, noise) on each reading
+
+
+class LightConfig(DeviceSwitch):
+    noise: NonNegativeFloat = 0.0
+
+
+class BlobCameraConfig(DeviceSwitch):
+    noise_std: NonNegativeFloat = 0.0    # relative planar position noise (ARGoS)
+
+
+class GroundConfig(DeviceSwitch):
+    noise: NonNegativeFloat = 0.0
+
+
+class RangeAndBearingConfig(DeviceSwitch):
+    range_m: Optional[PositiveFloat] = None          # None: the robot model's
+    packet_drop_probability: Probability = 0.0
+    noise_std_m: NonNegativeFloat = 0.0
+
+
+class LidarConfig(DeviceSwitch):
+    noise_std_m: NonNegativeFloat = 0.0
+
+
+class WheelsConfig(Strict):
+    """Actuator noise (speed · factor + bias) and differential steering sensor noise."""
+    bias_mean_mps: float = 0.0
+    bias_std_mps: NonNegativeFloat = 0.0
+    factor_mean: float = 1.0
+    factor_std: NonNegativeFloat = 0.0
+    velocity_noise_mps: NonNegativeFloat = 0.0   # sensor: uniform on the reported speeds
+    distance_noise_m: NonNegativeFloat = 0.0     # sensor: uniform on the reported distances
+
+
+class PositioningConfig(Strict):
+    position_noise_m: NonNegativeFloat = 0.0     # uniform on x and on y
+    yaw_noise_rad: NonNegativeFloat = 0.0
+
+
+# The devices that can be switched, by the name robot models and sensor frames use.
+SWITCHED_DEVICES = ("proximity", "light", "camera", "ground", "range_and_bearing", "lidar")
+
+
+class Devices(Strict):
+    """A group's devices: a switched device left out runs when its model runs it by default."""
+    proximity: Optional[ProximityConfig] = None
+    light: Optional[LightConfig] = None
+    camera: Optional[BlobCameraConfig] = None
+    ground: Optional[GroundConfig] = None
+    range_and_bearing: Optional[RangeAndBearingConfig] = None
+    lidar: Optional[LidarConfig] = None
+    wheels: WheelsConfig = WheelsConfig()
+    positioning: PositioningConfig = PositioningConfig()
+
+    def running(self, model: RobotModel) -> tuple[str, ...]:
+        """The switched devices that run on robots of ``model``, in SWITCHED_DEVICES order."""
+        out = []
+        for name in SWITCHED_DEVICES:
+            config = getattr(self, name)
+            if (name in model.default_devices) if config is None else config.enabled:
+                out.append(name)
+        return tuple(out)
+
+    def config(self, name: str):
+        """The device's settings: the world file's, else the defaults."""
+        given = getattr(self, name)
+        if given is not None:
+            return given
+        return {"proximity": ProximityConfig, "light": LightConfig, "camera": BlobCameraConfig,
+                "ground": GroundConfig, "range_and_bearing": RangeAndBearingConfig,
+                "lidar": LidarConfig}[name]()
+
+
 ParamValue = Union[float, int, str, bool, list[float]]
 
 
@@ -169,6 +295,7 @@ class RobotGroup(Strict):
     placement: Placement = Placement()
     heading: Heading = Heading()
     camera: CameraConfig = CameraConfig()
+    devices: Devices = Devices()
 
     @field_validator("model")
     @classmethod
@@ -216,6 +343,15 @@ class RobotGroup(Strict):
         if positions is not None and len(positions) != self.count:
             raise _invalid([(("placement", "positions"), f"must list exactly count = "
                              f"{self.count} positions, lists {len(positions)}", positions)])
+        model = MODELS[self.model]
+        problems = [(("devices", name), f"the {self.model} has no {name} device (it has: "
+                     f"{', '.join(d for d in model.devices if d in SWITCHED_DEVICES) or 'none'})",
+                     getattr(self.devices, name).model_dump())
+                    for name in SWITCHED_DEVICES
+                    if getattr(self.devices, name) is not None and getattr(self.devices, name).enabled
+                    and getattr(model, name) is None]
+        if problems:
+            raise _invalid(problems)
         return self
 
 
@@ -271,6 +407,8 @@ class World(Strict):
     lockstep: Lockstep = Lockstep()
     multi_process: MultiProcess = MultiProcess()
     arena: Arena = Arena()
+    floor: Floor = Floor()
+    range_and_bearing: RangeAndBearingMedium = RangeAndBearingMedium()
     lights: list[Light] = []
     obstacles: list[Obstacle] = []
     robots: list[RobotGroup]
@@ -281,6 +419,9 @@ class World(Strict):
                      f"centred at {list(self.arena.center)})", list(light.position))
                     for i, light in enumerate(self.lights)
                     if not self.arena.contains(*light.position)]
+        if self.floor.image is not None and self.floor.image_size_m is None and self.arena.size is None:
+            problems.append((("floor", "image_size_m"), "an image floor needs its size in metres "
+                             "(floor.image_size_m, or arena.size to stretch it over the arena)", None))
         # Numbering runs on per prefix, so prefixes "bot" and "bot1" can both make "bot10".
         seen: dict[str, int] = {}
         for name, gi in zip(self.robot_names(), self.group_of_robot()):

@@ -189,7 +189,7 @@ def test_base_world_is_valid(tmp_path):
      "must be one of 'uniform', 'gaussian', 'grid' or 'explicit'", '(got "spiral")'),
     ({"aperture": 95}, 16, "robots[0].camera.aperture_deg", "must be < 90", "(got 95)"),
     ({"light": "[1, 10]"}, 7, "lights[0].position", "outside the arena", "(got [1.0, 10.0])"),
-    ({"model": "rover"}, 9, "robots[0].model", "unknown robot model; known: foot-bot",
+    ({"model": "rover"}, 9, "robots[0].model", "unknown robot model; known: e-puck, foot-bot, thymio2, turtlebot3-burger",
      '(got "rover")'),
     ({"method": "explicit", "placement_extra": "positions: [[0, 0], [1, 1]]"}, 14,
      "robots[0].placement.positions", "must list exactly count = 3 positions, lists 2",
@@ -240,7 +240,7 @@ def test_several_errors_give_one_message_with_a_line_each(tmp_path):
         f"  {file}:2: seed: must be >= 0 (got -1)",
         f"  {file}:3: ticks_per_second: must be a whole number (got \"fast\")",
         f"  {file}:7: robots[0].colour: unknown field (allowed here: model, count, name_prefix, "
-        f"controller, params, placement, heading, camera) (got \"red\")"]
+        f"controller, params, placement, heading, camera, devices) (got \"red\")"]
 
 
 def test_missing_required_fields(tmp_path):

@@ -1,0 +1,142 @@
+"""Range-and-bearing communication: every equipped robot broadcasts a payload each tick.
+
+ARGoS (argos-models.md, "Range-and-bearing"; ``range_and_bearing_medium.cpp`` and
+``range_and_bearing_default_sensor.cpp``): receiver A gets sender B's payload when their
+emitters are closer than B's range and, with occlusion checking on, the segment between them
+crosses no third body. A reading holds the range, the horizontal bearing in A's frame in
+[-π, π], the vertical bearing (elevation above A's horizontal plane, as ARGoS's
+``CCI_RangeAndBearingSensor::SPacket`` defines it) and B's payload bytes. One message per sender
+per tick, no queue. Receiver noise: a random vector of length N(0, σ), inclination uniform in
+[0, π] and azimuth uniform in [0, 2π) (as ARGoS draws it), added to the sender's relative position; packet drop: each message is lost with the
+receiver's probability. Units are SI (ARGoS's cm ranges are metres here).
+
+The medium works on the emitters' positions after physics and on the payloads set before the
+tick, so a payload set at tick k is received at tick k + 1 (the caller's job: see
+``Simulation.step``). "global" mode skips range and occlusion: everyone hears everyone.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Literal, Optional
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from composed_sim.core.geometry import StaticScene
+from composed_sim.core.sensors import _pair_order, blocked_by_robots, wrap_angle
+
+Mode = Literal["local", "global"]
+
+
+@dataclass
+class RangeAndBearingReadings:
+    """Every robot's received messages, CSR by receiver: robot i's are rows offsets[i]:offsets[i+1],
+    ordered by sender. Robots without the device have none."""
+    offsets: np.ndarray              # [n+1] int64
+    senders: np.ndarray              # [m] intp, index of the sending robot
+    ranges: np.ndarray               # [m] m, emitter to emitter
+    horizontal_bearings: np.ndarray  # [m] rad in the receiver's frame, (-pi, pi]
+    vertical_bearings: np.ndarray    # [m] rad, elevation above the receiver's horizontal plane
+    payloads: np.ndarray             # [m, B] uint8
+
+    def of(self, i: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(senders, ranges, horizontal bearings, vertical bearings, payloads) of robot i."""
+        s = slice(self.offsets[i], self.offsets[i + 1])
+        return (self.senders[s], self.ranges[s], self.horizontal_bearings[s],
+                self.vertical_bearings[s], self.payloads[s])
+
+    @classmethod
+    def empty(cls, n: int, payload_bytes: int) -> "RangeAndBearingReadings":
+        return cls(offsets=np.zeros(n + 1, dtype=np.int64), senders=np.zeros(0, dtype=np.intp),
+                   ranges=np.zeros(0), horizontal_bearings=np.zeros(0), vertical_bearings=np.zeros(0),
+                   payloads=np.zeros((0, payload_bytes), dtype=np.uint8))
+
+
+def range_and_bearing(positions: np.ndarray, headings: np.ndarray, radii: np.ndarray,
+                      heights: np.ndarray, equipped: np.ndarray, elevations: np.ndarray,
+                      ranges: np.ndarray, payloads: np.ndarray, scene: StaticScene, *,
+                      mode: Mode = "local", check_occlusions: bool = True,
+                      drop_probability: Optional[np.ndarray] = None,
+                      noise_std_m: Optional[np.ndarray] = None,
+                      rng: Optional[np.random.Generator] = None,
+                      tree: Optional[cKDTree] = None) -> RangeAndBearingReadings:
+    """Route one tick's messages.
+
+    positions [n, 2], headings [n], radii [n], heights [n] of all robots (all of them are
+    bodies that can occlude); equipped [n] bool: the robot has a running RAB device;
+    elevations [n] m: emitter height above the floor; ranges [n] m: each sender's range;
+    payloads [n, B] uint8: what each robot sends; drop_probability [n] and noise_std_m [n]:
+    each receiver's packet-drop probability and position-noise σ (None: none).
+    """
+    positions = np.asarray(positions, dtype=np.float64)
+    n = len(positions)
+    payloads = np.asarray(payloads, dtype=np.uint8)
+    if payloads.ndim != 2 or len(payloads) != n:
+        raise ValueError(f"payloads must have shape ({n}, B), got {payloads.shape}")
+    for name, a in (("headings", headings), ("radii", radii), ("heights", heights),
+                    ("equipped", equipped), ("elevations", elevations), ("ranges", ranges)):
+        if np.shape(a) != (n,):
+            raise ValueError(f"{name} must have shape ({n},), got {np.shape(a)}")
+    if mode not in ("local", "global"):
+        raise ValueError(f"mode must be 'local' or 'global', got {mode!r}")
+    noisy = noise_std_m is not None and np.any(noise_std_m > 0.0)
+    dropping = drop_probability is not None and np.any(drop_probability > 0.0)
+    if (noisy or dropping) and rng is None:
+        raise ValueError("packet drop or noise needs a random generator (rng=)")
+    equipped = np.asarray(equipped, dtype=bool)
+    members = np.flatnonzero(equipped)
+    if len(members) < 2:
+        return RangeAndBearingReadings.empty(n, payloads.shape[1])
+    emitters = np.column_stack([positions, np.asarray(elevations, dtype=np.float64)])   # [n, 3]
+
+    if mode == "global":
+        rx, tx = np.meshgrid(members, members, indexing="ij")     # receiver-major, sender order
+        keep = rx != tx
+        rx, tx = rx[keep], tx[keep]
+    else:
+        tree = cKDTree(positions) if tree is None else tree
+        # Planar pairs within the longest range; the 3D test below is exact (emitters differ in height).
+        reach = float(np.max(ranges[members]))
+        pairs = tree.query_pairs(reach, output_type="ndarray").astype(np.intp)
+        a, b = pairs[:, 0], pairs[:, 1]
+        both = np.flatnonzero(equipped[a] & equipped[b])
+        a, b = a[both], b[both]
+        v = emitters[b] - emitters[a]
+        d2 = np.einsum("ij,ij->i", v, v)
+        a_hears_b, b_hears_a = d2 < ranges[b] ** 2, d2 < ranges[a] ** 2
+        either = np.flatnonzero(a_hears_b | b_hears_a)
+        a, b, a_hears_b, b_hears_a = a[either], b[either], a_hears_b[either], b_hears_a[either]
+        if check_occlusions and len(a):
+            # The segment between two emitters is the same both ways: test each pair once.
+            p0, p1 = emitters[a], emitters[b]
+            clear = ~(scene.blocks(p0, p1) | blocked_by_robots(p0, p1, a, b, positions, np.asarray(radii, float),
+                                                                np.asarray(heights, float), tree))
+            a_hears_b &= clear
+            b_hears_a &= clear
+        rx = np.concatenate([a[a_hears_b], b[b_hears_a]])
+        tx = np.concatenate([b[a_hears_b], a[b_hears_a]])
+        order = _pair_order(rx, tx, n)
+        rx, tx = rx[order], tx[order]
+
+    if dropping:
+        kept = rng.random(len(rx)) >= drop_probability[rx]
+        rx, tx = rx[kept], tx[kept]
+    v = emitters[tx] - emitters[rx]                                   # [m, 3] world frame
+    if noisy:
+        # ARGoS: CVector3 from spherical (Gaussian length, uniform inclination, uniform azimuth).
+        length = rng.normal(0.0, 1.0, len(rx)) * noise_std_m[rx]
+        inclination = rng.uniform(0.0, math.pi, len(rx))
+        azimuth = rng.uniform(0.0, 2.0 * math.pi, len(rx))
+        v = v + (length * np.stack([np.sin(inclination) * np.cos(azimuth),
+                                    np.sin(inclination) * np.sin(azimuth),
+                                    np.cos(inclination)])).T
+    planar = np.hypot(v[:, 0], v[:, 1])
+    offsets = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(np.bincount(rx, minlength=n), out=offsets[1:])
+    return RangeAndBearingReadings(
+        offsets=offsets, senders=tx.astype(np.intp),
+        ranges=np.sqrt(planar * planar + v[:, 2] * v[:, 2]),
+        horizontal_bearings=wrap_angle(np.arctan2(v[:, 1], v[:, 0]) - headings[rx]),
+        vertical_bearings=np.arctan2(v[:, 2], planar),
+        payloads=payloads[tx])
