@@ -57,8 +57,7 @@ class ComposedHost:
             rclpy.init(context=self.context, domain_id=self.domain_id)
             lockstep = self.world.lockstep
             self.sim_node = SimulatorNode(self.sim.names, self.sim.models, context=self.context,
-                                          tick_ns=self.world.tick_ns, unresponsive_s=lockstep.unresponsive_s,
-                                          max_violations=lockstep.max_violations)
+                                          tick_ns=self.world.tick_ns, lockstep=lockstep)
             self.guard = CallbackGuard(self.sim_node, lockstep.watchdog_s, lockstep.unresponsive_s)
             self.sim_node.on_failed.append(self.guard.stop_worker)
             self.executor = make_executor(self.executor_kind, self.context)

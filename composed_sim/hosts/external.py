@@ -63,7 +63,7 @@ class ExternalControllersHost:
             self._context = Context()
             rclpy.init(context=self._context, domain_id=self.domain_id)
             self.sim_node = SimulatorNode(self.sim.names, self.sim.models, context=self._context,
-                                          tick_ns=self.world.tick_ns)
+                                          tick_ns=self.world.tick_ns, lockstep=self.world.lockstep)
             endpoints = _endpoints_by_topic(self.sim_node)
             self._cmd_subs = [endpoints[c.topic_name(name, c.CMD_VEL)] for name in self.sim.names]
             self._registry = ShardRegistry(self._context, self.sim.n)

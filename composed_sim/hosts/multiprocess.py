@@ -202,9 +202,7 @@ class MultiProcessHost:
                 self._nodes[d] = SimulatorNode([self.sim.names[i] for i in rows],
                                                [self.sim.models[i] for i in rows], context=context,
                                                tick_ns=tick_ns, rows=np.array(rows, dtype=int),
-                                               node_name=f"composed_sim_d{d}",
-                                               unresponsive_s=lockstep.unresponsive_s,
-                                               max_violations=lockstep.max_violations)
+                                               node_name=f"composed_sim_d{d}", lockstep=lockstep)
                 self._nodes[d].on_failed.append(self._stop_failed)
             self.exchange = DomainExchange(list(self._nodes.values()), self._check_children)
             with _InterruptWatch() as interrupts:

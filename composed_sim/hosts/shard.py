@@ -68,6 +68,7 @@ class ShardHost:
         try:
             names = self.world.robot_names()
             groups = self.world.group_of_robot()
+            robot_names = frozenset(names)
             classes = {self.world.robots[groups[i]].controller: None for i in self.robots}
             classes = {name: plugins.load(name) for name in classes}
             self.context = Context()
@@ -85,7 +86,7 @@ class ShardHost:
                     break
                 group = groups[i]
                 node = create_controller(classes[self.world.robots[group].controller], names[i], self.world,
-                                         group, self.context)
+                                         group, self.context, robots=robot_names)
                 clock = node.get_clock()
                 clock._set_ros_time_is_active(True)    # as SimulatorNode.drive_clock_of
                 self._clocks.append(clock)

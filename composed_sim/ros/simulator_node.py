@@ -20,6 +20,7 @@ from rclpy.time import Time as RosTime
 from rosgraph_msgs.msg import Clock
 
 from composed_sim.core.robot_models import RobotModel
+from composed_sim.world.schema import Lockstep
 if TYPE_CHECKING:   # only a type here: a controller process must not import the physics
     from composed_sim.core.simulation import SensorFrame
 from composed_sim.ros import contract as c
@@ -64,12 +65,14 @@ class SimulatorNode(Node):
 
     def __init__(self, names: list[str], models: list[RobotModel], *, context: Context,
                  tick_ns: int, rows: Optional[np.ndarray] = None, node_name: str = "composed_sim",
-                 unresponsive_s: float = math.inf, max_violations: Optional[int] = None):
+                 lockstep: Optional[Lockstep] = None):
+        """``lockstep``: the world's fault policy (unresponsive_after_s, max_violations); None:
+        robots are never failed for being unresponsive or for their violations."""
         super().__init__(node_name, context=context, **quiet_node_options())
         self._names = names
         self._index = {name: i for i, name in enumerate(names)}
-        self._unresponsive_s = unresponsive_s
-        self._max_violations = max_violations
+        self._unresponsive_s = math.inf if lockstep is None else lockstep.unresponsive_s
+        self._max_violations = None if lockstep is None else lockstep.max_violations
         self._models = models
         self._tick_ns = tick_ns
         n = len(names)
