@@ -246,6 +246,7 @@ def cmd_run(args) -> int:
         _check_no_distributed_flags(args)
 
     distributed = _distributed_settings(args) if args.external_controllers else None
+    _check_plugins(args.world, world)
     try:
         if args.external_controllers:
             from composed_sim.hosts.external import ExternalControllersHost
@@ -287,13 +288,42 @@ def cmd_run(args) -> int:
                 finally:
                     progress.close()
                 summary = finish(result)
-        except (plugins.PluginError, PlacementError, HostError) as e:
+        except (plugins.PluginError, PlacementError) as e:
+            raise UserError(_located(args.world, e)) from None
+        except HostError as e:
             raise UserError(str(e)) from None
     if args.json:
         print(json.dumps(summary, indent=2))
     else:
         print(_human_summary(summary))
     return EXIT_INTERRUPTED if result.interrupted else 0
+
+
+def _check_plugins(world_path, world) -> None:
+    """Every group's controller plugin loads: one error naming the world file's line and field,
+    before any node or process is started."""
+    from composed_sim import plugins
+    for i, group in enumerate(world.robots):
+        try:
+            plugins.load(group.controller)
+        except plugins.PluginError as e:
+            e.field = ("robots", i, "controller")
+            raise UserError(_located(world_path, e)) from None
+
+
+def _located(world_path, error: Exception) -> str:
+    """The error's message, prefixed with the world file's line of the field it concerns."""
+    from composed_sim.world.loader import field_line, format_path
+    field = getattr(error, "field", ())
+    if not field and getattr(error, "group_index", None) is not None:    # a PlacementError
+        field = ("robots", error.group_index, "placement")
+    if not field:
+        return str(error)
+    message = str(error)
+    path = format_path(field)
+    if not message.startswith(path.split(".")[0]):
+        message = f"{path}: {message}"
+    return f"{field_line(world_path, field)}: {message}"
 
 
 def _distributed_settings(args) -> str:

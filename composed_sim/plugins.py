@@ -9,7 +9,12 @@ GROUP = "composed_sim.controllers"
 
 
 class PluginError(Exception):
-    """A plugin cannot be found, imported or used; the message says which and why."""
+    """A plugin cannot be found, imported or used; the message says which and why. ``field``:
+    the world file's field it concerns, e.g. ("robots", 0, "controller"), when known."""
+
+    def __init__(self, message: str, field: tuple = ()):
+        super().__init__(message)
+        self.field = field
 
 
 def installed() -> dict[str, EntryPoint]:

@@ -20,20 +20,24 @@ def domain_id() -> int:
     return int(os.environ["ROS_DOMAIN_ID"])
 
 
-def install_plugin(tmp_path, monkeypatch, module: str, entry_point: str) -> str:
-    """Install a test package's controller the way pip would: a module plus a dist-info with an
-    entry point in ``composed_sim.controllers``, on sys.path (and PYTHONPATH for child processes)."""
-    site = tmp_path / f"site_{module}"
+def install_plugin(tmp_path, monkeypatch, module: str, entry_point: str,
+                   names: tuple[str, ...] = (), dist: str = "") -> str:
+    """Install a test package's controller the way pip would: a module plus a dist-info with
+    entry points in ``composed_sim.controllers`` (named ``names``, by default the module's name
+    with dashes), on sys.path and PYTHONPATH (for child processes). Returns the first name."""
+    dist = dist or module
+    site = tmp_path / f"site_{dist}"
     site.mkdir()
     shutil.copy(PLUGIN_SOURCE / f"{module}.py", site / f"{module}.py")
-    name = module.replace("_", "-")
-    dist = site / f"{module}_plugin-1.0.dist-info"
-    dist.mkdir()
-    (dist / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {name}-plugin\nVersion: 1.0\n")
-    (dist / "entry_points.txt").write_text(f"[composed_sim.controllers]\n{name} = {module}:{entry_point}\n")
+    names = names or (module.replace("_", "-"),)
+    info = site / f"{dist}_plugin-1.0.dist-info"
+    info.mkdir()
+    (info / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {dist.replace('_', '-')}-plugin\nVersion: 1.0\n")
+    (info / "entry_points.txt").write_text(
+        "[composed_sim.controllers]\n" + "".join(f"{n} = {module}:{entry_point}\n" for n in names))
     monkeypatch.syspath_prepend(str(site))
     monkeypatch.setenv("PYTHONPATH", os.pathsep.join(filter(None, [str(site), os.environ.get("PYTHONPATH")])))
-    return name
+    return names[0]
 
 
 @pytest.fixture

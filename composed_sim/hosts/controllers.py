@@ -8,6 +8,7 @@ from rclpy.context import Context
 from rclpy.executors import Executor, MultiThreadedExecutor, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.type_description_service import START_TYPE_DESCRIPTION_SERVICE_PARAM
 
 from composed_sim import plugins
 from composed_sim.ros import contract as c
@@ -75,20 +76,24 @@ def create_controller(cls: type[Node], name: str, world: World, group_index: int
         node = cls(context=context, namespace=f"/{name}", use_global_arguments=False,
                    **quiet_node_options(overrides))
     except Exception as e:
-        raise plugins.PluginError(f"controller plugin {group.controller!r} failed to construct for "
-                                  f"{name}: {type(e).__name__}: {e}") from e
+        raise plugins.PluginError(f"robots[{group_index}].controller: controller plugin {group.controller!r} "
+                                  f"failed to construct for {name}: {type(e).__name__}: {e}",
+                                  ("robots", group_index, "controller")) from e
     unknown = [k for k in group.params if not node.has_parameter(k)]
     if unknown:
-        declared = sorted(p for p in node._parameters if p not in ("use_sim_time", PARAM_ROBOT_MODEL, PARAM_RUN_SEED))
+        plumbing = ("use_sim_time", PARAM_ROBOT_MODEL, PARAM_RUN_SEED, START_TYPE_DESCRIPTION_SERVICE_PARAM)
+        declared = sorted(p for p in node._parameters if p not in plumbing)
         node.destroy_node()
         raise plugins.PluginError(f"robots[{group_index}].params: controller {group.controller!r} has no "
-                                  f"parameter {', '.join(map(repr, unknown))} (it declares: {', '.join(declared) or 'none'})")
+                                  f"parameter {', '.join(map(repr, unknown))} (it declares: {', '.join(declared) or 'none'})",
+                                  ("robots", group_index, "params"))
     # The constructor's publishers are checked here (nothing it published can answer a tick:
     # no tick is open yet); the ones it creates later are refused when created.
     for publisher in node.publishers:
         problem = c.publisher_problem(name, publisher.topic_name, publisher.msg_type, robots)
         if problem is not None:
             node.destroy_node()
-            raise plugins.PluginError(f"controller plugin {group.controller!r} for {name}: {problem}")
+            raise plugins.PluginError(f"robots[{group_index}].controller: controller plugin {group.controller!r} "
+                                      f"for {name}: {problem}", ("robots", group_index, "controller"))
     guard_publishers(node, name, robots)
     return node

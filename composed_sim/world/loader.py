@@ -52,6 +52,18 @@ def world_from_dict(data: Any, source: str = "<dict>") -> World:
     return validate(data, source, {})
 
 
+def field_line(source: str | os.PathLike, path: FieldPath) -> str:
+    """``file:line`` of a field of a world file (or of its nearest ancestor that the file
+    writes); just ``file`` where there is no line to give (an ARGoS file, an unreadable one)."""
+    source = os.fspath(source)
+    try:
+        _, lines = _parse(_read(source), source)
+    except WorldFileError:
+        return source
+    line = _line(lines, path)
+    return f"{source}:{line}" if line else source
+
+
 def dump_world(world: World) -> str:
     """YAML text that ``load_world`` reads back to an equal World (every field written)."""
     return yaml.dump(world.model_dump(mode="json"), Dumper=_Dumper, sort_keys=False,
@@ -202,7 +214,7 @@ def validate(data: Any, source: str, lines: dict[FieldPath, int]) -> World:
                              f"(recursive YAML aliases?)") from None
     else:
         return _with_floor_image(world, source, lines)
-    rows = sorted({(_line(lines, path), _format_path(path), message, got)
+    rows = sorted({(_line(lines, path), format_path(path), message, got)
                    for path, message, got in problems}, key=lambda r: (r[0] or 0, r[1], r[2]))
     texts = [f"{source}{f':{line}' if line else ''}: {path}{': ' if path else ''}{message}{got}"
              for line, path, message, got in rows]
@@ -361,7 +373,8 @@ def _where(source: str, lines: dict[FieldPath, int], path: FieldPath) -> str:
     return f"{source}:{line}" if line else source
 
 
-def _format_path(path: FieldPath) -> str:
+def format_path(path: FieldPath) -> str:
+    """``robots[0].placement``"""
     out = ""
     for item in path:
         out += f"[{item}]" if isinstance(item, int) and not isinstance(item, bool) else \

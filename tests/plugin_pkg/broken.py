@@ -1,0 +1,19 @@
+"""Controller plugins that cannot be used, each in its own way (tests of the error messages)."""
+from rclpy.node import Node
+
+
+class ExplodesOnConstruct(Node):
+    def __init__(self, **node_kwargs):
+        super().__init__("explodes", **node_kwargs)
+        raise ValueError("calibration file robot.cfg not found")
+
+
+class NotANode:
+    pass
+
+
+class PublishesAnothersTopic(Node):
+    def __init__(self, **node_kwargs):
+        from geometry_msgs.msg import TwistStamped
+        super().__init__("intruder", **node_kwargs)
+        self.create_publisher(TwistStamped, "/bot0/cmd_vel", 10)

@@ -1,0 +1,2 @@
+"""A controller plugin whose module cannot be imported (a dependency is missing)."""
+import composed_sim_missing_dependency  # noqa: F401

@@ -1,0 +1,110 @@
+"""Bad input on the command line: one message naming the file, line, field and value, exit code
+2, never a traceback (loader-level cases in tests/world/test_loader.py)."""
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+import yaml
+
+from conftest import install_plugin
+
+ROOT = Path(__file__).resolve().parents[1]
+FLOCKING = ROOT / "worlds" / "flocking.yaml"
+
+
+def world_with(tmp_path, **changes) -> Path:
+    """worlds/flocking.yaml with fields changed; keys are paths with "__" between the parts,
+    e.g. robots__0__count (the file is rewritten, so lines are the new file's)."""
+    data = yaml.safe_load(FLOCKING.read_text())
+    for key, value in changes.items():
+        *parents, last = [int(k) if k.isdigit() else k for k in key.split("__")]
+        target = data
+        for k in parents:
+            target = target[k]
+        target[last] = value
+    path = tmp_path / "w.yaml"
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    return path
+
+
+def plain_world(tmp_path, controller: str, count: int = 2) -> Path:
+    """A world of ``count`` robots run by ``controller`` with no parameters."""
+    return world_with(tmp_path, robots__0__controller=controller, robots__0__count=count, robots__0__params={})
+
+
+def line_of(path: Path, key: str) -> int:
+    return next(i for i, line in enumerate(path.read_text().splitlines(), 1)
+                if line.strip().removeprefix("- ").startswith(f"{key}:"))
+
+
+def fails(*args) -> str:
+    r = subprocess.run([sys.executable, "-m", "composed_sim.cli", "run", *map(str, args), "--ticks", "2",
+                        "--no-progress", "--no-picture"], cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert r.returncode == 2, (r.returncode, r.stderr[-3000:])
+    assert "Traceback" not in r.stderr, r.stderr
+    return r.stderr.strip()
+
+
+def test_unknown_plugin(tmp_path):
+    w = world_with(tmp_path, robots__0__controller="nosuch")
+    assert fails(w, "--out", tmp_path / "o") == (
+        f"composed-sim: error: {w}:{line_of(w, 'controller')}: robots[0].controller: unknown controller plugin "
+        f"'nosuch' (installed: flocking); a plugin is an entry point in the group 'composed_sim.controllers'")
+
+
+@pytest.mark.parametrize("module, entry, message", [
+    ("broken_import", "Anything", "failed to import: ModuleNotFoundError: No module named "
+                                  "'composed_sim_missing_dependency'"),
+    ("broken", "NotANode", "(broken:NotANode) is not an rclpy Node subclass"),
+    ("broken", "ExplodesOnConstruct", "failed to construct for bot0: ValueError: calibration file robot.cfg not found"),
+    ("broken", "PublishesAnothersTopic", "for bot1: /bot0/cmd_vel is a topic of bot0, not of bot1"),
+])
+def test_plugins_that_cannot_be_used(tmp_path, monkeypatch, module, entry, message):
+    name = install_plugin(tmp_path, monkeypatch, module, entry, names=("bad",))
+    w = plain_world(tmp_path, name)
+    error = fails(w, "--out", tmp_path / "o")
+    assert error.startswith(f"composed-sim: error: {w}:{line_of(w, 'controller')}: robots[0].controller: ")
+    assert message in error and len(error.splitlines()) == 1, error
+
+
+def test_a_plugin_that_cannot_construct_in_multi_process_mode(tmp_path, monkeypatch):
+    name = install_plugin(tmp_path, monkeypatch, "broken", "ExplodesOnConstruct", names=("bad",))
+    w = plain_world(tmp_path, name)
+    error = fails(w, "--mode", "multi-process", "--out", tmp_path / "o")
+    assert re.search(r"the controller process of bot[01] ", error) and "calibration file robot.cfg not found" in error
+
+
+def test_two_installed_plugins_with_one_name(tmp_path, monkeypatch):
+    install_plugin(tmp_path, monkeypatch, "broken", "NotANode", names=("flocking",), dist="impostor")
+    error = fails(FLOCKING, "--out", tmp_path / "o")
+    assert "controller plugin 'flocking' is declared twice" in error and "package impostor-plugin" in error
+
+
+def test_robots_that_cannot_be_placed(tmp_path):
+    w = world_with(tmp_path, robots__0__count=3000, robots__0__placement__density=1000.0,
+                   robots__0__placement__max_trials=3)
+    error = fails(w, "--out", tmp_path / "o")
+    assert error.startswith(f"composed-sim: error: {w}:{line_of(w, 'placement')}: robots[0] (foot-bot, bot*): "
+                            f"could not place ")
+    assert "of 3000 robots in 3 trials each" in error
+
+
+@pytest.mark.parametrize("replacements, expected", [
+    ({"robots__0__count": -3}, "robots[0].count: must be >= 0 (got -3)"),
+    ({"seed": "one"}, "seed: must be a whole number (got \"one\")"),
+    ({"lights__0__position": [0.0, 1000.0], "arena__size": [20.0, 20.0]}, "lights[0].position: outside the arena"),
+    ({"arena__walls": "maybe"}, "arena.walls: must be true or false (got \"maybe\")"),
+])
+def test_bad_world_values_name_file_line_field_and_value(tmp_path, replacements, expected):
+    w = world_with(tmp_path, **replacements)
+    error = fails(w, "--out", tmp_path / "o")
+    assert re.match(rf"composed-sim: error: {re.escape(str(w))}:\d+: ", error) and expected in error, error
+
+
+def test_an_unwritable_output_directory(tmp_path):
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    assert fails(FLOCKING, "--robots", 2, "--out", blocker / "out") == (
+        f"composed-sim: error: --out {blocker / 'out'}: cannot write there (Not a directory)")
