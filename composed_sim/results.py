@@ -33,7 +33,8 @@ WORLD = "world.yaml"
 
 def versions() -> dict[str, str]:
     out = {"python": platform.python_version()}
-    for dist in ("composed_sim", "ros-jazzy-rclpy", "ros-rclpy", "ros-rmw-fastrtps-cpp", "numpy", "pymunk", "scipy"):
+    for dist in ("composed_sim", "ros-jazzy-rclpy", "ros-rclpy", "ros-rmw-fastrtps-cpp", "ros-fastrtps",
+                 "numpy", "pymunk", "scipy"):
         try:
             out[dist] = version(dist)
         except PackageNotFoundError:

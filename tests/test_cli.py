@@ -37,6 +37,23 @@ def test_run_records_a_bag_that_replays_and_renders(tmp_path):
         assert (tmp_path / target).stat().st_size > 1000
 
 
+def test_a_recorded_run_is_reproduced_from_its_saved_configuration(tmp_path):
+    """The results hold what reproduces the run: the resolved world (seed, overrides applied)
+    and the versions. Re-running that world gives the same trajectories, bit for bit."""
+    first, again = tmp_path / "first", tmp_path / "again"
+    run = cli("run", FLOCKING, "--robots", 7, "--ticks", 25, "--seed", 11, "--watchdog", 5, "--out", first,
+              "--record", tmp_path / "bag", "--no-progress", "--no-picture", "--json")
+    assert run.returncode == 0, run.stderr[-2000:]
+    summary = json.loads(run.stdout)
+    assert summary["seed"] == 11 and {"composed_sim", "ros-rclpy", "ros-fastrtps", "numpy", "pymunk"} <= set(summary["versions"])
+    rerun = cli("run", first / "world.yaml", "--executor", "events", "--out", again, "--no-progress", "--no-picture")
+    assert rerun.returncode == 0, rerun.stderr[-2000:]
+    with np.load(first / "trajectories.npz") as a, np.load(again / "trajectories.npz") as b:
+        assert a["positions"].shape == (26, 7, 2)
+        for key in ("positions", "headings", "led_colors"):
+            assert np.array_equal(a[key], b[key]), key
+
+
 def test_argos_experiment_runs_with_a_controller_mapping(tmp_path):
     r = cli("run", ROOT / "worlds" / "flocking.argos", "--controller", "flocking", "--ticks", 10,
             "--out", tmp_path, "--no-progress", "--no-picture", "--json")
@@ -106,3 +123,89 @@ def test_live_markers_reach_a_subscriber_in_another_process(tmp_path, domain_id)
     bodies, headings = received[0].markers
     assert len(bodies.points) == 6 and len(bodies.colors) == 6 and len(headings.points) == 12
     assert bodies.header.frame_id == "world"
+
+
+def _wait_for_ticks(domain_id: int, proc: subprocess.Popen, ticks: int) -> None:
+    """Until the run in ``proc`` has published /clock ``ticks`` times (it is past its start-up)."""
+    import time
+
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.node import Node
+    from rosgraph_msgs.msg import Clock
+
+    ctx = Context()
+    rclpy.init(context=ctx, domain_id=domain_id)
+    try:
+        node = Node("clock_watcher", context=ctx, start_parameter_services=False, enable_rosout=False)
+        seen = []
+        node.create_subscription(Clock, "/clock", seen.append, 10)
+        executor = SingleThreadedExecutor(context=ctx)
+        executor.add_node(node)
+        deadline = time.monotonic() + 120
+        while len(seen) < ticks and proc.poll() is None and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.1)
+        assert len(seen) >= ticks, "the run published no /clock"
+        node.destroy_node()
+    finally:
+        rclpy.shutdown(context=ctx)
+
+
+def test_sigterm_stops_at_a_tick_boundary_and_keeps_results_and_recording(tmp_path, domain_id):
+    from composed_sim.recording import read_recording
+
+    out, bag = tmp_path / "out", tmp_path / "bag"
+    run = subprocess.Popen([sys.executable, "-m", "composed_sim.cli", "run", str(FLOCKING), "--robots", "5",
+                            "--ticks", "100000", "--record", str(bag), "--out", str(out), "--no-progress",
+                            "--domain-id", str(domain_id)], cwd=ROOT,
+                           stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    try:
+        _wait_for_ticks(domain_id, run, 5)
+        run.send_signal(signal.SIGTERM)
+        assert run.wait(timeout=120) == 130, run.stderr.read()[-2000:]
+    finally:
+        if run.poll() is None:
+            run.kill()
+    summary = json.loads((out / "summary.json").read_text())
+    ticks = summary["ticks"]
+    assert summary["interrupted"] is True and 5 <= ticks < 100000
+    with np.load(out / "trajectories.npz") as t:
+        assert t["positions"].shape == (ticks + 1, 5, 2)
+        final = t["positions"][-1]
+    recording = read_recording(bag)          # closed properly: readable, every tick in it
+    assert recording.ticks_done == ticks and np.array_equal(recording.positions[-1], final)
+    assert (out / "arena.png").stat().st_size > 1000
+
+
+def test_a_second_ctrl_c_quits_at_once_even_with_a_hung_controller(tmp_path, faulty_plugin, domain_id):
+    """The first Ctrl-C waits for a tick boundary that a controller hung for 60 s keeps away."""
+    import time
+
+    import yaml
+    data = yaml.safe_load(FLOCKING.read_text())
+    data["lockstep"] = {"watchdog_s": 20.0}
+    data["robots"][0].update(controller=faulty_plugin, count=3,
+                             params={"fault": "hang", "faulty_robot": "bot1", "from_tick": 3,
+                                     "announce": str(tmp_path / "hung")})
+    world = tmp_path / "hang.yaml"
+    world.write_text(yaml.safe_dump(data))
+    run = subprocess.Popen([sys.executable, "-m", "composed_sim.cli", "run", str(world), "--out", str(tmp_path / "o"),
+                            "--no-progress", "--domain-id", str(domain_id)], cwd=ROOT,
+                           stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 120
+        while not (tmp_path / "hung").exists() and run.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert (tmp_path / "hung").exists(), "bot1 never reached its hang"
+        run.send_signal(signal.SIGINT)
+        time.sleep(0.5)    # not a hope: either way the run must not end on its own within the 20 s watchdog
+        assert run.poll() is None
+        t0 = time.monotonic()
+        run.send_signal(signal.SIGINT)
+        assert run.wait(timeout=10) == 130
+        assert time.monotonic() - t0 < 5
+        assert "again to quit at once" in run.stderr.read()
+    finally:
+        if run.poll() is None:
+            run.kill()

@@ -24,6 +24,7 @@ class Faulty(Node):
         self.every = self.declare_parameter("every", 1).value
         self.duration_s = self.declare_parameter("duration_s", 0.0).value
         self.victim = self.declare_parameter("victim", "").value
+        self.announce = self.declare_parameter("announce", "").value   # a file to create on the fault
         self.me = self.get_namespace().strip("/")
         self.scans = 0
         self.cmd = self.create_publisher(TwistStamped, "cmd_vel", 10)
@@ -43,6 +44,9 @@ class Faulty(Node):
     def misbehave(self, answer: TwistStamped) -> bool:
         """Commit the fault; True if the (possibly spoilt) answer is to be published after it."""
         fault = self.fault
+        if self.announce:
+            with open(self.announce, "w"):
+                pass
         if fault == "slow":
             time.sleep(self.duration_s)
         elif fault == "hang":
