@@ -11,6 +11,7 @@ arena.png        the arena: whole-run trails, final poses with LED colours, ligh
 from __future__ import annotations
 
 import csv
+from collections import Counter
 import json
 import platform
 import resource
@@ -21,6 +22,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from composed_sim.hosts.lockstep import LoopResult, Trajectories
+from composed_sim.ros.simulator_node import FAILED
 from composed_sim.world.loader import dump_world
 from composed_sim.world.schema import World
 
@@ -85,7 +87,11 @@ def summarize(world: World, result: LoopResult, *, setup_s: float, mode: str, ex
         "per_robot_tick_us": 1e6 * wall / (t.ticks_done * len(t.names)) if t.ticks_done and t.names else None,
         "phases_s": {**phases, "ros_exchange_s": result.times.ros_exchange_s},
         "violations": len(result.violations),
+        "violations_by_robot": dict(Counter(v.robot for v in result.violations).most_common()),
+        "failed_robots": sorted({v.robot for v in result.violations if v.reason.startswith(FAILED)},
+                                key=t.names.index),
         "peak_rss_mb": peak_rss_mb(),
+        "rss_mb_by_tick": [[tick, round(mb, 1)] for tick, mb in result.memory],
         "swarm": swarm_metrics(world, t.positions),
         "versions": versions(),
     }

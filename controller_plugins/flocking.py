@@ -20,6 +20,7 @@ from composed_sim.ros.controller import SwarmController, Tick
 RED = (255, 0, 0)
 BEACON_LED = 12          # the foot-bot's beacon: LED index 12 (after the 12 ring LEDs)
 INTERACTION_RANGE = 1.8  # blobs farther than 1.8 · target distance are ignored (ARGoS)
+_sum = np.add.reduce     # np.sum without its wrapper: the same pairwise summation
 
 
 def lennard_jones(distance_cm, target_cm: float, gain: float, exponent: float):
@@ -62,7 +63,8 @@ class TurningMachine:
     no_turn_rad: float
     state: Turn = Turn.NO_TURN
 
-    def wheel_speeds(self, heading: np.ndarray) -> tuple[float, float]:
+    def wheel_speeds(self, heading) -> tuple[float, float]:
+        """heading: (x, y)."""
         angle = math.atan2(heading[1], heading[0])     # already in (-pi, pi]
         length = math.hypot(heading[0], heading[1])
         base = min(length, self.max_speed)
@@ -106,12 +108,31 @@ class FlockingController(SwarmController):
         self.max_speed_cm = 100.0 * p["max_speed_mps"]
         self.turning = TurningMachine(self.max_speed_cm, math.radians(p["hard_turn_deg"]),
                                       math.radians(p["soft_turn_deg"]), math.radians(p["no_turn_deg"]))
+        self._light_cos, self._light_sin = np.cos(self.light_angles), np.sin(self.light_angles)
         self.set_led(BEACON_LED, RED)
 
     def on_tick(self, tick: Tick) -> tuple[float, float]:
+        # light_vector + flocking_vector, computed on plain floats for speed: the same operations
+        # in the same order (numpy's sums included), so the very same numbers.
+        lx = float(_sum(tick.light * self._light_cos))
+        ly = float(_sum(tick.light * self._light_sin))
+        length = math.hypot(lx, ly)
+        if length > 0:
+            scale = 0.25 * self.max_speed_cm / length
+            lx, ly = lx * scale, ly * scale
         red = tick.blobs.of_color(RED)
-        heading = (light_vector(tick.light, self.light_angles, self.max_speed_cm)
-                   + flocking_vector(red.angles, 100.0 * red.distances, self.target_cm, self.gain,
-                                     self.exponent, self.max_speed_cm))
-        left_cm, right_cm = self.turning.wheel_speeds(heading)
+        distances_cm = 100.0 * red.distances
+        near = distances_cm < INTERACTION_RANGE * self.target_cm
+        count = int(np.count_nonzero(near))
+        if count:
+            f = lennard_jones(distances_cm[near], self.target_cm, self.gain, self.exponent)
+            angles = red.angles[near]
+            fx = float(_sum(f * np.cos(angles))) / count
+            fy = float(_sum(f * np.sin(angles))) / count
+            length = math.hypot(fx, fy)
+            if length > self.max_speed_cm:
+                scale = self.max_speed_cm / length
+                fx, fy = fx * scale, fy * scale
+            lx, ly = lx + fx, ly + fy
+        left_cm, right_cm = self.turning.wheel_speeds((lx, ly))
         return twist_of_wheels(left_cm / 100.0, right_cm / 100.0, self.model)

@@ -7,10 +7,11 @@ controllers' callbacks get run while the loop waits (``wait_for_answers``).
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Callable, Optional, Protocol, Sequence
 
 import numpy as np
+import psutil
 
 from composed_sim.core.robot_models import display_colors
 from composed_sim.core.simulation import SensorFrame, Simulation
@@ -59,6 +60,15 @@ class LoopResult:
     violations: list[Violation]
     times: LoopTimes
     interrupted: bool = False
+    # (tick, resident MB of this process) about 50 times per run: flat memory, or where it grows
+    memory: list[tuple[int, float]] = field(default_factory=list)
+
+
+MEMORY_SAMPLES = 50
+
+
+def resident_mb() -> float:
+    return psutil.Process().memory_info().rss / 2**20
 
 
 class TickObserver(Protocol):
@@ -90,6 +100,8 @@ def run_lockstep(sim: Simulation, exchange: Exchange, wait_for_answers: Callable
     for observer in observers:
         observer.on_tick(sim)
     interrupted = False
+    memory = [(0, resident_mb())]
+    sample_every = max(1, ticks // MEMORY_SAMPLES)
     t_start = time.perf_counter()
     try:
         for _ in range(ticks):
@@ -112,10 +124,14 @@ def run_lockstep(sim: Simulation, exchange: Exchange, wait_for_answers: Callable
                 observer.on_tick(sim)
             if progress is not None:
                 progress(1)
+            if sim.tick % sample_every == 0:
+                memory.append((sim.tick, resident_mb()))
     except BaseException as e:
         # Nothing is lost: whoever handles the error can still write what was simulated so far.
         times.ticks_wall_s = time.perf_counter() - t_start
-        e.partial_result = LoopResult(traj.filled(), list(exchange.violations), times, True)
+        e.partial_result = LoopResult(traj.filled(), list(exchange.violations), times, True, memory)
         raise
     times.ticks_wall_s = time.perf_counter() - t_start
-    return LoopResult(traj.filled(), list(exchange.violations), times, interrupted)
+    if memory[-1][0] != sim.tick:
+        memory.append((sim.tick, resident_mb()))
+    return LoopResult(traj.filled(), list(exchange.violations), times, interrupted, memory)

@@ -37,6 +37,7 @@ from sensor_msgs.msg import LaserScan, PointCloud2, PointField
 from std_msgs.msg import MultiArrayDimension, UInt8MultiArray
 
 from composed_sim.core.robot_models import RobotModel
+from composed_sim.ros import cdr
 
 
 @dataclass(frozen=True)
@@ -213,13 +214,19 @@ class Blobs:
     angles: np.ndarray      # [m] rad, bearing relative to the heading, CCW
     distances: np.ndarray   # [m] planar distance from the robot centre, m
     colors: np.ndarray      # [m, 3] uint8 RGB
+    rgb: Optional[np.ndarray] = None   # [m] uint32 0x00RRGGBB, when decoded from a cloud
 
     def __len__(self) -> int:
         return len(self.angles)
 
     def of_color(self, rgb: Sequence[int]) -> "Blobs":
-        keep = np.all(self.colors == np.asarray(rgb, dtype=np.uint8), axis=1)
-        return Blobs(self.angles[keep], self.distances[keep], self.colors[keep])
+        if self.rgb is not None:
+            r, g, b = (int(v) for v in rgb)
+            keep = self.rgb == ((r << 16) | (g << 8) | b)
+        else:
+            keep = np.all(self.colors == np.asarray(rgb, dtype=np.uint8), axis=1)
+        return Blobs(self.angles[keep], self.distances[keep], self.colors[keep],
+                     None if self.rgb is None else self.rgb[keep])
 
 
 def ring_angles(msg: LaserScan, count: int) -> np.ndarray:
@@ -239,12 +246,74 @@ def decode_light(msg: LaserScan) -> np.ndarray:
 
 
 def decode_blobs(msg: PointCloud2) -> Blobs:
-    points = np.frombuffer(msg.data, dtype=BLOB_DTYPE, count=msg.width)
+    fields = tuple((f.name, f.offset, f.datatype) for f in msg.fields)
+    return _blobs(np.frombuffer(msg.data, dtype=_cloud_dtype(fields, msg.point_step), count=msg.width))
+
+
+def _blobs(points: np.ndarray) -> Blobs:
     x = points["x"].astype(float)
     y = points["y"].astype(float)
     rgb = points["rgb"]
-    colors = np.stack([(rgb >> 16) & 0xFF, (rgb >> 8) & 0xFF, rgb & 0xFF], axis=1).astype(np.uint8)
-    return Blobs(np.arctan2(y, x), np.hypot(x, y), colors)
+    colors = np.empty((len(rgb), 3), dtype=np.uint8)
+    colors[:, 0], colors[:, 1], colors[:, 2] = rgb >> 16, rgb >> 8, rgb    # uint8 keeps the low byte
+    return Blobs(np.arctan2(y, x), np.hypot(x, y), colors, rgb & 0xFFFFFF)
+
+
+_CLOUD_DTYPES: dict = {}
+
+
+def _cloud_dtype(fields: tuple, point_step: int) -> np.dtype:
+    """The numpy dtype of a blob cloud's points from its fields ((name, offset, datatype) …):
+    x, y float32 and rgb uint32, wherever the publisher put them."""
+    key = (fields, point_step)
+    dtype = _CLOUD_DTYPES.get(key)
+    if dtype is None:
+        found = {name: (offset, datatype) for name, offset, datatype in fields}
+        wanted = {"x": PointField.FLOAT32, "y": PointField.FLOAT32, "rgb": PointField.UINT32}
+        if any(found.get(name, (0, None))[1] != datatype for name, datatype in wanted.items()):
+            raise ValueError(f"not a blob cloud: fields {sorted(found)} (need x, y float32 and rgb uint32)")
+        dtype = _CLOUD_DTYPES[key] = np.dtype({"names": list(wanted), "formats": ["<f4", "<f4", "<u4"],
+                                               "offsets": [found[n][0] for n in wanted], "itemsize": point_step})
+    return dtype
+
+
+# --- the same messages as serialized bytes (rclpy publishes bytes, raw subscriptions take them) ---
+# What the simulator node and the SwarmController base class use: see cdr.py for why.
+
+def proximity_encoder(model: RobotModel, robot: str) -> cdr.ScanEncoder:
+    k = len(model.proximity.angles_rad)
+    return cdr.ScanEncoder(ring_scan(model.proximity.angles_rad, robot, model.proximity.range_m), k, k)
+
+
+def light_encoder(model: RobotModel, robot: str) -> cdr.ScanEncoder:
+    return cdr.ScanEncoder(ring_scan(model.light.angles_rad, robot, 0.0), 0, len(model.light.angles_rad))
+
+
+def blobs_encoder(robot: str) -> cdr.CloudEncoder:
+    return cdr.CloudEncoder(blob_cloud(robot))
+
+
+def answer_encoder() -> cdr.TwistEncoder:
+    return cdr.TwistEncoder(TwistStamped())
+
+
+def decode_proximity_cdr(data: bytes) -> tuple[np.ndarray, np.ndarray]:
+    """Like decode_proximity, from the message's bytes."""
+    return cdr.decode_scan(data)
+
+
+def decode_light_cdr(data: bytes) -> np.ndarray:
+    return cdr.decode_scan(data)[1]
+
+
+def decode_blobs_cdr(data: bytes) -> Blobs:
+    width, fields, point_step, points = cdr.decode_cloud(data)
+    return _blobs(np.frombuffer(points, dtype=_cloud_dtype(fields, point_step), count=width))
+
+
+def decode_answer_cdr(data: bytes) -> tuple[int, float, float]:
+    """cmd_vel bytes → (stamp ns, linear.x, angular.z)."""
+    return (cdr.stamp_ns(data), *cdr.decode_twist(data))
 
 
 def decode_leds(msg: UInt8MultiArray, n_leds: int) -> np.ndarray:

@@ -14,7 +14,7 @@ from rclpy.node import Node
 
 from composed_sim.core.robot_models import RobotModel, get_model
 from composed_sim.core.seeding import robot_rng
-from composed_sim.ros import contract as c
+from composed_sim.ros import cdr, contract as c
 
 # Parameters every hosted controller is given (a plain Node may ignore them).
 PARAM_ROBOT_MODEL = "robot_model"
@@ -54,13 +54,16 @@ class SwarmController(Node):
         self.light_angles = np.asarray(self.model.light.angles_rad)
         self._leds = np.zeros((self.model.n_leds, 3), dtype=np.uint8)
         self._leds_dirty = False
-        self._pending: dict[str, object] = {}
+        self._pending: dict[str, bytes] = {}
         self._pending_key = -1
+        # Sensors are taken and answers published as serialized bytes, decoded straight into
+        # arrays (cdr.py): the same messages, without building Python message objects.
         for name in self.sensors:
             topic = c.TOPICS[name]
             self.create_subscription(topic.msg_type, topic.name,
-                                     lambda msg, name=name: self._on_sensor(name, msg), c.QOS)
+                                     lambda data, name=name: self._on_sensor(name, data), c.QOS, raw=True)
         self._cmd_pub = self.create_publisher(c.CMD_VEL.msg_type, c.CMD_VEL.name, c.QOS)
+        self._answer_encoder = c.answer_encoder()
         self._led_pub = self.create_publisher(c.LEDS.msg_type, c.LEDS.name, c.QOS)
 
     # --- for subclasses ---------------------------------------------------------------------
@@ -78,27 +81,27 @@ class SwarmController(Node):
 
     # --- the tick exchange ------------------------------------------------------------------
 
-    def _on_sensor(self, name: str, msg) -> None:
-        key = c.stamp_key(msg.header.stamp)
+    def _on_sensor(self, name: str, data: bytes) -> None:
+        key = cdr.stamp_ns(data)
         if key != self._pending_key:     # a new tick: whatever was left of an older one is stale
             self._pending.clear()
             self._pending_key = key
-        self._pending[name] = msg
+        self._pending[name] = data
         if len(self._pending) == len(self.sensors):
             self._answer()
 
     def _answer(self) -> None:
         msgs, self._pending = self._pending, {}
-        stamp = next(iter(msgs.values())).header.stamp
-        tick = Tick(stamp=stamp, time_s=stamp.sec + stamp.nanosec * 1e-9)
+        sec, nanosec = divmod(self._pending_key, 1_000_000_000)
+        tick = Tick(stamp=Time(sec=sec, nanosec=nanosec), time_s=sec + nanosec * 1e-9)
         if "proximity" in msgs:
-            tick.proximity_distances, tick.proximity = c.decode_proximity(msgs["proximity"])
+            tick.proximity_distances, tick.proximity = c.decode_proximity_cdr(msgs["proximity"])
         if "light" in msgs:
-            tick.light = c.decode_light(msgs["light"])
+            tick.light = c.decode_light_cdr(msgs["light"])
         if "blobs" in msgs:
-            tick.blobs = c.decode_blobs(msgs["blobs"])
+            tick.blobs = c.decode_blobs_cdr(msgs["blobs"])
         linear, angular = self.on_tick(tick)
         if self._leds_dirty:   # before the answer, so the change lands on the same tick
             self._led_pub.publish(c.led_message(self._leds))
             self._leds_dirty = False
-        self._cmd_pub.publish(c.twist_stamped(stamp, linear, angular))
+        self._cmd_pub.publish(self._answer_encoder.encode(sec, nanosec, float(linear), float(angular)))

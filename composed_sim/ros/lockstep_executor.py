@@ -5,8 +5,8 @@ thousands of hosted nodes that dominates the tick (DESIGN.md: 360–770 µs per 
 lockstep tick the work is known: the simulator publishes every robot's sensors, and inside one
 DDS participant a published message is ready to take at once. So this executor first walks the
 subscriptions of its nodes in a fixed order (nodes in the order they were added, subscriptions
-in creation order), takes whatever is ready and runs the callbacks; a callback's own publishes
-(a controller's answer) are picked up by the same walk. Only when a walk finds nothing does it
+in creation order), takes one ready message from each and runs the callbacks; a callback's own
+publishes (a controller's answer) are picked up by the same walk. Only when a walk finds nothing does it
 fall back to the ordinary wait set, which also serves timers, services, guard conditions and
 messages from other processes.
 
@@ -58,15 +58,17 @@ class LockstepExecutor(SingleThreadedExecutor):
         handled = 0
         message_only = Subscription.CallbackType.MessageOnly
         for sub in subs:
+            # One message per subscription and walk: in a lockstep tick there is one, and
+            # looking for a second would cost an empty take per subscription. Any more are taken
+            # by the next walk, in the same order.
             handle = sub.handle
-            while True:
-                with handle:
-                    taken = handle.take_message(sub.msg_type, sub.raw)
-                if taken is None:
-                    break
-                if sub._callback_type is message_only:
-                    sub.callback(taken[0])
-                else:
-                    sub.callback(*taken)
-                handled += 1
+            with handle:
+                taken = handle.take_message(sub.msg_type, sub.raw)
+            if taken is None:
+                continue
+            if sub._callback_type is message_only:
+                sub.callback(taken[0])
+            else:
+                sub.callback(*taken)
+            handled += 1
         return handled
