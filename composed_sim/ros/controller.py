@@ -61,8 +61,9 @@ class SwarmController(Node):
         seed = self.declare_parameter(PARAM_RUN_SEED, 0).value
         self.model: RobotModel = get_model(model_name)
         self.rng = robot_rng(seed, self.robot)
-        self.proximity_angles = np.asarray(self.model.proximity.angles_rad)
-        self.light_angles = np.asarray(self.model.light.angles_rad)
+        # Empty for a model without the ring (e.g. the TurtleBot 3 has neither).
+        self.proximity_angles = np.asarray(self.model.proximity.angles_rad if self.model.proximity else ())
+        self.light_angles = np.asarray(self.model.light.angles_rad if self.model.light else ())
         self._leds = np.zeros((self.model.n_leds, 3), dtype=np.uint8)
         self._leds_dirty = False
         self._pending: dict[str, object] = {}
