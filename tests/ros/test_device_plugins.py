@@ -122,3 +122,35 @@ def test_aggregation_gathers_the_epucks_on_the_dark_patch(domain_id):
     # Disc area 0.5 m² of the 3.24 m² placement square: about 1/6 start on it; random walks find it, and stay.
     assert fraction[0] < 0.3 and fraction[-1] >= 0.5, (fraction[0], fraction[-1])
     assert fraction[-100:].min() >= fraction[:100].max()
+
+
+def test_fireflies_in_their_own_processes_flash_as_in_composed_mode(domain_id):
+    """Multi-process mode: rab_tx crosses processes and domains and lands on the same tick."""
+    from composed_sim.hosts.multiprocess import MultiProcessHost
+    world = load_world(WORLDS / "firefly.yaml", robots=4, ticks=100)
+    period = world.robots[0].params["period_ticks"]
+    reference = run(world, domain_id)
+    with MultiProcessHost(world, domain_id=101 + 4 * (os.getpid() % 32), robots_per_domain=2) as host:
+        assert len(set(host.domains.values())) == 2
+        result = host.run()
+    assert result.violations == [] and reference.violations == []
+    np.testing.assert_array_equal(result.trajectories.led_colors, reference.trajectories.led_colors)
+    r, spread = firefly_sync(result, period)
+    assert r[-1] > 0.95 and spread[-1] <= 1 < spread[0], (r, spread)
+
+
+def test_heterogeneous_world_runs_through_the_cli(tmp_path):
+    import json
+    import subprocess
+    import sys
+    out = tmp_path / "out"
+    r = subprocess.run([sys.executable, "-m", "composed_sim.cli", "run", str(WORLDS / "heterogeneous.yaml"),
+                        "--ticks", "40", "--out", str(out), "--no-progress", "--no-picture", "--json"],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr[-2000:]
+    summary = json.loads(r.stdout)
+    assert summary["ticks"] == 40 and summary["robots"] == 14 and summary["violations"] == 0
+    with np.load(out / "trajectories.npz") as t:
+        moved = np.linalg.norm(t["positions"][-1] - t["positions"][0], axis=1)
+    assert (moved[:6] > 0.05).all(), moved          # the foot-bots diffuse …
+    assert np.median(moved[6:]) > 0.05, moved        # … and the e-pucks walk (or stopped on the patch)
