@@ -141,3 +141,109 @@ def test_rab_messages_reach_exactly_the_robots_in_range_one_tick_later(rab_echo_
             for (j, _, r, b) in got:
                 assert r == pytest.approx(dist[i, j], abs=1e-5)
                 assert b == pytest.approx(math.atan2(*(p[j] - p[i])[::-1]), abs=1e-5)
+
+
+def take(sub):
+    """The message waiting on a subscription (delivery inside one context is synchronous)."""
+    taken = sub.handle.take_message(sub.msg_type, sub.raw)
+    assert taken is not None, f"nothing on {sub.topic_name}"
+    return taken[0]
+
+
+@pytest.fixture
+def ros_context(domain_id):
+    import rclpy
+    from rclpy.context import Context
+    ctx = Context()
+    rclpy.init(context=ctx, domain_id=domain_id)
+    yield ctx
+    rclpy.shutdown(context=ctx)
+
+
+def test_a_node_serving_some_rows_of_a_mixed_swarm_publishes_each_robot_its_own_readings(ros_context):
+    """As a multi-process domain does: rows from three groups; each topic carries that robot's row
+    of its group's arrays, and a robot has no topic of a device it does not run."""
+    from rclpy.node import Node
+    from composed_sim.core.simulation import Simulation
+    from composed_sim.ros.simulator_node import SimulatorNode, robot_devices
+    world = world_with([
+        {"model": "foot-bot", "count": 3, "controller": "x", "devices": {"ground": {}, "odometry": {}}},
+        {"model": "e-puck", "count": 3, "name_prefix": "ep", "controller": "x",
+         "devices": {"range_and_bearing": {}, "positioning": {}}},
+        {"model": "turtlebot3-burger", "count": 2, "name_prefix": "tb", "controller": "x",
+         "devices": {"differential_steering": {}}},
+    ], floor={"shapes": [{"type": "circle", "position": [0.0, 0.0], "radius_m": 1.0, "color": [0, 0, 0]}]},
+        range_and_bearing={"mode": "global"})
+    sim = Simulation(world)
+    sim.set_wheel_speeds(np.full(sim.n, 0.05), np.full(sim.n, 0.07))
+    for i in range(sim.n):
+        sim.set_rab_payload(i, bytes([i] * 10))
+    frame = sim.step()
+    rows = np.array([1, 4, 5, 7])                      # bot1, ep1, ep2, tb1
+    devices = robot_devices(world)
+    node = SimulatorNode([sim.names[r] for r in rows], [sim.models[r] for r in rows], context=ros_context,
+                         tick_ns=world.tick_ns, rows=rows, devices=[devices[r] for r in rows])
+    listener = Node("listener", context=ros_context)
+    subs = {(robot, t.name): listener.create_subscription(t.msg_type, c.topic_name(robot, t), lambda m: None, c.QOS)
+            for robot in ("bot1", "ep1", "ep2", "tb1") for t in c.SENSOR_TOPICS}
+    try:
+        published = {(robot, t) for (robot, t), sub in subs.items() if sub.get_publisher_count() > 0}
+        assert published == {("bot1", "proximity"), ("bot1", "light"), ("bot1", "blobs"), ("bot1", "ground"),
+                              ("bot1", "odom"), ("ep1", "proximity"), ("ep1", "ground"), ("ep1", "rab_rx"),
+                              ("ep1", "pose"), ("ep2", "proximity"), ("ep2", "ground"), ("ep2", "rab_rx"),
+                              ("ep2", "pose"), ("tb1", "scan"), ("tb1", "wheels")}
+        node.publish_tick(frame)
+        fb, ep, tb = frame.groups
+        np.testing.assert_allclose(c.decode_ground(take(subs["bot1", "ground"])), fb.ground[1], atol=1e-6)
+        np.testing.assert_allclose(c.decode_proximity(take(subs["bot1", "proximity"]))[1], fb.proximity[1], atol=1e-6)
+        odom, twist = c.decode_odometry(take(subs["bot1", "odom"]))
+        np.testing.assert_allclose(odom, frame.odometry[1], atol=1e-12)
+        np.testing.assert_allclose(twist, frame.odometry_twist[1], atol=1e-12)
+        for robot, row in (("ep1", 4), ("ep2", 5)):
+            np.testing.assert_allclose(c.decode_ground(take(subs[robot, "ground"])), ep.ground[row - 3], atol=1e-6)
+            np.testing.assert_allclose(c.decode_pose(take(subs[robot, "pose"])),
+                                       [*frame.pose.positions[row, :2], frame.pose.yaws[row]], atol=1e-9)
+            heard = c.decode_rab(take(subs[robot, "rab_rx"]))
+            senders = frame.range_and_bearing.of(row)[0]
+            # Global medium: the other e-pucks, payload = the sender's index set before the step.
+            assert sorted(senders.tolist()) == [3, 4, 5][:row - 3] + [3, 4, 5][row - 2:]
+            assert sorted(heard.payloads[:, 0].tolist()) == sorted(senders.tolist())
+        np.testing.assert_allclose(c.decode_scan(take(subs["tb1", "scan"])), tb.lidar[1], rtol=1e-6)
+        speeds, travel = c.decode_wheels(take(subs["tb1", "wheels"]), TURTLEBOT3_BURGER.wheel_radius_m)
+        np.testing.assert_allclose(speeds, [0.05, 0.07])
+        np.testing.assert_allclose(travel, frame.wheels.distances_m[7])
+    finally:
+        listener.destroy_node()
+        node.destroy_node()
+
+
+def test_a_rab_payload_of_the_wrong_size_is_a_violation_naming_the_setting(ros_context):
+    from rclpy.node import Node
+    from composed_sim.ros.simulator_node import SimulatorNode
+    node = SimulatorNode(["bot0", "bot1"], [FOOTBOT, FOOTBOT], context=ros_context, tick_ns=100_000_000,
+                         devices=[{"range_and_bearing"}, {"range_and_bearing"}], rab_payload_bytes=4)
+    sender = Node("sender", context=ros_context)
+    try:
+        good = sender.create_publisher(c.RAB_TX.msg_type, "/bot0/rab_tx", c.QOS)
+        bad = sender.create_publisher(c.RAB_TX.msg_type, "/bot1/rab_tx", c.QOS)
+        good.publish(c.rab_payload_message(b"\x01\x02\x03\x04"))
+        good.publish(c.rab_payload_message(b"\x05\x06\x07\x08"))          # the latest counts
+        bad.publish(c.rab_payload_message(b"\x01\x02\x03"))
+        payloads = node.take_rab_payloads()
+        assert list(payloads) == [0] and payloads[0].tolist() == [5, 6, 7, 8]
+        assert [(v.robot, v.reason) for v in node.violations] == [
+            ("bot1", "rab_tx: rab_tx message has 3 bytes, expected 4 (range_and_bearing.payload_bytes of the world file)")]
+    finally:
+        sender.destroy_node()
+        node.destroy_node()
+
+
+def test_a_controller_needing_a_sensor_its_robot_lacks_is_a_clear_error(domain_id):
+    from composed_sim import plugins
+    from composed_sim.hosts.composed import ComposedHost
+    world = world_with([{"model": "turtlebot3-burger", "count": 1, "name_prefix": "tb", "controller": "diffusion"}])
+    with pytest.raises(plugins.PluginError, match=r"failed to construct for tb0: ValueError: DiffusionController "
+                       r"needs the sensor topic\(s\) proximity, which tb0 \(a turtlebot3-burger\) does not have; "
+                       r"its sensor topics: scan\. Switch the device on"):
+        with ComposedHost(world, domain_id=domain_id):
+            pass
