@@ -58,3 +58,13 @@ def test_diffusion_turns_when_the_obstacle_ahead_is_close():
     ahead[[0, 7]] = 0.5                            # the mean vector is longer than delta: too close
     left, right = diffusion_wheels(ahead, np.asarray(EPUCK.proximity.angles_rad), math.radians(7.5), 0.1, 0.1)
     assert left != right
+
+
+def test_turning_on_the_spot_ignores_what_is_only_behind():
+    behind = np.zeros(24)
+    behind[12] = 0.9                                 # 187.5°
+    assert diffusion_wheels(behind, RING, math.radians(7.5), 0.1, 0.1) == (0.0, 0.1)          # ARGoS turns
+    assert diffusion_wheels(behind, RING, math.radians(7.5), 0.1, 0.1, on_the_spot=True) == (0.1, 0.1)
+    left = np.zeros(24)
+    left[3] = 0.9                                    # 52.5°: turn right in place
+    assert diffusion_wheels(left, RING, math.radians(7.5), 0.1, 0.1, on_the_spot=True) == (0.1, -0.1)
