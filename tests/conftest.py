@@ -52,3 +52,10 @@ def faulty_plugin(tmp_path, monkeypatch):
     """The fault-injecting controller (tests/plugin_pkg/faulty.py)."""
     yield install_plugin(tmp_path, monkeypatch, "faulty", "Faulty")
     sys.modules.pop("faulty", None)
+
+
+@pytest.fixture
+def rab_echo_plugin(tmp_path, monkeypatch):
+    """A still robot that broadcasts (its index, the tick) and keeps what it hears (tests/plugin_pkg/rab_echo.py)."""
+    yield install_plugin(tmp_path, monkeypatch, "rab_echo", "RabEcho")
+    sys.modules.pop("rab_echo", None)

@@ -193,7 +193,7 @@ class Netns:
         return ["ip", "netns", "exec", self.name(role), *cmd]
 
     def counters(self, role: str) -> dict[str, int]:
-        base = f"/sys/class/net/eth0/statistics"
+        base = "/sys/class/net/eth0/statistics"
         out = subprocess.run(self.exec(role, ["cat", f"{base}/rx_bytes", f"{base}/tx_bytes"]),
                              capture_output=True, text=True, check=True).stdout.split()
         return {"rx_bytes": int(out[0]), "tx_bytes": int(out[1])}

@@ -261,6 +261,8 @@ def display_colors(led_colors: np.ndarray) -> np.ndarray:
     c = c if c.dtype == np.uint8 else c.astype(np.uint8)
     if c.ndim == 2 and c.shape[1] == 3:
         return c
+    if c.ndim == 3 and c.shape[1] == 0 and c.shape[2] == 3:    # robots without LEDs (TurtleBot 3)
+        return np.zeros((len(c), 3), dtype=np.uint8)
     if c.ndim != 3 or c.shape[2] != 3 or c.shape[1] == 0:
         raise ValueError(f"led_colors must be [n, L, 3] or [n, 3], got shape {c.shape}")
     lit = (c[..., 0] | c[..., 1] | c[..., 2]) != 0               # [n, L]; faster than any(axis=2)

@@ -162,7 +162,7 @@ class Simulation:
         self.wheel_actuator = WheelActuator(noise, self._rngs["wheels"])
         self._wheel_sensor_noise = tuple(np.array([getattr(w, f) for w in wheels], dtype=np.float64).reshape(self.n)
                                          for f in ("velocity_noise_mps", "distance_noise_m"))
-        pos_cfg = [world.robots[g].devices.positioning for g in world.group_of_robot()]
+        pos_cfg = [world.robots[g].devices.config("positioning") for g in world.group_of_robot()]
         self._pose_noise = tuple(np.array([getattr(c, f) for c in pos_cfg], dtype=np.float64).reshape(self.n)
                                  for f in ("position_noise_m", "yaw_noise_rad"))
         self._applied = (np.zeros(self.n), np.zeros(self.n))   # wheel speeds acting now (after noise)

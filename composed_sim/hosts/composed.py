@@ -18,7 +18,7 @@ from composed_sim.hosts.callback_guard import CallbackGuard
 from composed_sim.hosts.controllers import EXECUTORS, HostError, create_controller, make_executor
 from composed_sim.hosts.lockstep import LoopResult, TickObserver, run_lockstep
 from composed_sim.ros import contract as c
-from composed_sim.ros.simulator_node import SimulatorNode
+from composed_sim.ros.simulator_node import SimulatorNode, robot_devices
 from composed_sim.world.schema import World
 
 DISCOVERY_TIMEOUT_S = 60.0
@@ -57,7 +57,9 @@ class ComposedHost:
             rclpy.init(context=self.context, domain_id=self.domain_id)
             lockstep = self.world.lockstep
             self.sim_node = SimulatorNode(self.sim.names, self.sim.models, context=self.context,
-                                          tick_ns=self.world.tick_ns, lockstep=lockstep)
+                                          tick_ns=self.world.tick_ns, lockstep=lockstep,
+                                          devices=robot_devices(self.world),
+                                          rab_payload_bytes=self.world.range_and_bearing.payload_bytes)
             self.guard = CallbackGuard(self.sim_node, lockstep.watchdog_s, lockstep.unresponsive_s)
             self.sim_node.on_failed.append(self.guard.stop_worker)
             self.executor = make_executor(self.executor_kind, self.context)

@@ -12,7 +12,9 @@ from rclpy.type_description_service import START_TYPE_DESCRIPTION_SERVICE_PARAM
 
 from composed_sim import plugins
 from composed_sim.ros import contract as c
-from composed_sim.ros.controller import PARAM_ROBOT_MODEL, PARAM_RUN_SEED
+from composed_sim.core.robot_models import RANGE_AND_BEARING, get_model
+from composed_sim.ros.controller import (PARAM_RAB_PAYLOAD_BYTES, PARAM_ROBOT_MODEL, PARAM_RUN_SEED,
+                                         PARAM_SENSOR_TOPICS)
 from composed_sim.ros.lockstep_executor import LockstepExecutor
 from composed_sim.ros.simulator_node import quiet_node_options
 from composed_sim.world.schema import World
@@ -41,7 +43,12 @@ def make_executor(kind: str, context: Context) -> Executor:
 def controller_parameters(world: World, group_index: int) -> list[Parameter]:
     group = world.robots[group_index]
     params = [Parameter(k, value=v) for k, v in group.params.items()]
-    return params + [Parameter(PARAM_ROBOT_MODEL, value=group.model), Parameter(PARAM_RUN_SEED, value=world.seed)]
+    devices = group.devices.published(get_model(group.model))
+    sensors = [t.name for t in c.robot_topics(devices) if t.direction == "sensor"]
+    rab_bytes = world.range_and_bearing.payload_bytes if RANGE_AND_BEARING in devices else 0
+    return params + [Parameter(PARAM_ROBOT_MODEL, value=group.model), Parameter(PARAM_RUN_SEED, value=world.seed),
+                     Parameter(PARAM_SENSOR_TOPICS, Parameter.Type.STRING_ARRAY, sensors),
+                     Parameter(PARAM_RAB_PAYLOAD_BYTES, value=rab_bytes)]
 
 
 class ContractViolation(Exception):
@@ -81,7 +88,8 @@ def create_controller(cls: type[Node], name: str, world: World, group_index: int
                                   ("robots", group_index, "controller")) from e
     unknown = [k for k in group.params if not node.has_parameter(k)]
     if unknown:
-        plumbing = ("use_sim_time", PARAM_ROBOT_MODEL, PARAM_RUN_SEED, START_TYPE_DESCRIPTION_SERVICE_PARAM)
+        plumbing = ("use_sim_time", PARAM_ROBOT_MODEL, PARAM_RUN_SEED, PARAM_SENSOR_TOPICS,
+                    PARAM_RAB_PAYLOAD_BYTES, START_TYPE_DESCRIPTION_SERVICE_PARAM)
         declared = sorted(p for p in node._parameters if p not in plumbing)
         node.destroy_node()
         raise plugins.PluginError(f"robots[{group_index}].params: controller {group.controller!r} has no "

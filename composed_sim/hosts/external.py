@@ -28,7 +28,7 @@ from composed_sim.hosts.robot_ranges import format_ranges
 from composed_sim.hosts.shard_announce import ShardInfo, ShardRegistry, world_fingerprint
 from composed_sim.ros import contract as c
 from composed_sim.ros.lockstep_executor import LockstepExecutor
-from composed_sim.ros.simulator_node import SimulatorNode
+from composed_sim.ros.simulator_node import SimulatorNode, robot_devices
 from composed_sim.world.schema import World
 
 GONE_REASON = "its shard is gone (no cmd_vel publisher left)"
@@ -63,7 +63,9 @@ class ExternalControllersHost:
             self._context = Context()
             rclpy.init(context=self._context, domain_id=self.domain_id)
             self.sim_node = SimulatorNode(self.sim.names, self.sim.models, context=self._context,
-                                          tick_ns=self.world.tick_ns, lockstep=self.world.lockstep)
+                                          tick_ns=self.world.tick_ns, lockstep=self.world.lockstep,
+                                          devices=robot_devices(self.world),
+                                          rab_payload_bytes=self.world.range_and_bearing.payload_bytes)
             endpoints = _endpoints_by_topic(self.sim_node)
             self._cmd_subs = [endpoints[c.topic_name(name, c.CMD_VEL)] for name in self.sim.names]
             self._registry = ShardRegistry(self._context, self.sim.n)

@@ -84,6 +84,7 @@ class Exchange(Protocol):
     def close_tick(self, fallback: str, previous: tuple[np.ndarray, np.ndarray],
                    commands: tuple[np.ndarray, np.ndarray]) -> None: ...
     def take_led_commands(self) -> dict[int, np.ndarray]: ...
+    def take_rab_payloads(self) -> dict[int, np.ndarray]: ...
 
 
 def run_lockstep(sim: Simulation, exchange: Exchange, wait_for_answers: Callable[[float], bool],
@@ -115,6 +116,8 @@ def run_lockstep(sim: Simulation, exchange: Exchange, wait_for_answers: Callable
             exchange.close_tick(lockstep.fallback, previous, commands)
             for robot, colors in exchange.take_led_commands().items():
                 sim.set_led_colors(robot, colors)
+            for robot, payload in exchange.take_rab_payloads().items():
+                sim.set_rab_payload(robot, payload)
             times.ros_exchange_s += time.perf_counter() - t0
             sim.set_velocity_commands(*commands)
             previous = commands

@@ -40,7 +40,7 @@ from composed_sim.hosts.domains import DomainError, assign_domains
 from composed_sim.hosts.lockstep import LoopResult, TickObserver, run_lockstep
 from composed_sim.ros import contract as c
 from composed_sim.ros.lockstep_executor import LockstepExecutor
-from composed_sim.ros.simulator_node import SimulatorNode, Violation
+from composed_sim.ros.simulator_node import SimulatorNode, Violation, robot_devices
 from composed_sim.world.loader import dump_world
 from composed_sim.world.schema import World
 
@@ -147,6 +147,12 @@ class DomainExchange:
             out.update(node.take_led_commands())
         return out
 
+    def take_rab_payloads(self) -> dict[int, np.ndarray]:
+        out: dict[int, np.ndarray] = {}
+        for node in self.nodes:
+            out.update(node.take_rab_payloads())
+        return out
+
 
 class MultiProcessHost:
     """Context manager: the per-domain contexts and simulator nodes, and one child process per
@@ -194,6 +200,7 @@ class MultiProcessHost:
             world_file = self._tmp / "world.yaml"
             world_file.write_text(dump_world(self.world), encoding="utf-8")
             tick_ns, lockstep = self.world.tick_ns, self.world.lockstep
+            devices = robot_devices(self.world)
             for d in sorted(set(self.domains.values())):
                 rows = [i for i, name in enumerate(self.sim.names) if self.domains[name] == d]
                 context = Context()
@@ -202,7 +209,9 @@ class MultiProcessHost:
                 self._nodes[d] = SimulatorNode([self.sim.names[i] for i in rows],
                                                [self.sim.models[i] for i in rows], context=context,
                                                tick_ns=tick_ns, rows=np.array(rows, dtype=int),
-                                               node_name=f"composed_sim_d{d}", lockstep=lockstep)
+                                               node_name=f"composed_sim_d{d}", lockstep=lockstep,
+                                               devices=[devices[i] for i in rows],
+                                               rab_payload_bytes=self.world.range_and_bearing.payload_bytes)
                 self._nodes[d].on_failed.append(self._stop_failed)
             self.exchange = DomainExchange(list(self._nodes.values()), self._check_children)
             with _InterruptWatch() as interrupts:

@@ -13,10 +13,24 @@ sensors, published by the simulator once per tick, stamped with the tick's sim t
   /<r>/light      sensor_msgs/LaserScan    light ring: intensities = reading in [0, 1], no ranges
   /<r>/blobs      sensor_msgs/PointCloud2  coloured blobs: x, y of the seen LED in base_link (m,
                                            z = 0: the camera is planar), rgb 0x00RRGGBB (uint32)
+  /<r>/ground     sensor_msgs/PointCloud2  ground sensors: x, y of each sensor in base_link (m),
+                                           intensity = floor grey level in [0, 1] (float32)
+  /<r>/scan       sensor_msgs/LaserScan    LiDAR, frame <r>/base_scan (the model's mount): ranges (m,
+                                           REP-117: +inf nothing within range_max, -inf too close)
+  /<r>/rab_rx     sensor_msgs/PointCloud2  range-and-bearing messages heard this tick, one point per
+                                           sender: x, y, z (m, base_link), range (m), bearing,
+                                           elevation (rad) float32; payload uint8 × payload_bytes
+  /<r>/pose       geometry_msgs/PoseStamped  positioning: ground truth in frame "world"
+  /<r>/odom       nav_msgs/Odometry        wheel odometry: pose in <r>/odom, twist in <r>/base_link
+  /<r>/wheels     sensor_msgs/JointState   differential steering sensor: wheel_left_joint,
+                                           wheel_right_joint; position rad since start, velocity rad/s
+  A robot has the sensor topics of the devices it runs (the world file's robots[i].devices).
 actuators, published by the controller:
   /<r>/cmd_vel    geometry_msgs/TwistStamped  linear.x (m/s), angular.z (rad/s); header.stamp = the
                                            stamp of the sensor tick it answers (the lockstep answer)
   /<r>/leds       std_msgs/UInt8MultiArray LED colours, [n_leds, 3] RGB, ring LEDs then beacon
+  /<r>/rab_tx     std_msgs/UInt8MultiArray range-and-bearing payload (payload_bytes bytes), broadcast
+                                           from the next tick on, kept until changed
 global:
   /clock          rosgraph_msgs/Clock      sim time, once per tick
   /swarm/state    sensor_msgs/PointCloud2  (recordings) one point per robot: x, y, z, yaw, rgb, id
@@ -31,12 +45,14 @@ from typing import Container, Optional, Sequence
 import numpy as np
 from builtin_interfaces.msg import Time
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
-from geometry_msgs.msg import TwistStamped
+from geometry_msgs.msg import PoseStamped, TwistStamped
+from nav_msgs.msg import Odometry
 from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import LaserScan, PointCloud2, PointField
+from sensor_msgs.msg import JointState, LaserScan, PointCloud2, PointField
 from std_msgs.msg import MultiArrayDimension, UInt8MultiArray
 
-from composed_sim.core.robot_models import RobotModel
+from composed_sim.core import robot_models as devices
+from composed_sim.core.robot_models import Lidar, RobotModel
 from composed_sim.ros import cdr
 
 
@@ -62,14 +78,46 @@ CMD_VEL = Topic("cmd_vel", TwistStamped, "actuator",
 LEDS = Topic("leds", UInt8MultiArray, "actuator",
              "LED colours: data = [n_leds × 3] RGB bytes, ring LEDs first, beacon last; "
              "kept until changed")
+GROUND_SENSORS = Topic("ground", PointCloud2, "sensor",
+                       "ground sensors: one point per sensor, x/y its position in base_link (m, z = 0), "
+                       "intensity = the floor's grey level under it in [0, 1] (float32)")
+SCAN = Topic("scan", LaserScan, "sensor",
+             "LiDAR in frame <r>/base_scan (the model's mount): ranges in m, REP-117 (+inf: nothing "
+             "within range_max, -inf: closer than range_min); angle_min/increment give the rays")
+RAB_RX = Topic("rab_rx", PointCloud2, "sensor",
+               "range-and-bearing messages heard this tick, one point per sender: x/y/z of its "
+               "emitter in base_link (m), range (m), bearing (horizontal, rad), elevation (vertical "
+               "bearing, rad), float32; payload = its bytes (uint8, count = payload_bytes)")
+POSE = Topic("pose", PoseStamped, "sensor",
+             "positioning sensor: the robot's ground-truth pose in the world frame")
+ODOM = Topic("odom", Odometry, "sensor",
+             "wheel odometry: pose in <r>/odom (the start pose is the identity), child_frame_id "
+             "<r>/base_link, twist (linear.x m/s, angular.z rad/s) in base_link")
+WHEELS = Topic("wheels", JointState, "sensor",
+               "differential steering sensor: joints wheel_left_joint, wheel_right_joint; position = "
+               "wheel angle since the start (rad), velocity = wheel speed (rad/s)")
+RAB_TX = Topic("rab_tx", UInt8MultiArray, "actuator",
+               "range-and-bearing payload: data = exactly payload_bytes bytes, broadcast from the next "
+               "tick on (heard one tick later), kept until changed")
 
 # Reliable and a few ticks deep, for sensors and commands alike: in lockstep a controller reads
 # every tick before the next is published, and an outside monitor still sees every message.
 QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
 
-SENSOR_TOPICS: tuple[Topic, ...] = (PROXIMITY, LIGHT, BLOBS)
-ACTUATOR_TOPICS: tuple[Topic, ...] = (CMD_VEL, LEDS)
+SENSOR_TOPICS: tuple[Topic, ...] = (PROXIMITY, LIGHT, BLOBS, GROUND_SENSORS, SCAN, RAB_RX, POSE, ODOM, WHEELS)
+ACTUATOR_TOPICS: tuple[Topic, ...] = (CMD_VEL, LEDS, RAB_TX)
 TOPICS: dict[str, Topic] = {t.name: t for t in SENSOR_TOPICS + ACTUATOR_TOPICS}
+# The topics each device gives a robot that runs it (cmd_vel and leds: every robot).
+DEVICE_TOPICS: dict[str, tuple[Topic, ...]] = {
+    devices.PROXIMITY: (PROXIMITY,), devices.LIGHT: (LIGHT,), devices.CAMERA: (BLOBS,),
+    devices.GROUND: (GROUND_SENSORS,), devices.LIDAR: (SCAN,), devices.RANGE_AND_BEARING: (RAB_RX, RAB_TX),
+    devices.POSITIONING: (POSE,), devices.ODOMETRY: (ODOM,), devices.DIFFERENTIAL_STEERING: (WHEELS,)}
+
+
+def robot_topics(running) -> tuple[Topic, ...]:
+    """The contract topics of a robot running these devices (device names), in TOPICS order."""
+    have = {t.name for d in running for t in DEVICE_TOPICS[d]} | {CMD_VEL.name, LEDS.name}
+    return tuple(t for t in TOPICS.values() if t.name in have)
 CLOCK_TOPIC = "/clock"
 CLOCK_TYPE = Clock
 
@@ -94,6 +142,15 @@ def topic_name(robot: str, topic: Topic) -> str:
 
 def base_link(robot: str) -> str:
     return f"{robot}/base_link"
+
+
+def base_scan(robot: str) -> str:
+    """The LiDAR's frame (TurtleBot 3's name): base_link shifted by the model's lidar mount."""
+    return f"{robot}/base_scan"
+
+
+def odom_frame(robot: str) -> str:
+    return f"{robot}/odom"
 
 
 def type_name(msg_type: type) -> str:
@@ -205,6 +262,173 @@ def twist_stamped(stamp: Time, linear: float, angular: float) -> TwistStamped:
     msg.twist.linear.x = float(linear)
     msg.twist.angular.z = float(angular)
     return msg
+
+
+# Ground sensors: one point per sensor. The positions are fixed; only the intensities change.
+GROUND_DTYPE = np.dtype([("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("intensity", "<f4")])
+GROUND_FIELDS = [
+    PointField(name="x", offset=0, datatype=PointField.FLOAT32, count=1),
+    PointField(name="y", offset=4, datatype=PointField.FLOAT32, count=1),
+    PointField(name="z", offset=8, datatype=PointField.FLOAT32, count=1),
+    PointField(name="intensity", offset=12, datatype=PointField.FLOAT32, count=1),
+]
+
+
+def ground_cloud(robot: str, n_sensors: int) -> PointCloud2:
+    msg = PointCloud2()
+    msg.header.frame_id = base_link(robot)
+    msg.height = 1
+    msg.width = n_sensors
+    msg.fields = GROUND_FIELDS
+    msg.is_bigendian = False
+    msg.point_step = GROUND_DTYPE.itemsize
+    msg.row_step = GROUND_DTYPE.itemsize * n_sensors
+    msg.is_dense = True
+    return msg
+
+
+def ground_points(offsets_m: np.ndarray, readings: np.ndarray) -> np.ndarray:
+    """offsets_m [s, 2] body-frame sensor positions, readings [g, s] grey levels → [g, s] GROUND_DTYPE."""
+    readings = np.asarray(readings)
+    points = np.zeros(readings.shape, dtype=GROUND_DTYPE)
+    points["x"] = np.asarray(offsets_m)[:, 0]
+    points["y"] = np.asarray(offsets_m)[:, 1]
+    points["intensity"] = readings
+    return points
+
+
+def fill_ground(msg: PointCloud2, stamp: Time, points: np.ndarray) -> None:
+    """points: [s] GROUND_DTYPE of one robot."""
+    msg.header.stamp = stamp
+    msg.data = points.tobytes()
+
+
+def lidar_scan_message(lidar: Lidar, robot: str, scan_time_s: float) -> LaserScan:
+    """A LaserScan template for a model's LiDAR (one full scan per tick)."""
+    msg = LaserScan()
+    msg.header.frame_id = base_scan(robot)
+    msg.angle_min = float(lidar.angle_min_rad)
+    msg.angle_max = float(lidar.angle_max_rad)
+    msg.angle_increment = float(lidar.angle_increment_rad)
+    msg.scan_time = float(scan_time_s)
+    msg.range_min = float(lidar.min_range_m)
+    msg.range_max = float(lidar.max_range_m)
+    return msg
+
+
+def fill_scan(msg: LaserScan, stamp: Time, ranges: np.ndarray) -> None:
+    """ranges: [r] m for one robot (float32 already is cheapest: cast once per group)."""
+    msg.header.stamp = stamp
+    msg.ranges = array.array("f", ranges.astype(np.float32, copy=False).tobytes())
+
+
+def rab_dtype(payload_bytes: int) -> np.dtype:
+    """One range-and-bearing point: emitter position, the ARGoS reading, the payload bytes."""
+    return np.dtype([("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("range", "<f4"), ("bearing", "<f4"),
+                     ("elevation", "<f4"), ("payload", "u1", (payload_bytes,))])
+
+
+def rab_cloud(robot: str, payload_bytes: int) -> PointCloud2:
+    dtype = rab_dtype(payload_bytes)
+    msg = PointCloud2()
+    msg.header.frame_id = base_link(robot)
+    msg.height = 1
+    msg.fields = [PointField(name=name, offset=dtype.fields[name][1], datatype=PointField.FLOAT32, count=1)
+                  for name in ("x", "y", "z", "range", "bearing", "elevation")] + [
+        PointField(name="payload", offset=dtype.fields["payload"][1], datatype=PointField.UINT8,
+                   count=payload_bytes)]
+    msg.is_bigendian = False
+    msg.point_step = dtype.itemsize
+    msg.is_dense = True
+    return msg
+
+
+def rab_points(ranges: np.ndarray, bearings: np.ndarray, elevations: np.ndarray,
+               payloads: np.ndarray) -> np.ndarray:
+    """m messages: ranges, horizontal bearings, vertical bearings [m], payloads [m, B] → [m] points."""
+    payloads = np.asarray(payloads, dtype=np.uint8)
+    points = np.empty(len(ranges), dtype=rab_dtype(payloads.shape[1]))
+    planar = ranges * np.cos(elevations)
+    points["x"] = planar * np.cos(bearings)
+    points["y"] = planar * np.sin(bearings)
+    points["z"] = ranges * np.sin(elevations)
+    points["range"] = ranges
+    points["bearing"] = bearings
+    points["elevation"] = elevations
+    points["payload"] = payloads
+    return points
+
+
+def fill_rab(msg: PointCloud2, stamp: Time, points: np.ndarray) -> None:
+    """points: one robot's rab_points."""
+    msg.header.stamp = stamp
+    msg.width = len(points)
+    msg.row_step = msg.point_step * len(points)
+    msg.data = points.tobytes()
+
+
+def rab_payload_message(data) -> UInt8MultiArray:
+    """A payload (bytes or [B] uint8) as the rab_tx message."""
+    payload = np.frombuffer(bytes(data), dtype=np.uint8) if isinstance(data, (bytes, bytearray)) \
+        else np.asarray(data, dtype=np.uint8).reshape(-1)
+    msg = UInt8MultiArray()
+    msg.layout.dim = [MultiArrayDimension(label="byte", size=payload.size, stride=payload.size)]
+    msg.data = payload.tobytes()
+    return msg
+
+
+def pose_stamped(robot: str) -> PoseStamped:
+    """Positioning template: frame "world" (the robot is in the header's child: its namespace)."""
+    msg = PoseStamped()
+    msg.header.frame_id = WORLD_FRAME
+    return msg
+
+
+def fill_pose(msg: PoseStamped, stamp: Time, x: float, y: float, qz: float, qw: float) -> None:
+    """A planar pose: position (x, y, 0), orientation (0, 0, qz, qw); Python floats."""
+    msg.header.stamp = stamp
+    p, q = msg.pose.position, msg.pose.orientation
+    p.x, p.y = x, y
+    q.z, q.w = qz, qw
+
+
+def odometry_message(robot: str) -> Odometry:
+    msg = Odometry()
+    msg.header.frame_id = odom_frame(robot)
+    msg.child_frame_id = base_link(robot)
+    return msg
+
+
+def fill_odometry(msg: Odometry, stamp: Time, x: float, y: float, qz: float, qw: float,
+                  linear: float, angular: float) -> None:
+    """Pose (x, y, yaw as qz/qw) in odom, twist (v, ω) in base_link; Python floats."""
+    msg.header.stamp = stamp
+    p, q, t = msg.pose.pose.position, msg.pose.pose.orientation, msg.twist.twist
+    p.x, p.y = x, y
+    q.z, q.w = qz, qw
+    t.linear.x, t.angular.z = linear, angular
+
+
+WHEEL_JOINTS = ("wheel_left_joint", "wheel_right_joint")   # TurtleBot 3's joint names
+
+
+def joint_state(robot: str) -> JointState:
+    msg = JointState()
+    msg.header.frame_id = base_link(robot)
+    msg.name = list(WHEEL_JOINTS)
+    return msg
+
+
+def fill_wheels(msg: JointState, stamp: Time, angles_rad: np.ndarray, velocities_radps: np.ndarray) -> None:
+    """[2] (left, right) wheel angles since the start and wheel speeds, of one robot."""
+    msg.header.stamp = stamp
+    msg.position = array.array("d", angles_rad.astype(np.float64, copy=False).tobytes())
+    msg.velocity = array.array("d", velocities_radps.astype(np.float64, copy=False).tobytes())
+
+
+def half_yaw(yaws: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """[n] yaws → (qz, qw) [n] each of the planar quaternions."""
+    return np.sin(0.5 * yaws), np.cos(0.5 * yaws)
 
 
 # --- decoding (controller side): arrays, never raw fields -----------------------------------
@@ -322,6 +546,75 @@ def decode_leds(msg: UInt8MultiArray, n_leds: int) -> np.ndarray:
     if data.size != 3 * n_leds:
         raise ValueError(f"leds message has {data.size} bytes, expected {3 * n_leds} ({n_leds} LEDs × RGB)")
     return data.reshape(n_leds, 3)
+
+
+def decode_ground(msg: PointCloud2) -> np.ndarray:
+    """→ [s] grey levels in [0, 1], in the model's sensor order."""
+    return np.frombuffer(msg.data, dtype=GROUND_DTYPE, count=msg.width)["intensity"].astype(float)
+
+
+def decode_scan(msg: LaserScan) -> np.ndarray:
+    """→ [r] ranges in m from the scanner (±inf per REP-117)."""
+    return np.frombuffer(msg.ranges, dtype=np.float32).astype(float)
+
+
+def scan_angles(msg: LaserScan) -> np.ndarray:
+    """[r] ray angles of a scan, rad in its frame."""
+    return msg.angle_min + msg.angle_increment * np.arange(len(msg.ranges))
+
+
+@dataclass(frozen=True)
+class RabMessages:
+    """The range-and-bearing messages one robot heard in a tick (one per sender, no sender id)."""
+    ranges: np.ndarray      # [m] m, emitter to emitter
+    bearings: np.ndarray    # [m] rad, horizontal, relative to the heading, CCW
+    elevations: np.ndarray  # [m] rad, vertical bearing
+    payloads: np.ndarray    # [m, B] uint8
+
+    def __len__(self) -> int:
+        return len(self.ranges)
+
+
+def decode_rab(msg: PointCloud2) -> RabMessages:
+    fields = {f.name: f for f in msg.fields}
+    payload = fields.get("payload")
+    if payload is None:
+        raise ValueError("rab_rx message has no 'payload' field")
+    points = np.frombuffer(msg.data, dtype=rab_dtype(payload.count), count=msg.width)
+    return RabMessages(points["range"].astype(float), points["bearing"].astype(float),
+                       points["elevation"].astype(float), points["payload"].copy())
+
+
+def decode_rab_payload(msg: UInt8MultiArray, payload_bytes: int) -> np.ndarray:
+    """→ [B] uint8; ValueError when the message does not carry exactly payload_bytes bytes."""
+    data = np.frombuffer(msg.data, dtype=np.uint8)
+    if data.size != payload_bytes:
+        raise ValueError(f"rab_tx message has {data.size} bytes, expected {payload_bytes} "
+                         f"(range_and_bearing.payload_bytes of the world file)")
+    return data
+
+
+def yaw_of(qz: float, qw: float) -> float:
+    """Yaw of a planar quaternion (0, 0, qz, qw)."""
+    return 2.0 * np.arctan2(qz, qw)
+
+
+def decode_pose(msg: PoseStamped) -> np.ndarray:
+    """→ [3] x, y (m), yaw (rad) in the world frame."""
+    p, q = msg.pose.position, msg.pose.orientation
+    return np.array([p.x, p.y, yaw_of(q.z, q.w)])
+
+
+def decode_odometry(msg: Odometry) -> tuple[np.ndarray, np.ndarray]:
+    """→ pose [3] x, y, yaw in odom; twist [2] linear (m/s), angular (rad/s) in base_link."""
+    p, q, t = msg.pose.pose.position, msg.pose.pose.orientation, msg.twist.twist
+    return np.array([p.x, p.y, yaw_of(q.z, q.w)]), np.array([t.linear.x, t.angular.z])
+
+
+def decode_wheels(msg: JointState, wheel_radius_m: float) -> tuple[np.ndarray, np.ndarray]:
+    """→ (left, right) wheel speeds [2] m/s, and wheel travel since the start [2] m."""
+    return (np.frombuffer(msg.velocity, dtype=np.float64) * wheel_radius_m,
+            np.frombuffer(msg.position, dtype=np.float64) * wheel_radius_m)
 
 
 def wheel_speeds(linear: float, angular: float, model: RobotModel) -> tuple[float, float]:

@@ -11,14 +11,19 @@ from typing import Optional
 import numpy as np
 from builtin_interfaces.msg import Time
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 
 from composed_sim.core.robot_models import RobotModel, get_model
 from composed_sim.core.seeding import robot_rng
 from composed_sim.ros import cdr, contract as c
 
+_TAKEN_AS_BYTES = ("proximity", "light", "blobs")   # the sensors with decoders of their bytes
+
 # Parameters every hosted controller is given (a plain Node may ignore them).
 PARAM_ROBOT_MODEL = "robot_model"
 PARAM_RUN_SEED = "run_seed"
+PARAM_SENSOR_TOPICS = "sensor_topics"          # the robot's sensor topics (its devices, per the world)
+PARAM_RAB_PAYLOAD_BYTES = "rab_payload_bytes"  # its range-and-bearing payload size; 0: no such device
 
 
 @dataclass
@@ -30,6 +35,14 @@ class Tick:
     proximity_distances: Optional[np.ndarray] = None  # [k] m from the rim, inf = nothing
     light: Optional[np.ndarray] = None                # [k] readings in [0, 1]
     blobs: Optional[c.Blobs] = None
+    ground: Optional[np.ndarray] = None               # [s] floor grey levels in [0, 1]
+    scan: Optional[np.ndarray] = None                 # [r] LiDAR ranges, m from the mount (±inf: REP-117)
+    rab: Optional[c.RabMessages] = None               # range-and-bearing messages heard this tick
+    pose: Optional[np.ndarray] = None                 # [3] x, y (m), yaw (rad) in the world frame
+    odom: Optional[np.ndarray] = None                 # [3] x, y, yaw in the robot's odom frame
+    odom_twist: Optional[np.ndarray] = None           # [2] linear m/s, angular rad/s
+    wheel_speeds: Optional[np.ndarray] = None         # [2] left, right m/s
+    wheel_distances: Optional[np.ndarray] = None      # [2] left, right m covered in the last tick
 
 
 class SwarmController(Node):
@@ -50,21 +63,24 @@ class SwarmController(Node):
         seed = self.declare_parameter(PARAM_RUN_SEED, 0).value
         self.model: RobotModel = get_model(model_name)
         self.rng = robot_rng(seed, self.robot)
-        self.proximity_angles = np.asarray(self.model.proximity.angles_rad)
-        self.light_angles = np.asarray(self.model.light.angles_rad)
+        # Empty for a model without the ring (e.g. the TurtleBot 3 has neither).
+        self.proximity_angles = np.asarray(self.model.proximity.angles_rad if self.model.proximity else ())
+        self.light_angles = np.asarray(self.model.light.angles_rad if self.model.light else ())
         self._leds = np.zeros((self.model.n_leds, 3), dtype=np.uint8)
         self._leds_dirty = False
-        self._pending: dict[str, bytes] = {}
+        self._pending: dict[str, object] = {}
         self._pending_key = -1
-        # Sensors are taken and answers published as serialized bytes, decoded straight into
-        # arrays (cdr.py): the same messages, without building Python message objects.
+        # The flocking set of sensors is taken, and answers are published, as serialized bytes
+        # decoded straight into arrays (cdr.py): the same messages, without building Python
+        # message objects. The other devices' messages arrive as objects.
         for name in self.sensors:
             topic = c.TOPICS[name]
-            self.create_subscription(topic.msg_type, topic.name,
-                                     lambda data, name=name: self._on_sensor(name, data), c.QOS, raw=True)
+            self.create_subscription(topic.msg_type, topic.name, lambda data, name=name: self._on_sensor(name, data),
+                                     c.QOS, raw=name in _TAKEN_AS_BYTES)
         self._cmd_pub = self.create_publisher(c.CMD_VEL.msg_type, c.CMD_VEL.name, c.QOS)
         self._answer_encoder = c.answer_encoder()
         self._led_pub = self.create_publisher(c.LEDS.msg_type, c.LEDS.name, c.QOS)
+        self._init_devices()
 
     # --- for subclasses ---------------------------------------------------------------------
 
@@ -81,8 +97,8 @@ class SwarmController(Node):
 
     # --- the tick exchange ------------------------------------------------------------------
 
-    def _on_sensor(self, name: str, data: bytes) -> None:
-        key = cdr.stamp_ns(data)
+    def _on_sensor(self, name: str, data) -> None:
+        key = cdr.stamp_ns(data) if name in _TAKEN_AS_BYTES else c.stamp_key(data.header.stamp)
         if key != self._pending_key:     # a new tick: whatever was left of an older one is stale
             self._pending.clear()
             self._pending_key = key
@@ -100,8 +116,76 @@ class SwarmController(Node):
             tick.light = c.decode_light_cdr(msgs["light"])
         if "blobs" in msgs:
             tick.blobs = c.decode_blobs_cdr(msgs["blobs"])
+        if self._device_sensors:
+            self._decode_devices(msgs, tick)
         linear, angular = self.on_tick(tick)
         if self._leds_dirty:   # before the answer, so the change lands on the same tick
             self._led_pub.publish(c.led_message(self._leds))
             self._leds_dirty = False
+        if self._rab_msg is not None:   # before the answer too: broadcast from the next tick on
+            self._rab_pub.publish(self._rab_msg)
+            self._rab_msg = None
         self._cmd_pub.publish(self._answer_encoder.encode(sec, nanosec, float(linear), float(angular)))
+
+    # --- devices beyond the flocking set (ground, LiDAR, range and bearing, pose, odometry, wheels) ---
+
+    def _init_devices(self) -> None:
+        """Check the declared sensors against the robot's topics; the range-and-bearing sender."""
+        topics = self.declare_parameter(PARAM_SENSOR_TOPICS, Parameter.Type.STRING_ARRAY).value
+        missing = [s for s in self.sensors if topics is not None and s not in topics]
+        if missing:
+            raise ValueError(f"{type(self).__name__} needs the sensor topic(s) {', '.join(missing)}, which "
+                             f"{self.robot} (a {self.model.name}) does not have; its sensor topics: "
+                             f"{', '.join(topics) or 'none'}. Switch the device on in the world file "
+                             f"(robots[i].devices)")
+        unknown = [s for s in self.sensors if s not in c.TOPICS or c.TOPICS[s].direction != "sensor"]
+        if unknown:
+            raise ValueError(f"{type(self).__name__}.sensors: {', '.join(map(repr, unknown))} is no sensor "
+                             f"topic; known: {', '.join(t.name for t in c.SENSOR_TOPICS)}")
+        self.rab_payload_bytes: int = self.declare_parameter(PARAM_RAB_PAYLOAD_BYTES, 0).value
+        self._rab_pub = (self.create_publisher(c.RAB_TX.msg_type, c.RAB_TX.name, c.QOS)
+                         if self.rab_payload_bytes > 0 else None)
+        self._rab_msg = None
+        #: [r] LiDAR ray angles in the scanner's frame (None without a LiDAR).
+        self.scan_angles = self.model.lidar.angles_array() if self.model.lidar is not None else None
+        self._device_sensors = tuple(s for s in self.sensors if s in _DEVICE_DECODERS)
+        self._wheel_travel = np.zeros(2)
+
+    def send_rab(self, data) -> None:
+        """Broadcast ``data`` (bytes or uint8 values, at most rab_payload_bytes; zero-padded) with
+        the next answer: neighbours in range hear it from the next tick on, until it changes."""
+        if self._rab_pub is None:
+            raise ValueError(f"{self.robot} has no range_and_bearing device (switch it on in the world file)")
+        payload = np.frombuffer(bytes(data), dtype=np.uint8) if isinstance(data, (bytes, bytearray)) \
+            else np.asarray(data).reshape(-1)
+        if payload.size > self.rab_payload_bytes or (payload.size and (payload.min() < 0 or payload.max() > 255)):
+            raise ValueError(f"a range-and-bearing payload is at most {self.rab_payload_bytes} bytes "
+                             f"(range_and_bearing.payload_bytes), got {payload.tolist()}")
+        padded = np.zeros(self.rab_payload_bytes, dtype=np.uint8)
+        padded[:payload.size] = payload
+        self._rab_msg = c.rab_payload_message(padded)
+
+    def _decode_devices(self, msgs: dict, tick: Tick) -> None:
+        for name in self._device_sensors:
+            msg = msgs.get(name)
+            if msg is not None:
+                _DEVICE_DECODERS[name](self, msg, tick)
+
+    def _decode_wheels(self, msg, tick: Tick) -> None:
+        tick.wheel_speeds, travel = c.decode_wheels(msg, self.model.wheel_radius_m)
+        tick.wheel_distances = travel - self._wheel_travel
+        self._wheel_travel = travel
+
+
+def _set_odom(node: SwarmController, msg, tick: Tick) -> None:
+    tick.odom, tick.odom_twist = c.decode_odometry(msg)
+
+
+_DEVICE_DECODERS = {
+    c.GROUND_SENSORS.name: lambda node, msg, tick: setattr(tick, "ground", c.decode_ground(msg)),
+    c.SCAN.name: lambda node, msg, tick: setattr(tick, "scan", c.decode_scan(msg)),
+    c.RAB_RX.name: lambda node, msg, tick: setattr(tick, "rab", c.decode_rab(msg)),
+    c.POSE.name: lambda node, msg, tick: setattr(tick, "pose", c.decode_pose(msg)),
+    c.ODOM.name: _set_odom,
+    c.WHEELS.name: SwarmController._decode_wheels,
+}

@@ -9,7 +9,7 @@ import math
 import threading
 import time
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Callable, Optional, Protocol, Sequence
+from typing import TYPE_CHECKING, Callable, Collection, Optional, Protocol, Sequence
 
 import numpy as np
 from rclpy.context import Context
@@ -20,8 +20,9 @@ from rclpy.type_description_service import START_TYPE_DESCRIPTION_SERVICE_PARAM
 from rclpy.time import Time as RosTime
 from rosgraph_msgs.msg import Clock
 
-from composed_sim.core.robot_models import RobotModel
-from composed_sim.world.schema import Lockstep
+from composed_sim.core.robot_models import (CAMERA, DIFFERENTIAL_STEERING, GROUND, LIDAR, LIGHT, ODOMETRY,
+                                            POSITIONING, PROXIMITY, RANGE_AND_BEARING, RobotModel, get_model)
+from composed_sim.world.schema import Lockstep, World
 if TYPE_CHECKING:   # only a type here: a controller process must not import the physics
     from composed_sim.core.simulation import SensorFrame
 from composed_sim.ros import contract as c
@@ -35,6 +36,18 @@ class MessageTap(Protocol):
 
 FAILED = "controller failed: "    # how the one violation that fails a robot begins
 LATE_LEDS = "leds answering an earlier tick arrived after that tick closed: applied one tick late"
+LATE_RAB = "rab_tx answering an earlier tick arrived after that tick closed: applied one tick late"
+
+
+@dataclass
+class _GroupPlan:
+    """This node's robots of one robot group, for publishing from ``frame.groups[group]``."""
+    group: int
+    pairs: list[tuple[int, int]]   # (index among this node's robots, row in the group's arrays)
+    rows: np.ndarray               # [k] their simulation rows
+    local: np.ndarray              # [k] their indices among this node's robots
+    within: np.ndarray             # [k] their rows in the group's arrays
+    devices: frozenset[str]        # what the group runs (the same for all its robots)
 
 
 @dataclass
@@ -42,6 +55,12 @@ class Violation:
     tick: int
     robot: str
     reason: str
+
+
+def robot_devices(world: World) -> list[tuple[str, ...]]:
+    """Per robot of ``world`` (in robot order): the devices whose topics it has."""
+    published = [g.devices.published(get_model(g.model)) for g in world.robots]
+    return [published[g] for g in world.group_of_robot()]
 
 
 def quiet_node_options(parameter_overrides: Sequence[Parameter] = ()) -> dict:
@@ -67,9 +86,12 @@ class SimulatorNode(Node):
 
     def __init__(self, names: list[str], models: list[RobotModel], *, context: Context,
                  tick_ns: int, rows: Optional[np.ndarray] = None, node_name: str = "composed_sim",
-                 lockstep: Optional[Lockstep] = None):
+                 lockstep: Optional[Lockstep] = None, devices: Optional[Sequence[Collection[str]]] = None,
+                 rab_payload_bytes: int = 10):
         """``lockstep``: the world's fault policy (unresponsive_after_s, max_violations); None:
-        robots are never failed for being unresponsive or for their violations."""
+        robots are never failed for being unresponsive or for their violations. ``devices``: per
+        robot, the devices whose topics it has (``Devices.published``; None: each model's
+        defaults). ``rab_payload_bytes``: the world's range_and_bearing.payload_bytes."""
         super().__init__(node_name, context=context, **quiet_node_options())
         self._names = names
         self._index = {name: i for i, name in enumerate(names)}
@@ -87,22 +109,44 @@ class SimulatorNode(Node):
         self._driven_clocks = []
         self._tap: Optional[MessageTap] = None
 
-        # Messages go out and answers come in as serialized bytes (cdr.py: a quarter of the cost).
-        self._proximity_pubs, self._light_pubs, self._blob_pubs = [], [], []
-        self._proximity_enc, self._light_enc, self._blob_enc = [], [], []
-        self._led_subs, self._cmd_subs = [], []
+        self._devices = [frozenset(m.default_devices) for m in models] if devices is None \
+            else [frozenset(d) for d in devices]
+        if len(self._devices) != n:
+            raise ValueError(f"{n} robots but devices for {len(self._devices)}")
+        self._rab_payload_bytes = rab_payload_bytes
+        # Per robot; None where the robot does not run the device. The flocking set's messages go
+        # out as serialized bytes, and answers come in as bytes (cdr.py: a quarter of the cost).
+        self._proximity_pubs, self._light_pubs, self._blob_pubs = [None] * n, [None] * n, [None] * n
+        self._proximity_enc, self._light_enc, self._blob_enc = [None] * n, [None] * n, [None] * n
+        self._device_pubs: dict[str, list] = {t.name: [None] * n for t in c.SENSOR_TOPICS}
+        self._device_msgs: dict[str, list] = {t.name: [None] * n for t in c.SENSOR_TOPICS}
+        self._led_subs, self._cmd_subs, self._rab_subs = [], [], [None] * n
         for i, (name, model) in enumerate(zip(names, models)):
-            self._proximity_pubs.append(self.create_publisher(c.PROXIMITY.msg_type, c.topic_name(name, c.PROXIMITY), c.QOS))
-            self._light_pubs.append(self.create_publisher(c.LIGHT.msg_type, c.topic_name(name, c.LIGHT), c.QOS))
-            self._blob_pubs.append(self.create_publisher(c.BLOBS.msg_type, c.topic_name(name, c.BLOBS), c.QOS))
-            self._proximity_enc.append(c.proximity_encoder(model, name))
-            self._light_enc.append(c.light_encoder(model, name))
-            self._blob_enc.append(c.blobs_encoder(name))
+            has = self._devices[i]
+            if PROXIMITY in has:
+                self._proximity_pubs[i] = self.create_publisher(c.PROXIMITY.msg_type, c.topic_name(name, c.PROXIMITY), c.QOS)
+                self._proximity_enc[i] = c.proximity_encoder(model, name)
+            if LIGHT in has:
+                self._light_pubs[i] = self.create_publisher(c.LIGHT.msg_type, c.topic_name(name, c.LIGHT), c.QOS)
+                self._light_enc[i] = c.light_encoder(model, name)
+            if CAMERA in has:
+                self._blob_pubs[i] = self.create_publisher(c.BLOBS.msg_type, c.topic_name(name, c.BLOBS), c.QOS)
+                self._blob_enc[i] = c.blobs_encoder(name)
+            self._create_device_publishers(i, name, model, has)
             self._cmd_subs.append(self.create_subscription(
                 c.CMD_VEL.msg_type, c.topic_name(name, c.CMD_VEL), lambda data, i=i: self._on_cmd_vel(i, data),
                 c.QOS, raw=True))
             self._led_subs.append(self._inbox.create_subscription(
                 c.LEDS.msg_type, c.topic_name(name, c.LEDS), lambda msg: None, c.QOS))
+            if RANGE_AND_BEARING in has:
+                self._rab_subs[i] = self._inbox.create_subscription(
+                    c.RAB_TX.msg_type, c.topic_name(name, c.RAB_TX), lambda msg: None, c.QOS)
+        # Every sensor publisher of each robot (a robot is connected once any has a subscriber).
+        self._sensor_pubs = [[p for p in (self._proximity_pubs[i], self._light_pubs[i], self._blob_pubs[i],
+                                          *(pubs[i] for pubs in self._device_pubs.values())) if p is not None]
+                             for i in range(n)]
+        self._plans: Optional[list[_GroupPlan]] = None   # built from the first frame's groups
+        self._wheel_angles = np.zeros((n, 2))            # [n, 2] rad since the start, for WHEELS
 
         # Answers to the current tick, written by callbacks (any thread), read by the host.
         self.linear = np.zeros(n)       # [n] m/s
@@ -124,6 +168,24 @@ class SimulatorNode(Node):
         self._current_tick = -1
         self.violations: list[Violation] = []
 
+    def _create_device_publishers(self, i: int, name: str, model: RobotModel, has: frozenset[str]) -> None:
+        """Publishers and reused messages of robot i's devices beyond the proximity/light/camera set."""
+        def add(topic: c.Topic, msg) -> None:
+            self._device_pubs[topic.name][i] = self.create_publisher(topic.msg_type, c.topic_name(name, topic), c.QOS)
+            self._device_msgs[topic.name][i] = msg
+        if GROUND in has:
+            add(c.GROUND_SENSORS, c.ground_cloud(name, len(model.ground.offsets_m)))
+        if LIDAR in has:
+            add(c.SCAN, c.lidar_scan_message(model.lidar, name, self._tick_ns * 1e-9))
+        if RANGE_AND_BEARING in has:
+            add(c.RAB_RX, c.rab_cloud(name, self._rab_payload_bytes))
+        if POSITIONING in has:
+            add(c.POSE, c.pose_stamped(name))
+        if ODOMETRY in has:
+            add(c.ODOM, c.odometry_message(name))
+        if DIFFERENTIAL_STEERING in has:
+            add(c.WHEELS, c.joint_state(name))
+
     def drive_clock_of(self, node: Node) -> None:
         """Set a node's clock to sim time at each tick directly: a hosted node then sees sim time
         without its own /clock subscription (N deliveries per tick); /clock is still published."""
@@ -138,8 +200,11 @@ class SimulatorNode(Node):
         self._tapped = {topic.name: [tap.wants(c.topic_name(name, topic)) for name in self._names]
                         for topic in c.TOPICS.values()}
 
-    def _tap_message(self, topic: c.Topic, i: int, data: bytes, stamp_ns: int) -> None:
+    def _tap_message(self, topic: c.Topic, i: int, data, stamp_ns: int) -> None:
+        """``data``: the message's bytes, or the message."""
         if self._tap is not None and self._tapped[topic.name][i]:
+            if not isinstance(data, bytes):
+                data = serialize_message(data)
             with self._tap_lock:   # answers may arrive on executor worker threads
                 self._tap.write_serialized(c.topic_name(self._names[i], topic), c.type_name(topic.msg_type),
                                            data, stamp_ns)
@@ -206,34 +271,127 @@ class SimulatorNode(Node):
         now = RosTime.from_msg(stamp)
         for clock in self._driven_clocks:
             clock.set_ros_time_override(now)
-        blobs = frame.blobs
-        points = c.blob_points(blobs.angles, blobs.distances, blobs.colors).tobytes()
-        point_size = c.BLOB_DTYPE.itemsize
-        offsets = blobs.offsets
-        proximity, distances, light = frame.proximity, frame.proximity_distances, frame.light
-        sec, nanosec = stamp.sec, stamp.nanosec
         stamp_ns = self._current_key
-        for i, row in enumerate(self.rows):
-            if self.failed[i]:
-                continue
-            data = self._proximity_enc[i].encode(sec, nanosec, proximity[row], distances[row])
-            self._proximity_pubs[i].publish(data)
-            self._tap_message(c.PROXIMITY, i, data, stamp_ns)
-            data = self._light_enc[i].encode(sec, nanosec, light[row])
-            self._light_pubs[i].publish(data)
-            self._tap_message(c.LIGHT, i, data, stamp_ns)
-            first, end = offsets[row], offsets[row + 1]
-            data = self._blob_enc[i].encode(sec, nanosec, points[first * point_size:end * point_size], end - first)
-            self._blob_pubs[i].publish(data)
-            self._tap_message(c.BLOBS, i, data, stamp_ns)
+        sec, nanosec = stamp.sec, stamp.nanosec
+        point_size = c.BLOB_DTYPE.itemsize
+        for plan in self._plans if self._plans is not None else self._make_plans(frame):
+            group = frame.groups[plan.group]
+            distances, proximity, light, blobs = group.proximity_distances, group.proximity, group.light, group.blobs
+            points = None if blobs is None else c.blob_points(blobs.angles, blobs.distances, blobs.colors).tobytes()
+            if proximity is not None or light is not None or blobs is not None:
+                for i, row in plan.pairs:
+                    if self.failed[i]:
+                        continue
+                    if proximity is not None:
+                        data = self._proximity_enc[i].encode(sec, nanosec, proximity[row], distances[row])
+                        self._proximity_pubs[i].publish(data)
+                        self._tap_message(c.PROXIMITY, i, data, stamp_ns)
+                    if light is not None:
+                        data = self._light_enc[i].encode(sec, nanosec, light[row])
+                        self._light_pubs[i].publish(data)
+                        self._tap_message(c.LIGHT, i, data, stamp_ns)
+                    if blobs is not None:
+                        first, end = blobs.offsets[row], blobs.offsets[row + 1]
+                        data = self._blob_enc[i].encode(sec, nanosec, points[first * point_size:end * point_size],
+                                                        end - first)
+                        self._blob_pubs[i].publish(data)
+                        self._tap_message(c.BLOBS, i, data, stamp_ns)
+            self._publish_devices(plan, frame, stamp, stamp_ns)
+
+    def _make_plans(self, frame: SensorFrame) -> list[_GroupPlan]:
+        """Which of this node's robots are in which group of the frame (fixed for a run)."""
+        self._plans = []
+        for gi, g in enumerate(frame.groups):
+            local = np.flatnonzero((self.rows >= g.robots.start) & (self.rows < g.robots.stop))
+            if len(local):
+                within = self.rows[local] - g.robots.start
+                self._plans.append(_GroupPlan(gi, list(zip(local.tolist(), within.tolist())), self.rows[local],
+                                              local, within, self._devices[local[0]]))
+        return self._plans
+
+    # --- devices beyond the flocking set: one helper each, called only for groups running it ----
+
+    def _publish_devices(self, plan: _GroupPlan, frame: SensorFrame, stamp, stamp_ns: int) -> None:
+        has = plan.devices
+        if GROUND in has:
+            self._publish_ground(plan, frame.groups[plan.group].ground, stamp, stamp_ns)
+        if LIDAR in has:
+            self._publish_scan(plan, frame.groups[plan.group].lidar, stamp, stamp_ns)
+        if RANGE_AND_BEARING in has:
+            self._publish_rab(plan, frame.range_and_bearing, stamp, stamp_ns)
+        if POSITIONING in has:
+            self._publish_pose(plan, frame, stamp, stamp_ns)
+        if ODOMETRY in has:
+            self._publish_odometry(plan, frame, stamp, stamp_ns)
+        if DIFFERENTIAL_STEERING in has:
+            self._publish_wheels(plan, frame, stamp, stamp_ns)
+
+    def _send(self, topic: c.Topic, i: int, msg, stamp_ns: int) -> None:
+        self._device_pubs[topic.name][i].publish(msg)
+        self._tap_message(topic, i, msg, stamp_ns)
+
+    def _publish_ground(self, plan: _GroupPlan, ground: np.ndarray, stamp, stamp_ns: int) -> None:
+        offsets = self._models[plan.local[0]].ground.offsets_m
+        points = c.ground_points(offsets, ground[plan.within])     # [k, s], built once per group
+        msgs = self._device_msgs[c.GROUND_SENSORS.name]
+        for k, (i, _) in enumerate(plan.pairs):
+            if not self.failed[i]:
+                c.fill_ground(msgs[i], stamp, points[k])
+                self._send(c.GROUND_SENSORS, i, msgs[i], stamp_ns)
+
+    def _publish_scan(self, plan: _GroupPlan, lidar: np.ndarray, stamp, stamp_ns: int) -> None:
+        ranges = lidar[plan.within].astype(np.float32)             # [k, r], cast once per group
+        msgs = self._device_msgs[c.SCAN.name]
+        for k, (i, _) in enumerate(plan.pairs):
+            if not self.failed[i]:
+                c.fill_scan(msgs[i], stamp, ranges[k])
+                self._send(c.SCAN, i, msgs[i], stamp_ns)
+
+    def _publish_rab(self, plan: _GroupPlan, rab, stamp, stamp_ns: int) -> None:
+        points = c.rab_points(rab.ranges, rab.horizontal_bearings, rab.vertical_bearings, rab.payloads)
+        offsets = rab.offsets
+        msgs = self._device_msgs[c.RAB_RX.name]
+        for i, row in zip(plan.local.tolist(), plan.rows.tolist()):
+            if not self.failed[i]:
+                c.fill_rab(msgs[i], stamp, points[offsets[row]:offsets[row + 1]])
+                self._send(c.RAB_RX, i, msgs[i], stamp_ns)
+
+    def _publish_pose(self, plan: _GroupPlan, frame: SensorFrame, stamp, stamp_ns: int) -> None:
+        xy = frame.pose.positions[plan.rows, :2].tolist()
+        q = frame.pose.quaternions[plan.rows].tolist()          # (x, y, z, w)
+        msgs = self._device_msgs[c.POSE.name]
+        for k, i in enumerate(plan.local.tolist()):
+            if not self.failed[i]:
+                c.fill_pose(msgs[i], stamp, xy[k][0], xy[k][1], q[k][2], q[k][3])
+                self._send(c.POSE, i, msgs[i], stamp_ns)
+
+    def _publish_odometry(self, plan: _GroupPlan, frame: SensorFrame, stamp, stamp_ns: int) -> None:
+        pose = frame.odometry[plan.rows]
+        qz, qw = c.half_yaw(pose[:, 2])
+        values = np.column_stack([pose[:, 0], pose[:, 1], qz, qw, frame.odometry_twist[plan.rows]]).tolist()
+        msgs = self._device_msgs[c.ODOM.name]
+        for k, i in enumerate(plan.local.tolist()):
+            if not self.failed[i]:
+                c.fill_odometry(msgs[i], stamp, *values[k])
+                self._send(c.ODOM, i, msgs[i], stamp_ns)
+
+    def _publish_wheels(self, plan: _GroupPlan, frame: SensorFrame, stamp, stamp_ns: int) -> None:
+        radius = self._models[plan.local[0]].wheel_radius_m
+        self._wheel_angles[plan.local] += frame.wheels.distances_m[plan.rows] / radius
+        angles = self._wheel_angles[plan.local]
+        velocities = frame.wheels.velocities_mps[plan.rows] / radius
+        msgs = self._device_msgs[c.WHEELS.name]
+        for k, i in enumerate(plan.local.tolist()):
+            if not self.failed[i]:
+                c.fill_wheels(msgs[i], stamp, angles[k], velocities[k])
+                self._send(c.WHEELS, i, msgs[i], stamp_ns)
 
     def unmatched_robots(self) -> list[str]:
         """Robots whose controller is not connected yet: no publisher matched on its cmd_vel, or no
         subscriber on any of its sensors. Matched counts are local to each endpoint (O(1))."""
         return [name for i, name in enumerate(self._names)
                 if self._cmd_subs[i].get_publisher_count() < 1
-                or not any(p[i].get_subscription_count() >= 1
-                           for p in (self._proximity_pubs, self._light_pubs, self._blob_pubs))]
+                or not any(p.get_subscription_count() >= 1 for p in self._sensor_pubs[i])]
 
     def wait_for_answers(self, timeout_s: float) -> bool:
         return self._all_answered.wait(timeout_s)
@@ -315,8 +473,7 @@ class SimulatorNode(Node):
                 msg, info = taken
                 if self.failed[i]:
                     continue
-                if self._tap is not None and self._tapped[c.LEDS.name][i]:
-                    self._tap_message(c.LEDS, i, serialize_message(msg), self._tick_key)
+                self._tap_message(c.LEDS, i, msg, self._tick_key)
                 with self._lock:
                     if self._opened_ns is not None and info["source_timestamp"] < self._opened_ns:
                         self._record(self._current_tick, i, LATE_LEDS)
@@ -324,6 +481,27 @@ class SimulatorNode(Node):
                         out[int(self.rows[i])] = c.decode_leds(msg, self._models[i].n_leds)
                     except ValueError as e:
                         self._record(self._current_tick, i, f"leds: {e}")
+        return out
+
+    def take_rab_payloads(self) -> dict[int, np.ndarray]:
+        """Drain the rab_tx inbox like the LEDs': the latest valid payload per simulation row that
+        sent any, to be set before the next step (so it is heard one tick later, as in ARGoS)."""
+        out = {}
+        for i, sub in enumerate(self._rab_subs):
+            if sub is None:
+                continue
+            while (taken := sub.handle.take_message(sub.msg_type, sub.raw)) is not None:
+                msg, info = taken
+                if self.failed[i]:
+                    continue
+                self._tap_message(c.RAB_TX, i, msg, self._tick_key)
+                with self._lock:
+                    if self._opened_ns is not None and info["source_timestamp"] < self._opened_ns:
+                        self._record(self._current_tick, i, LATE_RAB)
+                    try:
+                        out[int(self.rows[i])] = c.decode_rab_payload(msg, self._rab_payload_bytes)
+                    except ValueError as e:
+                        self._record(self._current_tick, i, f"rab_tx: {e}")
         return out
 
     def _record(self, tick: int, i: int, reason: str) -> None:

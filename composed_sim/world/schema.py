@@ -244,13 +244,17 @@ class WheelsConfig(Strict):
     distance_noise_m: NonNegativeFloat = 0.0     # sensor: uniform on the reported distances
 
 
-class PositioningConfig(Strict):
+class PositioningConfig(DeviceSwitch):
     position_noise_m: NonNegativeFloat = 0.0     # uniform on x and on y
     yaw_noise_rad: NonNegativeFloat = 0.0
 
 
 # The devices that can be switched, by the name robot models and sensor frames use.
 SWITCHED_DEVICES = ("proximity", "light", "camera", "ground", "range_and_bearing", "lidar")
+# Every robot computes these (cheap, vectorised); their ROS topics exist only where the world
+# file switches them on, as ARGoS lists a controller's sensors: publishing three more messages
+# per robot and tick that no controller reads would cost every swarm, the paper's included.
+TOPIC_SWITCHED_DEVICES = ("positioning", "odometry", "differential_steering")
 
 
 class Devices(Strict):
@@ -261,8 +265,11 @@ class Devices(Strict):
     ground: Optional[GroundConfig] = None
     range_and_bearing: Optional[RangeAndBearingConfig] = None
     lidar: Optional[LidarConfig] = None
-    wheels: WheelsConfig = WheelsConfig()
-    positioning: PositioningConfig = PositioningConfig()
+    wheels: WheelsConfig = WheelsConfig()           # the actuator and sensor noise of the wheels
+    # Always computed; present (and not enabled: false): the robot has the device's topic.
+    positioning: Optional[PositioningConfig] = None
+    odometry: Optional[DeviceSwitch] = None
+    differential_steering: Optional[DeviceSwitch] = None
 
     def running(self, model: RobotModel) -> tuple[str, ...]:
         """The switched devices that run on robots of ``model``, in SWITCHED_DEVICES order."""
@@ -273,6 +280,13 @@ class Devices(Strict):
                 out.append(name)
         return tuple(out)
 
+    def published(self, model: RobotModel) -> tuple[str, ...]:
+        """Every device that has topics on robots of ``model``: the running switched devices,
+        then the always-computed ones the world file switches on (TOPIC_SWITCHED_DEVICES order)."""
+        return self.running(model) + tuple(
+            name for name in TOPIC_SWITCHED_DEVICES
+            if getattr(self, name) is not None and getattr(self, name).enabled)
+
     def config(self, name: str):
         """The device's settings: the world file's, else the defaults."""
         given = getattr(self, name)
@@ -280,7 +294,8 @@ class Devices(Strict):
             return given
         return {"proximity": ProximityConfig, "light": LightConfig, "camera": BlobCameraConfig,
                 "ground": GroundConfig, "range_and_bearing": RangeAndBearingConfig,
-                "lidar": LidarConfig}[name]()
+                "lidar": LidarConfig, "positioning": PositioningConfig, "odometry": DeviceSwitch,
+                "differential_steering": DeviceSwitch}[name]()
 
 
 ParamValue = Union[float, int, str, bool, list[float]]

