@@ -113,7 +113,8 @@ def test_a_missing_shard_is_a_clear_error_naming_the_robots(tmp_path, processes)
 
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGKILL], ids=["SIGTERM", "SIGKILL"])
 def test_a_shard_that_disappears_turns_into_violations_for_its_robots(tmp_path, processes, sig, domain_id):
-    w = world(robots=4, ticks=30, watchdog_s=0.2)
+    # A watchdog that the first cross-process tick (one-off transport set-up) meets on a loaded machine.
+    w = world(robots=4, ticks=30, watchdog_s=1.0)
     processes.append(start(shard_cmd("0-1", n=4), tmp_path / "a.log"))
     processes.append(start(shard_cmd("2-3", n=4), tmp_path / "b.log"))
     victim = processes[1]
@@ -144,7 +145,7 @@ def test_a_shard_that_disappears_turns_into_violations_for_its_robots(tmp_path, 
         assert set(reasons) - {"no answer before the watchdog"} <= {
             f"controller failed: {GONE_REASON}", *(r for r in reasons if r.startswith("controller failed: unresponsive"))}
         assert sum(r.startswith("controller failed") for r in reasons) == 2
-        assert wall < 30 * 0.2 + 30
+        assert wall < 30 * 1.0 + 30
     # Fallback zero: the lost robots stand still from the tick after; the others fly on.
     pos = result.trajectories.positions
     first = min(v.tick for v in result.violations)
