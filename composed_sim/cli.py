@@ -147,6 +147,7 @@ def _add_render_options(parser: argparse.ArgumentParser) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    args.exit_when_done = argv is None    # a program of its own (not called from Python): see cmd_run
     try:
         if args.command == "plugins":
             return cmd_plugins()
@@ -288,15 +289,26 @@ def cmd_run(args) -> int:
                 finally:
                     progress.close()
                 summary = finish(result)
+                code = EXIT_INTERRUPTED if result.interrupted else 0
+                if args.exit_when_done and isinstance(host, ComposedHost):
+                    # Destroying thousands of nodes one by one takes minutes (each destruction
+                    # republishes the participant's graph, docs/speed.md): with every result and
+                    # the recording written, the process ends and the system reclaims the rest.
+                    outputs.close()
+                    _print_summary(args, summary)
+                    sys.stdout.flush()
+                    sys.stderr.flush()
+                    os._exit(code)
         except (plugins.PluginError, PlacementError) as e:
             raise UserError(_located(args.world, e)) from None
         except HostError as e:
             raise UserError(str(e)) from None
-    if args.json:
-        print(json.dumps(summary, indent=2))
-    else:
-        print(_human_summary(summary))
-    return EXIT_INTERRUPTED if result.interrupted else 0
+    _print_summary(args, summary)
+    return code
+
+
+def _print_summary(args, summary: dict) -> None:
+    print(json.dumps(summary, indent=2) if args.json else _human_summary(summary))
 
 
 def _check_plugins(world_path, world) -> None:
