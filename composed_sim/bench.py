@@ -972,7 +972,9 @@ def _ratio(a, b, digits: int = 2) -> str:
 # DESIGN.md's performance budget for composed mode, 600 ticks of the flocking world:
 # N -> limits (None: no limit stated; the run must complete).
 BUDGET = {1280: {"ticks_wall_s": 60.0, "MaxMem(kB)": 1.5 * 2**20, "setup_s": 15.0},
-          10240: {"ticks_wall_s": None, "MaxMem(kB)": 12 * 2**20, "setup_s": None}}
+          10240: {"ticks_wall_s": None, "MaxMem(kB)": 12 * 2**20, "setup_s": 120.0}}
+# … and linear scaling: the cost per robot-tick at the larger N within this factor of the smaller's.
+SCALING = (80, 1280, 1.5)
 
 
 SATURATED = 0.95   # share of the machine's cores busy (the run's + others') above which a run is flagged
@@ -1012,6 +1014,15 @@ def _budget_section(agg: list[dict], rows: list[dict]) -> list[str]:
         lines.append(f"| {a['Robots']} | {a['executor']} | {_f(a['ticks_wall_s'], 1)} | {lim('ticks_wall_s', 0)} "
                      f"| {_f(a['setup_s'], 1)} | {lim('setup_s', 0)} | {_f(a['MaxMem(kB)'], 0, 1 / 1024)} "
                      f"| {lim('MaxMem(kB)', 0, 1 / 1024)} | {verdict} |")
+    small, large, factor = SCALING
+    for executor in dict.fromkeys(a["executor"] for a in agg if a["mode"] == "composed"):
+        cost = {a["Robots"]: _num(a["per_robot_tick_us"]) for a in agg
+                if a["mode"] == "composed" and a["executor"] == executor and a["ok"]}
+        if cost.get(small) and cost.get(large):
+            ratio = cost[large] / cost[small]
+            lines.append(f"\nScaling, {executor}: a robot-tick costs {cost[large]:.0f} µs at N = {large} and "
+                         f"{cost[small]:.0f} µs at N = {small}: {ratio:.2f}× (limit ≤ {factor}×, "
+                         f"{'within' if ratio <= factor else 'over'}).")
     return lines
 
 

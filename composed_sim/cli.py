@@ -37,7 +37,7 @@ _positive_float = number_arg(float, minimum=0, inclusive=False)
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from composed_sim.hosts.controllers import EXECUTORS, MODES
+    from composed_sim.hosts.controllers import EXECUTORS, MODES, ROBOTS_PER_PARTICIPANT
 
     parser = argparse.ArgumentParser(prog="composed-sim", description=(
         "Swarm simulator whose robot controllers are ROS 2 nodes, all hosted in one process."))
@@ -58,6 +58,9 @@ def build_parser() -> argparse.ArgumentParser:
                      help="rclpy executor running the nodes (default: %(default)s)")
     run.add_argument("--robots-per-domain", type=_positive_int, default=None,
                      help="multi-process mode: robots per ROS domain (default: the world's, else 50)")
+    run.add_argument("--robots-per-participant", type=_positive_int, default=ROBOTS_PER_PARTICIPANT,
+                     help="composed mode: robots per DDS participant, all in one domain; fewer make set-up "
+                          "faster, each costs a participant (default: %(default)s)")
     run.add_argument("--watchdog", type=_positive_float, metavar="SECONDS",
                      help="wall seconds to wait for a controller's answer before its fallback")
     run.add_argument("--fallback", choices=("zero", "previous"), help="command given to a late robot")
@@ -258,7 +261,8 @@ def cmd_run(args) -> int:
             host = MultiProcessHost(world, executor=args.executor, domain_id=domain_id,
                                     robots_per_domain=args.robots_per_domain)
         else:
-            host = ComposedHost(world, executor=args.executor, domain_id=domain_id)
+            host = ComposedHost(world, executor=args.executor, domain_id=domain_id,
+                                robots_per_participant=args.robots_per_participant)
     except HostError as e:
         raise UserError(str(e)) from None
 
@@ -267,6 +271,7 @@ def cmd_run(args) -> int:
         summary = summarize(world, result, setup_s=host.setup.setup_s, mode=mode,
                             executor=args.executor,
                             phases={"physics_s": host.sim.times.physics_s, "sensing_s": host.sim.times.sensing_s})
+        summary["participants"] = host.setup.participants
         summary["out"] = str(args.out)
         write_results(args.out, world, result, summary, picture=not args.no_picture)
         return summary

@@ -125,6 +125,58 @@ def test_live_markers_reach_a_subscriber_in_another_process(tmp_path, domain_id)
     assert bodies.header.frame_id == "world"
 
 
+def test_another_process_hears_every_tick_of_robots_in_every_participant(tmp_path, domain_id):
+    """The composed host splits the robots over DDS participants that ignore one another; a
+    process outside (ros2 topic echo, a recorder) still discovers all of them and receives every
+    tick's sensors and answers, without a gap, from robots of two shards (bot6 is the last's only one)."""
+    import time
+
+    import rclpy
+    from geometry_msgs.msg import TwistStamped
+    from rclpy.context import Context
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.node import Node
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+    from sensor_msgs.msg import LaserScan
+
+    from composed_sim.ros import contract as c
+
+    ctx = Context()
+    rclpy.init(context=ctx, domain_id=domain_id)
+    node = Node("echo", context=ctx, start_parameter_services=False, enable_rosout=False)
+    stamps = {topic: [] for topic in ("/bot6/light", "/bot5/light", "/bot5/cmd_vel")}
+    # The run makes about a thousand ticks a second: a reader history deep enough that this test's
+    # Python, not the publisher, is never what drops a message.
+    deep = QoSProfile(depth=100_000, reliability=ReliabilityPolicy.RELIABLE)
+    for topic, received in stamps.items():
+        node.create_subscription(TwistStamped if topic.endswith("cmd_vel") else LaserScan, topic,
+                                 lambda msg, received=received: received.append(c.stamp_key(msg.header.stamp)), deep)
+    executor = SingleThreadedExecutor(context=ctx)
+    executor.add_node(node)
+    run = subprocess.Popen([sys.executable, "-m", "composed_sim.cli", "run", str(FLOCKING), "--robots", "7",
+                            "--robots-per-participant", "2", "--ticks", "100000", "--out", str(tmp_path),
+                            "--no-progress", "--no-picture", "--domain-id", str(domain_id)], cwd=ROOT,
+                           stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 120
+        while (min(map(len, stamps.values())) < 30 and run.poll() is None and time.monotonic() < deadline):
+            executor.spin_once(timeout_sec=0.1)
+        run.send_signal(signal.SIGINT)
+        assert run.wait(timeout=120) == 130, run.stderr.read()[-2000:]
+    finally:
+        if run.poll() is None:
+            run.kill()
+        node.destroy_node()
+        rclpy.shutdown(context=ctx)
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["participants"] == 4 and summary["violations"] == 0
+    tick_ns = 100_000_000
+    for topic, received in stamps.items():
+        assert len(received) >= 30, (topic, len(received))
+        ticks = np.array(received) // tick_ns
+        assert np.array_equal(ticks, np.arange(ticks[0], ticks[0] + len(ticks))), (topic, ticks)
+
+
 def _wait_for_ticks(domain_id: int, proc: subprocess.Popen, ticks: int) -> None:
     """Until the run in ``proc`` has published /clock ``ticks`` times (it is past its start-up)."""
     import time

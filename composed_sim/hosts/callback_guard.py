@@ -28,7 +28,6 @@ import threading
 import time
 from typing import Callable, Optional
 
-import numpy as np
 from rclpy.node import Node
 from rclpy.subscription import Subscription
 
@@ -41,11 +40,9 @@ class ControllerHung(BaseException):
 
 
 class CallbackGuard:
-    def __init__(self, sim_node: SimulatorNode, watchdog_s: float, unresponsive_s: float):
-        self._sim_node = sim_node
+    def __init__(self, watchdog_s: float, unresponsive_s: float):
         self._watchdog_s = watchdog_s
         self._unresponsive_s = unresponsive_s
-        self._failed: np.ndarray = sim_node.failed     # shared, read-only here
         self._running: Optional[str] = None            # robot whose callback runs in the main thread
         self._started = 0.0
         self._main = threading.main_thread()
@@ -53,18 +50,22 @@ class CallbackGuard:
         self._workers_lock = threading.Lock()
         self.calls = 0                                 # callbacks run: lets a waiter see progress
 
-    def guard(self, node: Node, robot: str, row: int) -> None:
+    def guard(self, node: Node, robot: str, sim_node: SimulatorNode) -> None:
         """Wrap the callbacks of every subscription and timer ``node`` has (a controller creates
-        them in its constructor)."""
+        them in its constructor); ``sim_node`` serves ``robot``."""
         for sub in node.subscriptions:
             with_info = sub._callback_type is Subscription.CallbackType.WithMessageInfo
-            sub.callback = self._wrap(sub.callback, robot, row, with_info)
+            sub.callback = self._wrap(sub.callback, robot, sim_node, with_info)
         for timer in node.timers:
-            timer.callback = self._wrap(timer.callback, robot, row, False, arity=0)
+            timer.callback = self._wrap(timer.callback, robot, sim_node, False, arity=0)
 
-    def _wrap(self, callback: Callable, robot: str, row: int, with_info: bool, arity: int = 1) -> Callable:
+    def _wrap(self, callback: Callable, robot: str, sim_node: SimulatorNode, with_info: bool,
+              arity: int = 1) -> Callable:
+        failed = sim_node.failed         # shared, read-only here
+        row = sim_node.row_of(robot)
+
         def run(*args):
-            if self._failed[row]:
+            if failed[row]:
                 return None
             in_main = threading.current_thread() is self._main
             started = time.monotonic()
@@ -84,16 +85,16 @@ class CallbackGuard:
                             self._workers.pop(robot, None)
             except ControllerHung:
                 self._running = None
-                self._sim_node.mark_failed(robot, f"hung: callback still running after "
+                sim_node.mark_failed(robot, f"hung: callback still running after "
                                                   f"{time.monotonic() - started:.1f} s, interrupted")
                 return None
             except Exception as e:
-                self._sim_node.mark_failed(robot, f"callback raised {type(e).__name__}: {e}")
+                sim_node.mark_failed(robot, f"callback raised {type(e).__name__}: {e}")
                 return None
             took = time.monotonic() - started
             # Worker threads (multi-threaded executor) meet the tick's wall-clock deadline instead.
             if in_main and took > self._watchdog_s:
-                self._sim_node.reject_answer(robot, f"late: a callback took {took:.2f} s, more than "
+                sim_node.reject_answer(robot, f"late: a callback took {took:.2f} s, more than "
                                                     f"the watchdog's {self._watchdog_s} s")
             return result
         # rclpy picks a subscription's call signature from the callback's: keep the original's.

@@ -1,5 +1,12 @@
-"""The composed host: the simulator node and every controller node in one process, one rclpy
-context, one domain, one executor."""
+"""The composed host: the simulator and every controller node in one process, one domain, one
+executor.
+
+The robots are split into shards of ``robots_per_participant``: each shard is one rclpy Context
+(one DDS participant) holding a SimulatorNode for its robots and their controller nodes. A shard's
+topics are its robots' own, so it is self-contained, and the participants of this process ignore
+one another (ros/participants.py): Fast DDS's endpoint matching, quadratic in a participant's
+endpoints, then costs O(E²/K) instead of O(E²). Processes outside still discover every shard.
+"""
 from __future__ import annotations
 
 import threading
@@ -7,6 +14,7 @@ import time
 from dataclasses import dataclass
 from typing import Callable, Optional, Sequence
 
+import numpy as np
 import rclpy
 from rclpy.context import Context
 from rclpy.executors import Executor
@@ -15,9 +23,11 @@ from rclpy.node import Node
 from composed_sim import plugins
 from composed_sim.core.simulation import Simulation
 from composed_sim.hosts.callback_guard import CallbackGuard
-from composed_sim.hosts.controllers import EXECUTORS, HostError, create_controller, make_executor
-from composed_sim.hosts.lockstep import LoopResult, TickObserver, run_lockstep
+from composed_sim.hosts.controllers import (EXECUTORS, ROBOTS_PER_PARTICIPANT, HostError, create_controller,
+                                             make_executor)
+from composed_sim.hosts.lockstep import LoopResult, NodesExchange, TickObserver, run_lockstep
 from composed_sim.ros import contract as c
+from composed_sim.ros.participants import ignore_participants_of_this_process
 from composed_sim.ros.simulator_node import SimulatorNode, robot_devices
 from composed_sim.world.schema import World
 
@@ -26,22 +36,28 @@ DISCOVERY_TIMEOUT_S = 60.0
 
 @dataclass
 class SetupInfo:
-    setup_s: float          # context, simulator, nodes, discovery: until tick 0 can start
+    setup_s: float          # contexts, simulator, nodes, discovery: until tick 0 can start
     nodes: int
+    participants: int = 1
 
 
 class ComposedHost:
-    """Context manager owning the rclpy context, the nodes and the executor, destroyed in order."""
+    """Context manager owning the rclpy contexts, the nodes and the executor, destroyed in order."""
 
-    def __init__(self, world: World, *, executor: str = "lockstep", domain_id: int = 0):
+    def __init__(self, world: World, *, executor: str = "lockstep", domain_id: int = 0,
+                 robots_per_participant: int = ROBOTS_PER_PARTICIPANT):
         if executor not in EXECUTORS:
             raise HostError(f"unknown executor {executor!r}; choose one of {', '.join(EXECUTORS)}")
+        if robots_per_participant < 1:
+            raise HostError(f"robots per participant must be at least 1, got {robots_per_participant}")
         self.world = world
         self.executor_kind = executor
         self.domain_id = domain_id
-        self.context: Optional[Context] = None
+        self.robots_per_participant = robots_per_participant
+        self.contexts: list[Context] = []
         self.sim: Optional[Simulation] = None
-        self.sim_node: Optional[SimulatorNode] = None
+        self.simulator_nodes: list[SimulatorNode] = []      # one per shard, in robot order
+        self.exchange: Optional[NodesExchange] = None
         self.controllers: list[Node] = []
         self.executor: Optional[Executor] = None
         self.guard: Optional[CallbackGuard] = None
@@ -51,44 +67,52 @@ class ComposedHost:
     def __enter__(self) -> "ComposedHost":
         t0 = time.perf_counter()
         try:
-            classes = {g.controller: plugins.load(g.controller) for g in self.world.robots}
-            self.sim = Simulation(self.world)
-            self.context = Context()
-            rclpy.init(context=self.context, domain_id=self.domain_id)
-            lockstep = self.world.lockstep
-            self.sim_node = SimulatorNode(self.sim.names, self.sim.models, context=self.context,
-                                          tick_ns=self.world.tick_ns, lockstep=lockstep,
-                                          devices=robot_devices(self.world),
-                                          rab_payload_bytes=self.world.range_and_bearing.payload_bytes)
-            self.guard = CallbackGuard(self.sim_node, lockstep.watchdog_s, lockstep.unresponsive_s)
-            self.sim_node.on_failed.append(self.guard.stop_worker)
-            self.executor = make_executor(self.executor_kind, self.context)
-            robots = frozenset(self.sim.names)
-            for row, (name, group_index) in enumerate(zip(self.sim.names, self.world.group_of_robot())):
-                cls = classes[self.world.robots[group_index].controller]
-                node = create_controller(cls, name, self.world, group_index, self.context, robots=robots)
-                self.guard.guard(node, name, row)
-                self.sim_node.drive_clock_of(node)
-                self.controllers.append(node)
+            world = self.world
+            classes = {g.controller: plugins.load(g.controller) for g in world.robots}
+            self.sim = sim = Simulation(world)
+            ignore_participants_of_this_process()
+            lockstep = world.lockstep
+            self.guard = CallbackGuard(lockstep.watchdog_s, lockstep.unresponsive_s)
+            devices, groups = robot_devices(world), world.group_of_robot()
+            robots = frozenset(sim.names)
+            for shard, start in enumerate(range(0, sim.n, self.robots_per_participant)):
+                rows = np.arange(start, min(sim.n, start + self.robots_per_participant))
+                context = Context()
+                rclpy.init(context=context, domain_id=self.domain_id)
+                self.contexts.append(context)
+                sim_node = SimulatorNode([sim.names[i] for i in rows], [sim.models[i] for i in rows],
+                                         context=context, tick_ns=world.tick_ns, rows=rows,
+                                         node_name="composed_sim" if shard == 0 else f"composed_sim_{shard}",
+                                         lockstep=lockstep, devices=[devices[i] for i in rows],
+                                         rab_payload_bytes=world.range_and_bearing.payload_bytes,
+                                         publish_clock=shard == 0)
+                sim_node.on_failed.append(self.guard.stop_worker)
+                self.simulator_nodes.append(sim_node)
+                for i in rows.tolist():
+                    name = sim.names[i]
+                    node = create_controller(classes[world.robots[groups[i]].controller], name, world,
+                                             groups[i], context, robots=robots)
+                    self.guard.guard(node, name, sim_node)
+                    sim_node.drive_clock_of(node)
+                    self.controllers.append(node)
+            self.exchange = NodesExchange(self.simulator_nodes)
+            self.executor = make_executor(self.executor_kind, self.contexts[0])
+            # Simulator nodes last, so that the lockstep executor's one ordered pass runs every
+            # controller on its sensors first and then collects the answers they just published.
+            for node in (*self.controllers, *self.simulator_nodes):
                 self.executor.add_node(node)
-            # Last, so that the lockstep executor's one ordered pass runs every controller on its
-            # sensors first and then collects the answers they just published.
-            self.executor.add_node(self.sim_node)
             self._wait_for_discovery()
         except BaseException:
             self.__exit__(None, None, None)
             raise
-        self.setup = SetupInfo(time.perf_counter() - t0, len(self.controllers) + 1)
+        self.setup = SetupInfo(time.perf_counter() - t0, len(self.controllers) + len(self.simulator_nodes),
+                               len(self.contexts))
         return self
-
-    @property
-    def simulator_nodes(self) -> list[SimulatorNode]:
-        return [self.sim_node]
 
     def _wait_for_discovery(self) -> None:
         """Every robot's answer topic has a publisher and its sensors a subscriber before tick 0."""
         deadline = time.monotonic() + DISCOVERY_TIMEOUT_S
-        while missing := self.sim_node.unmatched_robots():
+        while missing := [r for node in self.simulator_nodes for r in node.unmatched_robots()]:
             if time.monotonic() > deadline:
                 raise HostError(f"the controllers of {', '.join(missing[:5])}{' …' if len(missing) > 5 else ''} "
                                 f"were not connected within {DISCOVERY_TIMEOUT_S:.0f} s: each must publish "
@@ -105,9 +129,9 @@ class ComposedHost:
             # the simulator node's "all answered".
             self._spin_thread = threading.Thread(target=self._spin, name="executor", daemon=True)
             self._spin_thread.start()
-            wait = self.sim_node.wait_for_answers
+            wait = self.exchange.wait_for_answers
         with self.guard.interrupting_hangs(self._spin_thread is None):
-            return run_lockstep(self.sim, self.sim_node, wait, ticks, progress=progress,
+            return run_lockstep(self.sim, self.exchange, wait, ticks, progress=progress,
                                 should_stop=should_stop, observers=observers)
 
     def _spin(self) -> None:
@@ -127,16 +151,16 @@ class ComposedHost:
         deadline = time.monotonic() + timeout_s
         drain_left = 4 * len(self.controllers) + 16     # bounded: a busy timer cannot keep the tick open
         idle = 0
-        while not self.sim_node.all_answered:
+        while not self.exchange.all_answered:
             remaining = deadline - time.monotonic()
             if remaining > 0:
                 self.executor.spin_once(timeout_sec=remaining)
                 continue
-            before = (self.guard.calls, self.sim_node.answered_count)
+            before = (self.guard.calls, self.exchange.answered_count)
             self.executor.spin_once(timeout_sec=0)
             drain_left -= 1
             # Twice: a stock executor's spin_once may come back empty once, to rebuild its wait set.
-            idle = idle + 1 if (self.guard.calls, self.sim_node.answered_count) == before else 0
+            idle = idle + 1 if (self.guard.calls, self.exchange.answered_count) == before else 0
             if drain_left <= 0 or idle >= 2:
                 return False
         return True
@@ -146,12 +170,10 @@ class ComposedHost:
             self.executor.shutdown()
         if self._spin_thread is not None:
             self._spin_thread.join(timeout=5.0)
-        for node in self.controllers:
+        for node in (*self.controllers, *self.simulator_nodes):
             node.destroy_node()
-        self.controllers = []
-        if self.sim_node is not None:
-            self.sim_node.destroy_node()
-            self.sim_node = None
-        if self.context is not None and self.context.ok():
-            rclpy.shutdown(context=self.context)
-        self.context = None
+        self.controllers, self.simulator_nodes = [], []
+        for context in self.contexts:
+            if context.ok():
+                rclpy.shutdown(context=context)
+        self.contexts = []

@@ -21,6 +21,9 @@ from composed_sim.world.schema import World
 
 EXECUTORS = ("lockstep", "events", "single-threaded", "multi-threaded")
 MODES = ("composed", "multi-process")
+# Composed mode: robots per DDS participant (hosts/composed.py). Set-up costs about this × N;
+# each participant costs its threads and ports: docs/speed.md has the measurements.
+ROBOTS_PER_PARTICIPANT = 80
 
 
 class HostError(Exception):

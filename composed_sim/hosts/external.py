@@ -2,7 +2,7 @@
 (``composed-sim run WORLD --external-controllers``; the shards: ``composed_sim.hosts.shard``).
 
 The simulator node and the tick loop are the composed host's; the exchange is multi-process mode's
-``DomainExchange`` over the one simulator node, spun by a LockstepExecutor in its own thread, so
+``NodesExchange`` over the one simulator node, spun by a LockstepExecutor in its own thread, so
 lockstep, the shared watchdog and the fallbacks are exactly as on one machine. Before tick 0 it
 waits until every robot is hosted by exactly one shard of the same world whose endpoints are
 matched on both sides (the shard announces when its side is). During the run, a robot whose
@@ -20,10 +20,10 @@ from rclpy.context import Context
 
 from composed_sim.core.simulation import Simulation
 from composed_sim.hosts.composed import SetupInfo
-from composed_sim.hosts.lockstep import LoopResult, TickObserver, run_lockstep
+from composed_sim.hosts.lockstep import LoopResult, NodesExchange, TickObserver, run_lockstep
 from composed_sim.hosts.controllers import HostError
 from composed_sim.hosts.discovery import DEFAULT_DISCOVERY_TIMEOUT_S
-from composed_sim.hosts.multiprocess import DomainExchange, _endpoints_by_topic, _InterruptWatch, _matched, _spin
+from composed_sim.hosts.multiprocess import _endpoints_by_topic, _InterruptWatch, _matched, _spin
 from composed_sim.hosts.robot_ranges import format_ranges
 from composed_sim.hosts.shard_announce import ShardInfo, ShardRegistry, world_fingerprint
 from composed_sim.ros import contract as c
@@ -46,7 +46,7 @@ class ExternalControllersHost:
         self.discovery = discovery
         self.sim: Optional[Simulation] = None
         self.sim_node: Optional[SimulatorNode] = None
-        self.exchange: Optional[DomainExchange] = None
+        self.exchange: Optional[NodesExchange] = None
         self.shards: dict[str, ShardInfo] = {}
         self.setup: Optional[SetupInfo] = None
         self._context: Optional[Context] = None
@@ -72,7 +72,7 @@ class ExternalControllersHost:
             with _InterruptWatch() as interrupts:
                 self._wait_for_shards(endpoints, lambda: interrupts.requested)
             self._startup_interrupted = interrupts.requested
-            self.exchange = DomainExchange([self.sim_node], self._check_shards)
+            self.exchange = NodesExchange([self.sim_node], self._check_shards)
             self._executor = LockstepExecutor(context=self._context)
             self._executor.add_node(self.sim_node)
             self._thread = threading.Thread(target=_spin, args=(self._executor,), name="executor", daemon=True)

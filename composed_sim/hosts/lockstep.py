@@ -15,7 +15,7 @@ import psutil
 
 from composed_sim.core.robot_models import display_colors
 from composed_sim.core.simulation import SensorFrame, Simulation
-from composed_sim.ros.simulator_node import Violation
+from composed_sim.ros.simulator_node import SimulatorNode, Violation
 
 
 @dataclass
@@ -85,6 +85,68 @@ class Exchange(Protocol):
                    commands: tuple[np.ndarray, np.ndarray]) -> None: ...
     def take_led_commands(self) -> dict[int, np.ndarray]: ...
     def take_rab_payloads(self) -> dict[int, np.ndarray]: ...
+
+
+class NodesExchange:
+    """The ``Exchange`` over several SimulatorNodes (the composed host's shards, one per DDS
+    participant; the multi-process host's domains): each node publishes and collects its own
+    robots, writing into the shared (simulation-row) command arrays."""
+
+    POLL_S = 0.01   # while waiting for answers, call ``check`` this often
+
+    def __init__(self, nodes: Sequence[SimulatorNode], check: Callable[[], None] = lambda: None):
+        """``check``: looks for what can settle a robot besides an answer, e.g. a dead child
+        process (it marks its robot failed, so it is not waited for)."""
+        self.nodes = list(nodes)
+        self._check = check
+
+    @property
+    def violations(self) -> list[Violation]:
+        # Stable sort: per tick, in node order, each node's in the order they happened.
+        return sorted((v for n in self.nodes for v in n.violations), key=lambda v: v.tick)
+
+    @property
+    def all_answered(self) -> bool:
+        return all(n.all_answered for n in self.nodes)
+
+    @property
+    def answered_count(self) -> int:
+        return sum(n.answered_count for n in self.nodes)
+
+    def publish_tick(self, frame: SensorFrame) -> None:
+        for node in self.nodes:
+            node.publish_tick(frame)
+
+    def wait_for_answers(self, timeout_s: float) -> bool:
+        """Until every node's robots answered (their callbacks run elsewhere: executor threads,
+        other processes), under one watchdog deadline for all."""
+        deadline = time.monotonic() + timeout_s
+        while True:
+            pending = [n for n in self.nodes if not n.all_answered]
+            if not pending:
+                return True
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                return False
+            if not pending[0].wait_for_answers(min(remaining, self.POLL_S)):
+                self._check()
+
+    def close_tick(self, fallback: str, previous: tuple[np.ndarray, np.ndarray],
+                   commands: tuple[np.ndarray, np.ndarray]) -> None:
+        for node in self.nodes:
+            node.close_tick(fallback, previous, commands)
+
+    def take_led_commands(self) -> dict[int, np.ndarray]:
+        out: dict[int, np.ndarray] = {}
+        for node in self.nodes:
+            out.update(node.take_led_commands())
+        return out
+
+    def take_rab_payloads(self) -> dict[int, np.ndarray]:
+        out: dict[int, np.ndarray] = {}
+        for node in self.nodes:
+            out.update(node.take_rab_payloads())
+        return out
 
 
 def run_lockstep(sim: Simulation, exchange: Exchange, wait_for_answers: Callable[[float], bool],

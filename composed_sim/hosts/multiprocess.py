@@ -3,7 +3,7 @@
 Each controller process (``composed_sim.hosts.controller_process``) runs the very same plugin
 class on the very same topics as in composed mode, in the ROS domain ``domains.assign_domains``
 gives its robot. The simulator process joins each used domain with its own rclpy Context and one
-SimulatorNode serving that domain's robots, spun by its own executor thread; ``DomainExchange``
+SimulatorNode serving that domain's robots, spun by its own executor thread; ``NodesExchange``
 makes those nodes look like one to ``run_lockstep``, so lockstep, the watchdog and the fallbacks
 are exactly the composed host's.
 
@@ -33,14 +33,14 @@ from rclpy.context import Context
 from rclpy.executors import Executor
 
 from composed_sim import plugins
-from composed_sim.core.simulation import SensorFrame, Simulation
+from composed_sim.core.simulation import Simulation
 from composed_sim.hosts.composed import SetupInfo
 from composed_sim.hosts.controllers import EXECUTORS, HostError
 from composed_sim.hosts.domains import DomainError, assign_domains
-from composed_sim.hosts.lockstep import LoopResult, TickObserver, run_lockstep
+from composed_sim.hosts.lockstep import LoopResult, NodesExchange, TickObserver, run_lockstep
 from composed_sim.ros import contract as c
 from composed_sim.ros.lockstep_executor import LockstepExecutor
-from composed_sim.ros.simulator_node import SimulatorNode, Violation, robot_devices
+from composed_sim.ros.simulator_node import SimulatorNode, robot_devices
 from composed_sim.world.loader import dump_world
 from composed_sim.world.schema import World
 
@@ -48,7 +48,7 @@ from composed_sim.world.schema import World
 # so a few per core keeps every core busy without thrashing a small machine.
 SPAWN_AT_ONCE = max(2, 2 * (os.cpu_count() or 1))
 STALL_TIMEOUT_S = 60.0     # start-up fails when no child became ready for this long
-POLL_S = 0.01              # while waiting for answers, look for dead children this often
+POLL_S = NodesExchange.POLL_S   # look for dead children this often
 TERM_GRACE_S = 5.0         # SIGTERM → SIGKILL
 
 
@@ -104,56 +104,6 @@ def exit_reason(code: int) -> str:
     return f"process exited with code {code}"
 
 
-class DomainExchange:
-    """The ``Exchange`` of run_lockstep over one SimulatorNode per domain: each node publishes
-    and collects its own robots, writing into the shared (global-row) command arrays."""
-
-    def __init__(self, nodes: list[SimulatorNode], check_children: Callable[[], None]):
-        self.nodes = nodes
-        self._check_children = check_children
-
-    @property
-    def violations(self) -> list[Violation]:
-        # Stable sort: per tick, in domain order, each domain's in the order they happened.
-        return sorted((v for n in self.nodes for v in n.violations), key=lambda v: v.tick)
-
-    def publish_tick(self, frame: SensorFrame) -> None:
-        for node in self.nodes:
-            node.publish_tick(frame)
-
-    def wait_for_answers(self, timeout_s: float) -> bool:
-        """Until every domain's robots answered, under one watchdog deadline for all. Each time
-        a slice of POLL_S passes without that, dead children are looked for: a dead one is
-        marked failed, so it is not waited for (it gets the fallback from then on)."""
-        deadline = time.monotonic() + timeout_s
-        while True:
-            pending = [n for n in self.nodes if not n.all_answered]
-            if not pending:
-                return True
-            remaining = deadline - time.monotonic()
-            if remaining <= 0:
-                return False
-            if not pending[0].wait_for_answers(min(remaining, POLL_S)):
-                self._check_children()
-
-    def close_tick(self, fallback: str, previous: tuple[np.ndarray, np.ndarray],
-                   commands: tuple[np.ndarray, np.ndarray]) -> None:
-        for node in self.nodes:
-            node.close_tick(fallback, previous, commands)
-
-    def take_led_commands(self) -> dict[int, np.ndarray]:
-        out: dict[int, np.ndarray] = {}
-        for node in self.nodes:
-            out.update(node.take_led_commands())
-        return out
-
-    def take_rab_payloads(self) -> dict[int, np.ndarray]:
-        out: dict[int, np.ndarray] = {}
-        for node in self.nodes:
-            out.update(node.take_rab_payloads())
-        return out
-
-
 class MultiProcessHost:
     """Context manager: the per-domain contexts and simulator nodes, and one child process per
     robot; everything stopped and reaped in ``__exit__``. Same interface as ComposedHost.
@@ -177,7 +127,7 @@ class MultiProcessHost:
         except DomainError as e:
             raise HostError(f"multi-process mode: {e}") from None
         self.sim: Optional[Simulation] = None
-        self.exchange: Optional[DomainExchange] = None
+        self.exchange: Optional[NodesExchange] = None
         self.processes: list[ControllerProcess] = []
         self.setup: Optional[SetupInfo] = None
         self._contexts: list[Context] = []
@@ -213,7 +163,7 @@ class MultiProcessHost:
                                                devices=[devices[i] for i in rows],
                                                rab_payload_bytes=self.world.range_and_bearing.payload_bytes)
                 self._nodes[d].on_failed.append(self._stop_failed)
-            self.exchange = DomainExchange(list(self._nodes.values()), self._check_children)
+            self.exchange = NodesExchange(list(self._nodes.values()), self._check_children)
             with _InterruptWatch() as interrupts:
                 self._start_controllers(world_file, interrupts)
             self._startup_interrupted = interrupts.requested

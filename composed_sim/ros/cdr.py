@@ -14,6 +14,7 @@ bytes; sequences a uint32 count and the elements.
 from __future__ import annotations
 
 import struct
+from dataclasses import dataclass
 from typing import Optional
 
 import numpy as np
@@ -22,6 +23,7 @@ from rclpy.serialization import serialize_message
 HEADER = 4                 # encapsulation header
 _STAMP = struct.Struct("<iI")
 _U32 = struct.Struct("<I")
+_TWO_U32 = struct.Struct("<II")
 _F64 = struct.Struct("<d")
 
 
@@ -42,27 +44,43 @@ def stamp_ns(data) -> int:
     return sec * 1_000_000_000 + nanosec
 
 
+def stamp_bytes(sec: int, nanosec: int) -> bytes:
+    """A header stamp as the 8 bytes that follow the encapsulation header."""
+    return _STAMP.pack(sec, nanosec)
+
+
 class ScanEncoder:
-    """One robot's LaserScan with fixed metadata and fixed-length arrays: each call writes the
-    stamp and the arrays into the bytes of a template message."""
+    """One robot's LaserScan with fixed metadata and fixed-length arrays: the bytes of a template
+    message cut around the stamp and the two arrays, so that a message is those pieces joined
+    with the tick's stamp and the arrays' float32 bytes (one ``bytes.join``, no numpy per robot)."""
 
     def __init__(self, template, n_ranges: int, n_intensities: int) -> None:
         template.ranges = [0.0] * n_ranges
         template.intensities = [0.0] * n_intensities
-        self._buffer = bytearray(serialize_message(template))
-        pos = align(after_header(self._buffer), 4) + 7 * 4          # angle_min … range_max
-        self._stamp = np.frombuffer(self._buffer, dtype="<u4", count=2, offset=HEADER)
-        self._ranges = np.frombuffer(self._buffer, dtype="<f4", count=n_ranges, offset=pos + 4)
-        pos += 4 + 4 * n_ranges
-        self._intensities = np.frombuffer(self._buffer, dtype="<f4", count=n_intensities, offset=pos + 4)
+        data = serialize_message(template)
+        ranges_at = align(after_header(data), 4) + 7 * 4 + 4        # angle_min … range_max, count
+        intensities_at = ranges_at + 4 * n_ranges + 4
+        end = intensities_at + 4 * n_intensities
+        self.ranges_bytes, self.intensities_bytes = 4 * n_ranges, 4 * n_intensities
+        self._pieces = (data[:HEADER], data[HEADER + 8:ranges_at], data[ranges_at + 4 * n_ranges:intensities_at],
+                        data[end:])
+
+    def encode_bytes(self, stamp: bytes, ranges: bytes, intensities: bytes) -> bytes:
+        """``stamp``: ``stamp_bytes``; ``ranges``, ``intensities``: the arrays as little-endian
+        float32 bytes, of the lengths given at construction."""
+        head, metadata, count, tail = self._pieces
+        return b"".join((head, stamp, metadata, ranges, count, intensities, tail))
 
     def encode(self, sec: int, nanosec: int, intensities: np.ndarray,
                ranges: Optional[np.ndarray] = None) -> bytes:
-        self._stamp[0], self._stamp[1] = sec, nanosec
-        if ranges is not None:
-            self._ranges[:] = ranges
-        self._intensities[:] = intensities
-        return bytes(self._buffer)
+        """The same from arrays (``ranges`` None: zeros)."""
+        ranges_f4 = (np.zeros(self.ranges_bytes // 4, dtype="<f4") if ranges is None
+                     else np.asarray(ranges, dtype="<f4")).tobytes()
+        intensities_f4 = np.asarray(intensities, dtype="<f4").tobytes()
+        if (len(ranges_f4), len(intensities_f4)) != (self.ranges_bytes, self.intensities_bytes):
+            raise ValueError(f"this scan has {self.ranges_bytes // 4} ranges and {self.intensities_bytes // 4} "
+                             f"intensities, got {len(ranges_f4) // 4} and {len(intensities_f4) // 4}")
+        return self.encode_bytes(stamp_bytes(sec, nanosec), ranges_f4, intensities_f4)
 
 
 def decode_scan(data) -> tuple[np.ndarray, np.ndarray]:
@@ -70,10 +88,19 @@ def decode_scan(data) -> tuple[np.ndarray, np.ndarray]:
     pos = align(after_header(data), 4) + 7 * 4
     (n,) = _U32.unpack_from(data, pos)
     ranges = np.frombuffer(data, dtype="<f4", count=n, offset=pos + 4)
-    pos += 4 + 4 * n
+    return ranges.astype(float), _intensities(data, pos + 4 + 4 * n)
+
+
+def decode_scan_intensities(data) -> np.ndarray:
+    """LaserScan bytes → intensities [k] as float64 (what a light ring carries)."""
+    pos = align(after_header(data), 4) + 7 * 4
+    (n,) = _U32.unpack_from(data, pos)
+    return _intensities(data, pos + 4 + 4 * n)
+
+
+def _intensities(data, pos: int) -> np.ndarray:
     (m,) = _U32.unpack_from(data, pos)
-    intensities = np.frombuffer(data, dtype="<f4", count=m, offset=pos + 4)
-    return ranges.astype(float), intensities.astype(float)
+    return np.frombuffer(data, dtype="<f4", count=m, offset=pos + 4).astype(float)
 
 
 class CloudEncoder:
@@ -97,10 +124,19 @@ class CloudEncoder:
         return b"".join((self._head, _U32.pack(len(points)), points, self._dense))
 
 
-def decode_cloud(data) -> tuple[int, tuple[tuple[str, int, int], ...], int, memoryview]:
-    """PointCloud2 bytes → (width, ((field name, offset, datatype), …), point_step, data)."""
+@dataclass(frozen=True)
+class CloudLayout:
+    """Where a PointCloud2's per-message fields are, and its point layout."""
+    width_at: int                                  # byte offset of width
+    row_step_at: int                               # … of row_step (then the data's length, the data)
+    fields: tuple[tuple[str, int, int], ...]       # (name, offset, datatype) per field
+    point_step: int
+
+
+def cloud_layout(data) -> CloudLayout:
     pos = align(after_header(data), 4)
-    _height, width, n_fields = struct.unpack_from("<III", data, pos)
+    (n_fields,) = _U32.unpack_from(data, pos + 8)                # after height and width
+    width_at = pos + 4
     pos += 12
     fields = []
     for _ in range(n_fields):
@@ -111,9 +147,36 @@ def decode_cloud(data) -> tuple[int, tuple[tuple[str, int, int], ...], int, memo
         pos = align(pos + 5, 4) + 4                              # count
         fields.append((name, offset, datatype))
     pos = align(pos + 1, 4)                                      # is_bigendian
-    point_step, _row_step, size = struct.unpack_from("<III", data, pos)
-    pos += 12
-    return width, tuple(fields), point_step, memoryview(data)[pos:pos + size]
+    (point_step,) = _U32.unpack_from(data, pos)
+    return CloudLayout(width_at, pos + 4, tuple(fields), point_step)
+
+
+class CloudDecoder:
+    """PointCloud2 bytes → (width, ((field name, offset, datatype), …), point_step, data), for one
+    stream of clouds: the layout is parsed from the first message and, on the next ones, only
+    checked byte for byte (frame_id and height before the width; the fields and point_step
+    between width and row_step), so parsing happens again only when the publisher changes it."""
+
+    def __init__(self) -> None:
+        self._layout: Optional[CloudLayout] = None
+        self._before_width = self._before_row_step = b""
+
+    def decode(self, data) -> tuple[int, tuple[tuple[str, int, int], ...], int, memoryview]:
+        layout = self._layout
+        if (layout is None or data[HEADER + 8:layout.width_at] != self._before_width
+                or data[layout.width_at + 4:layout.row_step_at] != self._before_row_step):
+            layout = self._layout = cloud_layout(data)
+            self._before_width = bytes(data[HEADER + 8:layout.width_at])
+            self._before_row_step = bytes(data[layout.width_at + 4:layout.row_step_at])
+        (width,) = _U32.unpack_from(data, layout.width_at)
+        _row_step, size = _TWO_U32.unpack_from(data, layout.row_step_at)
+        start = layout.row_step_at + 8
+        return width, layout.fields, layout.point_step, memoryview(data)[start:start + size]
+
+
+def decode_cloud(data) -> tuple[int, tuple[tuple[str, int, int], ...], int, memoryview]:
+    """PointCloud2 bytes → (width, ((field name, offset, datatype), …), point_step, data)."""
+    return CloudDecoder().decode(data)
 
 
 class TwistEncoder:

@@ -433,12 +433,29 @@ def half_yaw(yaws: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 # --- decoding (controller side): arrays, never raw fields -----------------------------------
 
-@dataclass(frozen=True)
 class Blobs:
-    angles: np.ndarray      # [m] rad, bearing relative to the heading, CCW
-    distances: np.ndarray   # [m] planar distance from the robot centre, m
-    colors: np.ndarray      # [m, 3] uint8 RGB
-    rgb: Optional[np.ndarray] = None   # [m] uint32 0x00RRGGBB, when decoded from a cloud
+    """The coloured blobs a camera sees this tick. Colours are kept as 0x00RRGGBB words when decoded
+    from a cloud; ``colors`` (RGB rows) is derived on first use. Read-only by convention: ``of_color``
+    returns this very object when every blob has that colour."""
+    __slots__ = ("angles", "distances", "rgb", "_colors")
+
+    def __init__(self, angles: np.ndarray, distances: np.ndarray, colors: Optional[np.ndarray] = None,
+                 rgb: Optional[np.ndarray] = None):
+        if colors is None and rgb is None:
+            raise ValueError("Blobs needs colors ([m, 3] uint8) or rgb ([m] uint32)")
+        self.angles = angles          # [m] rad, bearing relative to the heading, CCW
+        self.distances = distances    # [m] planar distance from the robot centre, m
+        self.rgb = rgb                # [m] uint32 0x00RRGGBB, or None
+        self._colors = colors         # [m, 3] uint8 RGB, or None until asked for
+
+    @property
+    def colors(self) -> np.ndarray:
+        """[m, 3] uint8 RGB."""
+        if self._colors is None:
+            colors = np.empty((len(self.rgb), 3), dtype=np.uint8)
+            colors[:, 0], colors[:, 1], colors[:, 2] = self.rgb >> 16, self.rgb >> 8, self.rgb  # uint8 keeps the low byte
+            self._colors = colors
+        return self._colors
 
     def __len__(self) -> int:
         return len(self.angles)
@@ -449,7 +466,9 @@ class Blobs:
             keep = self.rgb == ((r << 16) | (g << 8) | b)
         else:
             keep = np.all(self.colors == np.asarray(rgb, dtype=np.uint8), axis=1)
-        return Blobs(self.angles[keep], self.distances[keep], self.colors[keep],
+        if keep.all():      # the common case in a swarm of one beacon colour: no copies
+            return self
+        return Blobs(self.angles[keep], self.distances[keep], None if self._colors is None else self._colors[keep],
                      None if self.rgb is None else self.rgb[keep])
 
 
@@ -475,12 +494,16 @@ def decode_blobs(msg: PointCloud2) -> Blobs:
 
 
 def _blobs(points: np.ndarray) -> Blobs:
+    if len(points) == 0:
+        return Blobs(_NO_FLOATS, _NO_FLOATS, rgb=_NO_WORDS)
     x = points["x"].astype(float)
     y = points["y"].astype(float)
-    rgb = points["rgb"]
-    colors = np.empty((len(rgb), 3), dtype=np.uint8)
-    colors[:, 0], colors[:, 1], colors[:, 2] = rgb >> 16, rgb >> 8, rgb    # uint8 keeps the low byte
-    return Blobs(np.arctan2(y, x), np.hypot(x, y), colors, rgb & 0xFFFFFF)
+    return Blobs(np.arctan2(y, x), np.hypot(x, y), rgb=points["rgb"] & 0xFFFFFF)
+
+
+_NO_FLOATS, _NO_WORDS = np.empty(0), np.empty(0, dtype=np.uint32)
+for _empty in (_NO_FLOATS, _NO_WORDS):
+    _empty.flags.writeable = False
 
 
 _CLOUD_DTYPES: dict = {}
@@ -527,11 +550,12 @@ def decode_proximity_cdr(data: bytes) -> tuple[np.ndarray, np.ndarray]:
 
 
 def decode_light_cdr(data: bytes) -> np.ndarray:
-    return cdr.decode_scan(data)[1]
+    return cdr.decode_scan_intensities(data)
 
 
-def decode_blobs_cdr(data: bytes) -> Blobs:
-    width, fields, point_step, points = cdr.decode_cloud(data)
+def decode_blobs_cdr(data: bytes, decoder: Optional[cdr.CloudDecoder] = None) -> Blobs:
+    """``decoder``: one per stream of clouds (a subscription), so their layout is parsed once."""
+    width, fields, point_step, points = (decoder or cdr.CloudDecoder()).decode(data)
     return _blobs(np.frombuffer(points, dtype=_cloud_dtype(fields, point_step), count=width))
 
 

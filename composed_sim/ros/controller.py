@@ -79,6 +79,7 @@ class SwarmController(Node):
                                      c.QOS, raw=name in _TAKEN_AS_BYTES)
         self._cmd_pub = self.create_publisher(c.CMD_VEL.msg_type, c.CMD_VEL.name, c.QOS)
         self._answer_encoder = c.answer_encoder()
+        self._blobs_decoder = cdr.CloudDecoder()
         self._led_pub = self.create_publisher(c.LEDS.msg_type, c.LEDS.name, c.QOS)
         self._init_devices()
 
@@ -115,7 +116,7 @@ class SwarmController(Node):
         if "light" in msgs:
             tick.light = c.decode_light_cdr(msgs["light"])
         if "blobs" in msgs:
-            tick.blobs = c.decode_blobs_cdr(msgs["blobs"])
+            tick.blobs = c.decode_blobs_cdr(msgs["blobs"], self._blobs_decoder)
         if self._device_sensors:
             self._decode_devices(msgs, tick)
         linear, angular = self.on_tick(tick)

@@ -26,7 +26,7 @@ class LockstepExecutor(SingleThreadedExecutor):
     def __init__(self, *, context=None) -> None:
         super().__init__(context=context)
         self._ordered_nodes: list[Node] = []
-        self._subscriptions: Optional[list[Subscription]] = None   # rebuilt when entities change
+        self._subscriptions: Optional[list[tuple]] = None   # rebuilt when entities change
 
     def add_node(self, node: Node) -> bool:
         added = super().add_node(node)
@@ -54,19 +54,20 @@ class LockstepExecutor(SingleThreadedExecutor):
         """Take and handle every message ready now, in the fixed order; returns how many."""
         subs = self._subscriptions
         if subs is None:
-            subs = self._subscriptions = [s for node in self._ordered_nodes for s in node.subscriptions]
+            # What a walk needs of each subscription, resolved once (properties cost a call each).
+            message_only = Subscription.CallbackType.MessageOnly
+            subs = self._subscriptions = [(s, s.handle, s.msg_type, s.raw, s._callback_type is message_only)
+                                          for node in self._ordered_nodes for s in node.subscriptions]
         handled = 0
-        message_only = Subscription.CallbackType.MessageOnly
-        for sub in subs:
+        for sub, handle, msg_type, raw, message_only in subs:
             # One message per subscription and walk: in a lockstep tick there is one, and
             # looking for a second would cost an empty take per subscription. Any more are taken
             # by the next walk, in the same order.
-            handle = sub.handle
             with handle:
-                taken = handle.take_message(sub.msg_type, sub.raw)
+                taken = handle.take_message(msg_type, raw)
             if taken is None:
                 continue
-            if sub._callback_type is message_only:
+            if message_only:
                 sub.callback(taken[0])
             else:
                 sub.callback(*taken)

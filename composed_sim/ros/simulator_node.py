@@ -25,7 +25,7 @@ from composed_sim.core.robot_models import (CAMERA, DIFFERENTIAL_STEERING, GROUN
 from composed_sim.world.schema import Lockstep, World
 if TYPE_CHECKING:   # only a type here: a controller process must not import the physics
     from composed_sim.core.simulation import SensorFrame
-from composed_sim.ros import contract as c
+from composed_sim.ros import cdr, contract as c
 
 
 
@@ -87,11 +87,12 @@ class SimulatorNode(Node):
     def __init__(self, names: list[str], models: list[RobotModel], *, context: Context,
                  tick_ns: int, rows: Optional[np.ndarray] = None, node_name: str = "composed_sim",
                  lockstep: Optional[Lockstep] = None, devices: Optional[Sequence[Collection[str]]] = None,
-                 rab_payload_bytes: int = 10):
+                 rab_payload_bytes: int = 10, publish_clock: bool = True):
         """``lockstep``: the world's fault policy (unresponsive_after_s, max_violations); None:
         robots are never failed for being unresponsive or for their violations. ``devices``: per
         robot, the devices whose topics it has (``Devices.published``; None: each model's
-        defaults). ``rab_payload_bytes``: the world's range_and_bearing.payload_bytes."""
+        defaults). ``rab_payload_bytes``: the world's range_and_bearing.payload_bytes.
+        ``publish_clock``: False where another node of this process and domain publishes it."""
         super().__init__(node_name, context=context, **quiet_node_options())
         self._names = names
         self._index = {name: i for i, name in enumerate(names)}
@@ -104,7 +105,7 @@ class SimulatorNode(Node):
         if len(self.rows) != n:
             raise ValueError(f"{n} robots but {len(self.rows)} rows")
         self._inbox = Node(node_name + "_inbox", context=context, **quiet_node_options())
-        self._clock_pub = self.create_publisher(Clock, c.CLOCK_TOPIC, 10)
+        self._clock_pub = self.create_publisher(Clock, c.CLOCK_TOPIC, 10) if publish_clock else None
         self._clock_msg = Clock()
         self._driven_clocks = []
         self._tap: Optional[MessageTap] = None
@@ -141,6 +142,9 @@ class SimulatorNode(Node):
             if RANGE_AND_BEARING in has:
                 self._rab_subs[i] = self._inbox.create_subscription(
                     c.RAB_TX.msg_type, c.topic_name(name, c.RAB_TX), lambda msg: None, c.QOS)
+        self._pubs = {**self._device_pubs, c.PROXIMITY.name: self._proximity_pubs, c.LIGHT.name: self._light_pubs,
+                      c.BLOBS.name: self._blob_pubs}                           # sensor topic → [n]
+        self._read = {name: [False] * n for name in self._pubs}                # … → [n] has a reader
         # Every sensor publisher of each robot (a robot is connected once any has a subscriber).
         self._sensor_pubs = [[p for p in (self._proximity_pubs[i], self._light_pubs[i], self._blob_pubs[i],
                                           *(pubs[i] for pubs in self._device_pubs.values())) if p is not None]
@@ -209,6 +213,10 @@ class SimulatorNode(Node):
                 self._tap.write_serialized(c.topic_name(self._names[i], topic), c.type_name(topic.msg_type),
                                            data, stamp_ns)
 
+    def row_of(self, robot: str) -> int:
+        """``robot``'s index among this node's robots (its row in ``failed``, ``answered`` …)."""
+        return self._index[robot]
+
     def mark_failed(self, robot: str, reason: str) -> None:
         """Stop a robot for good (its controller is gone, hung or past max_violations): recorded
         once, then stopped (zero command) every tick, never waited for; its sensors are no longer
@@ -266,37 +274,60 @@ class SimulatorNode(Node):
             self._opened_ns = time.time_ns() if frame.tick > 0 else None
             if frame.tick == 0:   # unresponsiveness counts from the first tick on
                 self._last_accepted_s[:] = time.monotonic()
-        self._clock_msg.clock = stamp
-        self._clock_pub.publish(self._clock_msg)
+        if self._clock_pub is not None:
+            self._clock_msg.clock = stamp
+            self._clock_pub.publish(self._clock_msg)
         now = RosTime.from_msg(stamp)
         for clock in self._driven_clocks:
             clock.set_ros_time_override(now)
         stamp_ns = self._current_key
-        sec, nanosec = stamp.sec, stamp.nanosec
+        stamp_f4 = cdr.stamp_bytes(stamp.sec, stamp.nanosec)
+        failed = self.failed.tolist()
         point_size = c.BLOB_DTYPE.itemsize
         for plan in self._plans if self._plans is not None else self._make_plans(frame):
             group = frame.groups[plan.group]
-            distances, proximity, light, blobs = group.proximity_distances, group.proximity, group.light, group.blobs
-            points = None if blobs is None else c.blob_points(blobs.angles, blobs.distances, blobs.colors).tobytes()
-            if proximity is not None or light is not None or blobs is not None:
+            # Each array of the group once per tick as float32 bytes; a robot's row is a slice.
+            if group.proximity is not None:
+                distances, d_width = _rows_f4(group.proximity_distances)
+                proximity, p_width = _rows_f4(group.proximity)
+            if group.light is not None:
+                light, l_width = _rows_f4(group.light)
+            blobs = group.blobs
+            if blobs is not None:
+                points = c.blob_points(blobs.angles, blobs.distances, blobs.colors).tobytes()
+                offsets = blobs.offsets.tolist()
+            if group.proximity is not None or group.light is not None or blobs is not None:
                 for i, row in plan.pairs:
-                    if self.failed[i]:
+                    if failed[i]:
                         continue
-                    if proximity is not None:
-                        data = self._proximity_enc[i].encode(sec, nanosec, proximity[row], distances[row])
+                    if group.proximity is not None and self._wanted(c.PROXIMITY, i):
+                        data = self._proximity_enc[i].encode_bytes(
+                            stamp_f4, distances[row * d_width:(row + 1) * d_width],
+                            proximity[row * p_width:(row + 1) * p_width])
                         self._proximity_pubs[i].publish(data)
                         self._tap_message(c.PROXIMITY, i, data, stamp_ns)
-                    if light is not None:
-                        data = self._light_enc[i].encode(sec, nanosec, light[row])
+                    if group.light is not None and self._wanted(c.LIGHT, i):
+                        data = self._light_enc[i].encode_bytes(stamp_f4, b"", light[row * l_width:(row + 1) * l_width])
                         self._light_pubs[i].publish(data)
                         self._tap_message(c.LIGHT, i, data, stamp_ns)
-                    if blobs is not None:
-                        first, end = blobs.offsets[row], blobs.offsets[row + 1]
-                        data = self._blob_enc[i].encode(sec, nanosec, points[first * point_size:end * point_size],
-                                                        end - first)
+                    if blobs is not None and self._wanted(c.BLOBS, i):
+                        first, end = offsets[row], offsets[row + 1]
+                        data = self._blob_enc[i].encode(stamp.sec, stamp.nanosec,
+                                                        points[first * point_size:end * point_size], end - first)
                         self._blob_pubs[i].publish(data)
                         self._tap_message(c.BLOBS, i, data, stamp_ns)
             self._publish_devices(plan, frame, stamp, stamp_ns)
+
+    def _wanted(self, topic: c.Topic, i: int) -> bool:
+        """Publish robot i's message on ``topic`` this tick? Every tick once a subscriber has
+        matched (a subscriber that comes later gets every tick from its match on, as with any
+        volatile topic); until then each tick asks DDS, a call instead of a message nobody
+        reads. A recorded topic is always published."""
+        read = self._read[topic.name]
+        if not read[i]:
+            read[i] = self._pubs[topic.name][i].get_subscription_count() > 0 or (
+                self._tap is not None and self._tapped[topic.name][i])
+        return read[i]
 
     def _make_plans(self, frame: SensorFrame) -> list[_GroupPlan]:
         """Which of this node's robots are in which group of the frame (fixed for a run)."""
@@ -327,8 +358,9 @@ class SimulatorNode(Node):
             self._publish_wheels(plan, frame, stamp, stamp_ns)
 
     def _send(self, topic: c.Topic, i: int, msg, stamp_ns: int) -> None:
-        self._device_pubs[topic.name][i].publish(msg)
-        self._tap_message(topic, i, msg, stamp_ns)
+        if self._wanted(topic, i):
+            self._device_pubs[topic.name][i].publish(msg)
+            self._tap_message(topic, i, msg, stamp_ns)
 
     def _publish_ground(self, plan: _GroupPlan, ground: np.ndarray, stamp, stamp_ns: int) -> None:
         offsets = self._models[plan.local[0]].ground.offsets_m
@@ -514,3 +546,9 @@ class SimulatorNode(Node):
     def destroy_node(self) -> None:
         self._inbox.destroy_node()
         super().destroy_node()
+
+
+def _rows_f4(values: np.ndarray) -> tuple[bytes, int]:
+    """[k, m] → (the rows as consecutive little-endian float32 bytes, bytes per row)."""
+    values = np.ascontiguousarray(values, dtype="<f4")
+    return values.tobytes(), 4 * values.shape[1]

@@ -4,10 +4,10 @@ import numpy as np
 import pytest
 from geometry_msgs.msg import TwistStamped
 from rclpy.serialization import deserialize_message, serialize_message
-from sensor_msgs.msg import LaserScan, PointCloud2
+from sensor_msgs.msg import LaserScan, PointCloud2, PointField
 
 from composed_sim.core.robot_models import get_model
-from composed_sim.ros import contract as c
+from composed_sim.ros import cdr, contract as c
 
 FOOTBOT = get_model("foot-bot")
 NAMES = ["b", "bot7", "bot42", "bot123", "bot1234", "a_long_robot_name_99"]   # every CDR padding case
@@ -80,3 +80,25 @@ def test_answers_round_trip():
     assert deserialize_message(data, TwistStamped) == received(c.twist_stamped(stamp, 0.07, -1.25))
     assert c.decode_answer_cdr(serialize_message(c.twist_stamped(stamp, 0.3, 2.0))) == \
         (c.stamp_key(stamp), 0.3, 2.0)
+
+
+def test_one_decoder_follows_a_stream_whose_cloud_layout_changes():
+    """A subscription's decoder parses the layout once and re-parses when the publisher changes it
+    (another frame_id length, other field offsets): each cloud decodes as its message says."""
+    decoder = cdr.CloudDecoder()
+    reordered = [PointField(name=f.name, offset=o, datatype=f.datatype, count=1)
+                 for f, o in zip(c.BLOB_FIELDS, (4, 8, 12, 0))]       # rgb first in each point
+    for name, fields, m in (("b", c.BLOB_FIELDS, 3), ("b", c.BLOB_FIELDS, 0), ("a_long_robot_name_99", c.BLOB_FIELDS, 4),
+                            ("a_long_robot_name_99", reordered, 2), ("b", c.BLOB_FIELDS, 5)):
+        cloud = c.blob_cloud(name)
+        points = c.blob_points(rng.uniform(-3, 3, m), rng.uniform(0.1, 2, m),
+                               rng.integers(0, 256, (m, 3)).astype(np.uint8))
+        c.fill_blobs(cloud, c.stamp_of(1, 100_000_000), points)
+        if fields is reordered:
+            cloud.fields = reordered
+            data = points.view(np.uint8).reshape(m, 16)
+            cloud.data = np.concatenate([data[:, 12:], data[:, :12]], axis=1).tobytes()
+        got, want = c.decode_blobs_cdr(serialize_message(cloud), decoder), c.decode_blobs(cloud)
+        assert len(got) == m
+        for field in ("angles", "distances", "colors", "rgb"):
+            assert np.array_equal(getattr(got, field), getattr(want, field)), (name, m, field)

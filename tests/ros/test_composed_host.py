@@ -1,4 +1,5 @@
 """End to end through real rclpy: the composed host flies the flocking swarm."""
+import os
 from pathlib import Path
 
 import numpy as np
@@ -92,3 +93,41 @@ def test_unknown_parameter_and_unknown_plugin_are_clear_errors(domain_id):
     nope = world.model_copy(update={"robots": [world.robots[0].model_copy(update={"controller": "nope"})]})
     with pytest.raises(plugins.PluginError, match="unknown controller plugin 'nope'.*flocking"):
         run(nope, domain_id=domain_id)
+
+
+@pytest.fixture(scope="module")
+def one_participant_run():
+    import os
+    world = load_world(FLOCKING, robots=7, ticks=40, seed=5)
+    with ComposedHost(world, executor="lockstep", domain_id=int(os.environ["ROS_DOMAIN_ID"]),
+                      robots_per_participant=7) as host:
+        assert host.setup.participants == 1
+        return world, host.run()
+
+
+@pytest.mark.parametrize("executor", EXECUTORS)
+def test_robots_split_over_participants_fly_as_in_one(one_participant_run, executor, domain_id):
+    """3 robots per participant: 3 shards of 3, 3 and 1 robots, each its own DDS participant with
+    its simulator node; every executor runs them all, bit for bit as in one participant."""
+    world, whole = one_participant_run
+    with ComposedHost(world, executor=executor, domain_id=domain_id, robots_per_participant=3) as host:
+        assert host.setup.participants == 3 and [len(n.rows) for n in host.simulator_nodes] == [3, 3, 1]
+        sharded = host.run()
+    assert sharded.violations == whole.violations == []
+    np.testing.assert_array_equal(sharded.trajectories.positions, whole.trajectories.positions)
+    np.testing.assert_array_equal(sharded.trajectories.headings, whole.trajectories.headings)
+    np.testing.assert_array_equal(sharded.trajectories.led_colors, whole.trajectories.led_colors)
+
+
+def test_the_participant_profile_is_set_unless_the_user_gave_one(monkeypatch, tmp_path):
+    from composed_sim.ros import participants
+    for variable in participants.PROFILE_VARIABLES:
+        monkeypatch.delenv(variable, raising=False)
+    assert participants.ignore_participants_of_this_process()
+    assert os.environ["FASTRTPS_DEFAULT_PROFILES_FILE"] == str(participants.PROFILE)
+    assert "FILTER_SAME_PROCESS" in participants.PROFILE.read_text()
+    assert participants.ignore_participants_of_this_process()          # ours already: still in force
+    own = tmp_path / "mine.xml"
+    monkeypatch.setenv("FASTDDS_DEFAULT_PROFILES_FILE", str(own))
+    assert not participants.ignore_participants_of_this_process()      # the user's: respected
+    assert os.environ["FASTDDS_DEFAULT_PROFILES_FILE"] == str(own)

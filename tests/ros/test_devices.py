@@ -247,3 +247,31 @@ def test_a_controller_needing_a_sensor_its_robot_lacks_is_a_clear_error(domain_i
                        r"its sensor topics: scan\. Switch the device on"):
         with ComposedHost(world, domain_id=domain_id):
             pass
+
+
+def test_a_sensor_topic_goes_out_from_the_tick_after_its_first_subscriber(ros_context):
+    """A topic nobody reads costs a matched-count query, not a message; a subscriber that comes
+    gets every tick from then on. The writer's sequence numbers show what was published."""
+    from rclpy.node import Node
+    from composed_sim.core.simulation import Simulation
+    from composed_sim.ros.simulator_node import SimulatorNode
+    world = world_with([{"model": "foot-bot", "count": 2, "controller": "x"}])
+    sim = Simulation(world)
+    node = SimulatorNode(sim.names, sim.models, context=ros_context, tick_ns=world.tick_ns)
+    listener = Node("listener", context=ros_context)
+    light = listener.create_subscription(c.LIGHT.msg_type, c.topic_name("bot1", c.LIGHT), lambda m: None, c.QOS)
+    frame = sim.sense()
+    node.publish_tick(frame)                                   # tick 0: bot1's light is read, its proximity not
+    assert take(light).header.stamp == c.stamp_of(0, world.tick_ns)
+    proximity = listener.create_subscription(c.PROXIMITY.msg_type, c.topic_name("bot1", c.PROXIMITY),
+                                             lambda m: None, c.QOS)
+    for tick in (1, 2, 3):
+        frame = sim.step()
+        node.publish_tick(frame)
+        for sub, sequence in ((light, tick + 1), (proximity, tick)):
+            msg, info = sub.handle.take_message(sub.msg_type, sub.raw)
+            assert c.stamp_key(msg.header.stamp) == tick * world.tick_ns
+            assert info["publication_sequence_number"] == sequence, (sub.topic_name, tick)
+    np.testing.assert_allclose(c.decode_proximity(msg)[1], frame.groups[0].proximity[1], atol=1e-6)
+    node.destroy_node()
+    listener.destroy_node()
