@@ -283,37 +283,33 @@ class SimulatorNode(Node):
         stamp_ns = self._current_key
         stamp_f4 = cdr.stamp_bytes(stamp.sec, stamp.nanosec)
         failed = self.failed.tolist()
-        point_size = c.BLOB_DTYPE.itemsize
         for plan in self._plans if self._plans is not None else self._make_plans(frame):
             group = frame.groups[plan.group]
-            # Each array of the group once per tick as float32 bytes; a robot's row is a slice.
+            # This node's rows of each array once per tick as bytes; a robot's part is a slice.
             if group.proximity is not None:
-                distances, d_width = _rows_f4(group.proximity_distances)
-                proximity, p_width = _rows_f4(group.proximity)
+                distances, d_width = _rows_f4(group.proximity_distances[plan.within])
+                proximity, p_width = _rows_f4(group.proximity[plan.within])
             if group.light is not None:
-                light, l_width = _rows_f4(group.light)
-            blobs = group.blobs
-            if blobs is not None:
-                points = c.blob_points(blobs.angles, blobs.distances, blobs.colors).tobytes()
-                offsets = blobs.offsets.tolist()
-            if group.proximity is not None or group.light is not None or blobs is not None:
-                for i, row in plan.pairs:
+                light, l_width = _rows_f4(group.light[plan.within])
+            if group.blobs is not None:
+                points, offsets = _blob_rows(group.blobs, plan.within)
+            if group.proximity is not None or group.light is not None or group.blobs is not None:
+                for k, i in enumerate(plan.local.tolist()):
                     if failed[i]:
                         continue
                     if group.proximity is not None and self._wanted(c.PROXIMITY, i):
                         data = self._proximity_enc[i].encode_bytes(
-                            stamp_f4, distances[row * d_width:(row + 1) * d_width],
-                            proximity[row * p_width:(row + 1) * p_width])
+                            stamp_f4, distances[k * d_width:(k + 1) * d_width], proximity[k * p_width:(k + 1) * p_width])
                         self._proximity_pubs[i].publish(data)
                         self._tap_message(c.PROXIMITY, i, data, stamp_ns)
                     if group.light is not None and self._wanted(c.LIGHT, i):
-                        data = self._light_enc[i].encode_bytes(stamp_f4, b"", light[row * l_width:(row + 1) * l_width])
+                        data = self._light_enc[i].encode_bytes(stamp_f4, b"", light[k * l_width:(k + 1) * l_width])
                         self._light_pubs[i].publish(data)
                         self._tap_message(c.LIGHT, i, data, stamp_ns)
-                    if blobs is not None and self._wanted(c.BLOBS, i):
-                        first, end = offsets[row], offsets[row + 1]
-                        data = self._blob_enc[i].encode(stamp.sec, stamp.nanosec,
-                                                        points[first * point_size:end * point_size], end - first)
+                    if group.blobs is not None and self._wanted(c.BLOBS, i):
+                        first, end = offsets[k], offsets[k + 1]
+                        data = self._blob_enc[i].encode(stamp.sec, stamp.nanosec, points[first:end],
+                                                        (end - first) // _BLOB_BYTES)
                         self._blob_pubs[i].publish(data)
                         self._tap_message(c.BLOBS, i, data, stamp_ns)
             self._publish_devices(plan, frame, stamp, stamp_ns)
@@ -380,12 +376,14 @@ class SimulatorNode(Node):
                 self._send(c.SCAN, i, msgs[i], stamp_ns)
 
     def _publish_rab(self, plan: _GroupPlan, rab, stamp, stamp_ns: int) -> None:
-        points = c.rab_points(rab.ranges, rab.horizontal_bearings, rab.vertical_bearings, rab.payloads)
-        offsets = rab.offsets
+        take, offsets = _csr_rows(rab.offsets, plan.rows)
+        points = c.rab_points(rab.ranges[take], rab.horizontal_bearings[take], rab.vertical_bearings[take],
+                              rab.payloads[take])
+        offsets = offsets.tolist()
         msgs = self._device_msgs[c.RAB_RX.name]
-        for i, row in zip(plan.local.tolist(), plan.rows.tolist()):
+        for k, i in enumerate(plan.local.tolist()):
             if not self.failed[i]:
-                c.fill_rab(msgs[i], stamp, points[offsets[row]:offsets[row + 1]])
+                c.fill_rab(msgs[i], stamp, points[offsets[k]:offsets[k + 1]])
                 self._send(c.RAB_RX, i, msgs[i], stamp_ns)
 
     def _publish_pose(self, plan: _GroupPlan, frame: SensorFrame, stamp, stamp_ns: int) -> None:
@@ -546,6 +544,32 @@ class SimulatorNode(Node):
     def destroy_node(self) -> None:
         self._inbox.destroy_node()
         super().destroy_node()
+
+
+_BLOB_BYTES = c.BLOB_DTYPE.itemsize
+
+
+def _csr_rows(offsets: np.ndarray, rows: np.ndarray):
+    """The entries of CSR rows ``rows`` [k] (ascending) of entry arrays with row offsets
+    ``offsets``: (what to take from the entry arrays, [k+1] offsets into what is taken).
+
+    A simulator node serves a shard or a domain of the swarm: converting every robot's entries
+    (blobs, range-and-bearing messages) in every node would cost (number of nodes) × the work."""
+    starts, ends = offsets[rows], offsets[rows + 1]
+    counts = ends - starts
+    local = np.zeros(len(rows) + 1, dtype=np.int64)
+    np.cumsum(counts, out=local[1:])
+    if len(rows) and rows[-1] - rows[0] + 1 == len(rows):     # contiguous rows: a slice
+        return slice(int(starts[0]), int(ends[-1])), local
+    return np.arange(local[-1]) + np.repeat(starts - local[:-1], counts), local
+
+
+def _blob_rows(blobs, within: np.ndarray) -> tuple[bytes, list[int]]:
+    """The blob points of the group's robots ``within`` [k] as bytes, and where each robot's
+    start in them ([k+1] byte offsets)."""
+    take, local = _csr_rows(blobs.offsets, within)
+    points = c.blob_points(blobs.angles[take], blobs.distances[take], blobs.colors[take])
+    return points.tobytes(), (local * _BLOB_BYTES).tolist()
 
 
 def _rows_f4(values: np.ndarray) -> tuple[bytes, int]:

@@ -275,3 +275,19 @@ def test_a_sensor_topic_goes_out_from_the_tick_after_its_first_subscriber(ros_co
     np.testing.assert_allclose(c.decode_proximity(msg)[1], frame.groups[0].proximity[1], atol=1e-6)
     node.destroy_node()
     listener.destroy_node()
+
+
+def test_a_node_converts_exactly_its_robots_entries_of_csr_readings():
+    """Blobs and range-and-bearing messages are CSR by robot; a node takes its robots' entries,
+    as a slice for contiguous rows (a shard) and gathered otherwise (explicit domains)."""
+    from composed_sim.ros.simulator_node import _csr_rows
+    counts = np.array([2, 0, 3, 1, 4, 0, 2])
+    offsets = np.concatenate([[0], np.cumsum(counts)])
+    entries = np.arange(offsets[-1]) * 10
+    for rows in ([0, 1, 2], [2, 3, 4], [0, 2, 6], [1, 5], [6], [3, 4, 5, 6]):
+        rows = np.array(rows)
+        take, local = _csr_rows(offsets, rows)
+        got = entries[take]
+        assert local.tolist() == [0, *np.cumsum(counts[rows]).tolist()]
+        for k, r in enumerate(rows):
+            assert got[local[k]:local[k + 1]].tolist() == entries[offsets[r]:offsets[r + 1]].tolist()
