@@ -3,6 +3,7 @@ known tree, the skip rule, the domain blocks and the paper's results as shipped.
 import csv
 import json
 import statistics
+import subprocess
 import sys
 import textwrap
 
@@ -175,3 +176,16 @@ def test_paper_results_ship_with_the_package_and_average_the_trials():
     assert multi[1280]["MaxMem(kB)"] == pytest.approx(3_281_301.0)
     assert sorted(multi) == [10, 20, 40, 80, 160, 320, 640, 1280] and 160 not in single
     assert (bench.paper_results_dir() / "README.md").is_file()
+
+
+def test_the_rclpy_floor_makes_the_exchange_calls_and_finds_every_message(domain_id):
+    """python -m composed_sim.rclpy_floor: the flocking exchange's rclpy calls alone, per size; it
+    fails if a take comes back empty (then it would not be what composed mode does)."""
+    r = subprocess.run([sys.executable, "-m", "composed_sim.rclpy_floor", "--robots", "3,5", "--ticks", "5",
+                        "--domain-id", str(domain_id)], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr[-2000:]
+    rows = [json.loads(line) for line in r.stdout.splitlines()]
+    assert [(row["robots"], row["ticks"], row["blobs"]) for row in rows] == [(3, 5, 50), (5, 5, 50)]
+    for row in rows:
+        assert row["us_per_robot_tick"] > 0
+        assert row["s_per_600_ticks"] == pytest.approx(600 * row["robots"] * row["us_per_robot_tick"] * 1e-6, abs=0.1)

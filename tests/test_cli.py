@@ -147,7 +147,7 @@ def test_another_process_hears_every_tick_of_robots_in_every_participant(tmp_pat
     stamps = {topic: [] for topic in ("/bot6/light", "/bot5/light", "/bot5/cmd_vel")}
     # The run makes about a thousand ticks a second: a reader history deep enough that this test's
     # Python, not the publisher, is never what drops a message.
-    deep = QoSProfile(depth=100_000, reliability=ReliabilityPolicy.RELIABLE)
+    deep = QoSProfile(depth=10_000, reliability=ReliabilityPolicy.RELIABLE)
     for topic, received in stamps.items():
         node.create_subscription(TwistStamped if topic.endswith("cmd_vel") else LaserScan, topic,
                                  lambda msg, received=received: received.append(c.stamp_key(msg.header.stamp)), deep)

@@ -86,7 +86,7 @@ class CallbackGuard:
             except ControllerHung:
                 self._running = None
                 sim_node.mark_failed(robot, f"hung: callback still running after "
-                                                  f"{time.monotonic() - started:.1f} s, interrupted")
+                                            f"{time.monotonic() - started:.1f} s, interrupted")
                 return None
             except Exception as e:
                 sim_node.mark_failed(robot, f"callback raised {type(e).__name__}: {e}")
@@ -95,7 +95,7 @@ class CallbackGuard:
             # Worker threads (multi-threaded executor) meet the tick's wall-clock deadline instead.
             if in_main and took > self._watchdog_s:
                 sim_node.reject_answer(robot, f"late: a callback took {took:.2f} s, more than "
-                                                    f"the watchdog's {self._watchdog_s} s")
+                                              f"the watchdog's {self._watchdog_s} s")
             return result
         # rclpy picks a subscription's call signature from the callback's: keep the original's.
         if arity == 0:

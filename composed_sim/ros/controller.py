@@ -76,11 +76,13 @@ class SwarmController(Node):
         for name in self.sensors:
             topic = c.TOPICS[name]
             self.create_subscription(topic.msg_type, topic.name, lambda data, name=name: self._on_sensor(name, data),
-                                     c.QOS, raw=name in _TAKEN_AS_BYTES)
-        self._cmd_pub = self.create_publisher(c.CMD_VEL.msg_type, c.CMD_VEL.name, c.QOS)
+                                     c.QOS, raw=name in _TAKEN_AS_BYTES, event_callbacks=c.SUBSCRIPTION_EVENTS)
+        self._cmd_pub = self.create_publisher(c.CMD_VEL.msg_type, c.CMD_VEL.name, c.QOS,
+                                              event_callbacks=c.PUBLISHER_EVENTS)
         self._answer_encoder = c.answer_encoder()
         self._blobs_decoder = cdr.CloudDecoder()
-        self._led_pub = self.create_publisher(c.LEDS.msg_type, c.LEDS.name, c.QOS)
+        self._led_pub = self.create_publisher(c.LEDS.msg_type, c.LEDS.name, c.QOS,
+                                              event_callbacks=c.PUBLISHER_EVENTS)
         self._init_devices()
 
     # --- for subclasses ---------------------------------------------------------------------
@@ -144,7 +146,7 @@ class SwarmController(Node):
             raise ValueError(f"{type(self).__name__}.sensors: {', '.join(map(repr, unknown))} is no sensor "
                              f"topic; known: {', '.join(t.name for t in c.SENSOR_TOPICS)}")
         self.rab_payload_bytes: int = self.declare_parameter(PARAM_RAB_PAYLOAD_BYTES, 0).value
-        self._rab_pub = (self.create_publisher(c.RAB_TX.msg_type, c.RAB_TX.name, c.QOS)
+        self._rab_pub = (self.create_publisher(c.RAB_TX.msg_type, c.RAB_TX.name, c.QOS, event_callbacks=c.PUBLISHER_EVENTS)
                          if self.rab_payload_bytes > 0 else None)
         self._rab_msg = None
         #: [r] LiDAR ray angles in the scanner's frame (None without a LiDAR).

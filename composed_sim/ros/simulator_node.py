@@ -105,7 +105,7 @@ class SimulatorNode(Node):
         if len(self.rows) != n:
             raise ValueError(f"{n} robots but {len(self.rows)} rows")
         self._inbox = Node(node_name + "_inbox", context=context, **quiet_node_options())
-        self._clock_pub = self.create_publisher(Clock, c.CLOCK_TOPIC, 10) if publish_clock else None
+        self._clock_pub = self.create_publisher(Clock, c.CLOCK_TOPIC, 10, event_callbacks=c.PUBLISHER_EVENTS) if publish_clock else None
         self._clock_msg = Clock()
         self._driven_clocks = []
         self._tap: Optional[MessageTap] = None
@@ -125,23 +125,25 @@ class SimulatorNode(Node):
         for i, (name, model) in enumerate(zip(names, models)):
             has = self._devices[i]
             if PROXIMITY in has:
-                self._proximity_pubs[i] = self.create_publisher(c.PROXIMITY.msg_type, c.topic_name(name, c.PROXIMITY), c.QOS)
+                self._proximity_pubs[i] = self._publisher(name, c.PROXIMITY)
                 self._proximity_enc[i] = c.proximity_encoder(model, name)
             if LIGHT in has:
-                self._light_pubs[i] = self.create_publisher(c.LIGHT.msg_type, c.topic_name(name, c.LIGHT), c.QOS)
+                self._light_pubs[i] = self._publisher(name, c.LIGHT)
                 self._light_enc[i] = c.light_encoder(model, name)
             if CAMERA in has:
-                self._blob_pubs[i] = self.create_publisher(c.BLOBS.msg_type, c.topic_name(name, c.BLOBS), c.QOS)
+                self._blob_pubs[i] = self._publisher(name, c.BLOBS)
                 self._blob_enc[i] = c.blobs_encoder(name)
             self._create_device_publishers(i, name, model, has)
             self._cmd_subs.append(self.create_subscription(
                 c.CMD_VEL.msg_type, c.topic_name(name, c.CMD_VEL), lambda data, i=i: self._on_cmd_vel(i, data),
-                c.QOS, raw=True))
+                c.QOS, raw=True, event_callbacks=c.SUBSCRIPTION_EVENTS))
             self._led_subs.append(self._inbox.create_subscription(
-                c.LEDS.msg_type, c.topic_name(name, c.LEDS), lambda msg: None, c.QOS))
+                c.LEDS.msg_type, c.topic_name(name, c.LEDS), lambda msg: None, c.QOS,
+                event_callbacks=c.SUBSCRIPTION_EVENTS))
             if RANGE_AND_BEARING in has:
                 self._rab_subs[i] = self._inbox.create_subscription(
-                    c.RAB_TX.msg_type, c.topic_name(name, c.RAB_TX), lambda msg: None, c.QOS)
+                    c.RAB_TX.msg_type, c.topic_name(name, c.RAB_TX), lambda msg: None, c.QOS,
+                    event_callbacks=c.SUBSCRIPTION_EVENTS)
         self._pubs = {**self._device_pubs, c.PROXIMITY.name: self._proximity_pubs, c.LIGHT.name: self._light_pubs,
                       c.BLOBS.name: self._blob_pubs}                           # sensor topic → [n]
         self._read = {name: [False] * n for name in self._pubs}                # … → [n] has a reader
@@ -175,7 +177,7 @@ class SimulatorNode(Node):
     def _create_device_publishers(self, i: int, name: str, model: RobotModel, has: frozenset[str]) -> None:
         """Publishers and reused messages of robot i's devices beyond the proximity/light/camera set."""
         def add(topic: c.Topic, msg) -> None:
-            self._device_pubs[topic.name][i] = self.create_publisher(topic.msg_type, c.topic_name(name, topic), c.QOS)
+            self._device_pubs[topic.name][i] = self._publisher(name, topic)
             self._device_msgs[topic.name][i] = msg
         if GROUND in has:
             add(c.GROUND_SENSORS, c.ground_cloud(name, len(model.ground.offsets_m)))
@@ -189,6 +191,10 @@ class SimulatorNode(Node):
             add(c.ODOM, c.odometry_message(name))
         if DIFFERENTIAL_STEERING in has:
             add(c.WHEELS, c.joint_state(name))
+
+    def _publisher(self, robot: str, topic: c.Topic):
+        return self.create_publisher(topic.msg_type, c.topic_name(robot, topic), c.QOS,
+                                     event_callbacks=c.PUBLISHER_EVENTS)
 
     def drive_clock_of(self, node: Node) -> None:
         """Set a node's clock to sim time at each tick directly: a hosted node then sees sim time
