@@ -287,7 +287,7 @@ class SimulatorNode(Node):
         for clock in self._driven_clocks:
             clock.set_ros_time_override(now)
         stamp_ns = self._current_key
-        stamp_f4 = cdr.stamp_bytes(stamp.sec, stamp.nanosec)
+        stamp_cdr = cdr.stamp_bytes(stamp.sec, stamp.nanosec)
         failed = self.failed.tolist()
         for plan in self._plans if self._plans is not None else self._make_plans(frame):
             group = frame.groups[plan.group]
@@ -305,11 +305,11 @@ class SimulatorNode(Node):
                         continue
                     if group.proximity is not None and self._wanted(c.PROXIMITY, i):
                         data = self._proximity_enc[i].encode_bytes(
-                            stamp_f4, distances[k * d_width:(k + 1) * d_width], proximity[k * p_width:(k + 1) * p_width])
+                            stamp_cdr, distances[k * d_width:(k + 1) * d_width], proximity[k * p_width:(k + 1) * p_width])
                         self._proximity_pubs[i].publish(data)
                         self._tap_message(c.PROXIMITY, i, data, stamp_ns)
                     if group.light is not None and self._wanted(c.LIGHT, i):
-                        data = self._light_enc[i].encode_bytes(stamp_f4, b"", light[k * l_width:(k + 1) * l_width])
+                        data = self._light_enc[i].encode_bytes(stamp_cdr, b"", light[k * l_width:(k + 1) * l_width])
                         self._light_pubs[i].publish(data)
                         self._tap_message(c.LIGHT, i, data, stamp_ns)
                     if group.blobs is not None and self._wanted(c.BLOBS, i):
@@ -360,16 +360,16 @@ class SimulatorNode(Node):
             self._publish_wheels(plan, frame, stamp, stamp_ns)
 
     def _send(self, topic: c.Topic, i: int, msg, stamp_ns: int) -> None:
-        if self._wanted(topic, i):
-            self._device_pubs[topic.name][i].publish(msg)
-            self._tap_message(topic, i, msg, stamp_ns)
+        """Publish a device message; the caller asked ``_wanted`` before filling it."""
+        self._device_pubs[topic.name][i].publish(msg)
+        self._tap_message(topic, i, msg, stamp_ns)
 
     def _publish_ground(self, plan: _GroupPlan, ground: np.ndarray, stamp, stamp_ns: int) -> None:
         offsets = self._models[plan.local[0]].ground.offsets_m
         points = c.ground_points(offsets, ground[plan.within])     # [k, s], built once per group
         msgs = self._device_msgs[c.GROUND_SENSORS.name]
         for k, (i, _) in enumerate(plan.pairs):
-            if not self.failed[i]:
+            if not self.failed[i] and self._wanted(c.GROUND_SENSORS, i):
                 c.fill_ground(msgs[i], stamp, points[k])
                 self._send(c.GROUND_SENSORS, i, msgs[i], stamp_ns)
 
@@ -377,7 +377,7 @@ class SimulatorNode(Node):
         ranges = lidar[plan.within].astype(np.float32)             # [k, r], cast once per group
         msgs = self._device_msgs[c.SCAN.name]
         for k, (i, _) in enumerate(plan.pairs):
-            if not self.failed[i]:
+            if not self.failed[i] and self._wanted(c.SCAN, i):
                 c.fill_scan(msgs[i], stamp, ranges[k])
                 self._send(c.SCAN, i, msgs[i], stamp_ns)
 
@@ -388,7 +388,7 @@ class SimulatorNode(Node):
         offsets = offsets.tolist()
         msgs = self._device_msgs[c.RAB_RX.name]
         for k, i in enumerate(plan.local.tolist()):
-            if not self.failed[i]:
+            if not self.failed[i] and self._wanted(c.RAB_RX, i):
                 c.fill_rab(msgs[i], stamp, points[offsets[k]:offsets[k + 1]])
                 self._send(c.RAB_RX, i, msgs[i], stamp_ns)
 
@@ -397,7 +397,7 @@ class SimulatorNode(Node):
         q = frame.pose.quaternions[plan.rows].tolist()          # (x, y, z, w)
         msgs = self._device_msgs[c.POSE.name]
         for k, i in enumerate(plan.local.tolist()):
-            if not self.failed[i]:
+            if not self.failed[i] and self._wanted(c.POSE, i):
                 c.fill_pose(msgs[i], stamp, xy[k][0], xy[k][1], q[k][2], q[k][3])
                 self._send(c.POSE, i, msgs[i], stamp_ns)
 
@@ -407,7 +407,7 @@ class SimulatorNode(Node):
         values = np.column_stack([pose[:, 0], pose[:, 1], qz, qw, frame.odometry_twist[plan.rows]]).tolist()
         msgs = self._device_msgs[c.ODOM.name]
         for k, i in enumerate(plan.local.tolist()):
-            if not self.failed[i]:
+            if not self.failed[i] and self._wanted(c.ODOM, i):
                 c.fill_odometry(msgs[i], stamp, *values[k])
                 self._send(c.ODOM, i, msgs[i], stamp_ns)
 
@@ -418,7 +418,7 @@ class SimulatorNode(Node):
         velocities = frame.wheels.velocities_mps[plan.rows] / radius
         msgs = self._device_msgs[c.WHEELS.name]
         for k, i in enumerate(plan.local.tolist()):
-            if not self.failed[i]:
+            if not self.failed[i] and self._wanted(c.WHEELS, i):
                 c.fill_wheels(msgs[i], stamp, angles[k], velocities[k])
                 self._send(c.WHEELS, i, msgs[i], stamp_ns)
 
