@@ -8,7 +8,10 @@ WallTime(s)  spawn to exit of the run's root process: interpreter start, imports
              writing the results; what the paper timed.
 CPU(%)       core-seconds of the whole tree / WallTime × 100 (% of one core, the paper's convention).
 MaxMem(kB)   peak over the samples of the summed RSS of every process of the tree (pages shared
-             between processes count once per process).
+             between processes count once per process: an upper bound with many processes).
+MaxPss(kB)   peak over the samples of the summed PSS of every process of the tree (each shared page
+             split among the processes that map it: the tree's real footprint), sampled at most
+             every PSS_SAMPLE_S.
 setup_s, ticks_wall_s, real_time_factor, violations …  from the run's own JSON summary.
 
 Outputs in --out: runs.csv (one row per run; the paper's nine columns first, then ours), runs.json
@@ -47,11 +50,13 @@ EXECUTORS = ("lockstep", "events", "single-threaded", "multi-threaded")
 # is both sides and cannot be split.
 PAPER_COLUMNS = ("Robots", "Repetition", "WallTime(s)", "CPU(%)", "MaxMem(kB)",
                  "ArgosCPU(%)", "Ros2CPU(%)", "ArgosMem(kB)", "Ros2Mem(kB)")
-OUR_COLUMNS = ("mode", "executor", "status", "ticks", "setup_s", "ticks_wall_s", "total_wall_s",
+OUR_COLUMNS = ("mode", "workers", "workers_used", "executor", "status", "ticks", "setup_s", "ticks_wall_s", "total_wall_s",
                "cpu_core_s", "real_time_factor", "per_robot_tick_us", "violations",
                "physics_s", "sensing_s", "ros_exchange_s", "processes", "other_load_cores", "domain_id",
-               "exit_code", "reason")
+               "exit_code", "reason", "MaxPss(kB)", "Ros2Pss(kB)")
 COLUMNS = PAPER_COLUMNS + OUR_COLUMNS
+# workers: composed mode's --workers as asked ("1", "auto", "4"), empty in multi-process mode;
+# workers_used: what the run used (auto's choice). Ros2Pss(kB): the PSS of every process but the root.
 # status: ok | skipped | failed (non-zero exit or no summary) | timeout | interrupted
 # other_load_cores: cores kept busy by everything outside the run's tree during it, on average (the
 # machine is shared: a run next to a busy neighbour is slower, and this says so).
@@ -62,6 +67,7 @@ PAPER_VARIANTS = {          # key: (file, label)
 }
 
 SAMPLE_S = 0.15             # psutil sampling period of a run's process tree
+PSS_SAMPLE_S = 1.0          # PSS reads each process's smaps: sampled less often
 TERM_GRACE_S = 15.0         # after SIGTERM (timeout), time to stop at a tick and write, then SIGKILL
 LEFTOVER_GRACE_S = 10.0     # time a run's descendants get to exit after its root did
 STDERR_TAIL_CHARS = 600
@@ -105,6 +111,14 @@ def _choice_list(allowed: tuple[str, ...]) -> Callable[[str], tuple[str, ...]]:
     return parse
 
 
+def _workers_list(text: str) -> tuple[str, ...]:
+    values = tuple(v.strip() for v in text.split(",") if v.strip())
+    bad = [v for v in values if v != "auto" and not (v.isdigit() and int(v) >= 1)]
+    if not values or bad:
+        raise argparse.ArgumentTypeError(f"expected whole numbers >= 1 or auto, comma-separated, got {text!r}")
+    return values
+
+
 def _positive(kind: type) -> Callable[[str], float]:
     from composed_sim.cli import number_arg   # the CLI imports this module only once it is loaded
     return number_arg(kind, minimum=0, inclusive=False)
@@ -126,6 +140,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help=f"host modes among {join(modes)} (default: all)")
     parser.add_argument("--executors", type=_choice_list(tuple(executors)), default=tuple(executors),
                         metavar="EXECUTOR,…", help=f"executors among {join(executors)} (default: all)")
+    parser.add_argument("--workers", type=_workers_list, default=("auto",), metavar="K|auto,…",
+                        help="composed mode: the --workers values to sweep, e.g. 1,auto (default: auto)")
     parser.add_argument("--trials", type=_positive(int), default=3, help="runs per size, mode and executor (default: %(default)s)")
     parser.add_argument("--ticks", type=_positive(int), default=600,
                         help="ticks per run (default: %(default)s, one simulated minute as in the paper)")
@@ -156,7 +172,8 @@ def command_line(args) -> str:
     """The ``composed-sim bench`` command that reproduces this sweep (what was given, spelled out)."""
     parts = ["composed-sim", "bench",
              "--sizes", ",".join(map(str, args.sizes)), "--modes", ",".join(args.modes),
-             "--executors", ",".join(args.executors), "--trials", str(args.trials), "--ticks", str(args.ticks)]
+             "--executors", ",".join(args.executors), "--workers", ",".join(args.workers),
+             "--trials", str(args.trials), "--ticks", str(args.ticks)]
     if args.world is not None:
         parts += ["--world", str(args.world)]
     if args.timeout != DEFAULT_TIMEOUT_S:
@@ -258,24 +275,26 @@ def _num(v) -> Optional[float]:
     return x if math.isfinite(x) else None
 
 
-MEDIAN_FIELDS = ("WallTime(s)", "CPU(%)", "MaxMem(kB)", "setup_s", "ticks_wall_s", "total_wall_s",
+MEDIAN_FIELDS = ("WallTime(s)", "CPU(%)", "MaxMem(kB)", "MaxPss(kB)", "workers_used", "setup_s", "ticks_wall_s", "total_wall_s",
                  "cpu_core_s", "real_time_factor", "per_robot_tick_us", "processes", "other_load_cores")
 
 
 def aggregate(rows: Iterable[dict]) -> list[dict]:
-    """One record per (Robots, mode, executor): medians over the ok trials, counts of all trials."""
+    """One record per (Robots, mode, workers, executor): medians over the ok trials, counts of all trials."""
     groups: dict[tuple, list[dict]] = {}
     for r in rows:
-        groups.setdefault((int(r["Robots"]), r["mode"], r["executor"]), []).append(r)
+        workers = "" if r.get("workers") is None else str(r["workers"])
+        groups.setdefault((int(r["Robots"]), r["mode"], workers, r["executor"]), []).append(r)
     out = []
     def order(key: tuple) -> tuple:
-        n, mode, executor = key
+        n, mode, workers, executor = key
         return (n, MODES.index(mode) if mode in MODES else len(MODES),
+                (0, int(workers)) if workers.isdigit() else (1, 0),
                 EXECUTORS.index(executor) if executor in EXECUTORS else len(EXECUTORS), executor)
 
-    for (n, mode, executor), recs in sorted(groups.items(), key=lambda kv: order(kv[0])):
+    for (n, mode, workers, executor), recs in sorted(groups.items(), key=lambda kv: order(kv[0])):
         ok = [r for r in recs if r["status"] == "ok"]
-        agg = {"Robots": n, "mode": mode, "executor": executor, "trials": len(recs), "ok": len(ok),
+        agg = {"Robots": n, "mode": mode, "workers": workers, "executor": executor, "trials": len(recs), "ok": len(ok),
                "statuses": sorted({r["status"] for r in recs})}
         for k in MEDIAN_FIELDS:
             vals = [x for x in (_num(r.get(k)) for r in ok) if x is not None]
@@ -284,6 +303,17 @@ def aggregate(rows: Iterable[dict]) -> list[dict]:
         agg["violations"] = int(max(v for v in viol if v is not None)) if any(v is not None for v in viol) else None
         out.append(agg)
     return out
+
+
+def host_label(rec: dict) -> str:
+    """How a row's or record's controllers were hosted: "composed, 1 process", "composed, workers
+    auto (8)", "multi-process"."""
+    if rec["mode"] != "composed":
+        return rec["mode"]
+    workers, used = str(rec.get("workers") or "1"), _num(rec.get("workers_used"))
+    if workers == "1":
+        return "composed, 1 process"
+    return f"composed, workers {workers}" + (f" ({used:.0f})" if workers == "auto" and used else "")
 
 
 # ---------------------------------------------------------------------------------------------
@@ -301,6 +331,8 @@ class TreeMeasurement:
     max_processes: int                # most processes alive in the tree at one sample
     stdout: str
     stderr: str
+    peak_tree_pss_kb: int = 0         # peak of the summed PSS of the tree (sampled every PSS_SAMPLE_S)
+    peak_others_pss_kb: int = 0
     timed_out: bool = False
     interrupted: bool = False
     leftovers_killed: int = 0         # descendants still alive LEFTOVER_GRACE_S after the root exited
@@ -330,10 +362,15 @@ def measure_tree(cmd: list[str], *, env: dict, timeout_s: float, sample_s: float
     tracked: dict[int, _Tracked] = {}
     retired: list[_Tracked] = []      # processes whose pid was reused by a later one
     peak_tree = peak_root = peak_others = 0
+    peak_pss = peak_others_pss = 0
+    next_pss = 0.0
     max_processes = 0
 
     def sample(root_alive: bool) -> None:
-        nonlocal peak_tree, peak_root, peak_others, max_processes
+        nonlocal peak_tree, peak_root, peak_others, max_processes, peak_pss, peak_others_pss, next_pss
+        with_pss = time.perf_counter() >= next_pss
+        if with_pss:
+            next_pss = time.perf_counter() + PSS_SAMPLE_S
         procs = []
         if root_alive:
             try:
@@ -342,7 +379,7 @@ def measure_tree(cmd: list[str], *, env: dict, timeout_s: float, sample_s: float
                 procs = [root]
         else:
             procs = [t.proc for t in tracked.values() if t.proc is not root]
-        rss_root = rss_others = alive = 0
+        rss_root = rss_others = alive = pss_root = pss_others = 0
         for p in procs:
             t = tracked.get(p.pid)
             if t is None or t.proc is not p and not _same_process(t.proc, p):
@@ -353,18 +390,22 @@ def measure_tree(cmd: list[str], *, env: dict, timeout_s: float, sample_s: float
                 with t.proc.oneshot():
                     times = t.proc.cpu_times()
                     rss = t.proc.memory_info().rss
+                pss = t.proc.memory_full_info().pss if with_pss else 0
             except psutil.Error:
                 continue
             t.cpu_s = max(t.cpu_s, times.user + times.system)
             if rss:
                 alive += 1
             if t.proc is root:
-                rss_root = rss
+                rss_root, pss_root = rss, pss
             else:
                 rss_others += rss
+                pss_others += pss
         peak_root = max(peak_root, rss_root)
         peak_others = max(peak_others, rss_others)
         peak_tree = max(peak_tree, rss_root + rss_others)
+        peak_pss = max(peak_pss, pss_root + pss_others)
+        peak_others_pss = max(peak_others_pss, pss_others)
         max_processes = max(max_processes, alive)
 
     timed_out = interrupted = False
@@ -433,6 +474,7 @@ def measure_tree(cmd: list[str], *, env: dict, timeout_s: float, sample_s: float
         root_cpu_s=max(root_own, tracked[proc.pid].cpu_s),
         peak_tree_rss_kb=peak_tree // 1024, peak_root_rss_kb=peak_root // 1024,
         peak_others_rss_kb=peak_others // 1024, max_processes=max_processes,
+        peak_tree_pss_kb=peak_pss // 1024, peak_others_pss_kb=peak_others_pss // 1024,
         stdout=stdout, stderr=stderr, timed_out=timed_out, interrupted=interrupted,
         leftovers_killed=len(leftovers))
 
@@ -528,12 +570,16 @@ class MemoryEstimate:
     measured: bool = False
 
     def update(self, row: dict) -> None:
-        others, root, n = _num(row.get("Ros2Mem(kB)")), _num(row.get("ArgosMem(kB)")), int(row["Robots"])
+        """From a multi-process run: PSS per controller process (shared library pages counted once
+        over all processes, as the memory they really take), RSS where PSS is not known."""
+        n, root = int(row["Robots"]), _num(row.get("ArgosMem(kB)"))
+        pss, rss = _num(row.get("Ros2Pss(kB)")), _num(row.get("Ros2Mem(kB)"))
+        others, figure = (pss, "PSS") if pss else (rss, "RSS")
         if others is None or root is None or others <= 0:
             return
         self.per_process_mb = others / 1024 / n
         self.base_mb = root / 1024
-        self.source = f"measured at N={n}, {row['executor']} executor"
+        self.source = f"{figure} measured at N={n}, {row['executor']} executor"
         self.measured = True
 
 
@@ -550,18 +596,23 @@ class Sweep:
     interrupted: bool = False         # the last run was ended because the sweep was interrupted
     world_robots_per_domain: Optional[int] = None   # the world's multi_process.robots_per_domain
 
-    def command(self, robots: int, mode: str, executor: str, domain: int, out: Path, ticks: int) -> list[str]:
+    def command(self, robots: int, mode: str, executor: str, domain: int, out: Path, ticks: int,
+                workers: Optional[str] = None) -> list[str]:
         cmd = [sys.executable, "-m", "composed_sim.cli", "run", str(self.world), "--robots", str(robots),
                "--ticks", str(ticks), "--mode", mode, "--executor", executor, "--domain-id", str(domain),
                "--out", str(out), "--json", "--no-progress", "--no-picture"]
         if mode == "multi-process" and self.robots_per_domain:
             cmd += ["--robots-per-domain", str(self.robots_per_domain)]
+        if mode == "composed" and workers is not None:
+            cmd += ["--workers", workers]
         return cmd
 
-    def one(self, robots: int, mode: str, executor: str, trial: int, ticks: Optional[int] = None) -> dict:
+    def one(self, robots: int, mode: str, executor: str, trial: int, ticks: Optional[int] = None,
+            workers: Optional[str] = None) -> dict:
         ticks = ticks or self.ticks
         row = {c: None for c in COLUMNS}
-        row.update({"Robots": robots, "Repetition": trial, "mode": mode, "executor": executor, "ticks": ticks})
+        row.update({"Robots": robots, "Repetition": trial, "mode": mode, "executor": executor, "ticks": ticks,
+                    "workers": workers if mode == "composed" else None})
         if mode == "multi-process":
             available = available_memory_mb()
             reason = skip_reason(self.estimate.per_process_mb, robots, available, base_mb=self.estimate.base_mb,
@@ -580,13 +631,14 @@ class Sweep:
         if "ROS_LOCALHOST_ONLY" not in env:
             env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
         with tempfile.TemporaryDirectory(prefix="composed-sim-bench-") as tmp:
-            m = measure_tree(self.command(robots, mode, executor, domain, Path(tmp), ticks), env=env,
+            m = measure_tree(self.command(robots, mode, executor, domain, Path(tmp), ticks, workers), env=env,
                              timeout_s=self.timeout_s)
         summary = parse_summary(m.stdout)
         wall = m.wall_s
         row.update({
             "WallTime(s)": round(wall, 3), "CPU(%)": round(100 * m.cpu_core_s / wall, 1) if wall > 0 else None,
-            "MaxMem(kB)": m.peak_tree_rss_kb, "total_wall_s": round(wall, 3), "cpu_core_s": round(m.cpu_core_s, 3),
+            "MaxMem(kB)": m.peak_tree_rss_kb, "MaxPss(kB)": m.peak_tree_pss_kb or None,
+            "total_wall_s": round(wall, 3), "cpu_core_s": round(m.cpu_core_s, 3),
             "processes": m.max_processes, "exit_code": m.exit_code,
             "other_load_cores": None if m.other_cores is None else round(m.other_cores, 2),
         })
@@ -594,11 +646,12 @@ class Sweep:
             row.update({"ArgosCPU(%)": round(100 * m.root_cpu_s / wall, 1),
                         "Ros2CPU(%)": round(100 * max(m.cpu_core_s - m.root_cpu_s, 0.0) / wall, 1),
                         "ArgosMem(kB)": max(m.peak_root_rss_kb, int(1024 * (_num((summary or {}).get("peak_rss_mb")) or 0))),
-                        "Ros2Mem(kB)": m.peak_others_rss_kb})
+                        "Ros2Mem(kB)": m.peak_others_rss_kb, "Ros2Pss(kB)": m.peak_others_pss_kb or None})
         if summary:
             phases = summary.get("phases_s") or {}
             row.update({k: _round(summary.get(k), 6) for k in ("setup_s", "ticks_wall_s")})
             row["real_time_factor"] = _round(summary.get("real_time_factor"), 4)
+            row["workers_used"] = summary.get("workers") if mode == "composed" else None
             row.update({"per_robot_tick_us": _round(summary.get("per_robot_tick_us"), 2),
                         "violations": summary.get("violations"),
                         **{k: _round(phases.get(k), 6) for k in ("physics_s", "sensing_s", "ros_exchange_s")}})
@@ -756,9 +809,11 @@ def run(args) -> int:
                   robots_per_domain=args.robots_per_domain, memory_fraction=args.memory_fraction,
                   domains=domains,
                   world_robots_per_domain=getattr(getattr(world, "multi_process", None), "robots_per_domain", None))
-    plan = [(n, trial, mode, executor) for n in args.sizes for trial in range(1, args.trials + 1)
-            for mode in args.modes for executor in args.executors]
+    plan = [(n, trial, mode, executor, workers) for n in args.sizes for trial in range(1, args.trials + 1)
+            for mode in args.modes for executor in args.executors
+            for workers in (args.workers if mode == "composed" else (None,))]
     settings = {"sizes": list(args.sizes), "modes": list(args.modes), "executors": list(args.executors),
+                "workers": list(args.workers),
                 "trials": args.trials, "ticks": args.ticks, "world": str(world_path), "world_name": world.name,
                 "tick_s": world.tick_s, "timeout_s": args.timeout, "domain_base": base,
                 "robots_per_domain": args.robots_per_domain, "memory_fraction": args.memory_fraction}
@@ -770,7 +825,7 @@ def run(args) -> int:
     t_start = time.perf_counter()
     old_term = _sigterm_interrupts()
     try:
-        for i, (n, trial, mode, executor) in enumerate(plan, 1):
+        for i, (n, trial, mode, executor, workers) in enumerate(plan, 1):
             first_multi = mode == "multi-process" and not any(r["mode"] == mode for r in rows)
             if first_multi and n > CALIBRATION_ABOVE:
                 print(f"bench: calibrating the multi-process memory cost with {CALIBRATION_ROBOTS} robots",
@@ -782,7 +837,7 @@ def run(args) -> int:
                 if sweep.interrupted:
                     interrupted = True
                     break
-            row = sweep.one(n, mode, executor, trial)
+            row = sweep.one(n, mode, executor, trial, workers=workers)
             rows.append(row)
             print(_progress_line(i, len(plan), row, args.trials), file=sys.stderr)
             if sweep.interrupted:
@@ -822,7 +877,7 @@ def _sigterm_interrupts():
 
 
 def _progress_line(i: int, total: int, row: dict, trials: int) -> str:
-    head = (f"bench [{i}/{total}] N={row['Robots']} {row['mode']} {row['executor']} "
+    head = (f"bench [{i}/{total}] N={row['Robots']} {host_label(row)} {row['executor']} "
             f"trial {row['Repetition']}/{trials}: {row['status']}")
     if row["WallTime(s)"] is not None:
         head += f", wall {row['WallTime(s)']:.1f} s"
@@ -884,11 +939,14 @@ def write_csv(rows: list[dict], path: Path) -> None:
             w.writerow({k: ("" if r.get(k) is None else r.get(k)) for k in COLUMNS})
 
 
-def _series_style(mode: str, executor: str) -> dict:
+def _series_style(mode: str, workers: str, executor: str) -> dict:
+    """Colour by executor; composed in one process solid, with workers dash-dotted, multi-process dashed."""
     colors = {"multi-threaded": "tab:blue", "single-threaded": "tab:orange", "events": "tab:green",
               "lockstep": "tab:red"}
-    return {"color": colors.get(executor, "tab:purple"), "linestyle": "-" if mode == "composed" else "--",
-            "marker": "o" if mode == "composed" else "s"}
+    one_process = mode == "composed" and workers in ("", "1")
+    linestyle = "-" if one_process else "-." if mode == "composed" else "--"
+    return {"color": colors.get(executor, "tab:purple"), "linestyle": linestyle,
+            "marker": "o" if one_process else "D" if mode == "composed" else "s"}
 
 
 def plot_figures(doc: dict, out: Path) -> dict[str, Path]:
@@ -911,25 +969,28 @@ def plot_figures(doc: dict, out: Path) -> dict[str, Path]:
     specs = {
         "wall_time": ("WallTime(s)", 1.0, "wall time (s)", f"Wall time of {sim_s:g} s of simulated time"),
         "cpu": ("CPU(%)", 1.0, "CPU (% of one core)", "CPU use of the whole process tree"),
-        "memory": ("MaxMem(kB)", 1 / 1024, "peak resident memory (MB)", "Peak memory of the whole process tree"),
+        "memory": ("MaxPss(kB)", 1 / 1024, "peak PSS (MB)", "Peak memory of the whole process tree (PSS)"),
     }
     written = {}
     for key, (col, scale, ylabel, title) in specs.items():
         fig, ax = plt.subplots(figsize=(7.5, 5.2), dpi=110)
         for pkey, (_, label) in PAPER_VARIANTS.items():
             ns = sorted(paper[pkey])
-            ax.plot(ns, [paper[pkey][n][col] * scale for n in ns], color="black" if pkey == "single" else "dimgrey",
+            paper_col = "MaxMem(kB)" if col == "MaxPss(kB)" else col     # the paper measured RSS
+            ax.plot(ns, [paper[pkey][n][paper_col] * scale for n in ns], color="black" if pkey == "single" else "dimgrey",
                     linestyle=":", marker="^" if pkey == "single" else "v", label=label)
         series: dict[tuple, list] = {}
         for a in agg:
-            if a[col] is not None:
-                series.setdefault((a["mode"], a["executor"]), []).append(
-                    (a["Robots"], a[col] * scale, saturated(a, cores)))
+            value = a[col] if a[col] is not None or col != "MaxPss(kB)" else a["MaxMem(kB)"]   # older rows: RSS
+            if value is not None:
+                series.setdefault((a["mode"], a["workers"], a["executor"]), []).append(
+                    (a["Robots"], value * scale, saturated(a, cores)))
         any_saturated = False
-        for (mode, executor), pts in series.items():
+        for (mode, workers, executor), pts in series.items():
             xs, ys, sat = zip(*sorted(pts))
-            style = _series_style(mode, executor)
-            ax.plot(xs, ys, label=f"{mode}, {executor}", **style)
+            style = _series_style(mode, workers, executor)
+            label = host_label({"mode": mode, "workers": workers})
+            ax.plot(xs, ys, label=f"{label}, {executor}", **style)
             hollow = [(x, y) for x, y, s in zip(xs, ys, sat) if s]
             if hollow:          # the machine was saturated: times are upper bounds
                 any_saturated = True
@@ -995,8 +1056,8 @@ def _budget_section(agg: list[dict], rows: list[dict]) -> list[str]:
     if not checked:
         return lines + ["The budget is stated at N = " + " and ".join(map(str, BUDGET)) +
                         "; this sweep ran neither."]
-    lines += ["| N | executor | ticks wall s | limit | setup s | limit | peak MB | limit | verdict |",
-              "|---:|---|---:|---:|---:|---:|---:|---:|---|"]
+    lines += ["| N | host | executor | ticks wall s | limit | setup s | limit | peak PSS MB | limit | verdict |",
+              "|---:|---|---|---:|---:|---:|---:|---:|---:|---|"]
     for a in checked:
         limits = BUDGET[a["Robots"]]
         ticks_ok = {r.get("ticks") for r in rows if r["Robots"] == a["Robots"]} == {600}
@@ -1006,7 +1067,7 @@ def _budget_section(agg: list[dict], rows: list[dict]) -> list[str]:
         # The ticks limit is for 600 ticks: a shorter sweep is judged on set-up and memory only.
         for key, label in ((("ticks_wall_s", "ticks wall"),) if ticks_ok else ()) + (
                 ("setup_s", "setup"), ("MaxMem(kB)", "peak memory")):
-            lim, val = limits[key], _num(a[key])
+            lim, val = limits[key], _num(a[key] if key != "MaxMem(kB)" else a["MaxPss(kB)"] or a[key])
             if lim is not None and val is not None and val > lim:
                 misses.append(label)
         verdict = "over: " + ", ".join(misses) if misses else (
@@ -1014,18 +1075,40 @@ def _budget_section(agg: list[dict], rows: list[dict]) -> list[str]:
         if not ticks_ok:
             verdict += "; ticks not judged (not 600 ticks)"
         lim = lambda k, d, sc=1.0: "–" if limits[k] is None else f"≤ {limits[k] * sc:,.{d}f}"
-        lines.append(f"| {a['Robots']} | {a['executor']} | {_f(a['ticks_wall_s'], 1)} | {lim('ticks_wall_s', 0)} "
-                     f"| {_f(a['setup_s'], 1)} | {lim('setup_s', 0)} | {_f(a['MaxMem(kB)'], 0, 1 / 1024)} "
+        lines.append(f"| {a['Robots']} | {host_label(a)} | {a['executor']} | {_f(a['ticks_wall_s'], 1)} "
+                     f"| {lim('ticks_wall_s', 0)} | {_f(a['setup_s'], 1)} | {lim('setup_s', 0)} "
+                     f"| {_f(a['MaxPss(kB)'] or a['MaxMem(kB)'], 0, 1 / 1024)} "
                      f"| {lim('MaxMem(kB)', 0, 1 / 1024)} | {verdict} |")
     small, large, factor = SCALING
-    for executor in dict.fromkeys(a["executor"] for a in agg if a["mode"] == "composed"):
-        cost = {a["Robots"]: _num(a["per_robot_tick_us"]) for a in agg
-                if a["mode"] == "composed" and a["executor"] == executor and a["ok"]}
+    for workers, executor in dict.fromkeys((a["workers"], a["executor"]) for a in agg if a["mode"] == "composed"):
+        cost = {a["Robots"]: _num(a["per_robot_tick_us"]) for a in agg if a["mode"] == "composed"
+                and a["executor"] == executor and a["workers"] == workers and a["ok"]}
         if cost.get(small) and cost.get(large):
             ratio = cost[large] / cost[small]
-            lines.append(f"\nScaling, {executor}: a robot-tick costs {cost[large]:.0f} µs at N = {large} and "
+            label = host_label({"mode": "composed", "workers": workers})
+            lines.append(f"\nScaling, {label}, {executor}: a robot-tick costs {cost[large]:.0f} µs at N = {large} and "
                          f"{cost[small]:.0f} µs at N = {small}: {ratio:.2f}× (limit ≤ {factor}×, "
                          f"{'within' if ratio <= factor else 'over'}).")
+    return lines
+
+
+def _workers_section(by: dict) -> list[str]:
+    """Worker processes against one process: same N and executor, this run."""
+    pairs = sorted((n, w, e) for (n, mode, w, e) in by
+                   if mode == "composed" and w not in ("", "1") and (n, "composed", "1", e) in by
+                   and by[(n, mode, w, e)]["ok"] and by[(n, "composed", "1", e)]["ok"])
+    if not pairs:
+        return []
+    lines = ["", "## Worker processes / one process (same executor, this run)", "",
+             "Below 1 means the workers need less. CPU: % of one core during the whole run.", "",
+             "| N | workers | executor | ticks wall | total wall | setup s (1 → K) | CPU % (1 → K) | peak PSS MB (1 → K) |",
+             "|---:|---|---|---:|---:|---:|---:|---:|"]
+    for n, w, e in pairs:
+        k, one = by[(n, "composed", w, e)], by[(n, "composed", "1", e)]
+        lines.append(f"| {n} | {host_label(k).removeprefix('composed, ')} | {e} | {_ratio(k['ticks_wall_s'], one['ticks_wall_s'])} "
+                     f"| {_ratio(k['total_wall_s'], one['total_wall_s'])} | {_f(one['setup_s'], 1)} → {_f(k['setup_s'], 1)} "
+                     f"| {_f(one['CPU(%)'], 0)} → {_f(k['CPU(%)'], 0)} "
+                     f"| {_f(one['MaxPss(kB)'], 0, 1 / 1024)} → {_f(k['MaxPss(kB)'], 0, 1 / 1024)} |")
     return lines
 
 
@@ -1070,9 +1153,10 @@ def render_report(doc: dict, figures: dict[str, Path], raw: tuple[Path, Path], r
         "",
         f"## Results (median over the ok trials; {ticks} ticks = {sim_s:g} s simulated)",
         "",
-        "| N | mode | executor | ok/trials | setup s | ticks wall s | total wall s | real-time factor "
-        "| µs / robot-tick | CPU % of one core | CPU core-s | peak tree RSS MB | violations | other load (cores) |",
-        "|---:|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
+        "| N | host | executor | ok/trials | setup s | ticks wall s | total wall s | real-time factor "
+        "| µs / robot-tick | CPU % of one core | CPU core-s | peak tree PSS MB | peak tree RSS MB | violations "
+        "| other load (cores) |",
+        "|---:|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
     ]
     cores = m.get("logical_cores") or 0
     any_saturated = False
@@ -1080,10 +1164,11 @@ def render_report(doc: dict, figures: dict[str, Path], raw: tuple[Path, Path], r
         mark = " †" if saturated(a, cores) else ""
         any_saturated = any_saturated or bool(mark)
         lines.append(
-            f"| {a['Robots']} | {a['mode']} | {a['executor']} | {a['ok']}/{a['trials']} | {_f(a['setup_s'], 2)} "
+            f"| {a['Robots']} | {host_label(a)} | {a['executor']} | {a['ok']}/{a['trials']} | {_f(a['setup_s'], 2)} "
             f"| {_f(a['ticks_wall_s'], 1)} | {_f(a['total_wall_s'], 1)}{mark} | {_f(a['real_time_factor'], 2)} "
             f"| {_f(a['per_robot_tick_us'], 0)} | {_f(a['CPU(%)'], 0)} | {_f(a['cpu_core_s'], 1)} "
-            f"| {_f(a['MaxMem(kB)'], 0, 1 / 1024)} | {'–' if a['violations'] is None else a['violations']} "
+            f"| {_f(a['MaxPss(kB)'], 0, 1 / 1024)} | {_f(a['MaxMem(kB)'], 0, 1 / 1024)} "
+            f"| {'–' if a['violations'] is None else a['violations']} "
             f"| {_f(a['other_load_cores'], 2)} |")
     if any_saturated:
         lines += ["", f"† the machine was saturated during the run: its own CPU plus the other load reached "
@@ -1093,7 +1178,7 @@ def render_report(doc: dict, figures: dict[str, Path], raw: tuple[Path, Path], r
     if odd:
         lines += ["", "Runs skipped or not completed:", ""]
         for r in odd:
-            lines.append(f"- N={r['Robots']} {r['mode']} {r['executor']} trial {r['Repetition']}: "
+            lines.append(f"- N={r['Robots']} {host_label(r)} {r['executor']} trial {r['Repetition']}: "
                          f"**{r['status']}** — {str(r.get('reason') or '').replace('|', '/')[:400]}")
     est = doc.get("memory_estimate")
     if "multi-process" in s.get("modes", []) and est:
@@ -1102,19 +1187,21 @@ def render_report(doc: dict, figures: dict[str, Path], raw: tuple[Path, Path], r
                       f"when that exceeds {s.get('memory_fraction', DEFAULT_MEMORY_FRACTION):.0%} of the available memory."]
 
     # composed / multi-process, same executor, same sweep
-    by = {(a["Robots"], a["mode"], a["executor"]): a for a in agg}
-    pairs = [(n, e) for (n, mode, e) in by if mode == "composed" and (n, "multi-process", e) in by
-             and by[(n, "multi-process", e)]["ok"] and by[(n, mode, e)]["ok"]]
+    by = {(a["Robots"], a["mode"], a["workers"], a["executor"]): a for a in agg}
+    pairs = [(n, w, e) for (n, mode, w, e) in by if mode == "composed" and (n, "multi-process", "", e) in by
+             and by[(n, "multi-process", "", e)]["ok"] and by[(n, mode, w, e)]["ok"]]
     lines += _budget_section(agg, rows)
+    lines += _workers_section(by)
     lines += ["", "## Composed / multi-process (same executor, this run)", ""]
     if pairs:
-        lines += ["Below 1 means the composed host needs less.", "",
-                  "| N | executor | total wall | ticks wall | CPU core-s | peak memory |", "|---:|---|---:|---:|---:|---:|"]
-        for n, e in sorted(pairs):
-            c, p = by[(n, "composed", e)], by[(n, "multi-process", e)]
-            lines.append(f"| {n} | {e} | {_ratio(c['total_wall_s'], p['total_wall_s'])} | "
+        lines += ["Below 1 means the composed host needs less. Memory: peak PSS of each whole process tree.", "",
+                  "| N | composed host | executor | total wall | ticks wall | CPU core-s | peak memory |",
+                  "|---:|---|---|---:|---:|---:|---:|"]
+        for n, w, e in sorted(pairs):
+            c, p = by[(n, "composed", w, e)], by[(n, "multi-process", "", e)]
+            lines.append(f"| {n} | {host_label(c)} | {e} | {_ratio(c['total_wall_s'], p['total_wall_s'])} | "
                          f"{_ratio(c['ticks_wall_s'], p['ticks_wall_s'])} | {_ratio(c['cpu_core_s'], p['cpu_core_s'])} | "
-                         f"{_ratio(c['MaxMem(kB)'], p['MaxMem(kB)'])} |")
+                         f"{_ratio(c['MaxPss(kB)'] or c['MaxMem(kB)'], p['MaxPss(kB)'] or p['MaxMem(kB)'])} |")
     elif "multi-process" not in s.get("modes", []):
         lines.append("Multi-process mode was not part of this sweep.")
     else:
@@ -1128,7 +1215,7 @@ def render_report(doc: dict, figures: dict[str, Path], raw: tuple[Path, Path], r
               "medians. ÷1t: ours / paper single-threaded; ÷12t: ours / paper multi-threaded. Below 1 means we need less."]
     if ticks != 600:
         lines.append(f"**These runs had {ticks} ticks, the paper's 600: the wall-time and CPU ratios are not comparable.**")
-    lines += ["", "| N | mode | executor | wall s | ÷1t | ÷12t | CPU % | ÷1t | ÷12t | peak MB | ÷1t | ÷12t |",
+    lines += ["", "| N | host | executor | wall s | ÷1t | ÷12t | CPU % | ÷1t | ÷12t | peak RSS MB | ÷1t | ÷12t |",
               "|---:|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
     any_paper = False
     for a in agg:
@@ -1139,7 +1226,7 @@ def render_report(doc: dict, figures: dict[str, Path], raw: tuple[Path, Path], r
         cells = []
         for col, digits, scale in (("WallTime(s)", 1, 1.0), ("CPU(%)", 0, 1.0), ("MaxMem(kB)", 0, 1 / 1024)):
             cells += [_f(a[col], digits, scale), _ratio(a[col], p1.get(col)), _ratio(a[col], p12.get(col))]
-        lines.append(f"| {a['Robots']} | {a['mode']} | {a['executor']} | " + " | ".join(cells) + " |")
+        lines.append(f"| {a['Robots']} | {host_label(a)} | {a['executor']} | " + " | ".join(cells) + " |")
     if not any_paper:
         lines.append("| – | no swarm size of this sweep is in the paper's results | | | | | | | | | | |")
     lines += ["", "The paper's own numbers, for reference:", "",
@@ -1152,7 +1239,8 @@ def render_report(doc: dict, figures: dict[str, Path], raw: tuple[Path, Path], r
                      f"{_f(p12.get('MaxMem(kB)'), 0, 1 / 1024)} |")
 
     lines += ["", "## Figures", "",
-              f"Medians of our ok runs per mode and executor (composed solid, multi-process dashed), the paper's "
+              f"Medians of our ok runs per host and executor (composed in one process solid, with worker processes "
+              f"dash-dotted, multi-process dashed; memory as PSS), the paper's "
               f"means (dotted), log-log against N; the wall-time plot has the real-time line at {sim_s:g} s.", ""]
     for key, label in (("wall_time", "wall time"), ("cpu", "CPU"), ("memory", "memory")):
         if key in figures:
@@ -1170,6 +1258,9 @@ def render_report(doc: dict, figures: dict[str, Path], raw: tuple[Path, Path], r
         f"- **peak memory** (`MaxMem(kB)`): the largest sum of the resident sets of every process of the tree over "
         f"samples every {SAMPLE_S:g} s (pages shared between processes count once per process, so multi-process "
         "totals are upper bounds).",
+        "- **peak PSS** (`MaxPss(kB)`): the same peak over the proportional set sizes (each shared page divided "
+        f"among the processes mapping it, sampled every {PSS_SAMPLE_S:g} s): what the tree really occupies; the "
+        "multi-process skip rule predicts with it.",
         "- **other load**: core-seconds the machine spent busy outside the run's process tree during it, / total "
         "wall: how much a neighbour (including the bench itself) competed for the cores.",
         "- The paper's `MaxMem` is `ArgosMem + Ros2Mem`, and its `Ros2Mem` stays between 37 MB (10 robots) and "

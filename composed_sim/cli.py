@@ -36,31 +36,41 @@ _non_negative_int = number_arg(int, minimum=0)
 _positive_float = number_arg(float, minimum=0, inclusive=False)
 
 
+def _workers(text: str):
+    """--workers: a whole number >= 1, or auto."""
+    return "auto" if text == "auto" else _positive_int(text)
+
+
 def build_parser() -> argparse.ArgumentParser:
     from composed_sim.hosts.controllers import EXECUTORS, MODES, ROBOTS_PER_PARTICIPANT
 
     parser = argparse.ArgumentParser(prog="composed-sim", description=(
-        "Swarm simulator whose robot controllers are ROS 2 nodes, all hosted in one process."))
+        "Swarm simulator whose robot controllers are ROS 2 nodes, hosted with the simulator in a few processes."))
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     run = sub.add_parser("run", help="run a world file headless and write its results",
-                         description="Run a world: the simulator node and every controller node in "
-                                     "one process, in lockstep; writes summary.json, trajectories.npz, "
+                         description="Run a world: the controller nodes hosted with simulator nodes in "
+                                     "worker processes, in lockstep; writes summary.json, trajectories.npz, "
                                      "violations.csv, world.yaml and arena.png into --out.")
     run.add_argument("world", type=Path, help="world file (YAML, e.g. worlds/flocking.yaml) or an ARGoS .argos file")
     run.add_argument("--robots", type=_positive_int, help="total number of robots (overrides the world)")
     run.add_argument("--ticks", type=_positive_int, help="ticks to simulate (overrides length_ticks)")
     run.add_argument("--seed", type=_non_negative_int, help="random seed (overrides the world)")
     run.add_argument("--mode", choices=MODES, default="composed",
-                     help="composed: every controller in this process; multi-process: one process per "
+                     help="composed: the controllers hosted together (see --workers); multi-process: one process per "
                           "controller over balanced ROS domains, as in the paper (default: %(default)s)")
     run.add_argument("--executor", choices=EXECUTORS, default="lockstep",
                      help="rclpy executor running the nodes (default: %(default)s)")
     run.add_argument("--robots-per-domain", type=_positive_int, default=None,
                      help="multi-process mode: robots per ROS domain (default: the world's, else 50)")
     run.add_argument("--robots-per-participant", type=_positive_int, default=ROBOTS_PER_PARTICIPANT,
-                     help="composed mode: robots per DDS participant, all in one domain; fewer make set-up "
-                          "faster, each costs a participant (default: %(default)s)")
+                     help="composed mode with --workers 1: robots per DDS participant, all in one domain; fewer "
+                          "make set-up faster, each costs a participant (default: %(default)s; each worker "
+                          "process holds one participant)")
+    run.add_argument("--workers", type=_workers, default="auto", metavar="K|auto",
+                     help="composed mode: worker processes hosting the controller nodes, each with its own "
+                          "executor on its own core; 1: everything in this process; auto: from the swarm "
+                          "size and the usable cores (default: %(default)s)")
     run.add_argument("--watchdog", type=_positive_float, metavar="SECONDS",
                      help="wall seconds to wait for a controller's answer before its fallback")
     run.add_argument("--fallback", choices=("zero", "previous"), help="command given to a late robot")
@@ -234,6 +244,7 @@ def cmd_run(args) -> int:
     from composed_sim.core.placement import PlacementError
     from composed_sim.hosts.composed import ComposedHost
     from composed_sim.hosts.controllers import HostError
+    from composed_sim.hosts.workers import WorkerHost, auto_workers, usable_cores
     from composed_sim.results import summarize, write_results
 
     world = _load_any_world(args)
@@ -261,29 +272,47 @@ def cmd_run(args) -> int:
             host = MultiProcessHost(world, executor=args.executor, domain_id=domain_id,
                                     robots_per_domain=args.robots_per_domain)
         else:
-            host = ComposedHost(world, executor=args.executor, domain_id=domain_id,
-                                robots_per_participant=args.robots_per_participant)
+            n = len(world.robot_names())
+            workers = args.workers
+            if workers == "auto":
+                workers = auto_workers(n)
+            if workers == 1:
+                host = ComposedHost(world, executor=args.executor, domain_id=domain_id,
+                                    robots_per_participant=args.robots_per_participant)
+            else:
+                host = WorkerHost(world, workers=workers, executor=args.executor, domain_id=domain_id)
     except HostError as e:
         raise UserError(str(e)) from None
 
-    def finish(result) -> dict:
+    def finish(result, checkpoint: bool = False) -> dict:
         mode = "external-controllers" if args.external_controllers else args.mode
         summary = summarize(world, result, setup_s=host.setup.setup_s, mode=mode,
                             executor=args.executor,
                             phases={"physics_s": host.sim.times.physics_s, "sensing_s": host.sim.times.sensing_s})
         summary["participants"] = host.setup.participants
+        summary["workers"] = host.setup.workers
+        summary["workers_requested"] = args.workers if args.mode == "composed" else None
+        if isinstance(host, WorkerHost):        # every process's peak (pages shared between them count in each)
+            summary["workers_peak_rss_mb"] = [round(mb, 1) for mb in host.workers_peak_rss_mb()]
+            summary["peak_rss_mb"] += sum(summary["workers_peak_rss_mb"])
+        summary["checkpoint"] = checkpoint     # true: written while running; the run did not end
         summary["out"] = str(args.out)
-        write_results(args.out, world, result, summary, picture=not args.no_picture)
+        write_results(args.out, world, result, summary, picture=not (args.no_picture or checkpoint),
+                      checkpoint=checkpoint)
         return summary
 
     with _Interrupts() as interrupts, contextlib.ExitStack() as outputs:
         try:
             with host:
+                if host.setup.workers > 1 and not args.json:     # said once set-up went well
+                    print(f"composed-sim: {len(host.sim.names)} robots in {host.setup.workers} worker processes"
+                          + (f" (--workers auto, {usable_cores()} usable cores)" if args.workers == "auto" else ""),
+                          file=sys.stderr)
                 observers = _run_observers(args, world, host, outputs, interrupts)
                 progress = _progress_bar(world.length_ticks, disabled=args.no_progress)
                 try:
                     result = host.run(progress=progress.update, should_stop=lambda: interrupts.requested,
-                                      **({"observers": observers} if observers else {}))
+                                      observers=observers, checkpoint=lambda partial: finish(partial, True))
                 except Exception as e:
                     partial = getattr(e, "partial_result", None)
                     if partial is not None:   # write what was simulated before the failure
@@ -295,7 +324,7 @@ def cmd_run(args) -> int:
                     progress.close()
                 summary = finish(result)
                 code = EXIT_INTERRUPTED if result.interrupted else 0
-                if args.exit_when_done and isinstance(host, ComposedHost):
+                if args.exit_when_done and isinstance(host, (ComposedHost, WorkerHost)):
                     # Destroying thousands of nodes one by one takes minutes (each destruction
                     # republishes the participant's graph, docs/speed.md): with every result and
                     # the recording written, the process ends and the system reclaims the rest.
@@ -433,10 +462,9 @@ def _run_observers(args, world, host, outputs: contextlib.ExitStack, interrupts)
         interrupts.on_second = recorder.close_if_idle   # even a hard quit leaves a readable bag
         observers.append(RecordingObserver(recorder, tick_ns))
         if args.record_topics:
-            for node in host.simulator_nodes:
-                node.set_message_tap(recorder)
+            host.set_message_tap(recorder)
     if args.markers:
-        observers.append(MarkerObserver(host.simulator_nodes[0], tick_ns, recorder))
+        observers.append(MarkerObserver(host.observer_node(), tick_ns, recorder))
     return observers
 
 
@@ -533,11 +561,17 @@ def _progress_bar(total: int, disabled: bool):
                 desc="simulating")
 
 
+def _workers_text(s: dict) -> str:
+    if not s.get("workers") or s["workers"] == 1:
+        return ""
+    return f" in {s['workers']} worker processes" + (" (auto)" if s.get("workers_requested") == "auto" else "")
+
+
 def _human_summary(s: dict) -> str:
     ph = s["phases_s"]
     lines = [
         f"{s['world']}: {s['robots']} robots, {s['ticks']} ticks ({s['sim_time_s']:.1f} s sim time), "
-        f"{s['mode']} mode, {s['executor']} executor"
+        f"{s['mode']} mode{_workers_text(s)}, {s['executor']} executor"
         + ("  [interrupted]" if s["interrupted"] else ""),
         f"  setup {s['setup_s']:.2f} s, ticks {s['ticks_wall_s']:.2f} s wall, "
         f"real-time factor {s['real_time_factor'] or 0:.2f}, peak RSS {s['peak_rss_mb']:.0f} MB",

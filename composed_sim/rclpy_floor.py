@@ -8,7 +8,7 @@ message sizes, over participants of ``ROBOTS_PER_PARTICIPANT`` robots as the com
 makes them, and nothing else: no decoding, no controller arithmetic, no executor, no physics.
 Whatever the simulator and the controllers do in Python comes on top of it.
 
-    python -m composed_sim.rclpy_floor --robots 80,1280 [--ticks 100] [--blobs 50]
+    python -m composed_sim.rclpy_floor --robots 80,1280 [--ticks 100] [--blobs 50] [--robots-per-participant K|all]
 """
 from __future__ import annotations
 
@@ -25,7 +25,8 @@ from composed_sim.ros.participants import ignore_participants_of_this_process
 WARM_UP_TICKS = 10
 
 
-def measure(robots: int, ticks: int, *, blobs: int = 50, domain_id: int = 0) -> float:
+def measure(robots: int, ticks: int, *, blobs: int = 50, domain_id: int = 0,
+            robots_per_participant: int = ROBOTS_PER_PARTICIPANT) -> float:
     """µs per robot-tick of the exchange's rclpy calls for ``robots`` robots over ``ticks`` ticks
     (each robot seeing ``blobs`` blobs). Call it in a process of its own: it creates participants."""
     ignore_participants_of_this_process()
@@ -42,12 +43,12 @@ def measure(robots: int, ticks: int, *, blobs: int = 50, domain_id: int = 0) -> 
     answer = c.answer_encoder().encode(1, 0, 0.1, 0.2)
     contexts, exchange = [], []
     try:
-        for start in range(0, robots, ROBOTS_PER_PARTICIPANT):
+        for start in range(0, robots, robots_per_participant):
             context = Context()
             rclpy.init(context=context, domain_id=domain_id)
             contexts.append(context)
             sim = Node("floor_simulator", context=context, **quiet_node_options())
-            for r in range(start, min(robots, start + ROBOTS_PER_PARTICIPANT)):
+            for r in range(start, min(robots, start + robots_per_participant)):
                 controller = Node("floor_controller", namespace=f"/bot{r}", context=context, **quiet_node_options())
                 exchange.append(_endpoints(sim, controller, f"bot{r}"))
         while not all(p.get_subscription_count() for row in exchange for p in (row[1], row[2], row[5])):
@@ -107,11 +108,15 @@ def main(argv=None) -> int:
     parser.add_argument("--ticks", type=int, default=100, help="timed ticks per size (default: %(default)s)")
     parser.add_argument("--blobs", type=int, default=50, help="blobs each robot sees (default: %(default)s, "
                                                               "the flocking world's mean at 1280 robots)")
+    parser.add_argument("--robots-per-participant", default=str(ROBOTS_PER_PARTICIPANT),
+                        help="robots per DDS participant, or 'all' for one participant (a worker process's "
+                             "case; default: %(default)s, the single-process host's)")
     parser.add_argument("--domain-id", type=int, default=int(os.environ.get("ROS_DOMAIN_ID", "0") or 0))
     args = parser.parse_args(argv)
     for n in (int(v) for v in args.robots.split(",")):
-        us = measure(n, args.ticks, blobs=args.blobs, domain_id=args.domain_id)
-        print(json.dumps({"robots": n, "ticks": args.ticks, "blobs": args.blobs, "us_per_robot_tick": round(us, 1),
+        per = n if args.robots_per_participant == "all" else int(args.robots_per_participant)
+        us = measure(n, args.ticks, blobs=args.blobs, domain_id=args.domain_id, robots_per_participant=per)
+        print(json.dumps({"robots": n, "robots_per_participant": per, "ticks": args.ticks, "blobs": args.blobs, "us_per_robot_tick": round(us, 1),
                           "s_per_600_ticks": round(600 * n * us * 1e-6, 1)}), flush=True)
     return 0
 

@@ -39,7 +39,6 @@ interface package (the venv or $AMENT_PREFIX_PATH).
 """
 from __future__ import annotations
 
-import fnmatch
 import json
 import math
 import os
@@ -54,6 +53,7 @@ import numpy as np
 from composed_sim.core.robot_models import display_colors
 from composed_sim.ros.contract import CLOCK_TOPIC, SWARM_STATE_TOPIC
 from composed_sim.ros.contract import WORLD_FRAME as FRAME_ID
+from composed_sim.ros.taps import TopicGlobs
 
 if TYPE_CHECKING:
     from composed_sim.world.schema import World
@@ -189,9 +189,8 @@ class BagRecorder:
             raise ValueError(f"tick_s must be a positive number of seconds (got {tick_s!r})")
         self.tick_s = seconds
         self.tick_ns = round(self.tick_s * _NS_PER_S)
-        self.topics_globs = list(topics_globs)
-        self._patterns = [re.compile(fnmatch.translate(g)) for g in self.topics_globs]
-        self._wanted: dict[str, bool] = {}
+        self._globs = TopicGlobs(topics_globs)
+        self.topics_globs = self._globs.topics_globs
         if self.path.exists():
             raise RecordingError(f"{self.path}: already exists; a recording needs a new directory")
         self._typestore = _new_typestore()
@@ -248,10 +247,7 @@ class BagRecorder:
 
     def wants(self, topic: str) -> bool:
         """True when ``topic`` matches one of the globs; the answer is cached per topic."""
-        hit = self._wanted.get(topic)
-        if hit is None:
-            hit = self._wanted[topic] = any(p.match(topic) for p in self._patterns)
-        return hit
+        return self._globs.wants(topic)
 
     def set_custom(self, key: str, value: str) -> None:
         """Add a ``composed_sim.<key>`` entry to the bag's custom_data (written at close)."""

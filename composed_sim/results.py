@@ -10,19 +10,22 @@ arena.png        the arena: whole-run trails, final poses with LED colours, ligh
 """
 from __future__ import annotations
 
+import contextlib
 import csv
-from collections import Counter
+import io
 import json
+import os
 import platform
 import resource
+from collections import Counter
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 
 import numpy as np
 from scipy.spatial import cKDTree
 
+from composed_sim.core.violations import FAILED
 from composed_sim.hosts.lockstep import LoopResult, Trajectories
-from composed_sim.ros.simulator_node import FAILED
 from composed_sim.world.loader import dump_world
 from composed_sim.world.schema import World
 
@@ -98,24 +101,43 @@ def summarize(world: World, result: LoopResult, *, setup_s: float, mode: str, ex
 
 
 def write_results(out_dir: Path, world: World, result: LoopResult, summary: dict,
-                  picture: bool = True) -> None:
-    """Write every file of a run; each file is complete on its own, the picture last."""
+                  picture: bool = True, checkpoint: bool = False) -> None:
+    """Write every file of a run; each file is complete on its own, the picture last. Each file
+    replaces the one before in one step (written aside, then renamed): a run killed while writing
+    leaves the previous checkpoint's file, never half a file."""
     out_dir.mkdir(parents=True, exist_ok=True)
-    (out_dir / WORLD).write_text(dump_world(world))
+    with _replacing(out_dir / WORLD) as f:
+        f.write(dump_world(world).encode())
     t = result.trajectories
     extra = {} if t.led_colors is None else {"led_colors": t.led_colors}
-    np.savez_compressed(out_dir / TRAJECTORIES, positions=t.positions, headings=t.headings,
-                        names=np.asarray(t.names), tick_s=world.tick_s, **extra)
-    with open(out_dir / VIOLATIONS, "w", newline="") as f:
-        w = csv.writer(f)
+    # A checkpoint is written often and replaced: uncompressed (milliseconds); the final file is
+    # compressed.
+    save = np.savez if checkpoint else np.savez_compressed
+    with _replacing(out_dir / TRAJECTORIES) as f:
+        save(f, positions=t.positions, headings=t.headings, names=np.asarray(t.names), tick_s=world.tick_s,
+             **extra)
+    with _replacing(out_dir / VIOLATIONS) as f:
+        text = io.TextIOWrapper(f, newline="")
+        w = csv.writer(text)
         w.writerow(["tick", "robot", "reason"])
         w.writerows((v.tick, v.robot, v.reason) for v in result.violations)
-    (out_dir / SUMMARY).write_text(json.dumps(summary, indent=2) + "\n")
+        text.detach()
+    with _replacing(out_dir / SUMMARY) as f:
+        f.write((json.dumps(summary, indent=2) + "\n").encode())
     if picture:
         from composed_sim.render import render
         # The whole run's trails: the picture summarises the run, not its last seconds.
         render(t, world, out_dir / PICTURE, led_colors=t.led_colors, trail_ticks=t.ticks_done,
                tick_s=world.tick_s)
+
+
+@contextlib.contextmanager
+def _replacing(path: Path):
+    """A binary file to write that takes ``path``'s place once complete."""
+    part = path.with_name(path.name + ".part")
+    with open(part, "wb") as f:
+        yield f
+    os.replace(part, path)
 
 
 def load_trajectories(path: Path) -> Trajectories:

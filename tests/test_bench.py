@@ -48,6 +48,8 @@ def test_tiny_sweep_writes_csv_json_figures_and_report(tiny_sweep):
         assert cpu == pytest.approx(100 * float(r["cpu_core_s"]) / wall, abs=rounding)
         assert 0 < float(r["cpu_core_s"])
         assert 50_000 < int(r["MaxMem(kB)"]) < 2_000_000         # an rclpy process: tens to hundreds of MB
+        assert 0 < int(r["MaxPss(kB)"]) <= int(r["MaxMem(kB)"])  # shared pages split: at most the RSS
+        assert r["workers"] == "auto" and r["workers_used"] == "1"   # 3 and 5 robots: one process
         assert float(r["real_time_factor"]) == pytest.approx(2.0 / ticks_wall, rel=1e-3)
         assert r["violations"] == "0"
     assert len({r["domain_id"] for r in rows[:2]}) == 2             # consecutive runs: other domains
@@ -65,8 +67,9 @@ def test_tiny_sweep_writes_csv_json_figures_and_report(tiny_sweep):
         data = (out / name).read_bytes()
         assert data[:8] == PNG and len(data) > 5000, name
     text = report.read_text()
-    assert "| N | mode | executor |" in text
-    assert "| 3 | composed | events | 1/1 |" in text and "| 5 | composed | multi-threaded | 1/1 |" in text
+    assert "| N | host | executor |" in text and "peak tree PSS MB" in text
+    assert "| 3 | composed, workers auto (1) | events | 1/1 |" in text
+    assert "| 5 | composed, workers auto (1) | multi-threaded | 1/1 |" in text
     assert "AMD" in text or machine["cpu_model"] in text
     for name in ("bench_wall_time.png", "bench_cpu.png", "bench_memory.png"):
         assert f"](figures/{name})" in text
@@ -79,7 +82,7 @@ def test_replot_redraws_from_the_stored_rows(tiny_sweep, tmp_path):
     assert main(["bench", "--replot", str(out / "runs.json"), "--out", str(tmp_path / "figs"),
                  "--report", str(report)]) == 0
     assert (tmp_path / "figs" / "cpu.png").read_bytes()[:8] == PNG
-    assert "| 5 | composed | events | 1/1 |" in report.read_text()
+    assert "| 5 | composed, workers auto (1) | events | 1/1 |" in report.read_text()
 
 
 def test_a_run_that_cannot_start_is_a_failed_row_not_a_crash(tmp_path, domain_id, capsys):

@@ -85,8 +85,10 @@ def test_recording_into_an_existing_directory_is_refused(tmp_path):
     assert r.returncode == 2 and "already exists" in r.stderr
 
 
-def test_live_markers_reach_a_subscriber_in_another_process(tmp_path, domain_id):
-    """What an RViz or Foxglove user does: subscribe to /swarm/markers while a run goes on."""
+@pytest.mark.parametrize("workers", [1, 2])
+def test_live_markers_reach_a_subscriber_in_another_process(tmp_path, domain_id, workers):
+    """What an RViz or Foxglove user does: subscribe to /swarm/markers while a run goes on (with
+    workers, the main process publishes them from a node of its own)."""
     import time
 
     import rclpy
@@ -104,7 +106,7 @@ def test_live_markers_reach_a_subscriber_in_another_process(tmp_path, domain_id)
     executor.add_node(node)
     # A run far longer than needed; once markers arrive the test stops it as a user would (Ctrl-C).
     run = subprocess.Popen([sys.executable, "-m", "composed_sim.cli", "run", str(FLOCKING), "--robots", "6",
-                            "--ticks", "100000", "--markers", "--out", str(tmp_path), "--no-progress",
+                            "--ticks", "100000", "--markers", "--workers", str(workers), "--out", str(tmp_path), "--no-progress",
                             "--no-picture", "--domain-id", str(domain_id)], cwd=ROOT,
                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     try:
@@ -125,10 +127,13 @@ def test_live_markers_reach_a_subscriber_in_another_process(tmp_path, domain_id)
     assert bodies.header.frame_id == "world"
 
 
-def test_another_process_hears_every_tick_of_robots_in_every_participant(tmp_path, domain_id):
-    """The composed host splits the robots over DDS participants that ignore one another; a
-    process outside (ros2 topic echo, a recorder) still discovers all of them and receives every
-    tick's sensors and answers, without a gap, from robots of two shards (bot6 is the last's only one)."""
+@pytest.mark.parametrize("workers, participants", [(1, 4), (3, 3)])
+def test_another_process_hears_every_tick_of_robots_in_every_participant(tmp_path, domain_id, workers,
+                                                                          participants):
+    """The composed host splits the robots over DDS participants that ignore one another (in one
+    process, or one per worker process); a process outside (ros2 topic echo, a recorder) still
+    discovers all of them and receives every tick's sensors and answers, without a gap, from
+    robots of two participants (bot6 is in the last)."""
     import time
 
     import rclpy
@@ -154,7 +159,8 @@ def test_another_process_hears_every_tick_of_robots_in_every_participant(tmp_pat
     executor = SingleThreadedExecutor(context=ctx)
     executor.add_node(node)
     run = subprocess.Popen([sys.executable, "-m", "composed_sim.cli", "run", str(FLOCKING), "--robots", "7",
-                            "--robots-per-participant", "2", "--ticks", "100000", "--out", str(tmp_path),
+                            "--robots-per-participant", "2", "--workers", str(workers), "--ticks", "100000",
+                            "--out", str(tmp_path),
                             "--no-progress", "--no-picture", "--domain-id", str(domain_id)], cwd=ROOT,
                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     try:
@@ -169,7 +175,8 @@ def test_another_process_hears_every_tick_of_robots_in_every_participant(tmp_pat
         node.destroy_node()
         rclpy.shutdown(context=ctx)
     summary = json.loads((tmp_path / "summary.json").read_text())
-    assert summary["participants"] == 4 and summary["violations"] == 0
+    assert summary["participants"] == participants and summary["workers"] == workers
+    assert summary["violations"] == 0
     tick_ns = 100_000_000
     for topic, received in stamps.items():
         assert len(received) >= 30, (topic, len(received))

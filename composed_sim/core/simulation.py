@@ -13,7 +13,7 @@ range-and-bearing work on all robots at once.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, fields, replace
 from typing import Optional
 
 import numpy as np
@@ -81,6 +81,31 @@ class SensorFrame:
     def blobs(self) -> BlobReadings:
         return self._only("blobs")
 
+    def rows(self, start: int, stop: int) -> "SensorFrame":
+        """The readings of robots ``start … stop-1`` only, renumbered from 0: what a worker process
+        serving that block of robots needs (hosts/workers.py), and nothing of the others'."""
+        groups = []
+        for g in self.groups:
+            # The group's robots inside the block; a group outside it keeps an empty slice.
+            lo = min(max(g.robots.start, start), g.robots.stop)
+            hi = max(lo, min(g.robots.stop, stop))
+            within = slice(lo - g.robots.start, hi - g.robots.start)
+            cut = GroupReadings(g.model, slice(max(lo - start, 0), max(hi - start, 0)))
+            for f in ("proximity_distances", "proximity", "light", "ground", "lidar"):
+                value = getattr(g, f)
+                setattr(cut, f, None if value is None else value[within])
+            cut.blobs = None if g.blobs is None else csr_rows(g.blobs, within.start, within.stop)
+            groups.append(cut)
+        block = slice(start, stop)
+        return SensorFrame(self.tick, groups,
+                           PoseReadings(self.pose.positions[block], self.pose.yaws[block],
+                                        self.pose.quaternions[block]),
+                           WheelReadings(self.wheels.velocities_mps[block], self.wheels.distances_m[block],
+                                         self.wheels.axis_length_m[block]),
+                           self.odometry[block], self.odometry_twist[block],
+                           None if self.range_and_bearing is None
+                           else csr_rows(self.range_and_bearing, start, stop))
+
     def _only(self, device: str):
         if len(self.groups) != 1:
             raise ValueError(f"frame.{device} is for one-group worlds; this world has {len(self.groups)} "
@@ -89,6 +114,14 @@ class SensorFrame:
         if value is None:
             raise ValueError(f"the {self.groups[0].model} robots do not run the {device.split('_')[0]} device")
         return value
+
+
+def csr_rows(readings, start: int, stop: int):
+    """A CSR readings dataclass (``offsets`` [n+1] and entry arrays [m, …]) cut to rows
+    ``start … stop-1``, renumbered from 0."""
+    first, last = int(readings.offsets[start]), int(readings.offsets[stop])
+    entries = {f.name: getattr(readings, f.name)[first:last] for f in fields(readings) if f.name != "offsets"}
+    return replace(readings, offsets=readings.offsets[start:stop + 1] - first, **entries)
 
 
 @dataclass

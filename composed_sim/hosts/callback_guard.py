@@ -4,7 +4,9 @@ Every controller runs in the host's process, so a callback that raises, overruns
 would otherwise stop the executor and with it the whole swarm. The guard wraps each controller's
 subscription and timer callbacks:
 
-- a callback that raises marks its robot failed (in multi-process mode its process would die);
+- a callback that raises marks its robot failed (in multi-process mode its process would die),
+  ``SystemExit`` included; one that tried to spin the nodes itself, or to shut down the host's
+  context, is told so in its violation;
 - a callback that returns after more than the watchdog gets its robot's answer to this tick
   rejected: the fallback and a violation, as a late answer gets across processes. The other
   robots' callbacks run after it, so they are not affected;
@@ -49,6 +51,7 @@ class CallbackGuard:
         self._workers: dict[str, int] = {}             # robot → worker thread running its callback
         self._workers_lock = threading.Lock()
         self.calls = 0                                 # callbacks run: lets a waiter see progress
+        self._depth = threading.local()                # per thread: inside a guarded callback?
 
     def guard(self, node: Node, robot: str, sim_node: SimulatorNode) -> None:
         """Wrap the callbacks of every subscription and timer ``node`` has (a controller creates
@@ -74,10 +77,12 @@ class CallbackGuard:
             else:
                 self._workers[robot] = threading.get_ident()
             self.calls += 1
+            self._depth.inside = True
             try:
                 try:
                     result = callback(*args)
                 finally:
+                    self._depth.inside = False
                     if in_main:
                         self._running = None
                     else:
@@ -88,8 +93,8 @@ class CallbackGuard:
                 sim_node.mark_failed(robot, f"hung: callback still running after "
                                             f"{time.monotonic() - started:.1f} s, interrupted")
                 return None
-            except Exception as e:
-                sim_node.mark_failed(robot, f"callback raised {type(e).__name__}: {e}")
+            except (Exception, SystemExit) as e:    # sys.exit() fails its robot, not the host
+                sim_node.mark_failed(robot, _failure(e))
                 return None
             took = time.monotonic() - started
             # Worker threads (multi-threaded executor) meet the tick's wall-clock deadline instead.
@@ -101,6 +106,10 @@ class CallbackGuard:
         if arity == 0:
             return lambda: run()
         return (lambda msg, info: run(msg, info)) if with_info else (lambda msg: run(msg))
+
+    def in_callback(self) -> bool:
+        """Is this thread running a guarded callback now?"""
+        return getattr(self._depth, "inside", False)
 
     def stop_worker(self, robot: str) -> None:
         """Interrupt ``robot``'s callback if it runs on a worker thread (a SimulatorNode.on_failed
@@ -131,3 +140,38 @@ class CallbackGuard:
     def _on_alarm(self, signum, frame) -> None:
         if self._running is not None and time.monotonic() - self._started >= self._unresponsive_s:
             raise ControllerHung(self._running)
+
+
+class HostContextShutdown(RuntimeError):
+    """Raised by ``rclpy.shutdown(context=…)`` on a host's context from inside a callback."""
+
+
+def refuse_shutdown_from_callbacks(context, guard: CallbackGuard) -> None:
+    """Make ``rclpy.shutdown`` of a hosted context, called from a controller's callback, raise
+    instead: the context is its participant group's, and shutting it down would silently stop
+    every other robot of the group. The host itself shuts it down with ``Context.shutdown``."""
+    shutdown, try_shutdown = context.shutdown, context.try_shutdown
+
+    def refuse(original):
+        def call(*args, **kwargs):
+            if guard.in_callback():
+                raise HostContextShutdown("called rclpy.shutdown on the host's context: hosted controllers "
+                                          "must not shut down ROS, the host owns the context")
+            return original(*args, **kwargs)
+        return call
+    context.shutdown, context.try_shutdown = refuse(shutdown), refuse(try_shutdown)
+
+
+_SPIN_CALLS = frozenset({"spin", "spin_once", "spin_until_future_complete", "spin_once_until_future_complete"})
+
+
+def _failure(error: BaseException) -> str:
+    """The failed robot's reason; a controller that spun inside its callback is told why that fails."""
+    tb = error.__traceback__
+    while tb is not None:
+        code = tb.tb_frame.f_code
+        if code.co_name in _SPIN_CALLS and "rclpy" in code.co_filename.replace("\\", "/").split("/"):
+            return (f"controllers must not spin: the host spins them ({code.co_name} called inside a callback "
+                    f"raised {type(error).__name__}: {error})")
+        tb = tb.tb_next
+    return f"callback raised {type(error).__name__}: {error}"

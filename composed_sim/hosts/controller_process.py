@@ -15,27 +15,16 @@ SIGTERM here.
 from __future__ import annotations
 
 import argparse
-import ctypes
 import os
 import signal
 import sys
 import threading
 import time
 
-PR_SET_PDEATHSIG = 1
+from composed_sim.hosts.processes import die_with_parent
+
 READY_TIMEOUT_S = 120.0
 EXIT_SETUP = 3          # the controller could not be built; the reason is on stderr
-
-
-def die_with_parent(parent_pid: int | None) -> None:
-    """SIGTERM when the parent dies (any way). Done first, before the slow imports; the getppid
-    check covers a parent that died between our fork and the prctl."""
-    if sys.platform.startswith("linux"):
-        libc = ctypes.CDLL(None, use_errno=True)
-        if libc.prctl(PR_SET_PDEATHSIG, signal.SIGTERM, 0, 0, 0) != 0:
-            print(f"prctl(PR_SET_PDEATHSIG) failed: errno {ctypes.get_errno()}", file=sys.stderr)
-    if parent_pid is not None and os.getppid() != parent_pid:
-        sys.exit(0)
 
 
 def parse(argv: list[str] | None) -> argparse.Namespace:

@@ -19,11 +19,12 @@ import rclpy
 from rclpy.context import Context
 
 from composed_sim.core.simulation import Simulation
-from composed_sim.hosts.composed import SetupInfo
+from composed_sim.hosts.host import SetupInfo
 from composed_sim.hosts.lockstep import LoopResult, NodesExchange, TickObserver, run_lockstep
 from composed_sim.hosts.controllers import HostError
 from composed_sim.hosts.discovery import DEFAULT_DISCOVERY_TIMEOUT_S
-from composed_sim.hosts.multiprocess import _endpoints_by_topic, _InterruptWatch, _matched, _spin
+from composed_sim.hosts.multiprocess import _endpoints_by_topic, _matched, _spin
+from composed_sim.hosts.processes import InterruptWatch
 from composed_sim.hosts.robot_ranges import format_ranges
 from composed_sim.hosts.shard_announce import ShardInfo, ShardRegistry, world_fingerprint
 from composed_sim.ros import contract as c
@@ -69,7 +70,7 @@ class ExternalControllersHost:
             endpoints = _endpoints_by_topic(self.sim_node)
             self._cmd_subs = [endpoints[c.topic_name(name, c.CMD_VEL)] for name in self.sim.names]
             self._registry = ShardRegistry(self._context, self.sim.n)
-            with _InterruptWatch() as interrupts:
+            with InterruptWatch() as interrupts:
                 self._wait_for_shards(endpoints, lambda: interrupts.requested)
             self._startup_interrupted = interrupts.requested
             self.exchange = NodesExchange([self.sim_node], self._check_shards)
@@ -86,6 +87,13 @@ class ExternalControllersHost:
     @property
     def simulator_nodes(self) -> list[SimulatorNode]:
         return [self.sim_node]
+
+    def set_message_tap(self, tap) -> None:
+        for node in self.simulator_nodes:
+            node.set_message_tap(tap)
+
+    def observer_node(self):
+        return self.simulator_nodes[0]
 
     # --- before tick 0 ----------------------------------------------------------------------
 
@@ -136,12 +144,14 @@ class ExternalControllersHost:
     # --- the run ----------------------------------------------------------------------------
 
     def run(self, ticks: Optional[int] = None, *, progress: Optional[Callable[[int], None]] = None,
-            should_stop: Callable[[], bool] = lambda: False, observers: Sequence[TickObserver] = ()) -> LoopResult:
+            should_stop: Callable[[], bool] = lambda: False, observers: Sequence[TickObserver] = (),
+            checkpoint: Optional[Callable[[LoopResult], None]] = None) -> LoopResult:
         ticks = self.world.length_ticks if ticks is None else ticks
         if self._startup_interrupted:      # stopped before tick 0: an interrupted run of 0 ticks
             should_stop = lambda: True     # noqa: E731
         return run_lockstep(self.sim, self.exchange, self.exchange.wait_for_answers, ticks,
-                            progress=progress, should_stop=should_stop, observers=observers)
+                            progress=progress, should_stop=should_stop, observers=observers,
+                            checkpoint=checkpoint)
 
     def _check_shards(self) -> None:
         """Called while answers are late: a waited-for robot with no cmd_vel publisher left has

@@ -8,14 +8,16 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from typing import Callable, Optional, Protocol, Sequence
+from typing import TYPE_CHECKING, Callable, Optional, Protocol, Sequence
 
 import numpy as np
 import psutil
 
 from composed_sim.core.robot_models import display_colors
 from composed_sim.core.simulation import SensorFrame, Simulation
-from composed_sim.ros.simulator_node import SimulatorNode, Violation
+from composed_sim.core.violations import Violation
+if TYPE_CHECKING:   # the tick loop itself needs no rclpy: the worker host's main process runs it without
+    from composed_sim.ros.simulator_node import SimulatorNode
 
 
 @dataclass
@@ -77,7 +79,8 @@ class TickObserver(Protocol):
 
 
 class Exchange(Protocol):
-    """The simulator's side of the ROS exchange: one SimulatorNode, or one per domain."""
+    """The simulator's side of the ROS exchange: simulator nodes in this process (NodesExchange),
+    or worker processes that hold them (hosts/workers.py)."""
     violations: list[Violation]
 
     def publish_tick(self, frame: SensorFrame) -> None: ...
@@ -94,7 +97,7 @@ class NodesExchange:
 
     POLL_S = 0.01   # while waiting for answers, call ``check`` this often
 
-    def __init__(self, nodes: Sequence[SimulatorNode], check: Callable[[], None] = lambda: None):
+    def __init__(self, nodes: Sequence["SimulatorNode"], check: Callable[[], None] = lambda: None):
         """``check``: looks for what can settle a robot besides an answer, e.g. a dead child
         process (it marks its robot failed, so it is not waited for)."""
         self.nodes = list(nodes)
@@ -149,12 +152,18 @@ class NodesExchange:
         return out
 
 
+CHECKPOINT_EVERY = 100   # ticks between two checkpoints (docs/faults.md gives what one costs)
+
+
 def run_lockstep(sim: Simulation, exchange: Exchange, wait_for_answers: Callable[[float], bool],
                  ticks: int, *, progress: Optional[Callable[[int], None]] = None,
                  should_stop: Callable[[], bool] = lambda: False,
-                 observers: Sequence[TickObserver] = ()) -> LoopResult:
+                 observers: Sequence[TickObserver] = (),
+                 checkpoint: Optional[Callable[[LoopResult], None]] = None) -> LoopResult:
     """Run ``ticks`` lockstep ticks; ``wait_for_answers(timeout_s)`` runs or awaits the controllers
-    until every robot answered the published tick or the watchdog time is over."""
+    until every robot answered the published tick or the watchdog time is over. ``checkpoint``
+    gets the result so far every CHECKPOINT_EVERY ticks (marked interrupted): what a run killed
+    outright leaves behind."""
     lockstep = sim.world.lockstep
     traj = Trajectories.allocate(sim, ticks)
     times = LoopTimes()
@@ -191,6 +200,9 @@ def run_lockstep(sim: Simulation, exchange: Exchange, wait_for_answers: Callable
                 progress(1)
             if sim.tick % sample_every == 0:
                 memory.append((sim.tick, resident_mb()))
+            if checkpoint is not None and sim.tick % CHECKPOINT_EVERY == 0:
+                times.ticks_wall_s = time.perf_counter() - t_start
+                checkpoint(LoopResult(traj.filled(), list(exchange.violations), times, True, memory))
     except BaseException as e:
         # Nothing is lost: whoever handles the error can still write what was simulated so far.
         times.ticks_wall_s = time.perf_counter() - t_start

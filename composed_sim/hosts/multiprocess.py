@@ -34,9 +34,10 @@ from rclpy.executors import Executor
 
 from composed_sim import plugins
 from composed_sim.core.simulation import Simulation
-from composed_sim.hosts.composed import SetupInfo
+from composed_sim.hosts.host import SetupInfo
 from composed_sim.hosts.controllers import EXECUTORS, HostError
 from composed_sim.hosts.domains import DomainError, assign_domains
+from composed_sim.hosts.processes import InterruptWatch, exit_reason, signal_group
 from composed_sim.hosts.lockstep import LoopResult, NodesExchange, TickObserver, run_lockstep
 from composed_sim.ros import contract as c
 from composed_sim.ros.lockstep_executor import LockstepExecutor
@@ -93,15 +94,6 @@ def died_reason(p: ControllerProcess) -> str:
     """How a child ended, with the last line it wrote (a plugin's exception, usually)."""
     lines = p.tail(500).splitlines()
     return exit_reason(p.popen.returncode) + (f": {lines[-1].strip()}" if lines else "")
-
-
-def exit_reason(code: int) -> str:
-    if code < 0:
-        try:
-            return f"process killed by {signal.Signals(-code).name}"
-        except ValueError:
-            return f"process killed by signal {-code}"
-    return f"process exited with code {code}"
 
 
 class MultiProcessHost:
@@ -164,7 +156,7 @@ class MultiProcessHost:
                                                rab_payload_bytes=self.world.range_and_bearing.payload_bytes)
                 self._nodes[d].on_failed.append(self._stop_failed)
             self.exchange = NodesExchange(list(self._nodes.values()), self._check_children)
-            with _InterruptWatch() as interrupts:
+            with InterruptWatch() as interrupts:
                 self._start_controllers(world_file, interrupts)
             self._startup_interrupted = interrupts.requested
             for d, node in self._nodes.items():
@@ -180,7 +172,7 @@ class MultiProcessHost:
         self.setup = SetupInfo(time.perf_counter() - t0, len(self.processes) + len(self._nodes))
         return self
 
-    def _start_controllers(self, world_file: Path, interrupts: "_InterruptWatch") -> None:
+    def _start_controllers(self, world_file: Path, interrupts: InterruptWatch) -> None:
         """Spawn the children and wait until each is matched on both sides.
 
         At most SPAWN_AT_ONCE children are in the CPU-heavy part of start-up (interpreter,
@@ -261,13 +253,22 @@ class MultiProcessHost:
     def simulator_nodes(self) -> list[SimulatorNode]:
         return list(self.exchange.nodes)
 
+    def set_message_tap(self, tap) -> None:
+        for node in self.simulator_nodes:
+            node.set_message_tap(tap)
+
+    def observer_node(self):
+        return self.simulator_nodes[0]
+
     def run(self, ticks: Optional[int] = None, *, progress: Optional[Callable[[int], None]] = None,
-            should_stop: Callable[[], bool] = lambda: False, observers: Sequence[TickObserver] = ()) -> LoopResult:
+            should_stop: Callable[[], bool] = lambda: False, observers: Sequence[TickObserver] = (),
+            checkpoint: Optional[Callable[[LoopResult], None]] = None) -> LoopResult:
         ticks = self.world.length_ticks if ticks is None else ticks
         if self._startup_interrupted:      # stopped before tick 0: an interrupted run of 0 ticks
             should_stop = lambda: True     # noqa: E731
         return run_lockstep(self.sim, self.exchange, self.exchange.wait_for_answers, ticks,
-                            progress=progress, should_stop=should_stop, observers=observers)
+                            progress=progress, should_stop=should_stop, observers=observers,
+                            checkpoint=checkpoint)
 
     def _check_children(self) -> None:
         """A child that ended mid-run: its robot is marked failed (violation recorded once) and
@@ -284,7 +285,7 @@ class MultiProcessHost:
         """A robot failed by the simulator (hung, silent, too many violations): its process goes,
         as its callbacks would stop being run in composed mode."""
         p = next(p for p in self.processes if p.robot == robot)
-        _signal_groups([p], signal.SIGKILL)
+        signal_group(p.popen, signal.SIGKILL)
 
     # --- shutdown ---------------------------------------------------------------------------
 
@@ -312,58 +313,18 @@ class MultiProcessHost:
         process by now."""
         for p in self.processes:
             p.close_pipe()
-        _signal_groups(self.processes, signal.SIGTERM)
+        for p in self.processes:
+            signal_group(p.popen, signal.SIGTERM)
         deadline = time.monotonic() + TERM_GRACE_S
         for p in self.processes:
             try:
                 p.popen.wait(timeout=max(0.0, deadline - time.monotonic()))
             except subprocess.TimeoutExpired:
                 pass
-        _signal_groups(self.processes, signal.SIGKILL)
+        for p in self.processes:
+            signal_group(p.popen, signal.SIGKILL)
         for p in self.processes:
             p.popen.wait()
-
-
-class _InterruptWatch:
-    """Notices SIGINT/SIGTERM during the start-up (minutes for hundreds of children) and still
-    hands them to whoever handled them before: the CLI then stops at the next tick (here: before
-    tick 0) and writes its results, Python's default handler raises KeyboardInterrupt. Only the
-    main thread can install handlers; elsewhere nothing changes."""
-
-    def __init__(self):
-        self.requested = False
-        self._old: dict = {}
-
-    def __enter__(self) -> "_InterruptWatch":
-        if threading.current_thread() is threading.main_thread():
-            for sig in (signal.SIGINT, signal.SIGTERM):
-                old = signal.getsignal(sig)
-                if old is not None:            # None: not installed from Python, leave it alone
-                    self._old[sig] = old
-                    signal.signal(sig, self._handle)
-        return self
-
-    def _handle(self, signum, frame) -> None:
-        self.requested = True
-        old = self._old[signum]
-        if callable(old):
-            old(signum, frame)
-        elif old == signal.SIG_DFL:           # what would have happened: die (children follow)
-            signal.signal(signum, signal.SIG_DFL)
-            os.kill(os.getpid(), signum)
-
-    def __exit__(self, *exc) -> None:
-        for sig, old in self._old.items():
-            signal.signal(sig, old)
-
-
-def _signal_groups(processes: list[ControllerProcess], sig: int) -> None:
-    for p in processes:
-        if p.popen.returncode is None:
-            try:
-                os.killpg(p.popen.pid, sig)
-            except ProcessLookupError:
-                pass
 
 
 def _spin(executor: Executor) -> None:

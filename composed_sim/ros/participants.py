@@ -35,3 +35,69 @@ def ignore_participants_of_this_process() -> bool:
         os.environ[PROFILE_VARIABLES[0]] = str(PROFILE)
         return True
     return all(Path(g).resolve() == PROFILE for g in given)
+
+
+# --- the participants of a run's worker processes ----------------------------------------------
+#
+# Fast DDS's FILTER_SAME_PROCESS compares the first 8 bytes of two participants' GUID prefixes
+# (vendor, host, process). A participant's whole prefix can be set in its profile: the worker
+# host gives every worker's one participant a prefix whose first 8 bytes are the run's, and whose
+# last 4 are the worker's number. The workers then skip one another's discovery as the
+# participants of one process do (their topics never overlap), and any other process, whose
+# prefix differs, discovers every worker. Without this, every endpoint of one worker would be
+# matched against every endpoint of the others: set-up O(E²) again.
+
+_PREFIX_PROFILE = """<?xml version="1.0" encoding="UTF-8" ?>
+<!-- composed_sim worker: written by composed_sim/ros/participants.py for one run -->
+<profiles xmlns="http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles">
+  <participant profile_name="composed_sim_worker" is_default_profile="true">
+    <rtps>
+      <prefix>{prefix}</prefix>
+      <builtin>
+        <discovery_config>
+          <ignoreParticipantFlags>FILTER_SAME_PROCESS</ignoreParticipantFlags>
+        </discovery_config>
+      </builtin>
+    </rtps>
+  </participant>
+</profiles>
+"""
+
+
+def run_prefix() -> bytes:
+    """The first 8 bytes of a run's worker participants' GUID prefixes: Fast DDS's vendor id
+    (1.15), this host's id as Fast DDS computes it, and 4 random bytes for the run."""
+    return bytes([1, 15]) + _fast_dds_host_id() + os.urandom(4)
+
+
+def use_worker_prefix(prefix: bytes, directory: Path) -> bool:
+    """Before the process's first participant: its participant gets the GUID prefix ``prefix``
+    (12 bytes) and ignores the participants whose prefix starts like its own. False (and nothing
+    changes) when the user named a Fast DDS profile file of their own."""
+    if len(prefix) != 12:
+        raise ValueError(f"a GUID prefix has 12 bytes, got {len(prefix)}")
+    if any(os.environ.get(v) for v in PROFILE_VARIABLES):
+        return False
+    path = Path(directory) / f"fastdds_worker_{prefix.hex()}.xml"
+    path.write_text(_PREFIX_PROFILE.format(prefix=".".join(f"{b:02x}" for b in prefix)))
+    os.environ[PROFILE_VARIABLES[0]] = str(path)
+    return True
+
+
+def _fast_dds_host_id() -> bytes:
+    """Fast DDS's host id (utils/Host.hpp): the MD5 of this host's IPv4 addresses (16-byte locator
+    addresses), folded into 16 bits; 127.1 when there is none. Participants compare it to tell
+    another host's; a wrong value would only make ours look foreign to FILTER_DIFFERENT_HOST."""
+    import hashlib
+    import socket
+
+    import psutil
+    addresses = [a.address for nic in psutil.net_if_addrs().values() for a in nic
+                 if a.family == socket.AF_INET and not a.address.startswith("127.")]
+    if not addresses:
+        return bytes([127, 1])
+    digest = hashlib.md5(b"".join(bytes(12) + socket.inet_aton(a) for a in addresses)).digest()
+    value = 0
+    for i in range(0, 16, 2):
+        value ^= (digest[i] << 8) | digest[i + 1]
+    return bytes([value & 0xFF, value >> 8])

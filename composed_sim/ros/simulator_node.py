@@ -22,6 +22,7 @@ from rosgraph_msgs.msg import Clock
 
 from composed_sim.core.robot_models import (CAMERA, DIFFERENTIAL_STEERING, GROUND, LIDAR, LIGHT, ODOMETRY,
                                             POSITIONING, PROXIMITY, RANGE_AND_BEARING, RobotModel, get_model)
+from composed_sim.core.violations import FAILED, Violation
 from composed_sim.world.schema import Lockstep, World
 if TYPE_CHECKING:   # only a type here: a controller process must not import the physics
     from composed_sim.core.simulation import SensorFrame
@@ -34,7 +35,6 @@ class MessageTap(Protocol):
     def write_serialized(self, topic: str, msgtype: str, data: bytes, stamp_ns: int) -> object: ...
 
 
-FAILED = "controller failed: "    # how the one violation that fails a robot begins
 LATE_LEDS = "leds answering an earlier tick arrived after that tick closed: applied one tick late"
 LATE_RAB = "rab_tx answering an earlier tick arrived after that tick closed: applied one tick late"
 
@@ -48,13 +48,6 @@ class _GroupPlan:
     local: np.ndarray              # [k] their indices among this node's robots
     within: np.ndarray             # [k] their rows in the group's arrays
     devices: frozenset[str]        # what the group runs (the same for all its robots)
-
-
-@dataclass
-class Violation:
-    tick: int
-    robot: str
-    reason: str
 
 
 def robot_devices(world: World) -> list[tuple[str, ...]]:

@@ -216,3 +216,43 @@ def test_the_device_modules_import_neither_ros_nor_plotting_nor_imageio():
             "bad = [m for m in ('rclpy', 'matplotlib', 'imageio') if m in sys.modules]; "
             "assert not bad, bad")
     subprocess.run([sys.executable, "-c", code], check=True)
+
+
+@pytest.mark.parametrize("start, stop", [(0, 18), (0, 4), (4, 13), (12, 18), (17, 18)])
+def test_a_frame_cut_to_a_block_of_robots_holds_exactly_their_readings(tmp_path, start, stop):
+    """What a worker process gets (hosts/workers.py): every reading of robots start … stop-1, the
+    groups cut and renumbered, the CSR rows (blobs, range and bearing) intact."""
+    path = tmp_path / "mixed.yaml"
+    path.write_text(HETEROGENEOUS_YAML)
+    sim = Simulation(load_world(path))
+    sim.set_led_colors(1, np.full((13, 3), 200, dtype=np.uint8))
+    for robot in range(sim.n):
+        sim.set_rab_payload(robot, bytes([robot, 1, 2, 3]))
+    for _ in range(3):
+        sim.set_velocity_commands(np.full(sim.n, 0.05), np.full(sim.n, 0.3))
+        frame = sim.step()
+    cut = frame.rows(start, stop)
+    assert cut.tick == frame.tick and len(cut.groups) == len(frame.groups)
+    for robot in range(start, stop):
+        local = robot - start
+        for g, c in zip(frame.groups, cut.groups):
+            assert (c.robots.start <= local < c.robots.stop) == (g.robots.start <= robot < g.robots.stop)
+            if not g.robots.start <= robot < g.robots.stop:
+                continue
+            i, j = robot - g.robots.start, local - c.robots.start
+            for field in ("proximity_distances", "proximity", "light", "ground", "lidar"):
+                if getattr(g, field) is not None:
+                    np.testing.assert_array_equal(getattr(c, field)[j], getattr(g, field)[i])
+            if g.blobs is not None:
+                for a, b in zip(c.blobs.of(j), g.blobs.of(i)):
+                    np.testing.assert_array_equal(a, b)
+        for a, b in zip(cut.range_and_bearing.of(local), frame.range_and_bearing.of(robot)):
+            np.testing.assert_array_equal(a, b)
+        np.testing.assert_array_equal(cut.pose.positions[local], frame.pose.positions[robot])
+        np.testing.assert_array_equal(cut.wheels.distances_m[local], frame.wheels.distances_m[robot])
+        np.testing.assert_array_equal(cut.odometry[local], frame.odometry[robot])
+    assert sum(len(c.blobs.offsets) - 1 for c in cut.groups if c.blobs is not None) == \
+        sum(max(0, min(c.robots.stop, stop - start) - c.robots.start) for c, g in zip(cut.groups, frame.groups)
+            if g.blobs is not None)
+    assert len(cut.range_and_bearing.offsets) == stop - start + 1
+    assert frame.range_and_bearing.of(6)[0].size > 0      # the world really has messages to cut

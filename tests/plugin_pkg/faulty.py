@@ -1,17 +1,20 @@
 """A test controller that misbehaves on purpose: every robot drives a circle, answering each
 proximity scan, and the robot named by ``faulty_robot`` commits ``fault`` from its
 ``from_tick``-th scan on (every ``every`` scans). A plain rclpy Node, like any third party's."""
+import ctypes
 import math
 import os
 import threading
+import sys
 import time
 
+import rclpy
 from geometry_msgs.msg import Twist, TwistStamped
 from rclpy.node import Node
 from sensor_msgs.msg import LaserScan
 
 FAULTS = ("none", "slow", "hang", "busy_hang", "raise", "silent", "nan", "inf", "wrong_stamp",
-          "wrong_type", "intrude", "crash")
+          "wrong_type", "intrude", "crash", "segfault", "sys_exit", "shutdown_context", "spin")
 
 
 class Faulty(Node):
@@ -73,4 +76,12 @@ class Faulty(Node):
             self.create_publisher(TwistStamped, f"/{self.victim}/cmd_vel", 10).publish(hijack)
         elif fault == "crash":
             os._exit(7)                             # the process dies, no clean-up
+        elif fault == "segfault":
+            ctypes.string_at(0)                     # SIGSEGV, as a broken C extension would
+        elif fault == "sys_exit":
+            sys.exit(3)
+        elif fault == "shutdown_context":
+            rclpy.shutdown(context=self.context)
+        elif fault == "spin":
+            rclpy.spin_once(self, timeout_sec=0.01)
         return True

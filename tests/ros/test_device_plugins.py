@@ -160,12 +160,14 @@ def test_heterogeneous_world_runs_through_the_cli(tmp_path):
     assert np.median(moved[6:]) > 0.05, moved        # … and the e-pucks walk (or stopped on the patch)
 
 
-def test_every_robot_model_and_device_gives_the_same_run_in_both_host_modes(domain_id):
+def test_every_robot_model_and_device_gives_the_same_run_in_every_host_mode(domain_id):
     """Foot-bots, e-pucks, Thymios and TurtleBots in one world, each with every device it has
     switched on (range and bearing, ground, LiDAR, pose, odometry, wheels): the multi-process run,
-    each controller in its own process, reproduces the composed run bit for bit."""
+    each controller in its own process, and the run over 3 worker processes (blocks that cut
+    through groups) reproduce the composed run bit for bit."""
     from composed_sim.hosts.composed import ComposedHost
     from composed_sim.hosts.multiprocess import MultiProcessHost
+    from composed_sim.hosts.workers import WorkerHost
     from composed_sim.world.loader import world_from_dict
 
     always = {"positioning": {}, "odometry": {}, "differential_steering": {}}
@@ -184,8 +186,11 @@ def test_every_robot_model_and_device_gives_the_same_run_in_both_host_modes(doma
         composed = host.run()
     with MultiProcessHost(world, domain_id=101 + 4 * (os.getpid() % 32), robots_per_domain=3) as host:
         separate = host.run()
-    assert composed.violations == [] and separate.violations == []
-    for field in ("positions", "headings", "led_colors"):
-        assert np.array_equal(getattr(composed.trajectories, field), getattr(separate.trajectories, field)), field
+    with WorkerHost(world, domain_id=domain_id, workers=3) as host:
+        workers = host.run()
+    assert composed.violations == [] and separate.violations == [] and workers.violations == []
+    for other in (separate, workers):
+        for field in ("positions", "headings", "led_colors"):
+            assert np.array_equal(getattr(composed.trajectories, field), getattr(other.trajectories, field)), field
     moved = np.linalg.norm(composed.trajectories.positions[-1] - composed.trajectories.positions[0], axis=1)
     assert (moved > 0.01).sum() >= 6, moved       # (an e-puck or Thymio may sit on the patch)

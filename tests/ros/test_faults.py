@@ -1,4 +1,4 @@
-"""A misbehaving controller cannot stall a run or touch the other robots, in either host mode.
+"""A misbehaving controller cannot stall a run or touch the other robots, in every host mode.
 
 Four robots drive circles far apart (tests/plugin_pkg/faulty.py); bot1 misbehaves from its fifth
 tick on. In every case the run completes, bot0, bot2 and bot3 move exactly as in the run without
@@ -11,12 +11,13 @@ import pytest
 
 from composed_sim.hosts.composed import ComposedHost
 from composed_sim.hosts.multiprocess import MultiProcessHost
+from composed_sim.hosts.workers import WorkerHost
 from composed_sim.world.loader import world_from_dict
 
 ROBOTS, TICKS, FAULTY, FROM_TICK = 4, 24, "bot1", 5
 WATCHDOG_S = 0.25
 OTHERS = [0, 2, 3]
-MODES = ["composed", "multi-process"]
+MODES = ["composed", "workers", "multi-process"]
 _reference = {}
 
 
@@ -39,6 +40,8 @@ def fault_world(fault: str, *, fallback="zero", max_violations=None, watchdog_s=
 def run(world, mode: str, domain_id: int, mp_domain: int, executor: str = "lockstep"):
     if mode == "composed":
         host = ComposedHost(world, executor=executor, domain_id=domain_id)
+    elif mode == "workers":     # bot0 and bot1 in one worker process, bot2 and bot3 in another
+        host = WorkerHost(world, workers=2, executor=executor, domain_id=domain_id)
     else:
         host = MultiProcessHost(world, executor=executor, domain_id=mp_domain, robots_per_domain=2)
     with host:
@@ -88,7 +91,7 @@ def test_a_slow_controller_misses_only_its_slow_ticks(faulty_plugin, mode, domai
     slow_ticks = list(range(FROM_TICK, TICKS, 6))
     result = run(fault_world("slow", every=6, duration_s=1.5 * WATCHDOG_S), mode, domain_id, mp_domain)
     violations = check_isolated(result, domain_id)
-    reason = "late: a callback took" if mode == "composed" else "no answer before the watchdog"
+    reason = "no answer before the watchdog" if mode == "multi-process" else "late: a callback took"
     assert [t for t, _ in violations] == slow_ticks and all(r.startswith(reason) for _, r in violations)
     for t in range(TICKS):     # zero fallback on its slow ticks, its own commands on the others
         assert moved_at(result, t) == (t not in slow_ticks), t
@@ -96,11 +99,11 @@ def test_a_slow_controller_misses_only_its_slow_ticks(faulty_plugin, mode, domai
 
 @pytest.mark.parametrize("mode, executor", [
     ("composed", "lockstep"), ("composed", "events"), ("composed", "single-threaded"),
-    ("multi-process", "lockstep")])
+    ("workers", "lockstep"), ("multi-process", "lockstep")])
 def test_a_hung_callback_fails_its_robot_and_the_run_goes_on(faulty_plugin, mode, executor, domain_id, mp_domain):
     result = run(fault_world("hang"), mode, domain_id, mp_domain, executor)
     violations = check_isolated(result, domain_id)
-    if mode == "composed":      # interrupted in its tick (the callbacks run in the main thread)
+    if mode != "multi-process":     # interrupted in its tick (the callbacks run in the main thread)
         assert failed(violations, "hung: callback still running after") == FROM_TICK
     else:                       # no answer for 3 watchdog periods
         tick = failed(violations, "unresponsive: no accepted answer for")
@@ -137,6 +140,35 @@ def test_a_crashed_controller_process_fails_its_robot(faulty_plugin, domain_id, 
     result = run(fault_world("crash"), "multi-process", domain_id, mp_domain)
     tick = failed(check_isolated(result, domain_id), "process exited with code 7")
     assert FROM_TICK <= tick <= FROM_TICK + 1 and stands_still_from(result, FROM_TICK)
+
+
+@pytest.mark.parametrize("fault, died", [("crash", "worker process died (exit code 7)"),
+                                         ("segfault", "worker process died (SIGSEGV)")])
+def test_a_dead_worker_fails_its_robots_only_and_the_run_completes(faulty_plugin, fault, died, domain_id):
+    """A controller that kills its process takes its worker's robots (bot0, bot1) with it; the
+    other worker's robots drive on exactly as without the fault."""
+    result = run(fault_world(fault), "workers", domain_id, 0)
+    assert result.trajectories.ticks_done == TICKS and not result.interrupted
+    positions = result.trajectories.positions
+    assert np.array_equal(positions[:, [2, 3]], reference(domain_id)[:, [2, 3]])
+    assert sorted((v.robot, v.tick) for v in result.violations) == [("bot0", FROM_TICK), ("bot1", FROM_TICK)]
+    assert all(v.reason.startswith("controller failed: " + died) for v in result.violations), result.violations
+    for robot in (0, 1):
+        p = positions[FROM_TICK + 1:, robot]
+        assert float(np.abs(p - p[0]).max()) < 1e-9      # stopped from the tick the worker died
+
+
+@pytest.mark.parametrize("mode", ["composed", "workers"])
+@pytest.mark.parametrize("fault, reason", [
+    ("sys_exit", "callback raised SystemExit: 3"),
+    ("shutdown_context", "called rclpy.shutdown on the host's context"),
+    ("spin", "controllers must not spin: the host spins them (spin_once called inside a callback")])
+def test_exiting_shutting_down_or_spinning_in_a_callback_fails_that_robot_only(
+        faulty_plugin, mode, fault, reason, domain_id):
+    result = run(fault_world(fault), mode, domain_id, 0)
+    violations = check_isolated(result, domain_id)   # bot0 shares bot1's participant: untouched
+    assert failed(violations, reason) == FROM_TICK
+    assert stands_still_from(result, FROM_TICK)
 
 
 @pytest.mark.parametrize("mode", MODES)

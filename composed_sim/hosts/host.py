@@ -1,0 +1,58 @@
+"""What every host offers the command line, the benchmark and the tests.
+
+A host runs one world's controllers and its simulator in lockstep. The hosts:
+
+- ``ComposedHost`` (hosts/composed.py): every controller node in this process;
+- ``WorkerHost`` (hosts/workers.py): the controller nodes in K worker processes, the physics here;
+- ``MultiProcessHost`` (hosts/multiprocess.py): one process per controller, as in the paper;
+- ``ExternalControllersHost`` (hosts/external.py): controllers in ``composed-sim host`` shards,
+  possibly on other machines.
+
+Writing one: make it a context manager that builds everything in ``__enter__`` (a ``Simulation``
+as ``sim``, a ``SetupInfo`` as ``setup``) and destroys it in ``__exit__``, also after an
+exception; ``run`` is ``hosts.lockstep.run_lockstep`` over the host's ``Exchange``. Example::
+
+    with ComposedHost(world) as host:
+        result = host.run(observers=[RecordingObserver(recorder, world.tick_ns)])
+        print(host.setup.setup_s, len(result.violations))
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable, Optional, Protocol, Sequence
+
+from composed_sim.core.simulation import Simulation
+from composed_sim.hosts.lockstep import LoopResult, TickObserver
+from composed_sim.ros.simulator_node import MessageTap
+from composed_sim.world.schema import World
+
+
+@dataclass
+class SetupInfo:
+    setup_s: float          # contexts, simulator, nodes, discovery: until tick 0 can start
+    nodes: int
+    participants: int = 1
+    workers: int = 1        # processes hosting the controller nodes (composed mode)
+
+
+class Host(Protocol):
+    world: World
+    sim: Simulation
+    setup: SetupInfo
+
+    def __enter__(self) -> "Host": ...
+    def __exit__(self, *exc) -> None: ...
+
+    def run(self, ticks: Optional[int] = None, *, progress: Optional[Callable[[int], None]] = None,
+            should_stop: Callable[[], bool] = lambda: False, observers: Sequence[TickObserver] = (),
+            checkpoint: Optional[Callable[[LoopResult], None]] = None) -> LoopResult:
+        """Run ``ticks`` ticks (the world's length by default); stops at a tick boundary once
+        ``should_stop()``; every observer sees tick 0 and each tick after; ``checkpoint`` gets the
+        result so far every ``lockstep.CHECKPOINT_EVERY`` ticks."""
+
+    def set_message_tap(self, tap: MessageTap) -> None:
+        """Hand every per-robot message the tap wants (sensors out, answers in) to it, in this
+        process, before the tick it belongs to ends."""
+
+    def observer_node(self):
+        """An rclpy Node in this process and the run's domain for live observers (markers)."""

@@ -1,0 +1,193 @@
+"""The ROS side of a block of robots, in this process: their participant groups and one executor.
+
+A participant group is one rclpy Context (one DDS participant) holding a SimulatorNode for up to
+``robots_per_participant`` robots and those robots' controller nodes. A group's topics are its
+robots' own, so it is self-contained, and the participants of one process ignore one another
+(ros/participants.py): Fast DDS's endpoint matching, quadratic in a participant's endpoints,
+then costs O(E²/K) instead of O(E²). Processes outside still discover every group.
+
+The single-process composed host holds every robot's groups; each worker process of the worker
+host holds its block's (hosts/workers.py). Either way, every per-robot message stays inside a
+participant and goes through rclpy publish and take, and the robots are numbered from the start
+of the block: the SensorFrame handed to ``exchange.publish_tick`` covers the block only.
+"""
+from __future__ import annotations
+
+import threading
+import time
+from typing import Optional
+
+import numpy as np
+import rclpy
+from rclpy.context import Context
+from rclpy.executors import Executor
+from rclpy.node import Node
+
+from composed_sim import plugins
+from composed_sim.core.robot_models import get_model
+from composed_sim.hosts.callback_guard import CallbackGuard, refuse_shutdown_from_callbacks
+from composed_sim.hosts.controllers import (EXECUTORS, ROBOTS_PER_PARTICIPANT, HostError, create_controller,
+                                             make_executor)
+from composed_sim.hosts.lockstep import NodesExchange
+from composed_sim.ros import contract as c
+from composed_sim.ros.participants import ignore_participants_of_this_process
+from composed_sim.ros.simulator_node import SimulatorNode, robot_devices
+from composed_sim.world.schema import World
+
+DISCOVERY_TIMEOUT_S = 60.0
+WAIT_SLICE_S = 0.02           # how long one spin_once may wait for a callback while a tick is open
+
+
+def simulator_node_name(group: int) -> str:
+    """The run's participant groups are numbered over all its processes: names stay unique."""
+    return "composed_sim" if group == 0 else f"composed_sim_{group}"
+
+
+class ParticipantGroups:
+    """Robots ``start … stop-1`` of ``world``: contexts, simulator nodes, controllers, executor.
+
+    A context manager; ``__exit__`` destroys the nodes before their contexts."""
+
+    def __init__(self, world: World, start: int, stop: int, *, executor: str = "lockstep", domain_id: int = 0,
+                 robots_per_participant: int = ROBOTS_PER_PARTICIPANT, first_group: int = 0):
+        """``first_group``: the number of this block's first participant group in the run (the
+        block of robot 0 has group 0, which publishes /clock)."""
+        if executor not in EXECUTORS:
+            raise HostError(f"unknown executor {executor!r}; choose one of {', '.join(EXECUTORS)}")
+        if robots_per_participant < 1:
+            raise HostError(f"robots per participant must be at least 1, got {robots_per_participant}")
+        self.world = world
+        self.start, self.stop = start, stop
+        self.executor_kind = executor
+        self.domain_id = domain_id
+        self.robots_per_participant = robots_per_participant
+        self.first_group = first_group
+        self.contexts: list[Context] = []
+        self.simulator_nodes: list[SimulatorNode] = []      # one per group, in robot order
+        self.controllers: list[Node] = []
+        self.exchange: Optional[NodesExchange] = None
+        self.executor: Optional[Executor] = None
+        self.guard: Optional[CallbackGuard] = None
+        self._spin_thread: Optional[threading.Thread] = None
+
+    def __enter__(self) -> "ParticipantGroups":
+        try:
+            self._build()
+        except BaseException:
+            self.__exit__(None, None, None)
+            raise
+        return self
+
+    def _build(self) -> None:
+        world = self.world
+        classes = {g.controller: plugins.load(g.controller) for g in world.robots}
+        ignore_participants_of_this_process()
+        lockstep = world.lockstep
+        self.guard = CallbackGuard(lockstep.watchdog_s, lockstep.unresponsive_s)
+        names, groups, devices = world.robot_names(), world.group_of_robot(), robot_devices(world)
+        robots = frozenset(names)
+        for k, first in enumerate(range(self.start, self.stop, self.robots_per_participant)):
+            block = range(first, min(self.stop, first + self.robots_per_participant))
+            context = Context()
+            rclpy.init(context=context, domain_id=self.domain_id)
+            refuse_shutdown_from_callbacks(context, self.guard)
+            self.contexts.append(context)
+            group = self.first_group + k
+            sim_node = SimulatorNode([names[i] for i in block], [get_model(world.robots[groups[i]].model) for i in block],
+                                     context=context, tick_ns=world.tick_ns,
+                                     rows=np.arange(block.start - self.start, block.stop - self.start),
+                                     node_name=simulator_node_name(group), lockstep=lockstep,
+                                     devices=[devices[i] for i in block],
+                                     rab_payload_bytes=world.range_and_bearing.payload_bytes,
+                                     publish_clock=group == 0)
+            sim_node.on_failed.append(self.guard.stop_worker)
+            self.simulator_nodes.append(sim_node)
+            for i in block:
+                node = create_controller(classes[world.robots[groups[i]].controller], names[i], world,
+                                         groups[i], context, robots=robots)
+                self.guard.guard(node, names[i], sim_node)
+                sim_node.drive_clock_of(node)
+                self.controllers.append(node)
+        self.exchange = NodesExchange(self.simulator_nodes)
+        self.executor = make_executor(self.executor_kind, self.contexts[0])
+        # Simulator nodes last, so that the lockstep executor's one ordered pass runs every
+        # controller on its sensors first and then collects the answers they just published.
+        for node in (*self.controllers, *self.simulator_nodes):
+            self.executor.add_node(node)
+        self._wait_for_discovery()
+
+    @property
+    def nodes(self) -> int:
+        return len(self.controllers) + len(self.simulator_nodes)
+
+    def _wait_for_discovery(self) -> None:
+        """Every robot's answer topic has a publisher and its sensors a subscriber before tick 0."""
+        deadline = time.monotonic() + DISCOVERY_TIMEOUT_S
+        while missing := [r for node in self.simulator_nodes for r in node.unmatched_robots()]:
+            if time.monotonic() > deadline:
+                raise HostError(f"the controllers of {', '.join(missing[:5])}{' …' if len(missing) > 5 else ''} "
+                                f"were not connected within {DISCOVERY_TIMEOUT_S:.0f} s: each must publish "
+                                f"{c.CMD_VEL.name} and subscribe to at least one sensor topic")
+            time.sleep(0.01)
+
+    # --- running the callbacks while a tick is open --------------------------------------------
+
+    def start_serving(self):
+        """Before the first tick: returns ``wait_for_answers(timeout_s) -> bool`` for the tick
+        loop, and a context manager to run the ticks in (it interrupts hung callbacks)."""
+        if self.executor_kind != "multi-threaded":
+            wait = self._spin_until_answered
+        else:
+            # Its callbacks run on its worker threads, as it is made for; the tick loop waits for
+            # the simulator nodes' "all answered".
+            self._spin_thread = threading.Thread(target=self._spin, name="executor", daemon=True)
+            self._spin_thread.start()
+            wait = self.exchange.wait_for_answers
+        return wait, self.guard.interrupting_hangs(self._spin_thread is None)
+
+    def _spin(self) -> None:
+        try:
+            self.executor.spin()
+        except rclpy.executors.ExternalShutdownException:
+            pass
+
+    def _spin_until_answered(self, timeout_s: float) -> bool:
+        """Executors driven from this thread: the lockstep executor by design, the EventsExecutor
+        because its spin() in a background thread hung in our probes (docs/architecture.md), and
+        the single-threaded one like them, so that the callback guard can interrupt a hung callback.
+
+        Past the watchdog, the callbacks already queued still run before the tick closes: in one
+        thread a late callback delays the ones behind it, and its lateness is its own (the guard
+        rejects its answer), not theirs."""
+        deadline = time.monotonic() + timeout_s
+        drain_left = 4 * len(self.controllers) + 16     # bounded: a busy timer cannot keep the tick open
+        idle = 0
+        while not self.exchange.all_answered:
+            if time.monotonic() < deadline:
+                # A constant timeout: a stock executor keeps the ready callbacks of one wait only
+                # while spin_once's arguments stay the same, and rebuilds its wait set over every
+                # entity otherwise (with a changing timeout: once per callback, 10 s a tick at 320
+                # robots). The deadline is then met to within one slice.
+                self.executor.spin_once(timeout_sec=WAIT_SLICE_S)
+                continue
+            before = (self.guard.calls, self.exchange.answered_count)
+            self.executor.spin_once(timeout_sec=0)
+            drain_left -= 1
+            # Twice: a stock executor's spin_once may come back empty once, to rebuild its wait set.
+            idle = idle + 1 if (self.guard.calls, self.exchange.answered_count) == before else 0
+            if drain_left <= 0 or idle >= 2:
+                return False
+        return True
+
+    def __exit__(self, *exc) -> None:
+        if self.executor is not None:
+            self.executor.shutdown()
+        if self._spin_thread is not None:
+            self._spin_thread.join(timeout=5.0)
+        for node in (*self.controllers, *self.simulator_nodes):
+            node.destroy_node()
+        self.controllers, self.simulator_nodes = [], []
+        for context in self.contexts:
+            if context.ok():
+                Context.shutdown(context)       # the class's: the instance refuses it from callbacks
+        self.contexts = []

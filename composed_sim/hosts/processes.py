@@ -1,0 +1,77 @@
+"""Child processes of a run (multi-process controllers, worker processes): they never outlive it.
+
+Light on purpose: a child imports this first, before rclpy, to tie its life to its parent's.
+"""
+from __future__ import annotations
+
+import ctypes
+import os
+import signal
+import sys
+import threading
+
+PR_SET_PDEATHSIG = 1
+
+
+def die_with_parent(parent_pid: int | None, sig: int = signal.SIGTERM) -> None:
+    """``sig`` to this process when its parent dies (any way, SIGKILL included). Done first, before
+    the slow imports; the getppid check covers a parent that died between our fork and the prctl."""
+    if sys.platform.startswith("linux"):
+        libc = ctypes.CDLL(None, use_errno=True)
+        if libc.prctl(PR_SET_PDEATHSIG, sig, 0, 0, 0) != 0:
+            print(f"prctl(PR_SET_PDEATHSIG) failed: errno {ctypes.get_errno()}", file=sys.stderr)
+    if parent_pid is not None and os.getppid() != parent_pid:
+        sys.exit(0)
+
+
+def exit_reason(code: int) -> str:
+    """A Popen return code in words: "process killed by SIGSEGV", "process exited with code 3"."""
+    if code < 0:
+        try:
+            return f"process killed by {signal.Signals(-code).name}"
+        except ValueError:
+            return f"process killed by signal {-code}"
+    return f"process exited with code {code}"
+
+
+def signal_group(popen, sig: int) -> None:
+    """``sig`` to a child started with ``process_group=0`` and whatever it started; only while it is
+    unreaped (a reaped child's pid may belong to another process by now)."""
+    if popen.returncode is None:
+        try:
+            os.killpg(popen.pid, sig)
+        except ProcessLookupError:
+            pass
+
+
+class InterruptWatch:
+    """Notices SIGINT/SIGTERM during a start-up (minutes for hundreds of children) and still
+    hands them to whoever handled them before: the CLI then stops at the next tick (here: before
+    tick 0) and writes its results, Python's default handler raises KeyboardInterrupt. Only the
+    main thread can install handlers; elsewhere nothing changes."""
+
+    def __init__(self):
+        self.requested = False
+        self._old: dict = {}
+
+    def __enter__(self) -> "InterruptWatch":
+        if threading.current_thread() is threading.main_thread():
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                old = signal.getsignal(sig)
+                if old is not None:            # None: not installed from Python, leave it alone
+                    self._old[sig] = old
+                    signal.signal(sig, self._handle)
+        return self
+
+    def _handle(self, signum, frame) -> None:
+        self.requested = True
+        old = self._old[signum]
+        if callable(old):
+            old(signum, frame)
+        elif old == signal.SIG_DFL:           # what would have happened: die (children follow)
+            signal.signal(signum, signal.SIG_DFL)
+            os.kill(os.getpid(), signum)
+
+    def __exit__(self, *exc) -> None:
+        for sig, old in self._old.items():
+            signal.signal(sig, old)

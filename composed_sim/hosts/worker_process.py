@@ -1,0 +1,141 @@
+"""A worker process of the worker host: a block of robots in one participant group, one executor.
+
+``python -m composed_sim.hosts.worker_process --fd N --parent-pid P`` is started by
+``hosts/workers.py``; it talks to the main process over the socket ``N`` (pickled messages,
+``multiprocessing.connection``), once per tick each way:
+
+    main → worker   ("setup", WorkerSetup)         once, first
+                    ("tap", [glob, …])             record these topics' messages (--record-topics)
+                    ("tick", SensorFrame)          the block's readings of one tick
+                    ("stop",)                      end now
+    worker → main   ("ready", nodes, participants) discovery done: tick 0 can start
+                    ("error", kind, message, field) the block could not be built
+                    ("answers", TickAnswers)       the tick's commands, LEDs, payloads, violations
+
+Inside, a tick is exactly the single-process host's: the simulator nodes publish the block's
+sensors, the executor runs the controllers' callbacks until every robot answered or the watchdog
+expired, and the simulator nodes' ``close_tick`` computes the commands with the fallbacks.
+
+The worker dies with the main process (PR_SET_PDEATHSIG, SIGKILL included) and ignores SIGINT: a
+terminal's Ctrl-C is for the main process, which stops at a tick boundary and then stops us.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import resource
+import signal
+import sys
+from dataclasses import dataclass, field
+
+from composed_sim.hosts.processes import die_with_parent
+
+EXIT_SETUP = 3          # the block could not be built; the reason went to the main process
+
+
+@dataclass
+class WorkerSetup:
+    world: object             # schema World
+    start: int                # the block: robots start … stop-1
+    stop: int
+    index: int                # the worker's number; its participant group has the same
+    executor: str
+    domain_id: int
+    participant_prefix: bytes  # the GUID prefix of the worker's one participant (ros/participants.py)
+    scratch_dir: str           # where the worker may write its Fast DDS profile
+
+
+@dataclass
+class TickAnswers:
+    tick: int
+    linear: object                                     # [m] m/s, the block's robots
+    angular: object                                    # [m] rad/s
+    leds: dict = field(default_factory=dict)           # row in the block → [L, 3] uint8
+    rab: dict = field(default_factory=dict)            # row in the block → [B] uint8
+    # per participant group of the block: its new violations as (tick, robot, reason)
+    violations: list = field(default_factory=list)
+    tapped: list = field(default_factory=list)         # (topic, type, bytes, stamp ns)
+    peak_rss_kb: int = 0                               # the worker's own peak resident memory so far
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="python -m composed_sim.hosts.worker_process")
+    p.add_argument("--fd", type=int, required=True)
+    p.add_argument("--parent-pid", type=int, required=True)
+    args = p.parse_args(argv)
+    # SIGKILL, not SIGTERM: a worker has nothing to write, and must not linger in a callback.
+    die_with_parent(args.parent_pid, signal.SIGKILL)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+
+    from multiprocessing.connection import Connection
+    conn = Connection(args.fd)
+    kind, setup = conn.recv()
+    assert kind == "setup", kind
+
+    from composed_sim.ros.participants import use_worker_prefix
+    use_worker_prefix(setup.participant_prefix, setup.scratch_dir)
+
+    import numpy as np
+
+    from composed_sim import plugins
+    from composed_sim.hosts.controllers import HostError
+    from composed_sim.hosts.participant_groups import ParticipantGroups
+    from composed_sim.ros.taps import TapBuffer
+
+    world = setup.world
+    groups = ParticipantGroups(world, setup.start, setup.stop, executor=setup.executor, domain_id=setup.domain_id,
+                               robots_per_participant=setup.stop - setup.start, first_group=setup.index)
+    try:
+        groups.__enter__()
+    except (plugins.PluginError, HostError) as e:
+        conn.send(("error", type(e).__name__, str(e), getattr(e, "field", ())))
+        return EXIT_SETUP
+    conn.send(("ready", groups.nodes, len(groups.contexts)))
+
+    m = setup.stop - setup.start
+    nodes, exchange = groups.simulator_nodes, groups.exchange
+    lockstep = world.lockstep
+    previous = (np.zeros(m), np.zeros(m))
+    seen = [0] * len(nodes)        # violations already sent, per node
+    tap = None
+    wait, interrupting_hangs = groups.start_serving()
+    with interrupting_hangs:
+        while True:
+            try:
+                message = conn.recv()
+            except EOFError:       # the main process is gone
+                break
+            if message[0] == "tick":
+                frame = message[1]
+                exchange.publish_tick(frame)
+                wait(lockstep.watchdog_s)
+                commands = (np.empty(m), np.empty(m))
+                exchange.close_tick(lockstep.fallback, previous, commands)
+                previous = commands
+                answers = TickAnswers(frame.tick, *commands, exchange.take_led_commands(),
+                                      exchange.take_rab_payloads())
+                for k, node in enumerate(nodes):
+                    answers.violations.append([(v.tick, v.robot, v.reason) for v in node.violations[seen[k]:]])
+                    seen[k] = len(node.violations)
+                if tap is not None:
+                    answers.tapped = tap.drain()
+                answers.peak_rss_kb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+                conn.send(("answers", answers))
+            elif message[0] == "tap":
+                tap = TapBuffer(message[1])
+                for node in nodes:
+                    node.set_message_tap(tap)
+            elif message[0] == "stop":
+                break
+    # Destroying hundreds of nodes one by one takes long (each republishes its participant's
+    # graph): nothing is left to write here, so the process just ends.
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(0)
+
+
+if __name__ == "__main__":
+    # Run as the module's own name, so that what it pickles (TickAnswers) unpickles in the main process.
+    from composed_sim.hosts.worker_process import main as module_main
+    sys.exit(module_main())

@@ -1,0 +1,361 @@
+"""The worker host: the controller nodes spread over K worker processes, the physics here.
+
+rclpy holds the GIL in ``publish`` and ``take``, so one process runs its robots' ROS exchange
+on one core, whatever the machine. Here the robots are cut into K contiguous blocks; each block
+lives in a worker process (hosts/worker_process.py) with its participant groups and its own
+executor, exactly as the single-process host holds all of them, so every per-robot message stays
+inside one participant, through rclpy publish and take, visible to any outside process.
+
+    main process: clock, physics, sensing, world state, results, recording, observers
+       │  once per tick: each block's readings →     ← its commands, LEDs, payloads, violations
+       ├── worker 1: participant groups of robots 0 … b₁-1, their controllers, one executor
+       └── worker K: …
+
+Only bulk arrays cross processes, once per tick each way, pickled over a socket pair
+(``multiprocessing.connection``): a block's SensorFrame (``SensorFrame.rows``) and its answers.
+The main process senses every robot: the sensors' noise draws then stay those of one process,
+so the same world and seed give the same trajectories for every K (docs/speed.md measures what
+sensing costs against the exchange).
+
+A worker that dies (a controller's segfault, ``os._exit``) or stops answering becomes violations
+for its robots only: they are failed (stopped, as any failed robot) and the run goes on.
+"""
+from __future__ import annotations
+
+import math
+import os
+import signal
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass
+from multiprocessing.connection import Connection, wait as wait_for_connections
+from pathlib import Path
+from typing import Callable, Optional, Sequence
+
+import numpy as np
+
+from composed_sim.core.simulation import SensorFrame, Simulation
+from composed_sim.core.violations import FAILED, Violation
+from composed_sim.hosts.controllers import EXECUTORS, HostError
+from composed_sim.hosts.host import SetupInfo
+from composed_sim.hosts.lockstep import LoopResult, TickObserver, run_lockstep
+from composed_sim.hosts.processes import InterruptWatch, exit_reason, signal_group
+from composed_sim.hosts.worker_process import TickAnswers, WorkerSetup
+from composed_sim.ros.participants import run_prefix
+from composed_sim.world.schema import World
+
+STARTUP_TIMEOUT_S = 300.0    # a worker builds hundreds of nodes: minutes at 10 000 robots
+# Past the watchdog a worker still drains its queued callbacks, and interrupts a hung one after
+# unresponsive_s; only a worker stuck beyond that (a callback blocked in C) is given up on.
+ANSWER_GRACE_S = 5.0
+STOP_GRACE_S = 2.0           # ("stop",) → SIGKILL
+
+
+def plan_blocks(n: int, workers: int) -> list[tuple[int, int]]:
+    """Cut robots 0 … n-1 into ``workers`` contiguous blocks as even as can be: (start, stop) each."""
+    if not 1 <= workers <= n:
+        raise ValueError(f"{workers} workers for {n} robots")
+    return [(n * w // workers, n * (w + 1) // workers) for w in range(workers)]
+
+
+def _ending(code: int) -> str:
+    """A Popen return code, short: "SIGSEGV", "exit code 3"."""
+    if code < 0:
+        try:
+            return signal.Signals(-code).name
+        except ValueError:
+            return f"signal {-code}"
+    return f"exit code {code}"
+
+
+@dataclass
+class Worker:
+    index: int
+    start: int
+    stop: int
+    popen: subprocess.Popen
+    conn: Connection
+    log: Path
+    answers: Optional[TickAnswers] = None
+    dead: Optional[str] = None           # why it is gone (its robots are failed)
+    peak_rss_kb: int = 0                 # as it last reported
+
+    def tail(self, chars: int = 2000) -> str:
+        try:
+            return self.log.read_text(errors="replace")[-chars:]
+        except OSError:
+            return ""
+
+
+class WorkersExchange:
+    """The ``Exchange`` over the worker processes: a tick's frame goes out in blocks, the answers
+    come back as arrays; the per-node violation lists keep the single-process order."""
+
+    def __init__(self, workers: list[Worker], names: list[str], node_counts: list[int], lockstep):
+        self.workers = workers
+        self._names = names
+        self._node_violations = [[[] for _ in range(k)] for k in node_counts]   # worker → node → list
+        self._failed = np.zeros(len(names), dtype=bool)
+        self._lockstep = lockstep
+        self._tick = 0
+        self.tap = None
+
+    @property
+    def violations(self) -> list[Violation]:
+        # Stable sort over all nodes in robot order: the single-process host's order.
+        every = (v for per_worker in self._node_violations for per_node in per_worker for v in per_node)
+        return sorted(every, key=lambda v: v.tick)
+
+    def publish_tick(self, frame: SensorFrame) -> None:
+        self._tick = frame.tick
+        for w in self.workers:
+            w.answers = None
+            if w.dead is None:
+                try:
+                    w.conn.send(("tick", frame.rows(w.start, w.stop)))
+                except OSError:
+                    self._lost(w)
+
+    def wait_for_answers(self, timeout_s: float) -> bool:
+        """Until every live worker sent its answers. Each worker applies the watchdog itself; one
+        that is not back well after it (or whose socket closed: it died) is given up."""
+        deadline = time.monotonic() + timeout_s + self._lockstep.unresponsive_s + ANSWER_GRACE_S
+        while pending := {w.conn: w for w in self.workers if w.dead is None and w.answers is None}:
+            left = deadline - time.monotonic()
+            if left <= 0:
+                for w in pending.values():
+                    self._lost(w, f"worker process stopped answering ({timeout_s + self._lockstep.unresponsive_s + ANSWER_GRACE_S:.0f} s "
+                                  f"without the tick's answers), killed")
+                break
+            for conn in wait_for_connections(list(pending), timeout=left):
+                w = pending[conn]
+                try:
+                    kind, answers = conn.recv()
+                except (EOFError, OSError):
+                    self._lost(w)
+                    continue
+                w.answers = answers
+                w.peak_rss_kb = answers.peak_rss_kb
+                for per_node, new in zip(self._node_violations[w.index], answers.violations):
+                    per_node.extend(Violation(*v) for v in new)
+                if self.tap is not None:
+                    for topic, msgtype, data, stamp_ns in answers.tapped:
+                        self.tap.write_serialized(topic, msgtype, data, stamp_ns)
+        return True
+
+    def _lost(self, w: Worker, reason: Optional[str] = None) -> None:
+        """A worker is gone: its robots are failed, once each, at this tick."""
+        if w.dead is not None:
+            return
+        signal_group(w.popen, signal.SIGKILL)
+        code = w.popen.wait()
+        if reason is None:
+            reason = f"worker process died ({_ending(code)})"
+        w.dead = reason
+        w.conn.close()
+        lines = [ln for ln in w.tail(500).splitlines() if ln.strip()]
+        detail = f": {lines[-1].strip()}" if lines else ""
+        record = self._node_violations[w.index][0]
+        for i in range(w.start, w.stop):
+            if not self._failed[i]:
+                self._failed[i] = True
+                record.append(Violation(self._tick, self._names[i], FAILED + reason + detail))
+
+    def close_tick(self, fallback: str, previous: tuple[np.ndarray, np.ndarray],
+                   commands: tuple[np.ndarray, np.ndarray]) -> None:
+        for w in self.workers:
+            block = slice(w.start, w.stop)
+            if w.answers is None:           # gone: stopped, as any failed robot
+                commands[0][block], commands[1][block] = 0.0, 0.0
+            else:
+                commands[0][block], commands[1][block] = w.answers.linear, w.answers.angular
+
+    def take_led_commands(self) -> dict[int, np.ndarray]:
+        return {w.start + row: colors for w in self.workers if w.answers is not None
+                for row, colors in w.answers.leds.items()}
+
+    def take_rab_payloads(self) -> dict[int, np.ndarray]:
+        return {w.start + row: payload for w in self.workers if w.answers is not None
+                for row, payload in w.answers.rab.items()}
+
+
+class WorkerHost:
+    """Context manager (``Host``): the simulation here, the controllers in ``workers`` processes;
+    every worker stopped and reaped in ``__exit__``."""
+
+    def __init__(self, world: World, *, workers: int, executor: str = "lockstep", domain_id: int = 0):
+        if executor not in EXECUTORS:
+            raise HostError(f"unknown executor {executor!r}; choose one of {', '.join(EXECUTORS)}")
+        n = len(world.robot_names())
+        if not 1 <= workers <= n:
+            raise HostError(f"--workers {workers}: a worker hosts at least one of the {n} robots "
+                            f"(choose 1 … {n}, or auto)")
+        self.world = world
+        self.executor_kind = executor
+        self.domain_id = domain_id
+        self.blocks = plan_blocks(n, workers)
+        self.sim: Optional[Simulation] = None
+        self.setup: Optional[SetupInfo] = None
+        self.workers: list[Worker] = []
+        self.exchange: Optional[WorkersExchange] = None
+        self._tmp: Optional[Path] = None
+        self._startup_interrupted = False
+        self._observer_context = None
+        self._observer_node = None
+
+    def __enter__(self) -> "WorkerHost":
+        t0 = time.perf_counter()
+        try:
+            self._tmp = Path(tempfile.mkdtemp(prefix="composed_sim_workers_"))
+            prefix = run_prefix()
+            for index, (start, stop) in enumerate(self.blocks):
+                self._spawn(index, start, stop, prefix + index.to_bytes(4, "little"))
+            # The workers build their nodes while this process builds the physics.
+            self.sim = Simulation(self.world)
+            with InterruptWatch() as interrupts:
+                node_counts, nodes, participants = self._wait_ready(lambda: interrupts.requested)
+            self._startup_interrupted = interrupts.requested
+            self.exchange = WorkersExchange(self.workers, self.sim.names, node_counts, self.world.lockstep)
+        except BaseException:
+            self.__exit__(None, None, None)
+            raise
+        self.setup = SetupInfo(time.perf_counter() - t0, nodes, participants, len(self.workers))
+        return self
+
+    def _spawn(self, index: int, start: int, stop: int, prefix: bytes) -> None:
+        ours, theirs = socket.socketpair()
+        log = self._tmp / f"worker{index}.log"
+        cmd = [sys.executable, "-m", "composed_sim.hosts.worker_process", "--fd", str(theirs.fileno()),
+               "--parent-pid", str(os.getpid())]
+        # Own process group: a terminal's Ctrl-C goes to this process only (which stops the run at
+        # a tick boundary). SIGINT blocked while forking, as for the multi-process host's children.
+        mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+        try:
+            with open(log, "wb") as out:
+                popen = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=out, stderr=subprocess.STDOUT,
+                                         pass_fds=(theirs.fileno(),), process_group=0)
+        finally:
+            signal.pthread_sigmask(signal.SIG_SETMASK, mask)
+            theirs.close()
+        conn = Connection(ours.detach())
+        worker = Worker(index, start, stop, popen, conn, log)
+        self.workers.append(worker)
+        conn.send(("setup", WorkerSetup(self.world, start, stop, index, self.executor_kind, self.domain_id,
+                                        prefix, str(self._tmp))))
+
+    def _wait_ready(self, interrupted: Callable[[], bool]) -> tuple[list[int], int, int]:
+        """Every worker's nodes built and matched; a worker's set-up error is raised here as the
+        error it was (a plugin's names the world file's field)."""
+        from composed_sim import plugins
+        ready: dict[int, tuple[int, int, int]] = {}
+        deadline = time.monotonic() + STARTUP_TIMEOUT_S
+        while len(ready) < len(self.workers) and not interrupted():
+            waiting = {w.conn: w for w in self.workers if w.index not in ready}
+            if time.monotonic() > deadline:
+                raise HostError(f"worker {next(iter(waiting.values())).index} was not ready after "
+                                f"{STARTUP_TIMEOUT_S:.0f} s")
+            for conn in wait_for_connections(list(waiting), timeout=0.2):
+                w = waiting[conn]
+                try:
+                    message = conn.recv()
+                except (EOFError, OSError):
+                    code = w.popen.wait()
+                    raise HostError(f"worker {w.index} (robots {w.start}…{w.stop - 1}) ended during start-up "
+                                    f"({exit_reason(code)}):\n{w.tail() or '(no output)'}") from None
+                if message[0] == "error":
+                    _, kind, text, field = message
+                    if kind == "PluginError":
+                        raise plugins.PluginError(text, field)
+                    raise HostError(text)
+                _, nodes, participants = message
+                ready[w.index] = (participants, nodes, participants)
+        counts = [ready.get(w.index, (0, 0, 0)) for w in self.workers]
+        return [c[0] for c in counts], sum(c[1] for c in counts), sum(c[2] for c in counts)
+
+    def run(self, ticks: Optional[int] = None, *, progress: Optional[Callable[[int], None]] = None,
+            should_stop: Callable[[], bool] = lambda: False, observers: Sequence[TickObserver] = (),
+            checkpoint: Optional[Callable[[LoopResult], None]] = None) -> LoopResult:
+        ticks = self.world.length_ticks if ticks is None else ticks
+        if self._startup_interrupted:      # stopped before tick 0: an interrupted run of 0 ticks
+            should_stop = lambda: True     # noqa: E731
+        return run_lockstep(self.sim, self.exchange, self.exchange.wait_for_answers, ticks,
+                            progress=progress, should_stop=should_stop, observers=observers,
+                            checkpoint=checkpoint)
+
+    def workers_peak_rss_mb(self) -> list[float]:
+        """Each worker's peak resident memory, as last reported with its answers."""
+        return [w.peak_rss_kb / 1024 for w in self.workers]
+
+    def set_message_tap(self, tap) -> None:
+        """The workers buffer the tapped messages of a tick and send them with its answers."""
+        self.exchange.tap = tap
+        for w in self.workers:
+            w.conn.send(("tap", list(tap.topics_globs)))
+
+    def observer_node(self):
+        """A node of this process's own, in the run's domain (the simulator nodes are in the workers)."""
+        if self._observer_node is None:
+            import rclpy
+            from rclpy.context import Context
+            from rclpy.node import Node
+
+            from composed_sim.ros.simulator_node import quiet_node_options
+            self._observer_context = Context()
+            rclpy.init(context=self._observer_context, domain_id=self.domain_id)
+            self._observer_node = Node("composed_sim_observers", context=self._observer_context,
+                                       **quiet_node_options())
+        return self._observer_node
+
+    def __exit__(self, *exc) -> None:
+        for w in self.workers:
+            if w.dead is None:
+                try:
+                    w.conn.send(("stop",))
+                except OSError:
+                    pass
+        deadline = time.monotonic() + STOP_GRACE_S
+        for w in self.workers:
+            try:
+                w.popen.wait(timeout=max(0.0, deadline - time.monotonic()))
+            except subprocess.TimeoutExpired:
+                pass
+            signal_group(w.popen, signal.SIGKILL)
+            w.popen.wait()
+            w.conn.close()
+        self.workers = []
+        if self._observer_node is not None:
+            import rclpy
+            self._observer_node.destroy_node()
+            rclpy.shutdown(context=self._observer_context)
+            self._observer_node = self._observer_context = None
+        if self._tmp is not None:
+            import shutil
+            shutil.rmtree(self._tmp, ignore_errors=True)
+            self._tmp = None
+
+
+# --workers auto (docs/speed.md, "Workers", has the measurements behind both numbers):
+# Flocking, 300 ticks, K=2 against K=1: 80 robots 0.96× the ticks (and 0.8 s more set-up), 160
+# robots 0.66×: below this many robots a worker, a process of its own does not pay.
+MIN_ROBOTS_PER_WORKER = 64
+# A worker's robots share one participant, whose set-up grows with the square of its endpoints.
+MAX_ROBOTS_PER_WORKER = 160
+
+
+def usable_cores() -> int:
+    """The cores this process may run on (its CPU affinity, e.g. under taskset or a container)."""
+    return len(os.sched_getaffinity(0))
+
+
+def auto_workers(n: int, cores: Optional[int] = None) -> int:
+    """K for ``--workers auto``: one process for a small swarm; else one worker per usable core,
+    and more where a core's share of robots would make a participant too big to set up quickly.
+    The main process needs no core of its own: it steps the physics while the workers wait, and
+    waits while they run the controllers."""
+    cores = usable_cores() if cores is None else cores
+    if n < 2 * MIN_ROBOTS_PER_WORKER:
+        return 1
+    return max(min(cores, n // MIN_ROBOTS_PER_WORKER), math.ceil(n / MAX_ROBOTS_PER_WORKER))
