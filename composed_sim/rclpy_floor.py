@@ -34,7 +34,7 @@ def measure(robots: int, ticks: int, *, blobs: int = 50, domain_id: int = 0,
     from rclpy.context import Context
     from rclpy.node import Node
 
-    from composed_sim.core.robot_models import FOOTBOT
+    from composed_sim.world.robot_models import FOOTBOT
     from composed_sim.ros import contract as c
     from composed_sim.ros.simulator_node import quiet_node_options
 

@@ -6,7 +6,7 @@
 Each frame shows the arena (its walls, or its floor rectangle dashed when it has none), boxes
 (with their yaw), cylinders, lights (a star, and a dotted circle where the foot-bot light sensor
 still sees it: 2.5 × intensity m), every robot as a disc in its display LED colour (the beacon
-when lit, else the first lit ring LED: ``composed_sim.core.robot_models.display_colors``;
+when lit, else the first lit ring LED: ``composed_sim.world.robot_models.display_colors``;
 ``DEFAULT_COLOR`` when no LED is lit or no colours are given) with a black heading line, each
 robot's trail over the last ``trail_ticks`` ticks (fading with age), and a caption with the tick
 and the sim time. The view is fixed for the whole video: a square around the robots (at every
@@ -114,7 +114,7 @@ def _frame_colors(led_colors: Optional[np.ndarray], shape: tuple[int, int]) -> O
     """[T+1, n, 3] uint8 display colours, or None."""
     if led_colors is None:
         return None
-    from composed_sim.core.robot_models import display_colors
+    from composed_sim.world.robot_models import display_colors
     c = np.asarray(led_colors)
     if c.shape[:2] != shape or c.shape[-1] != 3 or c.ndim not in (3, 4):
         raise ValueError(f"led_colors must be [{shape[0]}, {shape[1]}, 3] or "
@@ -126,7 +126,7 @@ def _frame_colors(led_colors: Optional[np.ndarray], shape: tuple[int, int]) -> O
 
 def _robot_radii(world: World, n: int) -> np.ndarray:
     """[n] body radius of each robot (m), from its group's model."""
-    from composed_sim.core.robot_models import get_model
+    from composed_sim.world.robot_models import get_model
     if world.robot_count == n and world.robots:
         return np.array([get_model(world.robots[g].model).body_radius_m for g in world.group_of_robot()])
     model = world.robots[0].model if world.robots else "foot-bot"

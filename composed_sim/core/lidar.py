@@ -19,7 +19,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from composed_sim.core.geometry import StaticScene
-from composed_sim.core.robot_models import Lidar
+from composed_sim.world.robot_models import Lidar
 from composed_sim.core.sensors import _both_ways, _ranges
 
 # (pair, ray) candidates per chunk of the robot part: ~10 float64 temporaries each.

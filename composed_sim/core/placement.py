@@ -13,7 +13,7 @@ import math
 import numpy as np
 from scipy.spatial import cKDTree
 
-from composed_sim.core.robot_models import get_model
+from composed_sim.world.robot_models import get_model
 from composed_sim.world.schema import Box, Cylinder, Placement, RobotGroup, World
 
 # Gap kept between a robot and anything else at the start. Chipmunk (pymunk) treats shapes

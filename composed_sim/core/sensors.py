@@ -22,7 +22,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from composed_sim.core.geometry import StaticScene, ray_circle_distance, segments_blocked_by_cylinders
-from composed_sim.core.robot_models import LightRing, ProximityRing
+from composed_sim.world.robot_models import LightRing, ProximityRing
 from composed_sim.world.schema import Light
 
 # footbot_light_rotzonly_sensor.cpp: a light lights the nearest sensor and 6 on either side.

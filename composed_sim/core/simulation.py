@@ -27,7 +27,7 @@ from composed_sim.core.odometry import (Odometry, PoseReadings, WheelActuator, W
 from composed_sim.core.physics import PhysicsWorld
 from composed_sim.core.placement import place_robots
 from composed_sim.core.range_and_bearing import RangeAndBearingReadings, range_and_bearing
-from composed_sim.core.robot_models import (CAMERA, GROUND, LIDAR, LIGHT, PROXIMITY, RANGE_AND_BEARING,
+from composed_sim.world.robot_models import (CAMERA, GROUND, LIDAR, LIGHT, PROXIMITY, RANGE_AND_BEARING,
                                             RobotModel, get_model)
 from composed_sim.core.seeding import STREAM_PLACEMENT, device_rng, stream
 from composed_sim.core.sensors import (BlobReadings, blob_camera, led_world_positions, light_ring,

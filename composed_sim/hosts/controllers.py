@@ -12,7 +12,7 @@ from rclpy.type_description_service import START_TYPE_DESCRIPTION_SERVICE_PARAM
 
 from composed_sim import plugins
 from composed_sim.ros import contract as c
-from composed_sim.core.robot_models import RANGE_AND_BEARING, get_model
+from composed_sim.world.robot_models import RANGE_AND_BEARING, get_model
 from composed_sim.ros.controller import (PARAM_RAB_PAYLOAD_BYTES, PARAM_ROBOT_MODEL, PARAM_RUN_SEED,
                                          PARAM_SENSOR_TOPICS)
 from composed_sim.ros.lockstep_executor import LockstepExecutor

@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING, Callable, Optional, Protocol, Sequence
 import numpy as np
 import psutil
 
-from composed_sim.core.robot_models import display_colors
+from composed_sim.world.robot_models import display_colors
 from composed_sim.core.simulation import SensorFrame, Simulation
 from composed_sim.core.violations import Violation
 if TYPE_CHECKING:   # the tick loop itself needs no rclpy: the worker host's main process runs it without

@@ -24,7 +24,7 @@ from rclpy.executors import Executor
 from rclpy.node import Node
 
 from composed_sim import plugins
-from composed_sim.core.robot_models import get_model
+from composed_sim.world.robot_models import get_model
 from composed_sim.hosts.callback_guard import CallbackGuard, refuse_shutdown_from_callbacks
 from composed_sim.hosts.controllers import (EXECUTORS, ROBOTS_PER_PARTICIPANT, HostError, create_controller,
                                              make_executor)

@@ -97,7 +97,8 @@ class WorkersExchange:
     def __init__(self, workers: list[Worker], names: list[str], node_counts: list[int], lockstep):
         self.workers = workers
         self._names = names
-        self._node_violations = [[[] for _ in range(k)] for k in node_counts]   # worker → node → list
+        # worker → its participant groups (one, or none reported when start-up was interrupted) → list
+        self._node_violations = [[[] for _ in range(max(k, 1))] for k in node_counts]
         self._failed = np.zeros(len(names), dtype=bool)
         self._lockstep = lockstep
         self._tick = 0
@@ -122,18 +123,19 @@ class WorkersExchange:
     def wait_for_answers(self, timeout_s: float) -> bool:
         """Until every live worker sent its answers. Each worker applies the watchdog itself; one
         that is not back well after it (or whose socket closed: it died) is given up."""
-        deadline = time.monotonic() + timeout_s + self._lockstep.unresponsive_s + ANSWER_GRACE_S
+        patience_s = timeout_s + self._lockstep.unresponsive_s + ANSWER_GRACE_S
+        deadline = time.monotonic() + patience_s
         while pending := {w.conn: w for w in self.workers if w.dead is None and w.answers is None}:
             left = deadline - time.monotonic()
             if left <= 0:
                 for w in pending.values():
-                    self._lost(w, f"worker process stopped answering ({timeout_s + self._lockstep.unresponsive_s + ANSWER_GRACE_S:.0f} s "
-                                  f"without the tick's answers), killed")
+                    self._lost(w, f"worker process stopped answering ({patience_s:.0f} s without the tick's "
+                                  f"answers), killed")
                 break
             for conn in wait_for_connections(list(pending), timeout=left):
                 w = pending[conn]
                 try:
-                    kind, answers = conn.recv()
+                    _, answers = conn.recv()
                 except (EOFError, OSError):
                     self._lost(w)
                     continue

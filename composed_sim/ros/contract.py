@@ -52,8 +52,8 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState, LaserScan, PointCloud2, PointField
 from std_msgs.msg import MultiArrayDimension, UInt8MultiArray
 
-from composed_sim.core import robot_models as devices
-from composed_sim.core.robot_models import Lidar, RobotModel
+from composed_sim.world import robot_models as devices
+from composed_sim.world.robot_models import Lidar, RobotModel
 from composed_sim.ros import cdr
 
 

@@ -13,7 +13,7 @@ from builtin_interfaces.msg import Time
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
-from composed_sim.core.robot_models import RobotModel, get_model
+from composed_sim.world.robot_models import RobotModel, get_model
 from composed_sim.core.seeding import robot_rng
 from composed_sim.ros import cdr, contract as c
 

@@ -5,7 +5,7 @@ handles 1280 robots as two draw calls rather than 1280 markers:
 
   ns "swarm_bodies",   id 0, SPHERE_LIST: one flattened sphere per robot (diameter = body
                        diameter, height = body height), coloured per point by its display LED
-                       colour (``composed_sim.core.robot_models.display_colors``; robots with no LED lit
+                       colour (``composed_sim.world.robot_models.display_colors``; robots with no LED lit
                        get ``DEFAULT_COLOR``)
   ns "swarm_headings", id 1, LINE_LIST: one segment per robot from its centre to 1.5 body
                        radii ahead, black
@@ -33,7 +33,7 @@ from geometry_msgs.msg import Point
 from std_msgs.msg import ColorRGBA
 from visualization_msgs.msg import Marker, MarkerArray
 
-from composed_sim.core.robot_models import display_colors
+from composed_sim.world.robot_models import display_colors
 from composed_sim.ros.contract import SWARM_MARKERS_TOPIC
 from composed_sim.ros.contract import WORLD_FRAME as FRAME_ID
 

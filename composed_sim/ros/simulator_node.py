@@ -20,7 +20,7 @@ from rclpy.type_description_service import START_TYPE_DESCRIPTION_SERVICE_PARAM
 from rclpy.time import Time as RosTime
 from rosgraph_msgs.msg import Clock
 
-from composed_sim.core.robot_models import (CAMERA, DIFFERENTIAL_STEERING, GROUND, LIDAR, LIGHT, ODOMETRY,
+from composed_sim.world.robot_models import (CAMERA, DIFFERENTIAL_STEERING, GROUND, LIDAR, LIGHT, ODOMETRY,
                                             POSITIONING, PROXIMITY, RANGE_AND_BEARING, RobotModel, get_model)
 from composed_sim.core.violations import FAILED, Violation
 from composed_sim.world.schema import Lockstep, World

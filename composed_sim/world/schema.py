@@ -18,7 +18,7 @@ from typing import Annotated, Any, Literal, Optional, Union
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 from pydantic_core import PydanticCustomError
 
-from composed_sim.core.robot_models import MODELS, RobotModel
+from composed_sim.world.robot_models import MODELS, RobotModel
 
 Vec2 = tuple[float, float]
 PositiveFloat = Annotated[float, Field(gt=0)]
@@ -302,7 +302,7 @@ ParamValue = Union[float, int, str, bool, list[float]]
 
 
 class RobotGroup(Strict):
-    model: str = "foot-bot"                          # a key of core.robot_models.MODELS
+    model: str = "foot-bot"                          # a key of world.robot_models.MODELS
     count: Annotated[int, Field(ge=0)]
     name_prefix: str = "bot"
     controller: Annotated[str, Field(min_length=1)]  # entry-point name in composed_sim.controllers

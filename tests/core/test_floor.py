@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from composed_sim.core.floor import Floor, ground_sensors
-from composed_sim.core.robot_models import EPUCK, FOOTBOT
+from composed_sim.world.robot_models import EPUCK, FOOTBOT
 from composed_sim.world.schema import Floor as FloorSection
 
 FOOTBOT_GROUND = np.asarray(FOOTBOT.ground.offsets_m)

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from composed_sim.core.physics import PhysicsWorld, wrap_angle
-from composed_sim.core.robot_models import FOOTBOT
+from composed_sim.world.robot_models import FOOTBOT
 from composed_sim.world.schema import World
 
 R = FOOTBOT.body_radius_m

@@ -11,7 +11,7 @@ from scipy.spatial.distance import pdist
 
 from composed_sim.core.placement import (CLEARANCE_M, PlacementError, place_robots,
                                          uniform_size, wrap_angle)
-from composed_sim.core.robot_models import FOOTBOT
+from composed_sim.world.robot_models import FOOTBOT
 from composed_sim.world import load_world, world_from_dict
 from composed_sim.world.schema import Box, Cylinder
 

@@ -10,7 +10,7 @@ from reference_geometry import ref_span_box, ref_span_circle
 
 from composed_sim.core.geometry import StaticScene
 from composed_sim.core.range_and_bearing import range_and_bearing
-from composed_sim.core.robot_models import EPUCK, FOOTBOT
+from composed_sim.world.robot_models import EPUCK, FOOTBOT
 from composed_sim.world.schema import Box, Cylinder, World
 
 R, H = FOOTBOT.body_radius_m, FOOTBOT.body_height_m

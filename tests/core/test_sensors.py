@@ -12,7 +12,7 @@ from reference_geometry import ref_span_box, ref_span_circle
 from scipy.spatial import cKDTree
 
 from composed_sim.core.geometry import StaticScene
-from composed_sim.core.robot_models import FOOTBOT, FOOTBOT_BEACON_LED_INDEX
+from composed_sim.world.robot_models import FOOTBOT, FOOTBOT_BEACON_LED_INDEX
 from composed_sim.core.sensors import (BlobReadings, blob_camera,
                                        footbot_proximity_reading, led_world_positions, light_ring,
                                        proximity_ring)

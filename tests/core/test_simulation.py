@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from composed_sim.core.robot_models import EPUCK, FOOTBOT, THYMIO2, TURTLEBOT3_BURGER
+from composed_sim.world.robot_models import EPUCK, FOOTBOT, THYMIO2, TURTLEBOT3_BURGER
 from composed_sim.core.simulation import Simulation
 from composed_sim.world.loader import load_world
 from composed_sim.world.schema import World

@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from composed_sim.core.robot_models import EPUCK, FOOTBOT, TURTLEBOT3_BURGER
+from composed_sim.world.robot_models import EPUCK, FOOTBOT, TURTLEBOT3_BURGER
 from controller_plugins.diffusion import diffusion_wheels, obstacle_vector
 from controller_plugins.firefly import advance
 from controller_plugins.turtlebot_flocking import goal_vector, scan_samples

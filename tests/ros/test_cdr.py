@@ -6,7 +6,7 @@ from geometry_msgs.msg import TwistStamped
 from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import LaserScan, PointCloud2, PointField
 
-from composed_sim.core.robot_models import get_model
+from composed_sim.world.robot_models import get_model
 from composed_sim.ros import cdr, contract as c
 
 FOOTBOT = get_model("foot-bot")

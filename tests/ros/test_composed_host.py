@@ -7,7 +7,7 @@ import pytest
 from scipy.spatial.distance import pdist
 
 from composed_sim import plugins
-from composed_sim.core.robot_models import FOOTBOT
+from composed_sim.world.robot_models import FOOTBOT
 from composed_sim.hosts.composed import ComposedHost
 from composed_sim.hosts.controllers import EXECUTORS
 from composed_sim.world.loader import load_world

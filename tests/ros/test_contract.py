@@ -5,7 +5,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from composed_sim.core.robot_models import FOOTBOT
+from composed_sim.world.robot_models import FOOTBOT
 from composed_sim.ros import contract as c
 
 DOC = Path(__file__).resolve().parents[2] / "docs" / "contract.md"

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from scipy.spatial.distance import pdist
 
-from composed_sim.core.robot_models import FOOTBOT, TURTLEBOT3_BURGER
+from composed_sim.world.robot_models import FOOTBOT, TURTLEBOT3_BURGER
 from composed_sim.hosts.composed import ComposedHost
 from composed_sim.world.loader import load_world
 

@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from composed_sim.core.robot_models import FOOTBOT, TURTLEBOT3_BURGER
+from composed_sim.world.robot_models import FOOTBOT, TURTLEBOT3_BURGER
 from composed_sim.ros import contract as c
 from composed_sim.world.schema import World
 

@@ -9,7 +9,7 @@ import imageio.v3 as iio
 import numpy as np
 import pytest
 
-from composed_sim.core.robot_models import EPUCK, FOOTBOT, THYMIO2, TURTLEBOT3_BURGER
+from composed_sim.world.robot_models import EPUCK, FOOTBOT, THYMIO2, TURTLEBOT3_BURGER
 from composed_sim.world import WorldFileError, dump_world, load_world
 from composed_sim.world.schema import SWITCHED_DEVICES, Devices
 
