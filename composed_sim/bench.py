@@ -120,7 +120,7 @@ def _workers_list(text: str) -> tuple[str, ...]:
 
 
 def _positive(kind: type) -> Callable[[str], float]:
-    from composed_sim.cli import number_arg   # the CLI imports this module only once it is loaded
+    from composed_sim.command_line import number_arg
     return number_arg(kind, minimum=0, inclusive=False)
 
 
@@ -132,7 +132,7 @@ def _fraction(text: str) -> float:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    from composed_sim.hosts.controllers import EXECUTORS as executors, MODES as modes
+    from composed_sim.hosts.choices import EXECUTORS as executors, MODES as modes
     join = ",".join
     parser.add_argument("--sizes", type=_size_list, default=PAPER_SIZES, metavar="N,N,…",
                         help=f"swarm sizes (default: the paper's {join(map(str, PAPER_SIZES))})")
@@ -763,7 +763,7 @@ def _git_commit() -> Optional[str]:
 def resolve_world(given: Optional[Path]) -> Path:
     """The world to run: as given, else worlds/flocking.yaml of this package's checkout, else of
     the current folder."""
-    from composed_sim.cli import UserError
+    from composed_sim.command_line import UserError
     if given is not None:
         if not given.is_file():
             raise UserError(f"--world {given}: no such file")
@@ -779,7 +779,7 @@ def resolve_world(given: Optional[Path]) -> Path:
 
 
 def run(args) -> int:
-    from composed_sim.cli import UserError, _check_writable
+    from composed_sim.command_line import UserError, check_writable
     if args.replot is not None:
         return _replot(args)
 
@@ -800,9 +800,9 @@ def run(args) -> int:
         domains = DomainAllocator(base)
     except ValueError as e:
         raise UserError(str(e)) from None
-    _check_writable(args.out)
+    check_writable(args.out)
     if args.report is not None:
-        _check_writable(args.report.parent / "figures")
+        check_writable(args.report.parent / "figures")
 
     machine = machine_info()
     sweep = Sweep(world=world_path, ticks=args.ticks, timeout_s=args.timeout,
@@ -891,15 +891,15 @@ def _progress_line(i: int, total: int, row: dict, trials: int) -> str:
 
 
 def _replot(args) -> int:
-    from composed_sim.cli import UserError, _check_writable
+    from composed_sim.command_line import UserError, check_writable
     try:
         doc = json.loads(args.replot.read_text())
         doc["rows"], doc["machine"]
     except (OSError, ValueError, KeyError, TypeError) as e:
         raise UserError(f"--replot {args.replot}: not a runs.json of composed-sim bench ({e})") from None
-    _check_writable(args.out)
+    check_writable(args.out)
     if args.report is not None:
-        _check_writable(args.report.parent / "figures")
+        check_writable(args.report.parent / "figures")
     write_outputs(doc, args.out, args.report)
     print(f"bench: redrew {len(doc['rows'])} runs from {args.replot} into {args.out}/"
           + (f" and {args.report}" if args.report else ""), file=sys.stderr)

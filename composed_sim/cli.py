@@ -9,26 +9,10 @@ import signal
 import sys
 from pathlib import Path
 
+from composed_sim.command_line import UserError, check_writable, number_arg
+
 EXIT_USAGE = 2       # bad input: world file, plugin, CLI value
 EXIT_INTERRUPTED = 130
-
-
-class UserError(Exception):
-    """A mistake in what the user gave us: reported as one line, never a traceback."""
-
-
-def number_arg(kind: type, *, minimum: float, inclusive: bool = True):
-    """An argparse type: a whole number (kind=int) or a number, at least (or above) ``minimum``."""
-    def parse(text: str):
-        try:
-            value = kind(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(
-                f"expected a {'whole ' if kind is int else ''}number, got {text!r}") from None
-        if not (value >= minimum if inclusive else value > minimum):
-            raise argparse.ArgumentTypeError(f"must be {'>=' if inclusive else '>'} {minimum:g} (got {text})")
-        return value
-    return parse
 
 
 _positive_int = number_arg(int, minimum=1)
@@ -42,7 +26,7 @@ def _workers(text: str):
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from composed_sim.hosts.controllers import EXECUTORS, MODES, ROBOTS_PER_PARTICIPANT
+    from composed_sim.hosts.choices import EXECUTORS, MODES, ROBOTS_PER_PARTICIPANT
 
     parser = argparse.ArgumentParser(prog="composed-sim", description=(
         "Swarm simulator whose robot controllers are ROS 2 nodes, hosted with the simulator in a few processes."))
@@ -204,16 +188,6 @@ def _domain_id(arg: int | None) -> int:
     return value
 
 
-def _check_writable(out: Path) -> None:
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-        probe = out / ".write-test"
-        probe.write_text("")
-        probe.unlink()
-    except OSError as e:
-        raise UserError(f"--out {out}: cannot write there ({e.strerror or e})") from None
-
-
 class _Interrupts:
     """First Ctrl-C/SIGTERM: stop at the next tick boundary and write results. Second: exit now."""
 
@@ -252,7 +226,7 @@ def cmd_run(args) -> int:
     if lockstep:
         world = world.model_copy(update={"lockstep": world.lockstep.model_copy(update=lockstep)})
     domain_id = _domain_id(args.domain_id)
-    _check_writable(args.out)
+    check_writable(args.out)
     if args.record is not None and args.record.exists():
         raise UserError(f"--record {args.record}: already exists; a recording goes into a new directory")
     if args.record_topics and args.record is None:
@@ -450,7 +424,7 @@ def _load_any_world(args):
 
 def _run_observers(args, world, host, outputs: contextlib.ExitStack, interrupts) -> list:
     """The recording and live markers asked for on the command line, as tick observers."""
-    from composed_sim.hosts.observers import MarkerObserver, RecordingObserver
+    from composed_sim.observers import MarkerObserver, RecordingObserver
 
     observers = []
     tick_ns = world.tick_ns
@@ -507,7 +481,7 @@ def cmd_replay(args) -> int:
 def _render_target(out: Path) -> Path:
     if out.suffix.lower() not in (".png", ".gif", ".mp4"):
         raise UserError(f"--out {out}: the file must end in .png, .gif or .mp4")
-    _check_writable(out.parent if str(out.parent) else Path("."))
+    check_writable(out.parent if str(out.parent) else Path("."))
     return out
 
 

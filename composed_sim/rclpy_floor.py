@@ -19,7 +19,7 @@ import time
 
 import numpy as np
 
-from composed_sim.hosts.controllers import ROBOTS_PER_PARTICIPANT
+from composed_sim.hosts.choices import ROBOTS_PER_PARTICIPANT
 from composed_sim.ros.participants import ignore_participants_of_this_process
 
 WARM_UP_TICKS = 10

@@ -51,8 +51,8 @@ from typing import TYPE_CHECKING, Any, Iterable, Optional
 import numpy as np
 
 from composed_sim.world.robot_models import display_colors
-from composed_sim.ros.contract import CLOCK_TOPIC, SWARM_STATE_TOPIC
-from composed_sim.ros.contract import WORLD_FRAME as FRAME_ID
+from composed_sim.ros.global_topics import CLOCK_TOPIC, SWARM_STATE_TOPIC
+from composed_sim.ros.global_topics import WORLD_FRAME as FRAME_ID
 from composed_sim.ros.taps import TopicGlobs
 
 if TYPE_CHECKING:

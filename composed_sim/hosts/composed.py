@@ -10,7 +10,7 @@ import time
 from typing import Callable, Optional, Sequence
 
 from composed_sim.core.simulation import Simulation
-from composed_sim.hosts.controllers import ROBOTS_PER_PARTICIPANT
+from composed_sim.hosts.choices import ROBOTS_PER_PARTICIPANT
 from composed_sim.hosts.host import SetupInfo
 from composed_sim.hosts.lockstep import LoopResult, TickObserver, run_lockstep
 from composed_sim.hosts.participant_groups import ParticipantGroups

@@ -11,6 +11,7 @@ from rclpy.parameter import Parameter
 from rclpy.type_description_service import START_TYPE_DESCRIPTION_SERVICE_PARAM
 
 from composed_sim import plugins
+from composed_sim.hosts.choices import EXECUTORS
 from composed_sim.ros import contract as c
 from composed_sim.world.robot_models import RANGE_AND_BEARING, get_model
 from composed_sim.ros.controller import (PARAM_RAB_PAYLOAD_BYTES, PARAM_ROBOT_MODEL, PARAM_RUN_SEED,
@@ -19,11 +20,6 @@ from composed_sim.ros.lockstep_executor import LockstepExecutor
 from composed_sim.ros.simulator_node import quiet_node_options
 from composed_sim.world.schema import World
 
-EXECUTORS = ("lockstep", "events", "single-threaded", "multi-threaded")
-MODES = ("composed", "multi-process")
-# Composed mode: robots per DDS participant (hosts/composed.py). Set-up costs about this × N;
-# each participant costs its threads and ports: docs/speed.md has the measurements.
-ROBOTS_PER_PARTICIPANT = 80
 
 
 class HostError(Exception):

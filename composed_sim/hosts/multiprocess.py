@@ -35,7 +35,8 @@ from rclpy.executors import Executor
 from composed_sim import plugins
 from composed_sim.core.simulation import Simulation
 from composed_sim.hosts.host import SetupInfo
-from composed_sim.hosts.controllers import EXECUTORS, HostError
+from composed_sim.hosts.choices import EXECUTORS
+from composed_sim.hosts.controllers import HostError
 from composed_sim.hosts.domains import DomainError, assign_domains
 from composed_sim.hosts.processes import InterruptWatch, exit_reason, signal_group
 from composed_sim.hosts.lockstep import LoopResult, NodesExchange, TickObserver, run_lockstep

@@ -26,8 +26,8 @@ from rclpy.node import Node
 from composed_sim import plugins
 from composed_sim.world.robot_models import get_model
 from composed_sim.hosts.callback_guard import CallbackGuard, refuse_shutdown_from_callbacks
-from composed_sim.hosts.controllers import (EXECUTORS, ROBOTS_PER_PARTICIPANT, HostError, create_controller,
-                                             make_executor)
+from composed_sim.hosts.choices import EXECUTORS, ROBOTS_PER_PARTICIPANT
+from composed_sim.hosts.controllers import HostError, create_controller, make_executor
 from composed_sim.hosts.lockstep import NodesExchange
 from composed_sim.ros import contract as c
 from composed_sim.ros.participants import ignore_participants_of_this_process

@@ -32,7 +32,8 @@ from rclpy.time import Time as RosTime
 
 from composed_sim import plugins
 from composed_sim.hosts.controller_process import contract_endpoints
-from composed_sim.hosts.controllers import EXECUTORS, HostError, create_controller, make_executor
+from composed_sim.hosts.choices import EXECUTORS
+from composed_sim.hosts.controllers import HostError, create_controller, make_executor
 from composed_sim.hosts.robot_ranges import format_ranges
 from composed_sim.hosts.shard_announce import ShardAnnouncer, ShardInfo, world_fingerprint
 from composed_sim.ros import contract as c

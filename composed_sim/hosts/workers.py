@@ -39,7 +39,8 @@ import numpy as np
 
 from composed_sim.core.simulation import SensorFrame, Simulation
 from composed_sim.core.violations import FAILED, Violation
-from composed_sim.hosts.controllers import EXECUTORS, HostError
+from composed_sim.hosts.choices import EXECUTORS
+from composed_sim.hosts.controllers import HostError
 from composed_sim.hosts.host import SetupInfo
 from composed_sim.hosts.lockstep import LoopResult, TickObserver, run_lockstep
 from composed_sim.hosts.processes import InterruptWatch, exit_reason, signal_group

@@ -55,6 +55,7 @@ from std_msgs.msg import MultiArrayDimension, UInt8MultiArray
 from composed_sim.world import robot_models as devices
 from composed_sim.world.robot_models import Lidar, RobotModel
 from composed_sim.ros import cdr
+from composed_sim.ros.global_topics import CLOCK_TOPIC, SWARM_MARKERS_TOPIC, SWARM_STATE_TOPIC, WORLD_FRAME  # noqa: F401 (part of the contract)
 
 
 @dataclass(frozen=True)
@@ -125,13 +126,9 @@ def robot_topics(running) -> tuple[Topic, ...]:
     """The contract topics of a robot running these devices (device names), in TOPICS order."""
     have = {t.name for d in running for t in DEVICE_TOPICS[d]} | {CMD_VEL.name, LEDS.name}
     return tuple(t for t in TOPICS.values() if t.name in have)
-CLOCK_TOPIC = "/clock"
-CLOCK_TYPE = Clock
 
-# Optional global topics, for people watching or recording a run (never read by controllers).
-SWARM_STATE_TOPIC = "/swarm/state"      # in a --record bag: every robot's pose and LED colour per tick
-SWARM_MARKERS_TOPIC = "/swarm/markers"  # live with --markers: the swarm as one MarkerArray
-WORLD_FRAME = "world"                   # the fixed frame of both
+
+CLOCK_TYPE = Clock
 
 # One point per blob. float32 coordinates are ample for a camera with cm-level range.
 BLOB_DTYPE = np.dtype([("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("rgb", "<u4")])

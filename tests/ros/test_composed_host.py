@@ -9,7 +9,7 @@ from scipy.spatial.distance import pdist
 from composed_sim import plugins
 from composed_sim.world.robot_models import FOOTBOT
 from composed_sim.hosts.composed import ComposedHost
-from composed_sim.hosts.controllers import EXECUTORS
+from composed_sim.hosts.choices import EXECUTORS
 from composed_sim.world.loader import load_world
 
 FLOCKING = Path(__file__).resolve().parents[2] / "worlds" / "flocking.yaml"

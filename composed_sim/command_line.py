@@ -1,0 +1,34 @@
+"""What the ``composed-sim`` subcommands share: the one-line user error, argument types, checks."""
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+
+class UserError(Exception):
+    """A mistake in what the user gave us: reported as one line, never a traceback."""
+
+
+def number_arg(kind: type, *, minimum: float, inclusive: bool = True):
+    """An argparse type: a whole number (kind=int) or a number, at least (or above) ``minimum``."""
+    def parse(text: str):
+        try:
+            value = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(
+                f"expected a {'whole ' if kind is int else ''}number, got {text!r}") from None
+        if not (value >= minimum if inclusive else value > minimum):
+            raise argparse.ArgumentTypeError(f"must be {'>=' if inclusive else '>'} {minimum:g} (got {text})")
+        return value
+    return parse
+
+
+def check_writable(out: Path) -> None:
+    """An output directory that can be created and written, or one UserError naming it."""
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        probe = out / ".write-test"
+        probe.write_text("")
+        probe.unlink()
+    except OSError as e:
+        raise UserError(f"--out {out}: cannot write there ({e.strerror or e})") from None
