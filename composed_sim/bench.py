@@ -39,6 +39,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Iterable, Optional
 
+from composed_sim.world.schema import MAX_DOMAIN, ROBOTS_PER_DOMAIN
+
 PAPER_SIZES = (3, 5, 10, 20, 40, 80, 160, 320, 640, 1280)
 # Display order of modes and executors; the choices themselves are the hosts' (hosts.composed).
 MODES = ("composed", "multi-process")
@@ -73,12 +75,10 @@ LEFTOVER_GRACE_S = 10.0     # time a run's descendants get to exit after its roo
 STDERR_TAIL_CHARS = 600
 DEFAULT_TIMEOUT_S = 3600.0
 DEFAULT_MEMORY_FRACTION = 0.8
-DEFAULT_ROBOTS_PER_DOMAIN = 50   # the paper's, and `run --mode multi-process`'s default
-FALLBACK_PROCESS_MB = 70.0       # DESIGN.md: one rclpy process with a node, until measured
+FALLBACK_PROCESS_MB = 70.0       # docs/architecture.md: one rclpy process with a node, until measured
 CALIBRATION_ROBOTS = 3           # dedicated multi-process run measuring the per-process cost …
 CALIBRATION_ABOVE = 10           # … when the sweep's first multi-process size is larger than this
-SAFE_DOMAIN_MAX = 101            # ROS 2 on Linux: domains 0..101 never reach the ephemeral ports
-DOMAIN_MAX = 232
+SAFE_MAX_DOMAIN = 101            # ROS 2 on Linux: domains 0..101 never reach the ephemeral ports
 
 FIGURES = {"wall_time": "wall_time.png", "cpu": "cpu.png", "memory": "memory.png"}
 
@@ -159,7 +159,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "mode) from here on, never one the previous run had (default: $ROS_DOMAIN_ID or 0)")
     parser.add_argument("--robots-per-domain", type=_positive(int), default=None,
                         help="multi-process mode: passed on to each run (default: the run's own default, "
-                             f"{DEFAULT_ROBOTS_PER_DOMAIN})")
+                             f"{ROBOTS_PER_DOMAIN})")
     parser.add_argument("--memory-fraction", type=_fraction, default=DEFAULT_MEMORY_FRACTION,
                         help="multi-process runs whose predicted memory exceeds this fraction of the "
                              "available memory are skipped (default: %(default)s)")
@@ -232,7 +232,7 @@ def skip_reason(per_process_mb: float, robots: int, available_mb: float, *, base
 def domains_needed(mode: str, robots: int, robots_per_domain: Optional[int]) -> int:
     if mode != "multi-process":
         return 1
-    return math.ceil(robots / (robots_per_domain or DEFAULT_ROBOTS_PER_DOMAIN))
+    return math.ceil(robots / (robots_per_domain or ROBOTS_PER_DOMAIN))
 
 
 class DomainAllocator:
@@ -242,10 +242,10 @@ class DomainAllocator:
     blocks wide (other users of this machine's domains are not swept over)."""
 
     def __init__(self, base: int):
-        if not 0 <= base <= DOMAIN_MAX:
-            raise ValueError(f"--domain-id: must be within 0..{DOMAIN_MAX} (got {base})")
+        if not 0 <= base <= MAX_DOMAIN:
+            raise ValueError(f"--domain-id: must be within 0..{MAX_DOMAIN} (got {base})")
         self.base = base
-        self.top = SAFE_DOMAIN_MAX if base <= SAFE_DOMAIN_MAX else DOMAIN_MAX
+        self.top = SAFE_MAX_DOMAIN if base <= SAFE_MAX_DOMAIN else MAX_DOMAIN
         self._previous: Optional[range] = None
 
     def take(self, width: int) -> Optional[int]:
@@ -566,7 +566,7 @@ class MemoryEstimate:
     """Per-controller-process cost for the multi-process skip rule."""
     per_process_mb: float = FALLBACK_PROCESS_MB
     base_mb: float = 0.0
-    source: str = f"not measured yet: DESIGN.md's {FALLBACK_PROCESS_MB:.0f} MB per rclpy process"
+    source: str = f"not measured yet: {FALLBACK_PROCESS_MB:.0f} MB per rclpy process (docs/architecture.md)"
     measured: bool = False
 
     def update(self, row: dict) -> None:
@@ -1030,7 +1030,7 @@ def _ratio(a, b, digits: int = 2) -> str:
     return "–" if x is None or y is None or y == 0 else f"{x / y:.{digits}g}" if x / y < 0.01 else f"{x / y:.{digits}f}"
 
 
-# DESIGN.md's performance budget for composed mode, 600 ticks of the flocking world:
+# The performance budget for composed mode (docs/speed.md), 600 ticks of the flocking world:
 # N -> limits (None: no limit stated; the run must complete).
 BUDGET = {1280: {"ticks_wall_s": 60.0, "MaxMem(kB)": 1.5 * 2**20, "setup_s": 15.0},
           10240: {"ticks_wall_s": None, "MaxMem(kB)": 12 * 2**20, "setup_s": 120.0}}

@@ -183,8 +183,9 @@ def _domain_id(arg: int | None) -> int:
         value = int(text)
     except ValueError:
         raise UserError(f"ROS_DOMAIN_ID: expected a whole number, got {text!r}") from None
-    if not 0 <= value <= 232:
-        raise UserError(f"--domain-id: must be within 0..232 (got {value})")
+    from composed_sim.world.schema import MAX_DOMAIN
+    if not 0 <= value <= MAX_DOMAIN:
+        raise UserError(f"--domain-id: must be within 0..{MAX_DOMAIN} (got {value})")
     return value
 
 

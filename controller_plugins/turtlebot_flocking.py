@@ -1,7 +1,7 @@
 """The paper's TurtleBot 3 flocking variant: neighbours sensed by LiDAR rays, steering to a goal.
 
 Each LiDAR ray that hits something within the interaction range (1.8 · target distance, as the
-foot-bot controller's blob range) is one Lennard-Jones sample (argos-models.md, "The flocking
+foot-bot controller's blob range) is one Lennard-Jones sample (docs/architecture.md, "The flocking
 controller"): its hit point, moved from the scanner's mount into base_link, gives a distance and
 a bearing. The average of the samples' polar vectors is the flocking vector; the goal vector
 points at the goal (from the positioning sensor's pose) with a fixed length. Their sum goes

@@ -1,6 +1,6 @@
 """The floor's grey level, and the motor ground sensors that read it.
 
-ARGoS (argos-models.md, "Motor ground sensor"): a reading is the floor's colour under the
+ARGoS (docs/architecture.md, "Motor ground sensor"): a reading is the floor's colour under the
 sensor as grey, 0.299 R + 0.587 G + 0.114 B over 255, plus optional uniform noise, clamped to
 [0, 1]. The floor is a base colour, optionally an image stretched over a rectangle, and simple
 coloured shapes painted on top in the world file's order.

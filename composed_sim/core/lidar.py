@@ -1,6 +1,6 @@
 """A planar LiDAR on every robot of a group: rays against static bodies and other robots.
 
-The TurtleBot 3 burger's scanner (argos-models.md: 360 rays, 0.12-3.5 m, mounted at
+The TurtleBot 3 burger's scanner (docs/architecture.md: 360 rays, 0.12-3.5 m, mounted at
 (-0.064, 0, 0.122) m). A ray leaves the mount point at the body angle plus the ray's angle and
 stops at the first static body or robot taller than the mount (bodies are footprints extruded
 from the floor, as everywhere in the core); the robot's own body is ignored (ARGoS's ray queries

@@ -1,7 +1,7 @@
 """The wheels' own devices: actuator noise, the differential steering sensor, odometry, and
 the positioning sensor (ground truth). All per robot arrays; cheap, so always on.
 
-ARGoS (argos-models.md, "Differential steering actuator and sensor", "Positioning sensor"):
+ARGoS (docs/architecture.md, "Differential steering and positioning"):
 - actuator noise per wheel: speed · f + bias, with a per-robot, per-wheel constant bias
   ~ N(bias_mean, bias_std) drawn once and a factor ~ N(factor_mean, factor_std) drawn per
   command, only where the speed is non-zero;

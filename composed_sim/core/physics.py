@@ -30,7 +30,7 @@ from composed_sim.world.schema import Box, Cylinder, World
 STATIC_FRICTION = 0.1
 # ARGoS movable box/cylinder models: "u = 0.7 // Lots of friction", like the robots.
 MOVABLE_FRICTION = 0.7
-# dynamics2d engine defaults (box/cylinder linear and angular friction, argos-models.md):
+# dynamics2d engine defaults (box/cylinder linear and angular friction, docs/architecture.md):
 # the caps of the velocity-only pivot and gear joints that tie a movable body to the ground.
 MOVABLE_GROUND_FORCE_N = 1.49
 MOVABLE_GROUND_TORQUE_NM = 1.49

@@ -1,6 +1,6 @@
 """Range-and-bearing communication: every equipped robot broadcasts a payload each tick.
 
-ARGoS (argos-models.md, "Range-and-bearing"; ``range_and_bearing_medium.cpp`` and
+ARGoS (docs/architecture.md, "Range and bearing"; ``range_and_bearing_medium.cpp`` and
 ``range_and_bearing_default_sensor.cpp``): receiver A gets sender B's payload when their
 emitters are closer than B's range and, with occlusion checking on, the segment between them
 crosses no third body. A reading holds the range, the horizontal bearing in A's frame in

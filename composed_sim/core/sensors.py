@@ -1,6 +1,6 @@
 """The foot-bot's proximity ring, light ring and coloured-blob camera, over all robots at once.
 
-Models follow ARGoS 3 (ilpincy/argos3; see shared/reference/argos-models.md):
+Models follow ARGoS 3 (ilpincy/argos3; see docs/architecture.md):
 ``footbot_proximity_default_sensor.cpp`` + ``proximity_default_sensor.cpp``,
 ``footbot_light_rotzonly_sensor.cpp`` and ``colored_blob_omnidirectional_camera_rotzonly_sensor.cpp``;
 occlusion after ``dynamics2d_engine.cpp``: bodies are footprints extruded from the floor to

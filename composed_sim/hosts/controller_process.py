@@ -91,7 +91,7 @@ def main(argv: list[str] | None = None) -> int:
                 return 0
         if args.executor in ("events", "lockstep"):
             # Driven from this thread, as the composed host does: the lockstep executor by design,
-            # the EventsExecutor because its spin() in a thread hung in our probes (DESIGN.md).
+            # the EventsExecutor because its spin() in a thread hung in our probes (docs/architecture.md).
             while not stop.is_set():
                 executor.spin_once(timeout_sec=0.05)
         else:

@@ -5,7 +5,7 @@ from __future__ import annotations
 from typing import Container, Optional
 
 from rclpy.context import Context
-from rclpy.executors import Executor, MultiThreadedExecutor, SingleThreadedExecutor
+from rclpy.executors import Executor, ExternalShutdownException, MultiThreadedExecutor, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.type_description_service import START_TYPE_DESCRIPTION_SERVICE_PARAM
@@ -26,6 +26,29 @@ class HostError(Exception):
     """The host cannot start: the message says what and why."""
 
 
+def check_executor(kind: str) -> None:
+    if kind not in EXECUTORS:
+        raise HostError(f"unknown executor {kind!r}; choose one of {', '.join(EXECUTORS)}")
+
+
+def spin_until_shutdown(executor: Executor) -> None:
+    """An executor's spin() for a background thread: ends quietly when the executor is shut down."""
+    try:
+        executor.spin()
+    except ExternalShutdownException:
+        pass
+
+
+def matched(endpoint) -> bool:
+    """A publisher with a matched subscription, a subscription with a matched publisher; True for
+    None (a topic the caller does not serve, e.g. /clock, shared by all)."""
+    if endpoint is None:
+        return True
+    count = endpoint.get_subscription_count() if hasattr(endpoint, "get_subscription_count") \
+        else endpoint.get_publisher_count()
+    return count >= 1
+
+
 def make_executor(kind: str, context: Context) -> Executor:
     if kind == "multi-threaded":
         return MultiThreadedExecutor(context=context)
@@ -34,9 +57,8 @@ def make_executor(kind: str, context: Context) -> Executor:
     if kind == "events":
         from rclpy.experimental import EventsExecutor
         return EventsExecutor(context=context)
-    if kind == "lockstep":
-        return LockstepExecutor(context=context)
-    raise HostError(f"unknown executor {kind!r}; choose one of {', '.join(EXECUTORS)}")
+    check_executor(kind)
+    return LockstepExecutor(context=context)
 
 
 def controller_parameters(world: World, group_index: int) -> list[Parameter]:

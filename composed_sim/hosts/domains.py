@@ -17,8 +17,9 @@ from __future__ import annotations
 
 from typing import Iterable, Optional
 
+from composed_sim.world.schema import MAX_DOMAIN
+
 MIN_DOMAIN = 0
-MAX_DOMAIN = 232
 _PORT_BASE, _DOMAIN_GAIN, _PARTICIPANT_GAIN = 7400, 250, 2
 _META_UNICAST_OFFSET, _USER_UNICAST_OFFSET = 10, 11
 # 120: participant 120's first port, 7410 + 250 d + 240, is the next domain's first port.

@@ -23,7 +23,8 @@ from composed_sim.hosts.host import SetupInfo
 from composed_sim.hosts.lockstep import LoopResult, NodesExchange, TickObserver, run_lockstep
 from composed_sim.hosts.controllers import HostError
 from composed_sim.hosts.discovery import DEFAULT_DISCOVERY_TIMEOUT_S
-from composed_sim.hosts.multiprocess import _endpoints_by_topic, _matched, _spin
+from composed_sim.hosts.controllers import matched, spin_until_shutdown
+from composed_sim.hosts.multiprocess import _endpoints_by_topic
 from composed_sim.hosts.processes import InterruptWatch
 from composed_sim.hosts.robot_ranges import format_ranges
 from composed_sim.hosts.shard_announce import ShardInfo, ShardRegistry, world_fingerprint
@@ -76,7 +77,7 @@ class ExternalControllersHost:
             self.exchange = NodesExchange([self.sim_node], self._check_shards)
             self._executor = LockstepExecutor(context=self._context)
             self._executor.add_node(self.sim_node)
-            self._thread = threading.Thread(target=_spin, args=(self._executor,), name="executor", daemon=True)
+            self._thread = threading.Thread(target=spin_until_shutdown, args=(self._executor,), name="executor", daemon=True)
             self._thread.start()
         except BaseException:
             self.__exit__(None, None, None)
@@ -119,7 +120,7 @@ class ExternalControllersHost:
                                 f"two shards (or another run in ROS domain {self.domain_id}) host them")
             unmatched_sim_side = set(names.index(r) for r in self.sim_node.unmatched_robots())
             unmatched_sim_side |= {i for i, info in host_of.items()
-                                   if not all(_matched(endpoints.get(c.topic_name(names[i], c.TOPICS[t])))
+                                   if not all(matched(endpoints.get(c.topic_name(names[i], c.TOPICS[t])))
                                               for t in info.topics.get(i, []) if t in c.TOPICS)}
             missing = [i for i in range(self.sim.n) if i not in host_of]
             if not missing and not unmatched_sim_side:

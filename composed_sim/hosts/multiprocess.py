@@ -35,8 +35,7 @@ from rclpy.executors import Executor
 from composed_sim import plugins
 from composed_sim.core.simulation import Simulation
 from composed_sim.hosts.host import SetupInfo
-from composed_sim.hosts.choices import EXECUTORS
-from composed_sim.hosts.controllers import HostError
+from composed_sim.hosts.controllers import HostError, check_executor, matched, spin_until_shutdown
 from composed_sim.hosts.domains import DomainError, assign_domains
 from composed_sim.hosts.processes import InterruptWatch, exit_reason, signal_group
 from composed_sim.hosts.lockstep import LoopResult, NodesExchange, TickObserver, run_lockstep
@@ -108,8 +107,7 @@ class MultiProcessHost:
 
     def __init__(self, world: World, *, executor: str = "lockstep", domain_id: int = 0,
                  robots_per_domain: Optional[int] = None):
-        if executor not in EXECUTORS:
-            raise HostError(f"unknown executor {executor!r}; choose one of {', '.join(EXECUTORS)}")
+        check_executor(executor)
         self.world = world
         self.executor_kind = executor
         mp = world.multi_process
@@ -163,7 +161,7 @@ class MultiProcessHost:
             for d, node in self._nodes.items():
                 executor = LockstepExecutor(context=node.context)
                 executor.add_node(node)
-                thread = threading.Thread(target=_spin, args=(executor,), name=f"executor-d{d}", daemon=True)
+                thread = threading.Thread(target=spin_until_shutdown, args=(executor,), name=f"executor-d{d}", daemon=True)
                 thread.start()
                 self._executors.append(executor)
                 self._threads.append(thread)
@@ -200,7 +198,7 @@ class MultiProcessHost:
                         if p.topics is None:
                             self._failed_start(p)
                 for robot, p in list(unmatched.items()):
-                    if p.topics is not None and all(_matched(endpoints[p.domain].get(t)) for t in p.topics):
+                    if p.topics is not None and all(matched(endpoints[p.domain].get(t)) for t in p.topics):
                         p.startup_s = time.perf_counter() - p.spawned
                         del unmatched[robot]
                         last_progress = time.monotonic()
@@ -328,24 +326,9 @@ class MultiProcessHost:
             p.popen.wait()
 
 
-def _spin(executor: Executor) -> None:
-    try:
-        executor.spin()
-    except rclpy.executors.ExternalShutdownException:
-        pass
-
-
 def _endpoints_by_topic(node: SimulatorNode) -> dict:
     """The simulator side of each robot topic: sensor publishers, cmd_vel subscriptions and the
     LED inbox's subscriptions (the inbox node is the SimulatorNode's own, never spun)."""
     found = list(node.publishers) + list(node.subscriptions) + list(node._inbox.subscriptions)
     return {e.topic_name: e for e in found if e.topic_name != c.CLOCK_TOPIC}
 
-
-def _matched(endpoint) -> bool:
-    """True for a topic the simulator does not serve (e.g. /clock, shared by all)."""
-    if endpoint is None:
-        return True
-    count = endpoint.get_subscription_count() if hasattr(endpoint, "get_subscription_count") \
-        else endpoint.get_publisher_count()
-    return count >= 1

@@ -26,8 +26,9 @@ from rclpy.node import Node
 from composed_sim import plugins
 from composed_sim.world.robot_models import get_model
 from composed_sim.hosts.callback_guard import CallbackGuard, refuse_shutdown_from_callbacks
-from composed_sim.hosts.choices import EXECUTORS, ROBOTS_PER_PARTICIPANT
-from composed_sim.hosts.controllers import HostError, create_controller, make_executor
+from composed_sim.hosts.choices import ROBOTS_PER_PARTICIPANT
+from composed_sim.hosts.controllers import (HostError, check_executor, create_controller, make_executor,
+                                             spin_until_shutdown)
 from composed_sim.hosts.lockstep import NodesExchange
 from composed_sim.ros import contract as c
 from composed_sim.ros.participants import ignore_participants_of_this_process
@@ -52,8 +53,7 @@ class ParticipantGroups:
                  robots_per_participant: int = ROBOTS_PER_PARTICIPANT, first_group: int = 0):
         """``first_group``: the number of this block's first participant group in the run (the
         block of robot 0 has group 0, which publishes /clock)."""
-        if executor not in EXECUTORS:
-            raise HostError(f"unknown executor {executor!r}; choose one of {', '.join(EXECUTORS)}")
+        check_executor(executor)
         if robots_per_participant < 1:
             raise HostError(f"robots per participant must be at least 1, got {robots_per_participant}")
         self.world = world
@@ -140,16 +140,10 @@ class ParticipantGroups:
         else:
             # Its callbacks run on its worker threads, as it is made for; the tick loop waits for
             # the simulator nodes' "all answered".
-            self._spin_thread = threading.Thread(target=self._spin, name="executor", daemon=True)
+            self._spin_thread = threading.Thread(target=spin_until_shutdown, args=(self.executor,), name="executor", daemon=True)
             self._spin_thread.start()
             wait = self.exchange.wait_for_answers
         return wait, self.guard.interrupting_hangs(self._spin_thread is None)
-
-    def _spin(self) -> None:
-        try:
-            self.executor.spin()
-        except rclpy.executors.ExternalShutdownException:
-            pass
 
     def _spin_until_answered(self, timeout_s: float) -> bool:
         """Executors driven from this thread: the lockstep executor by design, the EventsExecutor

@@ -27,13 +27,12 @@ from rclpy.clock import Clock as RosClock
 from rclpy.context import Context
 from rclpy.executors import Executor
 from rclpy.node import Node
-from rclpy.publisher import Publisher
 from rclpy.time import Time as RosTime
 
 from composed_sim import plugins
 from composed_sim.hosts.controller_process import contract_endpoints
-from composed_sim.hosts.choices import EXECUTORS
-from composed_sim.hosts.controllers import HostError, create_controller, make_executor
+from composed_sim.hosts.controllers import (HostError, check_executor, create_controller, make_executor, matched,
+                                             spin_until_shutdown)
 from composed_sim.hosts.robot_ranges import format_ranges
 from composed_sim.hosts.shard_announce import ShardAnnouncer, ShardInfo, world_fingerprint
 from composed_sim.ros import contract as c
@@ -47,8 +46,7 @@ class ShardHost:
 
     def __init__(self, world: World, robots: list[int], *, executor: str = "lockstep", domain_id: int = 0,
                  should_stop: Callable[[], bool] = lambda: False):
-        if executor not in EXECUTORS:
-            raise HostError(f"unknown executor {executor!r}; choose one of {', '.join(EXECUTORS)}")
+        check_executor(executor)
         if not robots:
             raise HostError("a shard needs at least one robot")
         self.world = world
@@ -115,7 +113,7 @@ class ShardHost:
         deadline = time.monotonic() + timeout_s
         pause = 0.002
         while True:
-            unmatched = sorted({i for i, e in endpoints if not _matched(e)})
+            unmatched = sorted({i for i, e in endpoints if not matched(e)})
             if not unmatched and self._clock_sub.get_publisher_count() >= 1:
                 break
             if self.should_stop():
@@ -144,7 +142,7 @@ class ShardHost:
         requested ("stopped")."""
         if self.executor_kind not in ("events", "lockstep"):
             # The stock executors spin in their own thread, as in the composed host.
-            self._spin_thread = threading.Thread(target=self._spin, name="executor", daemon=True)
+            self._spin_thread = threading.Thread(target=spin_until_shutdown, args=(self.executor,), name="executor", daemon=True)
             self._spin_thread.start()
         next_check = time.monotonic() + LIVENESS_PERIOD_S
         while True:
@@ -156,16 +154,10 @@ class ShardHost:
                 next_check = time.monotonic() + LIVENESS_PERIOD_S
             if self._spin_thread is None:
                 # Driven from this thread: the lockstep executor by design, the EventsExecutor
-                # because its spin() in a thread hung in our probes (DESIGN.md).
+                # because its spin() in a thread hung in our probes (docs/architecture.md).
                 self.executor.spin_once(timeout_sec=LIVENESS_PERIOD_S / 4)
             else:
                 time.sleep(LIVENESS_PERIOD_S / 4)
-
-    def _spin(self) -> None:
-        try:
-            self.executor.spin()
-        except rclpy.executors.ExternalShutdownException:
-            pass
 
     def __exit__(self, *exc) -> None:
         if self.executor is not None:
@@ -181,9 +173,3 @@ class ShardHost:
         if self.context is not None and self.context.ok():
             rclpy.shutdown(context=self.context)
         self.context = None
-
-
-def _matched(endpoint) -> bool:
-    if isinstance(endpoint, Publisher):
-        return endpoint.get_subscription_count() >= 1
-    return endpoint.get_publisher_count() >= 1

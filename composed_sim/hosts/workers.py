@@ -39,8 +39,7 @@ import numpy as np
 
 from composed_sim.core.simulation import SensorFrame, Simulation
 from composed_sim.core.violations import FAILED, Violation
-from composed_sim.hosts.choices import EXECUTORS
-from composed_sim.hosts.controllers import HostError
+from composed_sim.hosts.controllers import HostError, check_executor
 from composed_sim.hosts.host import SetupInfo
 from composed_sim.hosts.lockstep import LoopResult, TickObserver, run_lockstep
 from composed_sim.hosts.processes import InterruptWatch, exit_reason, signal_group
@@ -190,8 +189,7 @@ class WorkerHost:
     every worker stopped and reaped in ``__exit__``."""
 
     def __init__(self, world: World, *, workers: int, executor: str = "lockstep", domain_id: int = 0):
-        if executor not in EXECUTORS:
-            raise HostError(f"unknown executor {executor!r}; choose one of {', '.join(EXECUTORS)}")
+        check_executor(executor)
         n = len(world.robot_names())
         if not 1 <= workers <= n:
             raise HostError(f"--workers {workers}: a worker hosts at least one of the {n} robots "

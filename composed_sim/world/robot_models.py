@@ -1,7 +1,7 @@
 """Robot models as data: dimensions, drive limits and device layouts.
 
 One place for every robot fact, with its source next to it: the foot-bot and the TurtleBot 3
-burger from ``shared/reference/argos-models.md`` (read from the ARGoS 3 sources and the paper's
+burger from ``docs/architecture.md`` (read from the ARGoS 3 sources and the paper's
 bridge), the e-puck from ARGoS's own e-puck plugin, the Thymio II from the Enki simulator and
 the manufacturer where the reference is silent. A model lists the devices it carries; which
 of them run is the world file's choice (``default_devices`` when it says nothing).
@@ -153,19 +153,19 @@ FOOTBOT = RobotModel(
                             elevation_m=0.06),           # footbot_entity.cpp: proximity sensors at 6 cm
     light=LightRing(angles_rad=_ring_angles(7.5, 15.0, 24)),
     camera=BlobCamera(height_m=0.288699733, aperture_rad=math.radians(70.0)),
-    # argos-models.md "Motor ground sensor": the foot-bot's four sensors under the body.
+    # docs/architecture.md "Motor ground sensor": the foot-bot's four sensors under the body.
     ground=GroundSensors(offsets_m=((0.063, 0.0116), (-0.063, 0.0116), (-0.063, -0.0116),
                                     (0.063, -0.0116))),
-    # argos-models.md "Range-and-bearing": 0.1 m above the origin, 3 m default range.
+    # docs/architecture.md "Range and bearing": 0.1 m above the origin, 3 m default range.
     range_and_bearing=RangeAndBearingDevice(elevation_m=0.1, range_m=3.0),
-    # argos-models.md: 12 ring LEDs at r = 0.090 m, 15° + 30°·i, z = 0.085; beacon at z = 0.1742.
+    # docs/architecture.md: 12 ring LEDs at r = 0.090 m, 15° + 30°·i, z = 0.085; beacon at z = 0.1742.
     led_positions_m=_led_ring(0.090, 15.0, 12, 0.085) + ((0.0, 0.0, 0.1742),),
     # The flocking experiments' sensor set; the others cost time and are switched on per world.
     default_devices=frozenset({PROXIMITY, LIGHT, CAMERA}),
 )
 
 # --- e-puck (ARGoS 3 core, plugins/robots/e-puck/simulator) --------------------------
-# Not in argos-models.md; numbers from ARGoS's own e-puck, as the reference's other robots.
+# Not in docs/architecture.md; numbers from ARGoS's own e-puck, as the reference's other robots.
 EPUCK = RobotModel(
     name="e-puck",
     body_radius_m=0.035,                # epuck_entity.cpp BODY_RADIUS (manufacturer: 70 mm diameter)
@@ -190,20 +190,20 @@ EPUCK = RobotModel(
     default_devices=frozenset({PROXIMITY, GROUND}),
 )
 
-# --- TurtleBot 3 burger (argos-models.md "TurtleBot 3 (burger)") ---------------------
+# --- TurtleBot 3 burger (docs/architecture.md "TurtleBot 3 burger") ---------------------
 TURTLEBOT3_BURGER = RobotModel(
     name="turtlebot3-burger",
-    body_radius_m=0.08,                 # argos-models.md: base radius 0.08 m
-    body_height_m=0.192,                # argos-models.md: height 0.192 m
+    body_radius_m=0.08,                 # docs/architecture.md: base radius 0.08 m
+    body_height_m=0.192,                # docs/architecture.md: height 0.192 m
     mass_kg=1.0,                        # ROBOTIS e-Manual, TurtleBot3 burger specifications: 1 kg
-    wheel_separation_m=0.160,           # argos-models.md
-    wheel_radius_m=0.033,               # argos-models.md
-    max_wheel_speed_mps=0.22,           # argos-models.md: 0.22 m/s (and 2.84 rad/s) on the real robot
+    wheel_separation_m=0.160,           # docs/architecture.md
+    wheel_radius_m=0.033,               # docs/architecture.md
+    max_wheel_speed_mps=0.22,           # docs/architecture.md: 0.22 m/s (and 2.84 rad/s) on the real robot
     # No ARGoS model of the burger: the foot-bot's drive caps (a robot of similar mass).
     max_force_n=15.0,
     max_torque_nm=150.0,
     friction=0.7,
-    # argos-models.md: 360 rays, 0.12-3.5 m, mounted at (-0.064, 0, 0.122). One ray per degree
+    # docs/architecture.md: 360 rays, 0.12-3.5 m, mounted at (-0.064, 0, 0.122). One ray per degree
     # over the full turn (the LDS-01's scan), so the last ray is 1° short of 360°.
     lidar=Lidar(n_rays=360, angle_min_rad=0.0, angle_max_rad=math.radians(359.0),
                 min_range_m=0.12, max_range_m=3.5, mount_m=(-0.064, 0.0, 0.122)),
@@ -212,7 +212,7 @@ TURTLEBOT3_BURGER = RobotModel(
 )
 
 # --- Thymio II -------------------------------------------------------------------------
-# Not in argos-models.md and not in ARGoS core. Numbers from the Enki simulator's Thymio2
+# Not in docs/architecture.md and not in ARGoS core. Numbers from the Enki simulator's Thymio2
 # model (enki-community/enki, enki/robots/thymio2/Thymio2.cpp, in cm there), which Mobsya's
 # own Aseba playground uses, unless noted. Its footprint (front arc of 8 cm radius, flat back
 # 3 cm behind the axle) is approximated by a circle: the physics engine's robots are circles.

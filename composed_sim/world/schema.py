@@ -160,7 +160,7 @@ class RangeAndBearingMedium(Strict):
     """How range-and-bearing messages travel between the robots whose device is on."""
     # local: within the sender's range and line of sight; global: everyone hears everyone.
     mode: Literal["local", "global"] = "local"
-    payload_bytes: Annotated[int, Field(ge=1, le=65535)] = 10   # argos-models.md: 10 by default
+    payload_bytes: Annotated[int, Field(ge=1, le=65535)] = 10   # docs/architecture.md: 10 by default
     check_occlusions: bool = True
 
 
@@ -401,14 +401,16 @@ class Lockstep(Strict):
 
 # Fast DDS on Linux: a domain's ports start at 7400 + 250 * domain, so 232 is the last domain
 # whose ports stay below 65535 (see composed_sim.hosts.domains).
-DomainId = Annotated[int, Field(ge=0, le=232)]
+MAX_DOMAIN = 232
+ROBOTS_PER_DOMAIN = 50      # multi-process mode's default: the paper's
+DomainId = Annotated[int, Field(ge=0, le=MAX_DOMAIN)]
 
 
 class MultiProcess(Strict):
     """Multi-process mode only: how the robots' controller processes spread over ROS domains."""
     # Robots per domain when balancing automatically (the paper's 50); each also costs the
     # domain a DDS participant, and Fast DDS fits at most 120 participants in one domain.
-    robots_per_domain: Annotated[int, Field(ge=1, le=119)] = 50
+    robots_per_domain: Annotated[int, Field(ge=1, le=119)] = ROBOTS_PER_DOMAIN
     first_domain: Optional[DomainId] = None     # None: the run's domain id (--domain-id)
     domains: dict[str, DomainId] = {}           # explicit robot name -> domain; the rest balanced
 

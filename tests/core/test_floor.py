@@ -15,7 +15,7 @@ FOOTBOT_GROUND = np.asarray(FOOTBOT.ground.offsets_m)
 
 
 def luma(rgb):
-    """argos-models.md: 0.299 R + 0.587 G + 0.114 B over 255."""
+    """docs/architecture.md: 0.299 R + 0.587 G + 0.114 B over 255."""
     r, g, b = rgb
     return (0.299 * r + 0.587 * g + 0.114 * b) / 255.0
 

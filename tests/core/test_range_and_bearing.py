@@ -54,7 +54,7 @@ def test_emitters_at_different_heights_give_the_3d_range_and_the_elevation():
 
 
 def test_the_senders_range_decides():
-    # 0 emits 0.5 m, 1 emits 3 m; 1 m apart: 0 hears 1, 1 does not hear 0 (argos-models.md).
+    # 0 emits 0.5 m, 1 emits 3 m; 1 m apart: 0 hears 1, 1 does not hear 0 (docs/architecture.md).
     r = rab([[0, 0], [1, 0]], ranges=[0.5, 3.0])
     assert heard(r, 0) == [1] and heard(r, 1) == []
     r = rab([[0, 0], [2.99, 0]])
