@@ -159,6 +159,8 @@ def main(argv: list[str] | None = None) -> int:
             return cmd_worlds()
         if args.command == "host":
             return cmd_host(args)
+        if args.json and args.exit_when_done:
+            _keep_stdout_for_json()
         return cmd_run(args)
     except UserError as e:
         print(f"composed-sim: error: {e}", file=sys.stderr)
@@ -219,6 +221,7 @@ def cmd_run(args) -> int:
     from composed_sim.core.placement import PlacementError
     from composed_sim.hosts.composed import ComposedHost
     from composed_sim.hosts.controllers import HostError
+    from composed_sim.hosts.domain_claim import DomainTaken, claim_domains, claim_free_domain, run_identity
     from composed_sim.hosts.workers import WorkerHost, auto_workers, usable_cores
     from composed_sim.results import summarize, write_results
 
@@ -226,6 +229,7 @@ def cmd_run(args) -> int:
     lockstep = {k: v for k, v in (("watchdog_s", args.watchdog), ("fallback", args.fallback)) if v is not None}
     if lockstep:
         world = world.model_copy(update={"lockstep": world.lockstep.model_copy(update=lockstep)})
+    domain_given = args.domain_id is not None or bool(os.environ.get("ROS_DOMAIN_ID"))
     domain_id = _domain_id(args.domain_id)
     check_writable(args.out)
     if args.record is not None and args.record.exists():
@@ -237,26 +241,41 @@ def cmd_run(args) -> int:
 
     distributed = _distributed_settings(args) if args.external_controllers else None
     _check_plugins(args.world, world)
-    try:
+
+    def make_host(domain_id: int):
         if args.external_controllers:
             from composed_sim.hosts.external import ExternalControllersHost
-            host = ExternalControllersHost(world, domain_id=domain_id, discovery_timeout_s=args.discovery_timeout,
+            return ExternalControllersHost(world, domain_id=domain_id, discovery_timeout_s=args.discovery_timeout,
                                            discovery=distributed)
-        elif args.mode == "multi-process":
+        if args.mode == "multi-process":
             from composed_sim.hosts.multiprocess import MultiProcessHost
-            host = MultiProcessHost(world, executor=args.executor, domain_id=domain_id,
+            return MultiProcessHost(world, executor=args.executor, domain_id=domain_id,
                                     robots_per_domain=args.robots_per_domain)
+        workers = auto_workers(len(world.robot_names())) if args.workers == "auto" else args.workers
+        if workers == 1:
+            return ComposedHost(world, executor=args.executor, domain_id=domain_id,
+                                robots_per_participant=args.robots_per_participant)
+        return WorkerHost(world, workers=workers, executor=args.executor, domain_id=domain_id)
+
+    try:
+        host = make_host(domain_id)
+        # The run owns its domains (hosts/domain_claim.py): a given one must be free, else the
+        # first free block is taken and the host rebuilt there.
+        used = sorted(set(host.domains.values())) if args.mode == "multi-process" and not args.external_controllers \
+            else [domain_id]
+        given = domain_given or (args.mode == "multi-process" and used[0] != domain_id)
+        about = run_identity(world.name)
+        if given:
+            claim = claim_domains(used, about, given=True)
         else:
-            n = len(world.robot_names())
-            workers = args.workers
-            if workers == "auto":
-                workers = auto_workers(n)
-            if workers == 1:
-                host = ComposedHost(world, executor=args.executor, domain_id=domain_id,
-                                    robots_per_participant=args.robots_per_participant)
-            else:
-                host = WorkerHost(world, workers=workers, executor=args.executor, domain_id=domain_id)
+            claim, domain_id = claim_free_domain(len(used), about)
+            host = make_host(domain_id)
+            used = [domain_id + i for i in range(len(used))]
+            print(f"composed-sim: ROS domain {domain_id}{f'..{used[-1]}' if len(used) > 1 else ''} (free, "
+                  f"picked; to watch it: ROS_DOMAIN_ID={domain_id} ros2 topic list)", file=sys.stderr)
     except HostError as e:
+        raise UserError(str(e)) from None
+    except DomainTaken as e:
         raise UserError(str(e)) from None
 
     def finish(result, checkpoint: bool = False) -> dict:
@@ -270,6 +289,7 @@ def cmd_run(args) -> int:
         if isinstance(host, WorkerHost):        # every process's peak (pages shared between them count in each)
             summary["workers_peak_rss_mb"] = [round(mb, 1) for mb in host.workers_peak_rss_mb()]
             summary["peak_rss_mb"] += sum(summary["workers_peak_rss_mb"])
+        summary["domain_id"], summary["domains"] = used[0], used
         summary["checkpoint"] = checkpoint     # true: written while running; the run did not end
         summary["out"] = str(args.out)
         write_results(args.out, world, result, summary, picture=not (args.no_picture or checkpoint),
@@ -312,12 +332,43 @@ def cmd_run(args) -> int:
             raise UserError(_located(args.world, e)) from None
         except HostError as e:
             raise UserError(str(e)) from None
+    claim.release()
     _print_summary(args, summary)
     return code
 
 
 def _print_summary(args, summary: dict) -> None:
-    print(json.dumps(summary, indent=2) if args.json else _human_summary(summary))
+    if args.json:
+        with _json_stdout():
+            print(json.dumps(summary, indent=2), flush=True)
+    else:
+        print(_human_summary(summary))
+
+
+_json_fd: int | None = None     # the real stdout while a --json run sends everything else to stderr
+
+
+def _keep_stdout_for_json() -> None:
+    """Fast DDS's C++ logging writes to file descriptor 1 (e.g. about stale shared-memory ports
+    of a killed run): with --json, stdout must hold the summary only, so until then fd 1 is stderr."""
+    global _json_fd
+    if _json_fd is None:
+        sys.stdout.flush()
+        _json_fd = os.dup(1)
+        os.dup2(2, 1)
+
+
+@contextlib.contextmanager
+def _json_stdout():
+    if _json_fd is None:
+        yield
+        return
+    sys.stdout.flush()
+    os.dup2(_json_fd, 1)
+    try:
+        yield
+    finally:
+        sys.stdout.flush()
 
 
 def _check_plugins(world_path, world) -> None:
@@ -435,12 +486,28 @@ def _run_observers(args, world, host, outputs: contextlib.ExitStack, interrupts)
         recorder = outputs.enter_context(BagRecorder(args.record, robot_names=host.sim.names, tick_s=world.tick_s,
                                                      topics_globs=args.record_topics, world=world))
         interrupts.on_second = recorder.close_if_idle   # even a hard quit leaves a readable bag
+        recorder.set_custom("executor", args.executor)  # what `replay --check` re-simulates with
         observers.append(RecordingObserver(recorder, tick_ns))
         if args.record_topics:
+            _warn_unmatched_globs(args.record_topics, world)
             host.set_message_tap(recorder)
     if args.markers:
         observers.append(MarkerObserver(host.observer_node(), tick_ns, recorder))
     return observers
+
+
+def _warn_unmatched_globs(globs: list[str], world) -> None:
+    """A --record-topics glob that matches no topic of this run is a warning naming two that exist."""
+    from composed_sim.ros import contract as c
+    from composed_sim.ros.simulator_node import robot_devices
+    from composed_sim.ros.taps import TopicGlobs
+    topics = [c.topic_name(name, t) for name, devices in zip(world.robot_names(), robot_devices(world))
+              for t in c.robot_topics(devices)] + [c.SWARM_MARKERS_TOPIC]
+    for glob in globs:
+        if not any(TopicGlobs([glob]).wants(t) for t in topics):
+            print(f"composed-sim: warning: --record-topics {glob!r} matches no topic of this run "
+                  f"(its topics are like {topics[0]} and {topics[-2] if len(topics) > 1 else topics[0]})",
+                  file=sys.stderr)
 
 
 def cmd_render(args) -> int:
@@ -471,12 +538,49 @@ def cmd_replay(args) -> int:
                         trail_ticks=args.trail, every=args.every, tick_s=rec.tick_s)
         print(f"{out}: {frames} frames")
     if args.check:
-        expected = rec.world.length_ticks if rec.world is not None else None
-        if expected is None or rec.ticks_done < expected:
-            print(f"composed-sim: check failed: {rec.ticks_done} of {expected} ticks recorded", file=sys.stderr)
+        problem = _check_recording(rec)
+        if problem:
+            print(f"composed-sim: check failed: {problem}", file=sys.stderr)
             return 1
-        print("  check: complete")
     return 0
+
+
+def _check_recording(rec) -> str | None:
+    """Re-simulate the recorded world (its seed, its executor) and compare every recorded tick's
+    /swarm/state with the simulation, bit for bit. None when they agree; else the first gap or
+    difference."""
+    import numpy as np
+    if rec.world is None:
+        return "the recording holds no world to re-simulate"
+    ticks = rec.ticks
+    if len(ticks) == 0 or ticks[0] != 0:
+        return f"the recording does not start at tick 0 (first: {ticks[0] if len(ticks) else 'none'})"
+    gaps = np.flatnonzero(np.diff(ticks) != 1)
+    if len(gaps):
+        t = int(ticks[gaps[0]])
+        return f"tick {t + 1} is missing (after tick {t}, the next recorded is {int(ticks[gaps[0] + 1])})"
+    from composed_sim.hosts.composed import ComposedHost
+    from composed_sim.hosts.domain_claim import claim_free_domain, run_identity
+    executor = rec.executor or "lockstep"
+    claim, domain = claim_free_domain(1, run_identity(rec.world.name))
+    try:
+        with ComposedHost(rec.world, executor=executor, domain_id=domain) as host:
+            if host.sim.names != rec.names:
+                return "the recorded robots are not the recorded world's"
+            t = host.run(len(ticks) - 1).trajectories
+    finally:
+        claim.release()
+    for name, recorded, simulated in (("position", rec.positions, t.positions), ("heading", rec.headings, t.headings),
+                                      ("LED colour", rec.led_colors, t.led_colors)):
+        differs = np.flatnonzero((recorded != simulated).reshape(len(ticks), len(rec.names), -1).any(axis=2).ravel())
+        if len(differs):
+            tick, robot = divmod(int(differs[0]), len(rec.names))
+            return (f"tick {tick}, {rec.names[robot]}: the recorded {name} {recorded[tick, robot].tolist()} is not the "
+                    f"re-simulated {simulated[tick, robot].tolist()} (world {rec.world.name!r}, seed {rec.world.seed}, "
+                    f"{executor} executor)")
+    print(f"  check: ticks 0…{len(ticks) - 1} re-simulated (seed {rec.world.seed}, {executor} executor): every "
+          f"recorded pose and LED colour identical, bit for bit")
+    return None
 
 
 def _render_target(out: Path) -> Path:
@@ -530,10 +634,42 @@ def cmd_worlds() -> int:
     return 0
 
 
+PROGRESS_LOG_S = 5.0    # without a terminal: a progress line this often at most
+
+
 def _progress_bar(total: int, disabled: bool):
+    """tqdm's bar on a terminal; on a log (CI, a file, a pipe) a plain line now and then instead
+    of thousands of carriage returns."""
     from tqdm import tqdm
-    return tqdm(total=total, unit="tick", file=sys.stderr, disable=disabled, dynamic_ncols=True,
-                desc="simulating")
+    if disabled or sys.stderr.isatty():
+        return tqdm(total=total, unit="tick", file=sys.stderr, disable=disabled, dynamic_ncols=True,
+                    desc="simulating")
+    return _ProgressLines(total)
+
+
+class _ProgressLines:
+    def __init__(self, total: int):
+        import time
+        self._clock = time.monotonic
+        self.total, self.done = total, 0
+        self._start = self._last = self._clock()
+        self._said = False
+
+    def update(self, n: int = 1) -> None:
+        self.done += n
+        now = self._clock()
+        if not self._said or now - self._last >= PROGRESS_LOG_S:
+            self._said, self._last = True, now
+            self._line(now)
+
+    def _line(self, now: float) -> None:
+        rate = self.done / max(now - self._start, 1e-9)
+        print(f"simulating: {self.done}/{self.total} ticks ({100 * self.done / max(self.total, 1):.0f} %), "
+              f"{rate:.1f} tick/s", file=sys.stderr, flush=True)
+
+    def close(self) -> None:
+        if self.done and self._last != self._clock():
+            self._line(self._clock())
 
 
 def _workers_text(s: dict) -> str:

@@ -30,7 +30,8 @@ at 1280 robots before zstd chunk compression).
 The recorder also stores, as rosbag2 ``custom_data`` (in metadata.yaml and in the MCAP's
 metadata record), what a replay needs without the results directory:
 ``composed_sim.robot_names`` (JSON list), ``composed_sim.tick_s``, ``composed_sim.ticks``
-(clock messages written), ``composed_sim.world`` (the resolved world as YAML, when given).
+(the ticks simulated, as summary.json counts them), ``composed_sim.world`` (the resolved world as
+YAML, when given) and ``composed_sim.executor`` (what ``replay --check`` re-simulates with).
 
 rosbags (pure Python) writes and reads the bag; message definitions and type hashes come from
 its ROS 2 Jazzy typestore, so the MCAP schemas are the real ``ros2msg`` definitions. A type the
@@ -316,7 +317,8 @@ class BagRecorder:
             self._writer.set_custom_data(key, value)
         self._writer.set_custom_data(_KEY + "robot_names", json.dumps(self.robot_names))
         self._writer.set_custom_data(_KEY + "tick_s", repr(self.tick_s))
-        self._writer.set_custom_data(_KEY + "ticks", str(self.ticks_written))
+        # The ticks simulated, as summary.json counts them: the last tick (tick 0 is the start).
+        self._writer.set_custom_data(_KEY + "ticks", str(max(self.ticks_written - 1, 0)))
         self._writer.close()
 
     def close_if_idle(self) -> bool:
@@ -379,6 +381,7 @@ class Recording:
     led_colors: np.ndarray      # [T, n, 3] uint8 display colours (0 = no LED lit)
     world: Optional["World"]    # the world stored at record time, if any
     topics: dict[str, tuple[str, int]]    # topic -> (message type, message count)
+    executor: Optional[str] = None        # the executor that ran the recorded run, if stored
 
     @property
     def ticks(self) -> np.ndarray:
@@ -431,7 +434,7 @@ def read_recording(path: str | os.PathLike) -> Recording:
                      stamps_ns=np.asarray(stamps, dtype=np.int64)[order],
                      positions=np.stack([pts["x"], pts["y"]], axis=-1),
                      headings=pts["yaw"].copy(), led_colors=unpack_rgb(pts["rgb"]),
-                     world=world, topics=topics)
+                     world=world, topics=topics, executor=custom.get(_KEY + "executor"))
 
 
 def read_swarm_states(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

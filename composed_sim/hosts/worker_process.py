@@ -8,13 +8,13 @@
                     ("tap", [glob, …])             record these topics' messages (--record-topics)
                     ("tick", SensorFrame)          the block's readings of one tick
                     ("stop",)                      end now
-    worker → main   ("ready", nodes, participants) discovery done: tick 0 can start
+    worker → main   ("ready", nodes)               discovery done: tick 0 can start
                     ("error", kind, message, field) the block could not be built
                     ("answers", TickAnswers)       the tick's commands, LEDs, payloads, violations
 
-Inside, a tick is exactly the single-process host's: the simulator nodes publish the block's
+Inside, a tick is exactly the single-process host's: its simulator node publishes the block's
 sensors, the executor runs the controllers' callbacks until every robot answered or the watchdog
-expired, and the simulator nodes' ``close_tick`` computes the commands with the fallbacks.
+expired, and the simulator node's ``close_tick`` computes the commands with the fallbacks.
 
 The worker dies with the main process (PR_SET_PDEATHSIG, SIGKILL included) and ignores SIGINT: a
 terminal's Ctrl-C is for the main process, which stops at a tick boundary and then stops us.
@@ -52,8 +52,7 @@ class TickAnswers:
     angular: object                                    # [m] rad/s
     leds: dict = field(default_factory=dict)           # row in the block → [L, 3] uint8
     rab: dict = field(default_factory=dict)            # row in the block → [B] uint8
-    # per participant group of the block: its new violations as (tick, robot, reason)
-    violations: list = field(default_factory=list)
+    violations: list = field(default_factory=list)     # new ones since the last tick: (tick, robot, reason)
     tapped: list = field(default_factory=list)         # (topic, type, bytes, stamp ns)
     peak_rss_kb: int = 0                               # the worker's own peak resident memory so far
 
@@ -91,13 +90,13 @@ def main(argv: list[str] | None = None) -> int:
     except (plugins.PluginError, HostError) as e:
         conn.send(("error", type(e).__name__, str(e), getattr(e, "field", ())))
         return EXIT_SETUP
-    conn.send(("ready", groups.nodes, len(groups.contexts)))
+    conn.send(("ready", groups.nodes))
 
     m = setup.stop - setup.start
-    nodes, exchange = groups.simulator_nodes, groups.exchange
+    (node,), exchange = groups.simulator_nodes, groups.exchange    # one participant group, one simulator node
     lockstep = world.lockstep
     previous = (np.zeros(m), np.zeros(m))
-    seen = [0] * len(nodes)        # violations already sent, per node
+    seen = 0                       # violations already sent
     tap = None
     wait, interrupting_hangs = groups.start_serving()
     with interrupting_hangs:
@@ -115,17 +114,15 @@ def main(argv: list[str] | None = None) -> int:
                 previous = commands
                 answers = TickAnswers(frame.tick, *commands, exchange.take_led_commands(),
                                       exchange.take_rab_payloads())
-                for k, node in enumerate(nodes):
-                    answers.violations.append([(v.tick, v.robot, v.reason) for v in node.violations[seen[k]:]])
-                    seen[k] = len(node.violations)
+                answers.violations = [(v.tick, v.robot, v.reason) for v in node.violations[seen:]]
+                seen = len(node.violations)
                 if tap is not None:
                     answers.tapped = tap.drain()
                 answers.peak_rss_kb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
                 conn.send(("answers", answers))
             elif message[0] == "tap":
                 tap = TapBuffer(message[1])
-                for node in nodes:
-                    node.set_message_tap(tap)
+                node.set_message_tap(tap)
             elif message[0] == "stop":
                 break
     # Destroying hundreds of nodes one by one takes long (each republishes its participant's

@@ -94,11 +94,10 @@ class WorkersExchange:
     """The ``Exchange`` over the worker processes: a tick's frame goes out in blocks, the answers
     come back as arrays; the per-node violation lists keep the single-process order."""
 
-    def __init__(self, workers: list[Worker], names: list[str], node_counts: list[int], lockstep):
+    def __init__(self, workers: list[Worker], names: list[str], lockstep):
         self.workers = workers
         self._names = names
-        # worker → its participant groups (one, or none reported when start-up was interrupted) → list
-        self._node_violations = [[[] for _ in range(max(k, 1))] for k in node_counts]
+        self._violations: list[list[Violation]] = [[] for _ in workers]   # per worker, as they happened
         self._failed = np.zeros(len(names), dtype=bool)
         self._lockstep = lockstep
         self._tick = 0
@@ -106,9 +105,8 @@ class WorkersExchange:
 
     @property
     def violations(self) -> list[Violation]:
-        # Stable sort over all nodes in robot order: the single-process host's order.
-        every = (v for per_worker in self._node_violations for per_node in per_worker for v in per_node)
-        return sorted(every, key=lambda v: v.tick)
+        # Stable sort by tick over the workers in robot order: the single-process host's order.
+        return sorted((v for per_worker in self._violations for v in per_worker), key=lambda v: v.tick)
 
     def publish_tick(self, frame: SensorFrame) -> None:
         self._tick = frame.tick
@@ -141,8 +139,7 @@ class WorkersExchange:
                     continue
                 w.answers = answers
                 w.peak_rss_kb = answers.peak_rss_kb
-                for per_node, new in zip(self._node_violations[w.index], answers.violations):
-                    per_node.extend(Violation(*v) for v in new)
+                self._violations[w.index].extend(Violation(*v) for v in answers.violations)
                 if self.tap is not None:
                     for topic, msgtype, data, stamp_ns in answers.tapped:
                         self.tap.write_serialized(topic, msgtype, data, stamp_ns)
@@ -160,11 +157,10 @@ class WorkersExchange:
         w.conn.close()
         lines = [ln for ln in w.tail(500).splitlines() if ln.strip()]
         detail = f": {lines[-1].strip()}" if lines else ""
-        record = self._node_violations[w.index][0]
         for i in range(w.start, w.stop):
             if not self._failed[i]:
                 self._failed[i] = True
-                record.append(Violation(self._tick, self._names[i], FAILED + reason + detail))
+                self._violations[w.index].append(Violation(self._tick, self._names[i], FAILED + reason + detail))
 
     def close_tick(self, fallback: str, previous: tuple[np.ndarray, np.ndarray],
                    commands: tuple[np.ndarray, np.ndarray]) -> None:
@@ -217,13 +213,13 @@ class WorkerHost:
             # The workers build their nodes while this process builds the physics.
             self.sim = Simulation(self.world)
             with InterruptWatch() as interrupts:
-                node_counts, nodes, participants = self._wait_ready(lambda: interrupts.requested)
+                nodes = self._wait_ready(lambda: interrupts.requested)
             self._startup_interrupted = interrupts.requested
-            self.exchange = WorkersExchange(self.workers, self.sim.names, node_counts, self.world.lockstep)
+            self.exchange = WorkersExchange(self.workers, self.sim.names, self.world.lockstep)
         except BaseException:
             self.__exit__(None, None, None)
             raise
-        self.setup = SetupInfo(time.perf_counter() - t0, nodes, participants, len(self.workers))
+        self.setup = SetupInfo(time.perf_counter() - t0, nodes, len(self.workers), len(self.workers))
         return self
 
     def _spawn(self, index: int, start: int, stop: int, prefix: bytes) -> None:
@@ -247,11 +243,11 @@ class WorkerHost:
         conn.send(("setup", WorkerSetup(self.world, start, stop, index, self.executor_kind, self.domain_id,
                                         prefix, str(self._tmp))))
 
-    def _wait_ready(self, interrupted: Callable[[], bool]) -> tuple[list[int], int, int]:
-        """Every worker's nodes built and matched; a worker's set-up error is raised here as the
-        error it was (a plugin's names the world file's field)."""
+    def _wait_ready(self, interrupted: Callable[[], bool]) -> int:
+        """Every worker's nodes built and matched (how many nodes in all); a worker's set-up error is
+        raised here as the error it was (a plugin's names the world file's field)."""
         from composed_sim import plugins
-        ready: dict[int, tuple[int, int, int]] = {}
+        ready: dict[int, int] = {}      # worker → its nodes
         deadline = time.monotonic() + STARTUP_TIMEOUT_S
         while len(ready) < len(self.workers) and not interrupted():
             waiting = {w.conn: w for w in self.workers if w.index not in ready}
@@ -271,10 +267,8 @@ class WorkerHost:
                     if kind == "PluginError":
                         raise plugins.PluginError(text, field)
                     raise HostError(text)
-                _, nodes, participants = message
-                ready[w.index] = (participants, nodes, participants)
-        counts = [ready.get(w.index, (0, 0, 0)) for w in self.workers]
-        return [c[0] for c in counts], sum(c[1] for c in counts), sum(c[2] for c in counts)
+                ready[w.index] = message[1]
+        return sum(ready.values())
 
     def run(self, ticks: Optional[int] = None, *, progress: Optional[Callable[[int], None]] = None,
             should_stop: Callable[[], bool] = lambda: False, observers: Sequence[TickObserver] = (),

@@ -76,8 +76,11 @@ def use_worker_prefix(prefix: bytes, directory: Path) -> bool:
     changes) when the user named a Fast DDS profile file of their own."""
     if len(prefix) != 12:
         raise ValueError(f"a GUID prefix has 12 bytes, got {len(prefix)}")
-    if any(os.environ.get(v) for v in PROFILE_VARIABLES):
+    given = [os.environ[v] for v in PROFILE_VARIABLES if os.environ.get(v)]
+    if any(Path(g).resolve() != PROFILE for g in given):       # the user's own profile: respected
         return False
+    for v in PROFILE_VARIABLES:
+        os.environ.pop(v, None)
     path = Path(directory) / f"fastdds_worker_{prefix.hex()}.xml"
     path.write_text(_PREFIX_PROFILE.format(prefix=".".join(f"{b:02x}" for b in prefix)))
     os.environ[PROFILE_VARIABLES[0]] = str(path)
