@@ -37,7 +37,7 @@ from composed_sim.core.simulation import Simulation
 from composed_sim.hosts.host import SetupInfo
 from composed_sim.hosts.controllers import HostError, check_executor, matched, spin_until_shutdown
 from composed_sim.hosts.domains import DomainError, assign_domains
-from composed_sim.hosts.processes import InterruptWatch, exit_reason, signal_group
+from composed_sim.hosts.processes import InterruptWatch, exit_reason, last_words, signal_group
 from composed_sim.hosts.lockstep import LoopResult, NodesExchange, TickObserver, run_lockstep
 from composed_sim.ros import contract as c
 from composed_sim.ros.lockstep_executor import LockstepExecutor
@@ -92,8 +92,7 @@ class ControllerProcess:
 
 def died_reason(p: ControllerProcess) -> str:
     """How a child ended, with the last line it wrote (a plugin's exception, usually)."""
-    lines = p.tail(500).splitlines()
-    return exit_reason(p.popen.returncode) + (f": {lines[-1].strip()}" if lines else "")
+    return exit_reason(p.popen.returncode) + last_words(p.tail(500))
 
 
 class MultiProcessHost:

@@ -34,6 +34,13 @@ def exit_reason(code: int) -> str:
     return f"process exited with code {code}"
 
 
+def last_words(log_tail: str) -> str:
+    """A child's last line of its own (a plugin's exception, usually), as ": line", or "". Fast
+    DDS's own log lines (coloured, e.g. about stale shared-memory ports) are not the child's."""
+    lines = [ln.strip() for ln in log_tail.splitlines() if ln.strip() and "\x1b[" not in ln]
+    return f": {lines[-1]}" if lines else ""
+
+
 def signal_group(popen, sig: int) -> None:
     """``sig`` to a child started with ``process_group=0`` and whatever it started; only while it is
     unreaped (a reaped child's pid may belong to another process by now)."""

@@ -42,7 +42,7 @@ from composed_sim.core.violations import FAILED, Violation
 from composed_sim.hosts.controllers import HostError, check_executor
 from composed_sim.hosts.host import SetupInfo
 from composed_sim.hosts.lockstep import LoopResult, TickObserver, run_lockstep
-from composed_sim.hosts.processes import InterruptWatch, exit_reason, signal_group
+from composed_sim.hosts.processes import InterruptWatch, exit_reason, last_words, signal_group
 from composed_sim.hosts.worker_process import TickAnswers, WorkerSetup
 from composed_sim.ros.participants import run_prefix
 from composed_sim.world.schema import World
@@ -155,8 +155,7 @@ class WorkersExchange:
             reason = f"worker process died ({_ending(code)})"
         w.dead = reason
         w.conn.close()
-        lines = [ln for ln in w.tail(500).splitlines() if ln.strip()]
-        detail = f": {lines[-1].strip()}" if lines else ""
+        detail = last_words(w.tail(500))
         for i in range(w.start, w.stop):
             if not self._failed[i]:
                 self._failed[i] = True
