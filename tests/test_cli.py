@@ -265,6 +265,11 @@ def test_a_second_ctrl_c_quits_at_once_even_with_a_hung_controller(tmp_path, fau
         assert run.wait(timeout=10) == 130
         assert time.monotonic() - t0 < 5
         assert "again to quit at once" in run.stderr.read()
+        # Quit at once, but not empty-handed: the last checkpoint (tick 0 here) is in --out.
+        summary = json.loads((tmp_path / "o" / "summary.json").read_text())
+        assert summary["checkpoint"] is True and summary["ticks"] == 0
+        with np.load(tmp_path / "o" / "trajectories.npz") as t:
+            assert t["positions"].shape == (1, 3, 2)
     finally:
         if run.poll() is None:
             run.kill()

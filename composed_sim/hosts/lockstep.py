@@ -162,8 +162,8 @@ def run_lockstep(sim: Simulation, exchange: Exchange, wait_for_answers: Callable
                  checkpoint: Optional[Callable[[LoopResult], None]] = None) -> LoopResult:
     """Run ``ticks`` lockstep ticks; ``wait_for_answers(timeout_s)`` runs or awaits the controllers
     until every robot answered the published tick or the watchdog time is over. ``checkpoint``
-    gets the result so far every CHECKPOINT_EVERY ticks (marked interrupted): what a run killed
-    outright leaves behind."""
+    gets the result so far at tick 0 and every CHECKPOINT_EVERY ticks (marked interrupted): what a
+    run killed outright, or quit by a second Ctrl-C, leaves behind."""
     lockstep = sim.world.lockstep
     traj = Trajectories.allocate(sim, ticks)
     times = LoopTimes()
@@ -173,6 +173,8 @@ def run_lockstep(sim: Simulation, exchange: Exchange, wait_for_answers: Callable
         observer.on_tick(sim)
     interrupted = False
     memory = [(0, resident_mb())]
+    if checkpoint is not None:
+        checkpoint(LoopResult(traj.filled(), [], times, True, memory))
     sample_every = max(1, ticks // MEMORY_SAMPLES)
     t_start = time.perf_counter()
     try:

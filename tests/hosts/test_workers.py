@@ -162,7 +162,12 @@ def test_a_main_process_killed_outright_takes_its_workers_and_leaves_its_last_ch
     assert len(workers) == 2, log.read_text()
     summary_file = tmp_path / "out" / "summary.json"
     deadline = time.monotonic() + 60
-    while not summary_file.exists():                     # the first checkpoint (tick 100)
+    def checkpointed_ticks() -> int:
+        try:
+            return json.loads(summary_file.read_text())["ticks"]
+        except (OSError, ValueError):       # not written yet (files are replaced whole, never half)
+            return -1
+    while checkpointed_ticks() < CHECKPOINT_EVERY:      # past the tick-0 checkpoint, at tick 100
         assert proc.poll() is None and time.monotonic() < deadline, log.read_text()
         time.sleep(0.05)
     proc.kill()                     # SIGKILL: no clean-up runs; PR_SET_PDEATHSIG takes the workers
