@@ -229,6 +229,8 @@ def cmd_run(args) -> int:
     lockstep = {k: v for k, v in (("watchdog_s", args.watchdog), ("fallback", args.fallback)) if v is not None}
     if lockstep:
         world = world.model_copy(update={"lockstep": world.lockstep.model_copy(update=lockstep)})
+    from composed_sim.ros.participants import remove_stale_shared_memory
+    remove_stale_shared_memory()        # what dead runs left in /dev/shm (ros/participants.py)
     domain_given = args.domain_id is not None or bool(os.environ.get("ROS_DOMAIN_ID"))
     domain_id = _domain_id(args.domain_id)
     check_writable(args.out)

@@ -104,3 +104,50 @@ def _fast_dds_host_id() -> bytes:
     for i in range(0, 16, 2):
         value ^= (digest[i] << 8) | digest[i + 1]
     return bytes([value & 0xFF, value >> 8])
+
+
+# --- shared memory left behind by dead processes --------------------------------------------------
+#
+# Fast DDS gives each participant a shared-memory segment in /dev/shm (``fastrtps_<id>``, about
+# 0.5 MB) and each port one (``fastrtps_port<N>``), each with a ``_el`` file that its owner keeps
+# locked (flock) while it lives. A process that ends without destroying its participants (a run
+# that ends with os._exit, a worker or controller killed) leaves them behind: RAM on a tmpfs, and
+# error lines from later participants that trip over the dead ports. A run removes them first.
+
+SHM_DIR = Path("/dev/shm")
+STALE_AFTER_S = 60.0     # younger files may belong to a participant being created right now
+
+
+def remove_stale_shared_memory(directory: Path = SHM_DIR, *, stale_after_s: float = STALE_AFTER_S) -> int:
+    """Remove Fast DDS's shared-memory files whose owner is dead (their ``_el`` lock is free and
+    older than ``stale_after_s``); how many segments went. Files of live processes are never
+    touched: their lock is held."""
+    import fcntl
+    import time
+    removed = 0
+    now = time.time()
+    try:
+        locks = list(Path(directory).glob("fastrtps_*_el"))
+    except OSError:
+        return 0
+    for lock in locks:
+        try:
+            if now - lock.stat().st_mtime < stale_after_s:
+                continue
+            fd = os.open(lock, os.O_RDWR)
+        except OSError:
+            continue            # gone meanwhile, or another user's
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            os.close(fd)        # held: its owner lives
+            continue
+        try:
+            Path(str(lock)[:-len("_el")]).unlink(missing_ok=True)
+            lock.unlink(missing_ok=True)
+            removed += 1
+        except OSError:
+            pass
+        finally:
+            os.close(fd)
+    return removed

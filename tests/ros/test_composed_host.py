@@ -131,3 +131,26 @@ def test_the_participant_profile_is_set_unless_the_user_gave_one(monkeypatch, tm
     monkeypatch.setenv("FASTDDS_DEFAULT_PROFILES_FILE", str(own))
     assert not participants.ignore_participants_of_this_process()      # the user's: respected
     assert os.environ["FASTDDS_DEFAULT_PROFILES_FILE"] == str(own)
+
+
+def test_shared_memory_of_dead_participants_is_removed_and_a_live_ones_kept(tmp_path):
+    """Fast DDS's segments in /dev/shm whose owner died (its _el lock free) go; held ones stay."""
+    import fcntl
+    import os
+    import time
+
+    from composed_sim.ros.participants import remove_stale_shared_memory
+    for name in ("fastrtps_dead", "fastrtps_port7411", "fastrtps_alive", "fastrtps_young"):
+        (tmp_path / name).write_bytes(b"x" * 100)
+        (tmp_path / f"{name}_el").write_bytes(b"")
+    old = time.time() - 120
+    for name in ("fastrtps_dead", "fastrtps_port7411", "fastrtps_alive"):
+        os.utime(tmp_path / f"{name}_el", (old, old))
+    held = os.open(tmp_path / "fastrtps_alive_el", os.O_RDWR)
+    fcntl.flock(held, fcntl.LOCK_EX)            # as a live participant holds its own
+    try:
+        assert remove_stale_shared_memory(tmp_path) == 2
+    finally:
+        os.close(held)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["fastrtps_alive", "fastrtps_alive_el",
+                                                         "fastrtps_young", "fastrtps_young_el"]
