@@ -78,7 +78,7 @@ DEFAULT_MEMORY_FRACTION = 0.8
 FALLBACK_PROCESS_MB = 70.0       # docs/architecture.md: one rclpy process with a node, until measured
 CALIBRATION_ROBOTS = 3           # dedicated multi-process run measuring the per-process cost …
 CALIBRATION_ABOVE = 10           # … when the sweep's first multi-process size is larger than this
-SAFE_MAX_DOMAIN = 101            # ROS 2 on Linux: domains 0..101 never reach the ephemeral ports
+SAFE_DOMAIN_MAX = 101            # ROS 2 on Linux: domains 0..101 never reach the ephemeral ports
 
 FIGURES = {"wall_time": "wall_time.png", "cpu": "cpu.png", "memory": "memory.png"}
 
@@ -245,7 +245,7 @@ class DomainAllocator:
         if not 0 <= base <= MAX_DOMAIN:
             raise ValueError(f"--domain-id: must be within 0..{MAX_DOMAIN} (got {base})")
         self.base = base
-        self.top = SAFE_MAX_DOMAIN if base <= SAFE_MAX_DOMAIN else MAX_DOMAIN
+        self.top = SAFE_DOMAIN_MAX if base <= SAFE_DOMAIN_MAX else MAX_DOMAIN
         self._previous: Optional[range] = None
 
     def take(self, width: int) -> Optional[int]:

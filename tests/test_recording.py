@@ -86,7 +86,7 @@ def test_bag_directory_is_rosbag2_with_mcap(bag):
     custom = meta["custom_data"]
     assert json.loads(custom["composed_sim.robot_names"]) == NAMES
     assert float(custom["composed_sim.tick_s"]) == TICK_S
-    assert int(custom["composed_sim.ticks"]) == TICKS + 1
+    assert int(custom["composed_sim.ticks"]) == TICKS     # the ticks simulated, as summary.json counts them
     # Sim time: the bag starts at tick 0 = 0 ns and lasts TICKS ticks.
     assert meta["starting_time"]["nanoseconds_since_epoch"] == 0
     assert meta["duration"]["nanoseconds"] == TICKS * TICK_NS

@@ -7,9 +7,8 @@ tick 0 a run claims its domain twice over:
   together, released by the kernel when the process ends, however it ends), which also names the
   holder (pid, host, world) for the error message;
 - in the ROS graph, for simulators the lock cannot see (another machine, an older build): a short
-  probe looks for another ``/clock`` publisher, or another simulator's sensor publishers or
-  ``cmd_vel`` subscribers on robot topics. Watchers (``ros2 topic echo``, a recorder) only
-  subscribe to sensors and are fine.
+  probe looks for another ``/clock`` publisher or another simulator's sensor publishers on robot
+  topics. Watchers (``ros2 topic echo``, a recorder) only subscribe and are fine, on any topic.
 
 With a domain given (``--domain-id`` or ``ROS_DOMAIN_ID``) a taken domain is an error; without,
 the run takes the first free domain from 0 up.
@@ -106,13 +105,9 @@ def foreign_simulators(domain: int, probe_s: float = PROBE_S) -> list[str]:
         sensors = {t.name for t in c.SENSOR_TOPICS}
         found = set()
         for topic, _ in node.get_topic_names_and_types():
-            last = topic.rsplit("/", 1)[-1]
-            if topic == c.CLOCK_TOPIC or last in sensors:
+            if topic == c.CLOCK_TOPIC or topic.rsplit("/", 1)[-1] in sensors:
                 found.update(f"{e.node_namespace.rstrip('/')}/{e.node_name}"
                              for e in node.get_publishers_info_by_topic(topic))
-            elif last == c.CMD_VEL.name:
-                found.update(f"{e.node_namespace.rstrip('/')}/{e.node_name}"
-                             for e in node.get_subscriptions_info_by_topic(topic))
         node.destroy_node()
         return sorted(found)
     finally:
