@@ -13,14 +13,14 @@ from __future__ import annotations
 
 import threading
 import time
-from typing import Callable, Optional, Sequence
+from typing import Callable, Optional
 
 import rclpy
 from rclpy.context import Context
 
 from composed_sim.core.simulation import Simulation
-from composed_sim.hosts.host import SetupInfo
-from composed_sim.hosts.lockstep import LoopResult, NodesExchange, TickObserver, run_lockstep
+from composed_sim.hosts.host import ControllersElsewhere, SetupInfo
+from composed_sim.hosts.lockstep import NodesExchange
 from composed_sim.hosts.controllers import HostError
 from composed_sim.hosts.discovery import DEFAULT_DISCOVERY_TIMEOUT_S
 from composed_sim.hosts.controllers import matched, spin_until_shutdown
@@ -36,7 +36,7 @@ from composed_sim.world.schema import World
 GONE_REASON = "its shard is gone (no cmd_vel publisher left)"
 
 
-class ExternalControllersHost:
+class ExternalControllersHost(ControllersElsewhere):
     """Context manager: the simulation, its node and its executor thread; same interface as
     ComposedHost. ``discovery`` only words the errors (the settings are in the environment)."""
 
@@ -143,16 +143,6 @@ class ExternalControllersHost:
                 f"(see docs/distributed.md)")
 
     # --- the run ----------------------------------------------------------------------------
-
-    def run(self, ticks: Optional[int] = None, *, progress: Optional[Callable[[int], None]] = None,
-            should_stop: Callable[[], bool] = lambda: False, observers: Sequence[TickObserver] = (),
-            checkpoint: Optional[Callable[[LoopResult], None]] = None) -> LoopResult:
-        ticks = self.world.length_ticks if ticks is None else ticks
-        if self._startup_interrupted:      # stopped before tick 0: an interrupted run of 0 ticks
-            should_stop = lambda: True     # noqa: E731
-        return run_lockstep(self.sim, self.exchange, self.exchange.wait_for_answers, ticks,
-                            progress=progress, should_stop=should_stop, observers=observers,
-                            checkpoint=checkpoint)
 
     def _check_shards(self) -> None:
         """Called while answers are late: a waited-for robot with no cmd_vel publisher left has

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 from typing import Callable, Optional, Protocol, Sequence
 
 from composed_sim.core.simulation import Simulation
-from composed_sim.hosts.lockstep import LoopResult, TickObserver
+from composed_sim.hosts.lockstep import LoopResult, TickObserver, run_lockstep
 from composed_sim.ros.simulator_node import MessageTap
 from composed_sim.world.schema import World
 
@@ -56,3 +56,23 @@ class Host(Protocol):
 
     def observer_node(self):
         """An rclpy Node in this process and the run's domain for live observers (markers)."""
+
+
+class ControllersElsewhere:
+    """``Host.run`` for the hosts whose controllers run in other processes (workers, one process
+    per controller, distributed shards): the tick loop waits on the host's ``exchange``. A host
+    whose start-up was interrupted (``_startup_interrupted``) runs no tick and says so."""
+    world: World
+    sim: Simulation
+    exchange: object
+    _startup_interrupted: bool = False
+
+    def run(self, ticks: Optional[int] = None, *, progress: Optional[Callable[[int], None]] = None,
+            should_stop: Callable[[], bool] = lambda: False, observers: Sequence[TickObserver] = (),
+            checkpoint: Optional[Callable[[LoopResult], None]] = None) -> LoopResult:
+        ticks = self.world.length_ticks if ticks is None else ticks
+        if self._startup_interrupted:      # stopped before tick 0: an interrupted run of 0 ticks
+            should_stop = lambda: True     # noqa: E731
+        return run_lockstep(self.sim, self.exchange, self.exchange.wait_for_answers, ticks,
+                            progress=progress, should_stop=should_stop, observers=observers,
+                            checkpoint=checkpoint)

@@ -25,7 +25,7 @@ import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Optional, Sequence
+from typing import Optional
 
 import numpy as np
 import rclpy
@@ -34,11 +34,11 @@ from rclpy.executors import Executor
 
 from composed_sim import plugins
 from composed_sim.core.simulation import Simulation
-from composed_sim.hosts.host import SetupInfo
+from composed_sim.hosts.host import ControllersElsewhere, SetupInfo
 from composed_sim.hosts.controllers import HostError, check_executor, matched, spin_until_shutdown
 from composed_sim.hosts.domains import DomainError, assign_domains
 from composed_sim.hosts.processes import InterruptWatch, exit_reason, last_words, signal_group
-from composed_sim.hosts.lockstep import LoopResult, NodesExchange, TickObserver, run_lockstep
+from composed_sim.hosts.lockstep import NodesExchange
 from composed_sim.ros import contract as c
 from composed_sim.ros.lockstep_executor import LockstepExecutor
 from composed_sim.ros.simulator_node import SimulatorNode, robot_devices
@@ -95,7 +95,7 @@ def died_reason(p: ControllerProcess) -> str:
     return exit_reason(p.popen.returncode) + last_words(p.tail(500))
 
 
-class MultiProcessHost:
+class MultiProcessHost(ControllersElsewhere):
     """Context manager: the per-domain contexts and simulator nodes, and one child process per
     robot; everything stopped and reaped in ``__exit__``. Same interface as ComposedHost.
 
@@ -257,16 +257,6 @@ class MultiProcessHost:
 
     def observer_node(self):
         return self.simulator_nodes[0]
-
-    def run(self, ticks: Optional[int] = None, *, progress: Optional[Callable[[int], None]] = None,
-            should_stop: Callable[[], bool] = lambda: False, observers: Sequence[TickObserver] = (),
-            checkpoint: Optional[Callable[[LoopResult], None]] = None) -> LoopResult:
-        ticks = self.world.length_ticks if ticks is None else ticks
-        if self._startup_interrupted:      # stopped before tick 0: an interrupted run of 0 ticks
-            should_stop = lambda: True     # noqa: E731
-        return run_lockstep(self.sim, self.exchange, self.exchange.wait_for_answers, ticks,
-                            progress=progress, should_stop=should_stop, observers=observers,
-                            checkpoint=checkpoint)
 
     def _check_children(self) -> None:
         """A child that ended mid-run: its robot is marked failed (violation recorded once) and

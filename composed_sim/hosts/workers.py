@@ -33,15 +33,14 @@ import time
 from dataclasses import dataclass
 from multiprocessing.connection import Connection, wait as wait_for_connections
 from pathlib import Path
-from typing import Callable, Optional, Sequence
+from typing import Callable, Optional
 
 import numpy as np
 
 from composed_sim.core.simulation import SensorFrame, Simulation
 from composed_sim.core.violations import FAILED, Violation
 from composed_sim.hosts.controllers import HostError, check_executor
-from composed_sim.hosts.host import SetupInfo
-from composed_sim.hosts.lockstep import LoopResult, TickObserver, run_lockstep
+from composed_sim.hosts.host import ControllersElsewhere, SetupInfo
 from composed_sim.hosts.processes import InterruptWatch, exit_reason, last_words, signal_group
 from composed_sim.hosts.worker_process import TickAnswers, WorkerSetup
 from composed_sim.ros.participants import run_prefix
@@ -179,7 +178,7 @@ class WorkersExchange:
                 for row, payload in w.answers.rab.items()}
 
 
-class WorkerHost:
+class WorkerHost(ControllersElsewhere):
     """Context manager (``Host``): the simulation here, the controllers in ``workers`` processes;
     every worker stopped and reaped in ``__exit__``."""
 
@@ -268,16 +267,6 @@ class WorkerHost:
                     raise HostError(text)
                 ready[w.index] = message[1]
         return sum(ready.values())
-
-    def run(self, ticks: Optional[int] = None, *, progress: Optional[Callable[[int], None]] = None,
-            should_stop: Callable[[], bool] = lambda: False, observers: Sequence[TickObserver] = (),
-            checkpoint: Optional[Callable[[LoopResult], None]] = None) -> LoopResult:
-        ticks = self.world.length_ticks if ticks is None else ticks
-        if self._startup_interrupted:      # stopped before tick 0: an interrupted run of 0 ticks
-            should_stop = lambda: True     # noqa: E731
-        return run_lockstep(self.sim, self.exchange, self.exchange.wait_for_answers, ticks,
-                            progress=progress, should_stop=should_stop, observers=observers,
-                            checkpoint=checkpoint)
 
     def workers_peak_rss_mb(self) -> list[float]:
         """Each worker's peak resident memory, as last reported with its answers."""
