@@ -91,7 +91,7 @@ class Exchange(Protocol):
 
 
 class NodesExchange:
-    """The ``Exchange`` over several SimulatorNodes (the composed host's shards, one per DDS
+    """The ``Exchange`` over several SimulatorNodes (the composed host's participant groups, one per DDS
     participant; the multi-process host's domains): each node publishes and collects its own
     robots, writing into the shared (simulation-row) command arrays."""
 

@@ -97,7 +97,7 @@ def died_reason(p: ControllerProcess) -> str:
 
 class MultiProcessHost(ControllersElsewhere):
     """Context manager: the per-domain contexts and simulator nodes, and one child process per
-    robot; everything stopped and reaped in ``__exit__``. Same interface as ComposedHost.
+    robot; everything stopped and reaped in ``__exit__`` (the ``Host`` interface, hosts/host.py).
 
     ``executor`` is the controllers' executor (in each child). Each of the simulator's
     per-domain nodes is spun by a LockstepExecutor in a thread of its own: it takes the answers
