@@ -275,9 +275,7 @@ def cmd_run(args) -> int:
             used = [domain_id + i for i in range(len(used))]
             print(f"composed-sim: ROS domain {domain_id}{f'..{used[-1]}' if len(used) > 1 else ''} (free, "
                   f"picked; to watch it: ROS_DOMAIN_ID={domain_id} ros2 topic list)", file=sys.stderr)
-    except HostError as e:
-        raise UserError(str(e)) from None
-    except DomainTaken as e:
+    except (HostError, DomainTaken) as e:
         raise UserError(str(e)) from None
 
     def finish(result, checkpoint: bool = False) -> dict:
@@ -506,7 +504,8 @@ def _warn_unmatched_globs(globs: list[str], world) -> None:
     topics = [c.topic_name(name, t) for name, devices in zip(world.robot_names(), robot_devices(world))
               for t in c.robot_topics(devices)] + [c.SWARM_MARKERS_TOPIC]
     for glob in globs:
-        if not any(TopicGlobs([glob]).wants(t) for t in topics):
+        matcher = TopicGlobs([glob])
+        if not any(matcher.wants(t) for t in topics):
             print(f"composed-sim: warning: --record-topics {glob!r} matches no topic of this run "
                   f"(its topics are like {topics[0]} and {topics[-2] if len(topics) > 1 else topics[0]})",
                   file=sys.stderr)

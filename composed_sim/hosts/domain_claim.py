@@ -24,10 +24,9 @@ import time
 from pathlib import Path
 from typing import Optional
 
-from composed_sim.world.schema import MAX_DOMAIN
-
 LOCK_DIR = Path(tempfile.gettempdir()) / "composed_sim_domains"
-# Domains an automatic choice may take: 0..101 never reach Linux's ephemeral ports (32768 on).
+# Domains an automatic choice may take: 0..101 never reach Linux's ephemeral ports (32768 on),
+# well inside the highest domain (world.schema.MAX_DOMAIN).
 AUTO_DOMAINS = range(0, 102)
 PROBE_S = 0.3              # how long the graph probe listens: discovery on one host takes ~0.1 s
 
@@ -135,7 +134,7 @@ def claim_domains(domains: list[int], about: dict, *, given: bool, probe: bool =
 
 def claim_free_domain(width: int, about: dict, *, probe: bool = True) -> tuple[DomainClaim, int]:
     """The first block of ``width`` consecutive free domains from 0 up: (claim, first domain)."""
-    for first in range(AUTO_DOMAINS.start, min(AUTO_DOMAINS.stop, MAX_DOMAIN + 1) - width + 1):
+    for first in range(AUTO_DOMAINS.start, AUTO_DOMAINS.stop - width + 1):
         try:
             return claim_domains(list(range(first, first + width)), about, given=False, probe=probe), first
         except DomainTaken:

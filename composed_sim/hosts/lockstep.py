@@ -173,10 +173,16 @@ def run_lockstep(sim: Simulation, exchange: Exchange, wait_for_answers: Callable
         observer.on_tick(sim)
     interrupted = False
     memory = [(0, resident_mb())]
-    if checkpoint is not None:
-        checkpoint(LoopResult(traj.filled(), [], times, True, memory))
     sample_every = max(1, ticks // MEMORY_SAMPLES)
     t_start = time.perf_counter()
+
+    def so_far() -> LoopResult:
+        """What was simulated until now, as an interrupted run's result."""
+        times.ticks_wall_s = time.perf_counter() - t_start
+        return LoopResult(traj.filled(), list(exchange.violations), times, True, memory)
+
+    if checkpoint is not None:
+        checkpoint(so_far())
     try:
         for _ in range(ticks):
             if should_stop():
@@ -203,12 +209,10 @@ def run_lockstep(sim: Simulation, exchange: Exchange, wait_for_answers: Callable
             if sim.tick % sample_every == 0:
                 memory.append((sim.tick, resident_mb()))
             if checkpoint is not None and sim.tick % CHECKPOINT_EVERY == 0:
-                times.ticks_wall_s = time.perf_counter() - t_start
-                checkpoint(LoopResult(traj.filled(), list(exchange.violations), times, True, memory))
+                checkpoint(so_far())
     except BaseException as e:
         # Nothing is lost: whoever handles the error can still write what was simulated so far.
-        times.ticks_wall_s = time.perf_counter() - t_start
-        e.partial_result = LoopResult(traj.filled(), list(exchange.violations), times, True, memory)
+        e.partial_result = so_far()
         raise
     times.ticks_wall_s = time.perf_counter() - t_start
     if memory[-1][0] != sim.tick:

@@ -37,7 +37,7 @@ from composed_sim.core.simulation import Simulation
 from composed_sim.hosts.host import ControllersElsewhere, SetupInfo
 from composed_sim.hosts.controllers import HostError, check_executor, matched, spin_until_shutdown
 from composed_sim.hosts.domains import DomainError, assign_domains
-from composed_sim.hosts.processes import InterruptWatch, exit_reason, last_words, signal_group
+from composed_sim.hosts.processes import InterruptWatch, exit_reason, last_words, reap, signal_group
 from composed_sim.hosts.lockstep import NodesExchange
 from composed_sim.ros import contract as c
 from composed_sim.ros.lockstep_executor import LockstepExecutor
@@ -303,16 +303,7 @@ class MultiProcessHost(ControllersElsewhere):
             p.close_pipe()
         for p in self.processes:
             signal_group(p.popen, signal.SIGTERM)
-        deadline = time.monotonic() + TERM_GRACE_S
-        for p in self.processes:
-            try:
-                p.popen.wait(timeout=max(0.0, deadline - time.monotonic()))
-            except subprocess.TimeoutExpired:
-                pass
-        for p in self.processes:
-            signal_group(p.popen, signal.SIGKILL)
-        for p in self.processes:
-            p.popen.wait()
+        reap([p.popen for p in self.processes], TERM_GRACE_S)
 
 
 def _endpoints_by_topic(node: SimulatorNode) -> dict:

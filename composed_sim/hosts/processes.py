@@ -7,8 +7,10 @@ from __future__ import annotations
 import ctypes
 import os
 import signal
+import subprocess
 import sys
 import threading
+import time
 
 PR_SET_PDEATHSIG = 1
 
@@ -49,6 +51,21 @@ def signal_group(popen, sig: int) -> None:
             os.killpg(popen.pid, sig)
         except ProcessLookupError:
             pass
+
+
+def reap(popens, grace_s: float) -> None:
+    """Give the children ``grace_s`` in all to end by themselves, SIGKILL the groups of those left,
+    and reap every one."""
+    deadline = time.monotonic() + grace_s
+    for popen in popens:
+        try:
+            popen.wait(timeout=max(0.0, deadline - time.monotonic()))
+        except subprocess.TimeoutExpired:
+            pass
+    for popen in popens:
+        signal_group(popen, signal.SIGKILL)
+    for popen in popens:
+        popen.wait()
 
 
 class InterruptWatch:

@@ -41,7 +41,7 @@ from composed_sim.core.simulation import SensorFrame, Simulation
 from composed_sim.core.violations import FAILED, Violation
 from composed_sim.hosts.controllers import HostError, check_executor
 from composed_sim.hosts.host import ControllersElsewhere, SetupInfo
-from composed_sim.hosts.processes import InterruptWatch, exit_reason, last_words, signal_group
+from composed_sim.hosts.processes import InterruptWatch, exit_reason, last_words, reap, signal_group
 from composed_sim.hosts.worker_process import TickAnswers, WorkerSetup
 from composed_sim.ros.participants import run_prefix
 from composed_sim.world.schema import World
@@ -299,14 +299,8 @@ class WorkerHost(ControllersElsewhere):
                     w.conn.send(("stop",))
                 except OSError:
                     pass
-        deadline = time.monotonic() + STOP_GRACE_S
+        reap([w.popen for w in self.workers], STOP_GRACE_S)
         for w in self.workers:
-            try:
-                w.popen.wait(timeout=max(0.0, deadline - time.monotonic()))
-            except subprocess.TimeoutExpired:
-                pass
-            signal_group(w.popen, signal.SIGKILL)
-            w.popen.wait()
             w.conn.close()
         self.workers = []
         if self._observer_node is not None:
