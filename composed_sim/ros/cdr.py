@@ -198,3 +198,8 @@ def decode_twist(data) -> tuple[float, float]:
     """TwistStamped bytes → (linear.x, angular.z)."""
     pos = align(after_header(data), 8)
     return _F64.unpack_from(data, pos)[0], _F64.unpack_from(data, pos + 40)[0]
+
+
+def decode_unstamped_twist(data) -> tuple[float, float]:
+    """Twist bytes → (linear.x, angular.z): six float64 after the encapsulation header."""
+    return _F64.unpack_from(data, HEADER)[0], _F64.unpack_from(data, HEADER + 40)[0]

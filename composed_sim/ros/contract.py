@@ -46,7 +46,7 @@ import numpy as np
 from builtin_interfaces.msg import Time
 from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
-from geometry_msgs.msg import PoseStamped, TwistStamped
+from geometry_msgs.msg import PoseStamped, Twist, TwistStamped
 from nav_msgs.msg import Odometry
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState, LaserScan, PointCloud2, PointField
@@ -76,7 +76,12 @@ BLOBS = Topic("blobs", PointCloud2, "sensor",
               "base_link (m; z = 0, the camera is planar), rgb = 0x00RRGGBB (uint32)")
 CMD_VEL = Topic("cmd_vel", TwistStamped, "actuator",
                 "differential drive: linear.x m/s, angular.z rad/s; header.stamp must equal the "
-                "answered sensor tick's stamp (this message is the controller's answer to a tick)")
+                "answered sensor tick's stamp (this message is the controller's answer to a tick); "
+                "or geometry_msgs/Twist, unstamped, which answers the tick whose sensors it follows")
+# What a controller may publish on cmd_vel (per robot group; the world file's ``cmd_vel`` or the
+# controller's publisher says which): the stamped answer of this contract, or the unstamped
+# Twist that most ROS nodes publish and the ROS 2-ARGoS bridge took.
+ANSWER_TYPES: dict[str, type] = {"stamped": TwistStamped, "unstamped": Twist}
 LEDS = Topic("leds", UInt8MultiArray, "actuator",
              "LED colours: data = [n_leds × 3] RGB bytes, ring LEDs first, beacon last; "
              "kept until changed")
@@ -176,6 +181,11 @@ def publisher_problem(robot: str, topic: str, msg_type: type, robots: Container[
         return f"{topic} is a topic of {owner}, not of {robot}" if owner in robots else None
     if contract.direction == "sensor":
         return f"{topic} is published by the simulator only"
+    if contract is CMD_VEL:
+        if msg_type not in ANSWER_TYPES.values():
+            return (f"{topic} carries {' or '.join(type_name(t) for t in ANSWER_TYPES.values())} (the topic "
+                    f"contract), not {type_name(msg_type)}")
+        return None
     if msg_type is not contract.msg_type:
         return f"{topic} carries {type_name(contract.msg_type)} (the topic contract), not {type_name(msg_type)}"
     return None
@@ -564,8 +574,13 @@ def decode_blobs_cdr(data: bytes, decoder: Optional[cdr.CloudDecoder] = None) ->
 
 
 def decode_answer_cdr(data: bytes) -> tuple[int, float, float]:
-    """cmd_vel bytes → (stamp ns, linear.x, angular.z)."""
+    """TwistStamped cmd_vel bytes → (stamp ns, linear.x, angular.z)."""
     return (cdr.stamp_ns(data), *cdr.decode_twist(data))
+
+
+def decode_unstamped_answer_cdr(data: bytes) -> tuple[float, float]:
+    """Twist cmd_vel bytes → (linear.x, angular.z)."""
+    return cdr.decode_unstamped_twist(data)
 
 
 def decode_leds(msg: UInt8MultiArray, n_leds: int) -> np.ndarray:

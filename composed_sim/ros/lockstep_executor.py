@@ -6,9 +6,10 @@ lockstep tick the work is known: the simulator publishes every robot's sensors, 
 DDS participant a published message is ready to take at once. So this executor first walks the
 subscriptions of its nodes in a fixed order (nodes in the order they were added, subscriptions
 in creation order), takes one ready message from each and runs the callbacks; a callback's own
-publishes (a controller's answer) are picked up by the same walk. Only when a walk finds nothing does it
-fall back to the ordinary wait set, which also serves timers, services, guard conditions and
-messages from other processes.
+publishes (a controller's answer) are picked up by the same walk. When a walk finds nothing, the
+timers that are due fire, in the same order (a timer-driven controller answers from one); only when
+there are none either does it fall back to the ordinary wait set, which also serves services, guard
+conditions and messages from other processes.
 
 Callbacks run in the calling thread, in that fixed order: runs are deterministic and a plugin
 needs no locks.
@@ -27,23 +28,24 @@ class LockstepExecutor(SingleThreadedExecutor):
         super().__init__(context=context)
         self._ordered_nodes: list[Node] = []
         self._subscriptions: Optional[list[tuple]] = None   # rebuilt when entities change
+        self._timers: Optional[list[tuple]] = None
 
     def add_node(self, node: Node) -> bool:
         added = super().add_node(node)
         if added:
             self._ordered_nodes.append(node)
-            self._subscriptions = None
+            self._subscriptions = self._timers = None
         return added
 
     def remove_node(self, node: Node) -> None:
         super().remove_node(node)
         if node in self._ordered_nodes:
             self._ordered_nodes.remove(node)
-        self._subscriptions = None
+        self._subscriptions = self._timers = None
 
     def wake(self) -> None:
         # Nodes call this when they create or destroy an entity.
-        self._subscriptions = None
+        self._subscriptions = self._timers = None
         super().wake()
 
     def spin_once(self, timeout_sec: Optional[float] = None) -> None:
@@ -72,4 +74,23 @@ class LockstepExecutor(SingleThreadedExecutor):
             else:
                 sub.callback(*taken)
             handled += 1
+        if handled == 0:
+            handled = self._fire_due_timers()
         return handled
+
+    def _fire_due_timers(self) -> int:
+        """Once the sensor callbacks are done (a walk found nothing): the timers due now, in the
+        same fixed order. Timers on sim time become due only after their robot's sensor callbacks
+        of the tick (ros/sim_timers.py), so this never runs one ahead of its readings."""
+        timers = self._timers
+        if timers is None:
+            timers = self._timers = [(t, t.handle) for node in self._ordered_nodes for t in node.timers]
+        fired = 0
+        for timer, handle in timers:
+            with handle:
+                if not handle.is_timer_ready():
+                    continue
+                handle.call_timer()
+            timer.callback()
+            fired += 1
+        return fired

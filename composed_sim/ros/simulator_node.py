@@ -35,6 +35,10 @@ class MessageTap(Protocol):
     def write_serialized(self, topic: str, msgtype: str, data: bytes, stamp_ns: int) -> object: ...
 
 
+class AnswerTypeError(Exception):
+    """A controller publishes a type on cmd_vel that the topic contract does not accept."""
+
+
 LATE_LEDS = "leds answering an earlier tick arrived after that tick closed: applied one tick late"
 LATE_RAB = "rab_tx answering an earlier tick arrived after that tick closed: applied one tick late"
 
@@ -54,6 +58,17 @@ def robot_devices(world: World) -> list[tuple[str, ...]]:
     """Per robot of ``world`` (in robot order): the devices whose topics it has."""
     published = [g.devices.published(get_model(g.model)) for g in world.robots]
     return [published[g] for g in world.group_of_robot()]
+
+
+def declared_answer_types(world: World) -> list[Optional[type]]:
+    """Per robot: the cmd_vel type its group's world-file entry declares, None for "auto"."""
+    declared = [c.ANSWER_TYPES.get(g.cmd_vel) for g in world.robots]
+    return [declared[g] for g in world.group_of_robot()]
+
+
+def answers_every_ticks(world: World) -> list[int]:
+    """Per robot: its group's ``answers_every_ticks``."""
+    return [world.robots[g].answers_every_ticks for g in world.group_of_robot()]
 
 
 def quiet_node_options(parameter_overrides: Sequence[Parameter] = ()) -> dict:
@@ -80,12 +95,19 @@ class SimulatorNode(Node):
     def __init__(self, names: list[str], models: list[RobotModel], *, context: Context,
                  tick_ns: int, rows: Optional[np.ndarray] = None, node_name: str = "composed_sim",
                  lockstep: Optional[Lockstep] = None, devices: Optional[Sequence[Collection[str]]] = None,
-                 rab_payload_bytes: int = 10, publish_clock: bool = True):
+                 rab_payload_bytes: int = 10, publish_clock: bool = True,
+                 answer_types: Optional[Sequence[Optional[type]]] = None,
+                 answers_every_ticks: Optional[Sequence[int]] = None):
         """``lockstep``: the world's fault policy (unresponsive_after_s, max_violations); None:
         robots are never failed for being unresponsive or for their violations. ``devices``: per
         robot, the devices whose topics it has (``Devices.published``; None: each model's
         defaults). ``rab_payload_bytes``: the world's range_and_bearing.payload_bytes.
-        ``publish_clock``: False where another node of this process and domain publishes it."""
+        ``publish_clock``: False where another node of this process and domain publishes it.
+        ``answer_types``: per robot, what its controller publishes on cmd_vel (a type of
+        ``contract.ANSWER_TYPES``), or None to read it from the ROS graph once the controller's
+        publisher is discovered (``detect_answer_types``); None: TwistStamped for all.
+        ``answers_every_ticks``: per robot, k: it answers ticks 0, k, 2k … and keeps its last
+        command in between (None: every tick)."""
         super().__init__(node_name, context=context, **quiet_node_options())
         self._names = names
         self._index = {name: i for i, name in enumerate(names)}
@@ -114,7 +136,12 @@ class SimulatorNode(Node):
         self._proximity_enc, self._light_enc, self._blob_enc = [None] * n, [None] * n, [None] * n
         self._device_pubs: dict[str, list] = {t.name: [None] * n for t in c.SENSOR_TOPICS}
         self._device_msgs: dict[str, list] = {t.name: [None] * n for t in c.SENSOR_TOPICS}
-        self._led_subs, self._cmd_subs, self._rab_subs = [], [], [None] * n
+        self._led_subs, self._rab_subs = [], [None] * n
+        self._cmd_subs: list = [None] * n               # per robot, once its answer type is known
+        self._answer_types: list[Optional[type]] = [c.CMD_VEL.msg_type] * n if answer_types is None \
+            else list(answer_types)
+        self._every = None if answers_every_ticks is None or all(k == 1 for k in answers_every_ticks) \
+            else np.asarray(answers_every_ticks)
         for i, (name, model) in enumerate(zip(names, models)):
             has = self._devices[i]
             if PROXIMITY in has:
@@ -127,9 +154,8 @@ class SimulatorNode(Node):
                 self._blob_pubs[i] = self._publisher(name, c.BLOBS)
                 self._blob_enc[i] = c.blobs_encoder(name)
             self._create_device_publishers(i, name, model, has)
-            self._cmd_subs.append(self.create_subscription(
-                c.CMD_VEL.msg_type, c.topic_name(name, c.CMD_VEL), lambda data, i=i: self._on_cmd_vel(i, data),
-                c.QOS, raw=True, event_callbacks=c.SUBSCRIPTION_EVENTS))
+            if self._answer_types[i] is not None:
+                self._subscribe_answers(i, self._answer_types[i])
             self._led_subs.append(self._inbox.create_subscription(
                 c.LEDS.msg_type, c.topic_name(name, c.LEDS), lambda msg: None, c.QOS,
                 event_callbacks=c.SUBSCRIPTION_EVENTS))
@@ -185,6 +211,31 @@ class SimulatorNode(Node):
         if DIFFERENTIAL_STEERING in has:
             add(c.WHEELS, c.joint_state(name))
 
+    def _subscribe_answers(self, i: int, msg_type: type) -> None:
+        on_answer = self._on_cmd_vel if msg_type is c.CMD_VEL.msg_type else self._on_unstamped_cmd_vel
+        self._answer_types[i] = msg_type
+        self._cmd_subs[i] = self.create_subscription(
+            msg_type, c.topic_name(self._names[i], c.CMD_VEL), lambda data, i=i: on_answer(i, data),
+            c.QOS, raw=True, event_callbacks=c.SUBSCRIPTION_EVENTS)
+
+    def detect_answer_types(self) -> None:
+        """Subscribe to the cmd_vel of each robot whose answer type is not known yet, with the type
+        its controller's publisher has in the ROS graph (multi-process and distributed mode). A type
+        the contract does not accept raises ``AnswerTypeError``."""
+        accepted = {c.type_name(t): t for t in c.ANSWER_TYPES.values()}
+        for i in [i for i, t in enumerate(self._answer_types) if t is None]:
+            topic = c.topic_name(self._names[i], c.CMD_VEL)
+            found = {info.topic_type for info in self.get_publishers_info_by_topic(topic)}
+            if wrong := sorted(found - accepted.keys()):
+                raise AnswerTypeError(f"the controller of {self._names[i]} publishes {wrong[0]} on {topic}; the "
+                                      f"topic contract accepts {' or '.join(accepted)}")
+            if found:
+                self._subscribe_answers(i, accepted[sorted(found)[0]])
+
+    def answer_subscription(self, robot: str):
+        """``robot``'s cmd_vel subscription (None until its answer type is known)."""
+        return self._cmd_subs[self._index[robot]]
+
     def _publisher(self, robot: str, topic: c.Topic):
         return self.create_publisher(topic.msg_type, c.topic_name(robot, topic), c.QOS,
                                      event_callbacks=c.PUBLISHER_EVENTS)
@@ -203,14 +254,19 @@ class SimulatorNode(Node):
         self._tapped = {topic.name: [tap.wants(c.topic_name(name, topic)) for name in self._names]
                         for topic in c.TOPICS.values()}
 
-    def _tap_message(self, topic: c.Topic, i: int, data, stamp_ns: int) -> None:
-        """``data``: the message's bytes, or the message."""
+    def _tap_message(self, topic: c.Topic, i: int, data, stamp_ns: int, msg_type: Optional[type] = None) -> None:
+        """``data``: the message's bytes, or the message; ``msg_type``: when not the topic's."""
         if self._tap is not None and self._tapped[topic.name][i]:
             if not isinstance(data, bytes):
                 data = serialize_message(data)
             with self._tap_lock:   # answers may arrive on executor worker threads
-                self._tap.write_serialized(c.topic_name(self._names[i], topic), c.type_name(topic.msg_type),
+                self._tap.write_serialized(c.topic_name(self._names[i], topic), c.type_name(msg_type or topic.msg_type),
                                            data, stamp_ns)
+
+    @property
+    def robots(self) -> list[str]:
+        """The names of this node's robots, in row order."""
+        return self._names
 
     def row_of(self, robot: str) -> int:
         """``robot``'s index among this node's robots (its row in ``failed``, ``answered`` …)."""
@@ -259,10 +315,11 @@ class SimulatorNode(Node):
         """Publish /clock and every robot's sensors for ``frame.tick``; open the answer window."""
         stamp = c.stamp_of(frame.tick, self._tick_ns)
         with self._lock:
-            self.answered[:] = False
+            # Robots answering every k-th tick are settled, keeping their last command, in between.
+            self.answered[:] = False if self._every is None else frame.tick % self._every != 0
             self.rejected[:] = False
             self._n_answered = 0
-            self._n_expected = int(np.count_nonzero(~self.failed))
+            self._n_expected = int(np.count_nonzero(~self.failed & ~self.answered))
             if self._n_expected == 0:
                 self._all_answered.set()
             else:
@@ -418,8 +475,9 @@ class SimulatorNode(Node):
     def unmatched_robots(self) -> list[str]:
         """Robots whose controller is not connected yet: no publisher matched on its cmd_vel, or no
         subscriber on any of its sensors. Matched counts are local to each endpoint (O(1))."""
+        self.detect_answer_types()
         return [name for i, name in enumerate(self._names)
-                if self._cmd_subs[i].get_publisher_count() < 1
+                if self._cmd_subs[i] is None or self._cmd_subs[i].get_publisher_count() < 1
                 or not any(p.get_subscription_count() >= 1 for p in self._sensor_pubs[i])]
 
     def wait_for_answers(self, timeout_s: float) -> bool:
@@ -433,30 +491,44 @@ class SimulatorNode(Node):
     def answered_count(self) -> int:
         return self._n_answered
 
+    def _on_unstamped_cmd_vel(self, i: int, data: bytes) -> None:
+        """A Twist answers the tick whose sensors it follows: the open one. One that arrives while
+        no tick is open answers a tick already closed (whose miss is recorded): it is dropped."""
+        linear, angular = c.decode_unstamped_answer_cdr(data)
+        with self._lock:
+            key = self._current_key
+            if key < 0:
+                return
+            self._answer(i, key, linear, angular, data)
+
     def _on_cmd_vel(self, i: int, data: bytes) -> None:
         key, linear, angular = c.decode_answer_cdr(data)
         with self._lock:
-            if self.failed[i]:
-                return
-            if key != self._current_key:
-                # An answer to an earlier tick comes from a robot whose miss of that tick is
-                # recorded already; any other stamp is a contract violation of its own.
-                if not (key <= self._tick_key and key % self._tick_ns == 0):
-                    self._record(self._current_tick, i, f"answer stamped {key} ns answers no tick "
-                                 f"published so far (the last is {self._tick_key} ns)")
-                return
-            if self.answered[i]:
-                return  # a second answer to the same tick, or one already rejected: the first counts
-            self._tap_message(c.CMD_VEL, i, data, key)
-            if not (math.isfinite(linear) and math.isfinite(angular)):
-                self.rejected[i] = True
-                self._record(self._current_tick, i, f"non-finite velocity command rejected "
-                             f"(linear {linear}, angular {angular})")
-            else:
-                self.linear[i] = linear
-                self.angular[i] = angular
-                self._last_accepted_s[i] = time.monotonic()
-            self._settle(i)
+            self._answer(i, key, linear, angular, data)
+
+    def _answer(self, i: int, key: int, linear: float, angular: float, data: bytes) -> None:
+        """Called with the lock held."""
+        if self.failed[i]:
+            return
+        if key != self._current_key:
+            # An answer to an earlier tick comes from a robot whose miss of that tick is
+            # recorded already; any other stamp is a contract violation of its own.
+            if not (key <= self._tick_key and key % self._tick_ns == 0):
+                self._record(self._current_tick, i, f"answer stamped {key} ns answers no tick "
+                             f"published so far (the last is {self._tick_key} ns)")
+            return
+        if self.answered[i]:
+            return  # a second answer to the same tick, or one already rejected: the first counts
+        self._tap_message(c.CMD_VEL, i, data, key, self._answer_types[i])
+        if not (math.isfinite(linear) and math.isfinite(angular)):
+            self.rejected[i] = True
+            self._record(self._current_tick, i, f"non-finite velocity command rejected "
+                         f"(linear {linear}, angular {angular})")
+        else:
+            self.linear[i] = linear
+            self.angular[i] = angular
+            self._last_accepted_s[i] = time.monotonic()
+        self._settle(i)
 
     def close_tick(self, fallback: str, previous: tuple[np.ndarray, np.ndarray],
                    commands: tuple[np.ndarray, np.ndarray]) -> None:

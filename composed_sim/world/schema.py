@@ -311,6 +311,13 @@ class RobotGroup(Strict):
     heading: Heading = Heading()
     camera: CameraConfig = CameraConfig()
     devices: Devices = Devices()
+    # What the controllers publish on cmd_vel: "stamped" (TwistStamped, stamped like the readings
+    # it answers), "unstamped" (Twist, answering the tick whose sensors it follows), or "auto":
+    # read from the controller's publisher (docs/contract.md).
+    cmd_vel: Literal["auto", "stamped", "unstamped"] = "auto"
+    # A controller that decides on a timer slower than the tick answers every k-th tick (ticks
+    # 0, k, 2k …); in between its robot keeps its last command, and that is no violation.
+    answers_every_ticks: Annotated[int, Field(ge=1)] = 1
 
     @field_validator("model")
     @classmethod

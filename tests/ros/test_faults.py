@@ -21,11 +21,6 @@ MODES = ["composed", "workers", "multi-process"]
 _reference = {}
 
 
-@pytest.fixture
-def mp_domain() -> int:
-    return 101 + 4 * (os.getpid() % 32)    # as in test_multiprocess: clear of conftest's domain
-
-
 def fault_world(fault: str, *, fallback="zero", max_violations=None, watchdog_s=WATCHDOG_S, **params):
     lockstep = {"watchdog_s": watchdog_s, "fallback": fallback}
     if max_violations is not None:
