@@ -430,6 +430,9 @@ def joint_state(robot: str) -> JointState:
     msg = JointState()
     msg.header.frame_id = base_link(robot)
     msg.name = list(WHEEL_JOINTS)
+    # Not simulated, so zero, as a TurtleBot 3 reports it. Not empty: Fast CDR pads an empty
+    # float64 sequence at the message's end to 8 bytes, and rosbags refuses such a message.
+    msg.effort = [0.0] * len(WHEEL_JOINTS)
     return msg
 
 
