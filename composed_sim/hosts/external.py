@@ -30,8 +30,7 @@ from composed_sim.hosts.robot_ranges import format_ranges
 from composed_sim.hosts.shard_announce import ShardInfo, ShardRegistry, world_fingerprint
 from composed_sim.ros import contract as c
 from composed_sim.ros.lockstep_executor import LockstepExecutor
-from composed_sim.ros.simulator_node import (AnswerTypeError, SimulatorNode, answers_every_ticks,
-                                             declared_answer_types, robot_devices)
+from composed_sim.ros.simulator_node import AnswerTypeError, SimulatorNode, robot_settings
 from composed_sim.world.schema import World
 
 GONE_REASON = "its shard is gone (no cmd_vel publisher left)"
@@ -66,10 +65,8 @@ class ExternalControllersHost(ControllersElsewhere):
             rclpy.init(context=self._context, domain_id=self.domain_id)
             self.sim_node = SimulatorNode(self.sim.names, self.sim.models, context=self._context,
                                           tick_ns=self.world.tick_ns, lockstep=self.world.lockstep,
-                                          devices=robot_devices(self.world),
                                           rab_payload_bytes=self.world.range_and_bearing.payload_bytes,
-                                          answer_types=declared_answer_types(self.world),
-                                          answers_every_ticks=answers_every_ticks(self.world))
+                                          **robot_settings(self.world, range(self.world.robot_count)))
             endpoints = _endpoints_by_topic(self.sim_node)
             self._registry = ShardRegistry(self._context, self.sim.n)
             with InterruptWatch() as interrupts:

@@ -41,8 +41,7 @@ from composed_sim.hosts.processes import InterruptWatch, exit_reason, last_words
 from composed_sim.hosts.lockstep import NodesExchange
 from composed_sim.ros import contract as c
 from composed_sim.ros.lockstep_executor import LockstepExecutor
-from composed_sim.ros.simulator_node import (AnswerTypeError, SimulatorNode, answers_every_ticks,
-                                             declared_answer_types, robot_devices)
+from composed_sim.ros.simulator_node import AnswerTypeError, SimulatorNode, robot_settings
 from composed_sim.world.loader import dump_world
 from composed_sim.world.schema import World
 
@@ -142,8 +141,6 @@ class MultiProcessHost(ControllersElsewhere):
             world_file = self._tmp / "world.yaml"
             world_file.write_text(dump_world(self.world), encoding="utf-8")
             tick_ns, lockstep = self.world.tick_ns, self.world.lockstep
-            devices, answer_types, every = robot_devices(self.world), declared_answer_types(self.world), \
-                answers_every_ticks(self.world)
             for d in sorted(set(self.domains.values())):
                 rows = [i for i, name in enumerate(self.sim.names) if self.domains[name] == d]
                 context = Context()
@@ -153,10 +150,8 @@ class MultiProcessHost(ControllersElsewhere):
                                                [self.sim.models[i] for i in rows], context=context,
                                                tick_ns=tick_ns, rows=np.array(rows, dtype=int),
                                                node_name=f"composed_sim_d{d}", lockstep=lockstep,
-                                               devices=[devices[i] for i in rows],
                                                rab_payload_bytes=self.world.range_and_bearing.payload_bytes,
-                                               answer_types=[answer_types[i] for i in rows],
-                                               answers_every_ticks=[every[i] for i in rows])
+                                               **robot_settings(self.world, rows))
                 self._nodes[d].on_failed.append(self._stop_failed)
             self.exchange = NodesExchange(list(self._nodes.values()), self._check_children)
             with InterruptWatch() as interrupts:

@@ -32,7 +32,7 @@ from composed_sim.hosts.controllers import (HostError, answer_type, check_execut
 from composed_sim.hosts.lockstep import NodesExchange
 from composed_sim.ros import contract as c
 from composed_sim.ros.participants import ignore_participants_of_this_process
-from composed_sim.ros.simulator_node import AnswerTypeError, SimulatorNode, answers_every_ticks, robot_devices
+from composed_sim.ros.simulator_node import AnswerTypeError, SimulatorNode, robot_settings
 from composed_sim.world.schema import World
 
 DISCOVERY_TIMEOUT_S = 60.0
@@ -84,8 +84,7 @@ class ParticipantGroups:
         ignore_participants_of_this_process()
         lockstep = world.lockstep
         self.guard = CallbackGuard(lockstep.watchdog_s, lockstep.unresponsive_s)
-        names, groups, devices = world.robot_names(), world.group_of_robot(), robot_devices(world)
-        every = answers_every_ticks(world)
+        names, groups = world.robot_names(), world.group_of_robot()
         robots = frozenset(names)
         for k, first in enumerate(range(self.start, self.stop, self.robots_per_participant)):
             block = range(first, min(self.stop, first + self.robots_per_participant))
@@ -105,12 +104,11 @@ class ParticipantGroups:
                                      context=context, tick_ns=world.tick_ns,
                                      rows=np.arange(block.start - self.start, block.stop - self.start),
                                      node_name=simulator_node_name(group), lockstep=lockstep,
-                                     devices=[devices[i] for i in block],
                                      rab_payload_bytes=world.range_and_bearing.payload_bytes,
                                      publish_clock=group == 0,
-                                     answer_types=[answer_type(node, names[i], world.robots[groups[i]].cmd_vel)
-                                                   for i, node in zip(block, controllers)],
-                                     answers_every_ticks=[every[i] for i in block])
+                                     **{**robot_settings(world, block),
+                                        "answer_types": [answer_type(node, names[i], world.robots[groups[i]].cmd_vel)
+                                                         for i, node in zip(block, controllers)]})
             sim_node.on_failed.append(self.guard.stop_worker)
             self.simulator_nodes.append(sim_node)
             for i, node in zip(block, controllers):

@@ -45,8 +45,8 @@ from typing import Container, Optional, Sequence
 import numpy as np
 from builtin_interfaces.msg import Time
 from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
-from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
-from geometry_msgs.msg import PoseStamped, Twist, TwistStamped
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from geometry_msgs.msg import PoseStamped, TransformStamped, Twist, TwistStamped
 from nav_msgs.msg import Odometry
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState, LaserScan, PointCloud2, PointField
@@ -55,6 +55,7 @@ from std_msgs.msg import MultiArrayDimension, UInt8MultiArray
 from composed_sim.world import robot_models as devices
 from composed_sim.world.robot_models import Lidar, RobotModel
 from composed_sim.ros import cdr
+from composed_sim.ros.raw_types import raw_message_type
 from composed_sim.ros.global_topics import CLOCK_TOPIC, SWARM_MARKERS_TOPIC, SWARM_STATE_TOPIC, WORLD_FRAME  # noqa: F401 (part of the contract)
 
 
@@ -107,9 +108,23 @@ RAB_TX = Topic("rab_tx", UInt8MultiArray, "actuator",
                "range-and-bearing payload: data = exactly payload_bytes bytes, broadcast from the next "
                "tick on (heard one tick later), kept until changed")
 
+# tf's message type has no Python package among the ROS wheels: it travels as bytes
+# (ros/raw_types.py), with the type's real name and hash, so any tf listener matches it.
+TF_MESSAGE = raw_message_type("tf2_msgs/msg/TFMessage",
+                              "RIHS01_e369d0f05a23ae52508854b66f6aa0437f3449d652e8cbf22d5abe85d020f087",
+                              TransformStamped)
+TF = Topic("tf", TF_MESSAGE, "frames",
+           "the robot's moving frames, each tick: world → <r>/odom (so that world → base_link is the "
+           "positioning reading) and <r>/odom → <r>/base_link (the odometry reading)")
+TF_STATIC = Topic("tf_static", TF_MESSAGE, "frames",
+                  "the robot's fixed sensor mounts (<r>/base_link → <r>/base_scan), once, transient local")
+
 # Reliable and a few ticks deep, for sensors and commands alike: in lockstep a controller reads
 # every tick before the next is published, and an outside monitor still sees every message.
 QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
+# tf_static as tf2's static broadcasters offer it: a late listener still gets the mounts.
+STATIC_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
+                        durability=DurabilityPolicy.TRANSIENT_LOCAL)
 # The simulator's and the base class's endpoints create no QoS event handlers. rclpy's default
 # ones (a warning on an incompatible QoS or type; the other side still warns) are waitables, and
 # the stock executors look each one up in the list of all waitables on every wait: with thousands
@@ -119,12 +134,14 @@ SUBSCRIPTION_EVENTS = SubscriptionEventCallbacks(use_default_callbacks=False)
 
 SENSOR_TOPICS: tuple[Topic, ...] = (PROXIMITY, LIGHT, BLOBS, GROUND_SENSORS, SCAN, RAB_RX, POSE, ODOM, WHEELS)
 ACTUATOR_TOPICS: tuple[Topic, ...] = (CMD_VEL, LEDS, RAB_TX)
-TOPICS: dict[str, Topic] = {t.name: t for t in SENSOR_TOPICS + ACTUATOR_TOPICS}
+FRAME_TOPICS: tuple[Topic, ...] = (TF, TF_STATIC)
+TOPICS: dict[str, Topic] = {t.name: t for t in SENSOR_TOPICS + ACTUATOR_TOPICS + FRAME_TOPICS}
 # The topics each device gives a robot that runs it (cmd_vel and leds: every robot).
 DEVICE_TOPICS: dict[str, tuple[Topic, ...]] = {
     devices.PROXIMITY: (PROXIMITY,), devices.LIGHT: (LIGHT,), devices.CAMERA: (BLOBS,),
     devices.GROUND: (GROUND_SENSORS,), devices.LIDAR: (SCAN,), devices.RANGE_AND_BEARING: (RAB_RX, RAB_TX),
-    devices.POSITIONING: (POSE,), devices.ODOMETRY: (ODOM,), devices.DIFFERENTIAL_STEERING: (WHEELS,)}
+    devices.POSITIONING: (POSE,), devices.ODOMETRY: (ODOM,), devices.DIFFERENTIAL_STEERING: (WHEELS,),
+    devices.TF: (TF, TF_STATIC)}
 
 
 def robot_topics(running) -> tuple[Topic, ...]:
@@ -181,6 +198,8 @@ def publisher_problem(robot: str, topic: str, msg_type: type, robots: Container[
         return f"{topic} is a topic of {owner}, not of {robot}" if owner in robots else None
     if contract.direction == "sensor":
         return f"{topic} is published by the simulator only"
+    if contract.direction == "frames":
+        return None                        # a controller may add frames (a localiser's map → odom)
     if contract is CMD_VEL:
         if msg_type not in ANSWER_TYPES.values():
             return (f"{topic} carries {' or '.join(type_name(t) for t in ANSWER_TYPES.values())} (the topic "

@@ -21,12 +21,13 @@ from rclpy.time import Time as RosTime
 from rosgraph_msgs.msg import Clock
 
 from composed_sim.world.robot_models import (CAMERA, DIFFERENTIAL_STEERING, GROUND, LIDAR, LIGHT, ODOMETRY,
-                                            POSITIONING, PROXIMITY, RANGE_AND_BEARING, RobotModel, get_model)
+                                            POSITIONING, PROXIMITY, RANGE_AND_BEARING, TF, RobotModel, get_model)
 from composed_sim.core.violations import FAILED, Violation
 from composed_sim.world.schema import Lockstep, World
 if TYPE_CHECKING:   # only a type here: a controller process must not import the physics
     from composed_sim.core.simulation import SensorFrame
 from composed_sim.ros import cdr, contract as c
+from composed_sim.ros.frames import RobotFrames, frame_pairs, moving_frames
 
 
 
@@ -60,10 +61,24 @@ def robot_devices(world: World) -> list[tuple[str, ...]]:
     return [published[g] for g in world.group_of_robot()]
 
 
+def robot_settings(world: World, rows: Sequence[int]) -> dict[str, list]:
+    """The SimulatorNode keyword arguments that the world file gives per robot, for the robots
+    ``rows``: devices, declared answer types, answers_every_ticks, global_tf."""
+    per_robot = {"devices": robot_devices(world), "answer_types": declared_answer_types(world),
+                 "answers_every_ticks": answers_every_ticks(world), "global_tf": global_tf(world)}
+    return {key: [values[i] for i in rows] for key, values in per_robot.items()}
+
+
 def declared_answer_types(world: World) -> list[Optional[type]]:
     """Per robot: the cmd_vel type its group's world-file entry declares, None for "auto"."""
     declared = [c.ANSWER_TYPES.get(g.cmd_vel) for g in world.robots]
     return [declared[g] for g in world.group_of_robot()]
+
+
+def global_tf(world: World) -> list[bool]:
+    """Per robot: whether its group's tf goes to /tf and /tf_static (``tf: {topics: global}``)."""
+    per_group = [g.devices.tf is not None and g.devices.tf.topics == "global" for g in world.robots]
+    return [per_group[g] for g in world.group_of_robot()]
 
 
 def answers_every_ticks(world: World) -> list[int]:
@@ -97,7 +112,7 @@ class SimulatorNode(Node):
                  lockstep: Optional[Lockstep] = None, devices: Optional[Sequence[Collection[str]]] = None,
                  rab_payload_bytes: int = 10, publish_clock: bool = True,
                  answer_types: Optional[Sequence[Optional[type]]] = None,
-                 answers_every_ticks: Optional[Sequence[int]] = None):
+                 answers_every_ticks: Optional[Sequence[int]] = None, global_tf: Optional[Sequence[bool]] = None):
         """``lockstep``: the world's fault policy (unresponsive_after_s, max_violations); None:
         robots are never failed for being unresponsive or for their violations. ``devices``: per
         robot, the devices whose topics it has (``Devices.published``; None: each model's
@@ -107,7 +122,8 @@ class SimulatorNode(Node):
         ``contract.ANSWER_TYPES``), or None to read it from the ROS graph once the controller's
         publisher is discovered (``detect_answer_types``); None: TwistStamped for all.
         ``answers_every_ticks``: per robot, k: it answers ticks 0, k, 2k … and keeps its last
-        command in between (None: every tick)."""
+        command in between (None: every tick). ``global_tf``: per robot running tf, whether its
+        frames go to /tf and /tf_static instead of its own /<robot>/tf (None: its own)."""
         super().__init__(node_name, context=context, **quiet_node_options())
         self._names = names
         self._index = {name: i for i, name in enumerate(names)}
@@ -134,8 +150,9 @@ class SimulatorNode(Node):
         # out as serialized bytes, and answers come in as bytes (cdr.py: a quarter of the cost).
         self._proximity_pubs, self._light_pubs, self._blob_pubs = [None] * n, [None] * n, [None] * n
         self._proximity_enc, self._light_enc, self._blob_enc = [None] * n, [None] * n, [None] * n
-        self._device_pubs: dict[str, list] = {t.name: [None] * n for t in c.SENSOR_TOPICS}
-        self._device_msgs: dict[str, list] = {t.name: [None] * n for t in c.SENSOR_TOPICS}
+        self._device_pubs: dict[str, list] = {t.name: [None] * n for t in c.SENSOR_TOPICS + (c.TF,)}
+        self._device_msgs: dict[str, list] = {t.name: [None] * n for t in c.SENSOR_TOPICS + (c.TF,)}
+        self._frames = RobotFrames(self, names, models, self._devices, global_tf)
         self._led_subs, self._rab_subs = [], [None] * n
         self._cmd_subs: list = [None] * n               # per robot, once its answer type is known
         self._answer_types: list[Optional[type]] = [c.CMD_VEL.msg_type] * n if answer_types is None \
@@ -210,6 +227,8 @@ class SimulatorNode(Node):
             add(c.ODOM, c.odometry_message(name))
         if DIFFERENTIAL_STEERING in has:
             add(c.WHEELS, c.joint_state(name))
+        if TF in has and self._frames.per_robot[i]:
+            add(c.TF, cdr.TransformsEncoder(frame_pairs(name)))
 
     def _subscribe_answers(self, i: int, msg_type: type) -> None:
         on_answer = self._on_cmd_vel if msg_type is c.CMD_VEL.msg_type else self._on_unstamped_cmd_vel
@@ -369,6 +388,7 @@ class SimulatorNode(Node):
                         self._blob_pubs[i].publish(data)
                         self._tap_message(c.BLOBS, i, data, stamp_ns)
             self._publish_devices(plan, frame, stamp, stamp_ns)
+        self._frames.publish(stamp)
 
     def _wanted(self, topic: c.Topic, i: int) -> bool:
         """Publish robot i's message on ``topic`` this tick? Every tick once a subscriber has
@@ -408,6 +428,8 @@ class SimulatorNode(Node):
             self._publish_odometry(plan, frame, stamp, stamp_ns)
         if DIFFERENTIAL_STEERING in has:
             self._publish_wheels(plan, frame, stamp, stamp_ns)
+        if TF in has:
+            self._publish_frames(plan, frame, stamp, stamp_ns)
 
     def _send(self, topic: c.Topic, i: int, msg, stamp_ns: int) -> None:
         """Publish a device message; the caller asked ``_wanted`` before filling it."""
@@ -471,6 +493,18 @@ class SimulatorNode(Node):
             if not self.failed[i] and self._wanted(c.WHEELS, i):
                 c.fill_wheels(msgs[i], stamp, angles[k], velocities[k])
                 self._send(c.WHEELS, i, msgs[i], stamp_ns)
+
+    def _publish_frames(self, plan: _GroupPlan, frame: SensorFrame, stamp, stamp_ns: int) -> None:
+        """tf: world → odom → base_link of each robot, on its own /<r>/tf or gathered for /tf."""
+        poses = moving_frames(frame, plan.rows)                      # [k, 2, 7]
+        encoders = self._device_msgs[c.TF.name]
+        for k, i in enumerate(plan.local.tolist()):
+            if self.failed[i]:
+                continue
+            if not self._frames.per_robot[i]:
+                self._frames.gather(i, poses[k])
+            elif self._wanted(c.TF, i):
+                self._send(c.TF, i, encoders[i].encode(stamp.sec, stamp.nanosec, poses[k]), stamp_ns)
 
     def unmatched_robots(self) -> list[str]:
         """Robots whose controller is not connected yet: no publisher matched on its cmd_vel, or no
