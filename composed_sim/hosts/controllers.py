@@ -79,14 +79,16 @@ class ContractViolation(Exception):
     """A controller tried to publish what the topic contract does not allow it to."""
 
 
-def guard_publishers(node: Node, robot: str, robots: Container[str]) -> None:
+def guard_publishers(node: Node, robot: str, robots: Container[str], answer_type: Optional[type]) -> None:
     """Make ``node.create_publisher`` refuse another robot's topic, a sensor topic or a wrong
-    type on its own actuator topic (``contract.publisher_problem``): the fault is the
+    type on its own actuator topic (``contract.publisher_problem``; on cmd_vel: another type than its
+    answers have, ``answer_type`` or the one of its first cmd_vel publisher): the fault is the
     publishing robot's, found where it starts, and no other robot ever receives a foreign answer."""
     create = node.create_publisher
 
     def create_publisher(msg_type, topic, *args, **kwargs):
-        problem = c.publisher_problem(robot, node.resolve_topic_name(topic), msg_type, robots)
+        problem = c.publisher_problem(robot, node.resolve_topic_name(topic), msg_type, robots,
+                                      answer_type or published_answer_type(node, robot))
         if problem is not None:
             raise ContractViolation(problem)
         return create(msg_type, topic, *args, **kwargs)
@@ -135,7 +137,7 @@ def create_controller(cls: type[Node], name: str, world: World, group_index: int
         node.destroy_node()
         raise plugins.PluginError(f"robots[{group_index}].controller: controller plugin {group.controller!r} "
                                   f"for {name}: {next(p for p in problems if p)}", where)
-    guard_publishers(node, name, robots)
+    guard_publishers(node, name, robots, answer_type(node, name, group.cmd_vel))
     sensors = [c.topic_name(name, t) for t in c.robot_topics(group.devices.published(get_model(group.model)))
                if t.direction == "sensor"]
     timers.started(sensors)

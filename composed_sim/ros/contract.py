@@ -184,8 +184,10 @@ def type_name(msg_type: type) -> str:
     return f"{msg_type.__module__.split('.')[0]}/msg/{msg_type.__name__}"
 
 
-def publisher_problem(robot: str, topic: str, msg_type: type, robots: Container[str]) -> Optional[str]:
+def publisher_problem(robot: str, topic: str, msg_type: type, robots: Container[str],
+                      answer_type: Optional[type] = None) -> Optional[str]:
     """Why ``robot``'s controller may not publish ``msg_type`` on the resolved ``topic``, or None.
+    ``answer_type``: the cmd_vel type the robot's answers already have, if known.
 
     A controller publishes its own actuator topics only, with their contract types: another
     robot's topic would make its answers ambiguous (DDS tells a subscriber nothing about which
@@ -201,6 +203,8 @@ def publisher_problem(robot: str, topic: str, msg_type: type, robots: Container[
     if contract.direction == "frames":
         return None                        # a controller may add frames (a localiser's map → odom)
     if contract is CMD_VEL:
+        if answer_type is not None and msg_type is not answer_type and msg_type in ANSWER_TYPES.values():
+            return f"{topic} carries {type_name(answer_type)} (this robot's answers), not {type_name(msg_type)}"
         if msg_type not in ANSWER_TYPES.values():
             return (f"{topic} carries {' or '.join(type_name(t) for t in ANSWER_TYPES.values())} (the topic "
                     f"contract), not {type_name(msg_type)}")

@@ -203,7 +203,7 @@ def test_a_rejected_answer_gets_the_previous_command_when_so_configured(faulty_p
 
 @pytest.mark.parametrize("mode", MODES)
 @pytest.mark.parametrize("fault, reason", [
-    ("wrong_type", "/bot1/cmd_vel carries geometry_msgs/msg/TwistStamped (the topic contract), "
+    ("wrong_type", "/bot1/cmd_vel carries geometry_msgs/msg/TwistStamped (this robot's answers), "
                    "not geometry_msgs/msg/Twist"),
     ("intrude", "/bot2/cmd_vel is a topic of bot2, not of bot1")])
 def test_publishing_a_wrong_type_or_on_another_robots_topic_fails_the_publisher(
