@@ -29,37 +29,15 @@ class TwistOnScan(Node):
         self.cmd.publish(out)
 
 
-class StampedTimer(Node):
-    """Keeps the latest reading; decides on a timer (``period`` s), stamping with its clock."""
+class _OnTimer(Node):
+    """Keeps the latest reading; decides on a timer (``period`` s)."""
+    msg_type, qos = Twist, qos_profile_sensor_data
 
-    def __init__(self, **kwargs):
-        super().__init__("stamped_timer", **kwargs)
+    def __init__(self, name, **kwargs):
+        super().__init__(name, **kwargs)
         period = self.declare_parameter("period", 0.1).value
-        self.cmd = self.create_publisher(TwistStamped, "cmd_vel", 10)
-        self.create_subscription(LaserScan, "proximity", self.on_scan, 10)
-        self.scan = None
-        self.create_timer(period, self.decide)
-
-    def on_scan(self, scan: LaserScan) -> None:
-        self.scan = scan
-
-    def decide(self) -> None:
-        if self.scan is None:
-            return
-        out = TwistStamped()
-        out.header.stamp = self.get_clock().now().to_msg()
-        out.twist.linear.x, out.twist.angular.z = steer(self.scan)
-        self.cmd.publish(out)
-
-
-class TwistTimer(Node):
-    """The usual ROS node: sensor-data QoS, latest reading kept, Twist from a timer."""
-
-    def __init__(self, **kwargs):
-        super().__init__("twist_timer", **kwargs)
-        period = self.declare_parameter("period", 0.1).value
-        self.cmd = self.create_publisher(Twist, "cmd_vel", 10)
-        self.create_subscription(LaserScan, "proximity", self.on_scan, qos_profile_sensor_data)
+        self.cmd = self.create_publisher(self.msg_type, "cmd_vel", 10)
+        self.create_subscription(LaserScan, "proximity", self.on_scan, self.qos)
         self.scan = None
         self.decisions = 0
         self.create_timer(period, self.decide)
@@ -71,9 +49,33 @@ class TwistTimer(Node):
         if self.scan is None:
             return
         self.decisions += 1
+        self.cmd.publish(self.command(*steer(self.scan)))
+
+
+class StampedTimer(_OnTimer):
+    """TwistStamped stamped with its own clock, reliable subscription."""
+    msg_type, qos = TwistStamped, 10
+
+    def __init__(self, **kwargs):
+        super().__init__("stamped_timer", **kwargs)
+
+    def command(self, linear: float, angular: float) -> TwistStamped:
+        out = TwistStamped()
+        out.header.stamp = self.get_clock().now().to_msg()
+        out.twist.linear.x, out.twist.angular.z = linear, angular
+        return out
+
+
+class TwistTimer(_OnTimer):
+    """The usual ROS node: sensor-data QoS, latest reading kept, Twist from a timer."""
+
+    def __init__(self, **kwargs):
+        super().__init__("twist_timer", **kwargs)
+
+    def command(self, linear: float, angular: float) -> Twist:
         out = Twist()
-        out.linear.x, out.angular.z = steer(self.scan)
-        self.cmd.publish(out)
+        out.linear.x, out.angular.z = linear, angular
+        return out
 
 
 class NoOptions(Node):
