@@ -128,3 +128,10 @@ def test_wrong_cmd_vel_types_are_one_error_naming_robot_topic_and_types(styles, 
     with pytest.raises(plugins.PluginError, match=r"publishes geometry_msgs/msg/Twist on /bot0/cmd_vel, but the world "
                                                   r"file says cmd_vel: stamped"):
         composed(one_group("twist-on-scan", cmd_vel="stamped"), domain_id)
+
+
+def test_wrong_cmd_vel_type_in_multi_process_mode_is_the_same_one_error(styles, mp_domain):
+    with pytest.raises(HostError, match=r"bot0: /bot0/cmd_vel carries geometry_msgs/msg/TwistStamped or "
+                                        r"geometry_msgs/msg/Twist \(the topic contract\), not std_msgs/msg/String"):
+        with MultiProcessHost(one_group("string-commands"), domain_id=mp_domain) as host:
+            host.run()
