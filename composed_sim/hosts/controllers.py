@@ -20,7 +20,7 @@ from composed_sim.ros.controller import (PARAM_RAB_PAYLOAD_BYTES, PARAM_ROBOT_MO
                                          PARAM_SENSOR_TOPICS)
 from composed_sim.ros.lockstep_executor import LockstepExecutor
 from composed_sim.ros.sim_timers import SimTimers
-from composed_sim.ros.simulator_node import quiet_node_options
+from composed_sim.ros.robot_settings import quiet_node_options
 from composed_sim.world.schema import World
 
 

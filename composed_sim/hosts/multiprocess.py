@@ -41,7 +41,8 @@ from composed_sim.hosts.processes import InterruptWatch, exit_reason, last_words
 from composed_sim.hosts.lockstep import NodesExchange
 from composed_sim.ros import contract as c
 from composed_sim.ros.lockstep_executor import LockstepExecutor
-from composed_sim.ros.simulator_node import AnswerTypeError, SimulatorNode, robot_settings
+from composed_sim.ros.robot_settings import robot_settings
+from composed_sim.ros.simulator_node import AnswerTypeError, SimulatorNode
 from composed_sim.world.loader import dump_world
 from composed_sim.world.schema import World
 

@@ -32,7 +32,8 @@ from composed_sim.hosts.controllers import (HostError, answer_type, check_execut
 from composed_sim.hosts.lockstep import NodesExchange
 from composed_sim.ros import contract as c
 from composed_sim.ros.participants import ignore_participants_of_this_process
-from composed_sim.ros.simulator_node import AnswerTypeError, SimulatorNode, robot_settings
+from composed_sim.ros.robot_settings import robot_settings
+from composed_sim.ros.simulator_node import AnswerTypeError, SimulatorNode
 from composed_sim.world.schema import World
 
 DISCOVERY_TIMEOUT_S = 60.0

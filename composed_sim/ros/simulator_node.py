@@ -8,26 +8,24 @@ from __future__ import annotations
 import math
 import threading
 import time
-from dataclasses import dataclass
 from typing import TYPE_CHECKING, Callable, Collection, Optional, Protocol, Sequence
 
 import numpy as np
 from rclpy.context import Context
 from rclpy.node import Node
-from rclpy.parameter import Parameter
 from rclpy.serialization import serialize_message
-from rclpy.type_description_service import START_TYPE_DESCRIPTION_SERVICE_PARAM
 from rclpy.time import Time as RosTime
 from rosgraph_msgs.msg import Clock
 
-from composed_sim.world.robot_models import (CAMERA, DIFFERENTIAL_STEERING, GROUND, LIDAR, LIGHT, ODOMETRY,
-                                            POSITIONING, PROXIMITY, RANGE_AND_BEARING, TF, RobotModel, get_model)
+from composed_sim.world.robot_models import CAMERA, LIGHT, PROXIMITY, RANGE_AND_BEARING, RobotModel
 from composed_sim.core.violations import FAILED, Violation
-from composed_sim.world.schema import Lockstep, World
+from composed_sim.world.schema import Lockstep
 if TYPE_CHECKING:   # only a type here: a controller process must not import the physics
     from composed_sim.core.simulation import SensorFrame
 from composed_sim.ros import cdr, contract as c
-from composed_sim.ros.frames import RobotFrames, frame_pairs, moving_frames
+from composed_sim.ros.device_publishing import DevicePublishing, GroupPlan, csr_take
+from composed_sim.ros.frames import RobotFrames
+from composed_sim.ros.robot_settings import quiet_node_options
 
 
 
@@ -44,58 +42,7 @@ LATE_LEDS = "leds answering an earlier tick arrived after that tick closed: appl
 LATE_RAB = "rab_tx answering an earlier tick arrived after that tick closed: applied one tick late"
 
 
-@dataclass
-class _GroupPlan:
-    """This node's robots of one robot group, for publishing from ``frame.groups[group]``."""
-    group: int
-    pairs: list[tuple[int, int]]   # (index among this node's robots, row in the group's arrays)
-    rows: np.ndarray               # [k] their simulation rows
-    local: np.ndarray              # [k] their indices among this node's robots
-    within: np.ndarray             # [k] their rows in the group's arrays
-    devices: frozenset[str]        # what the group runs (the same for all its robots)
-
-
-def robot_devices(world: World) -> list[tuple[str, ...]]:
-    """Per robot of ``world`` (in robot order): the devices whose topics it has."""
-    published = [g.devices.published(get_model(g.model)) for g in world.robots]
-    return [published[g] for g in world.group_of_robot()]
-
-
-def robot_settings(world: World, rows: Sequence[int]) -> dict[str, list]:
-    """The SimulatorNode keyword arguments that the world file gives per robot, for the robots
-    ``rows``: devices, declared answer types, answers_every_ticks, global_tf."""
-    per_robot = {"devices": robot_devices(world), "answer_types": declared_answer_types(world),
-                 "answers_every_ticks": answers_every_ticks(world), "global_tf": global_tf(world)}
-    return {key: [values[i] for i in rows] for key, values in per_robot.items()}
-
-
-def declared_answer_types(world: World) -> list[Optional[type]]:
-    """Per robot: the cmd_vel type its group's world-file entry declares, None for "auto"."""
-    declared = [c.ANSWER_TYPES.get(g.cmd_vel) for g in world.robots]
-    return [declared[g] for g in world.group_of_robot()]
-
-
-def global_tf(world: World) -> list[bool]:
-    """Per robot: whether its group's tf goes to /tf and /tf_static (``tf: {topics: global}``)."""
-    per_group = [g.devices.tf is not None and g.devices.tf.topics == "global" for g in world.robots]
-    return [per_group[g] for g in world.group_of_robot()]
-
-
-def answers_every_ticks(world: World) -> list[int]:
-    """Per robot: its group's ``answers_every_ticks``."""
-    return [world.robots[g].answers_every_ticks for g in world.group_of_robot()]
-
-
-def quiet_node_options(parameter_overrides: Sequence[Parameter] = ()) -> dict:
-    """Node options for thousands of nodes: no parameter services, no /rosout and no
-    ~/get_type_description service. Each would add endpoints, and every new endpoint is
-    announced to the whole participant, so node creation would grow quadratically."""
-    return dict(start_parameter_services=False, enable_rosout=False,
-                parameter_overrides=[*parameter_overrides,
-                                     Parameter(START_TYPE_DESCRIPTION_SERVICE_PARAM, value=False)])
-
-
-class SimulatorNode(Node):
+class SimulatorNode(DevicePublishing, Node):
     """Sensor publishers and command subscriptions for a set of robots, in one node.
 
     One node serves every robot in composed mode; in multi-process mode there is one per ROS
@@ -187,7 +134,7 @@ class SimulatorNode(Node):
         self._sensor_pubs = [[p for p in (self._proximity_pubs[i], self._light_pubs[i], self._blob_pubs[i],
                                           *(pubs[i] for pubs in self._device_pubs.values())) if p is not None]
                              for i in range(n)]
-        self._plans: Optional[list[_GroupPlan]] = None   # built from the first frame's groups
+        self._plans: Optional[list[GroupPlan]] = None   # built from the first frame's groups
         self._wheel_angles = np.zeros((n, 2))            # [n, 2] rad since the start, for WHEELS
 
         # Answers to the current tick, written by callbacks (any thread), read by the host.
@@ -209,26 +156,6 @@ class SimulatorNode(Node):
         self._opened_ns: Optional[int] = None
         self._current_tick = -1
         self.violations: list[Violation] = []
-
-    def _create_device_publishers(self, i: int, name: str, model: RobotModel, has: frozenset[str]) -> None:
-        """Publishers and reused messages of robot i's devices beyond the proximity/light/camera set."""
-        def add(topic: c.Topic, msg) -> None:
-            self._device_pubs[topic.name][i] = self._publisher(name, topic)
-            self._device_msgs[topic.name][i] = msg
-        if GROUND in has:
-            add(c.GROUND_SENSORS, c.ground_cloud(name, len(model.ground.offsets_m)))
-        if LIDAR in has:
-            add(c.SCAN, c.lidar_scan_message(model.lidar, name, self._tick_ns * 1e-9))
-        if RANGE_AND_BEARING in has:
-            add(c.RAB_RX, c.rab_cloud(name, self._rab_payload_bytes))
-        if POSITIONING in has:
-            add(c.POSE, c.pose_stamped(name))
-        if ODOMETRY in has:
-            add(c.ODOM, c.odometry_message(name))
-        if DIFFERENTIAL_STEERING in has:
-            add(c.WHEELS, c.joint_state(name))
-        if TF in has and self._frames.per_robot[i]:
-            add(c.TF, cdr.TransformsEncoder(frame_pairs(name)))
 
     def _subscribe_answers(self, i: int, msg_type: type) -> None:
         on_answer = self._on_cmd_vel if msg_type is c.CMD_VEL.msg_type else self._on_unstamped_cmd_vel
@@ -401,110 +328,16 @@ class SimulatorNode(Node):
                 self._tap is not None and self._tapped[topic.name][i])
         return read[i]
 
-    def _make_plans(self, frame: SensorFrame) -> list[_GroupPlan]:
+    def _make_plans(self, frame: SensorFrame) -> list[GroupPlan]:
         """Which of this node's robots are in which group of the frame (fixed for a run)."""
         self._plans = []
         for gi, g in enumerate(frame.groups):
             local = np.flatnonzero((self.rows >= g.robots.start) & (self.rows < g.robots.stop))
             if len(local):
                 within = self.rows[local] - g.robots.start
-                self._plans.append(_GroupPlan(gi, list(zip(local.tolist(), within.tolist())), self.rows[local],
+                self._plans.append(GroupPlan(gi, list(zip(local.tolist(), within.tolist())), self.rows[local],
                                               local, within, self._devices[local[0]]))
         return self._plans
-
-    # --- devices beyond the flocking set: one helper each, called only for groups running it ----
-
-    def _publish_devices(self, plan: _GroupPlan, frame: SensorFrame, stamp, stamp_ns: int) -> None:
-        has = plan.devices
-        if GROUND in has:
-            self._publish_ground(plan, frame.groups[plan.group].ground, stamp, stamp_ns)
-        if LIDAR in has:
-            self._publish_scan(plan, frame.groups[plan.group].lidar, stamp, stamp_ns)
-        if RANGE_AND_BEARING in has:
-            self._publish_rab(plan, frame.range_and_bearing, stamp, stamp_ns)
-        if POSITIONING in has:
-            self._publish_pose(plan, frame, stamp, stamp_ns)
-        if ODOMETRY in has:
-            self._publish_odometry(plan, frame, stamp, stamp_ns)
-        if DIFFERENTIAL_STEERING in has:
-            self._publish_wheels(plan, frame, stamp, stamp_ns)
-        if TF in has:
-            self._publish_frames(plan, frame, stamp, stamp_ns)
-
-    def _send(self, topic: c.Topic, i: int, msg, stamp_ns: int) -> None:
-        """Publish a device message; the caller asked ``_wanted`` before filling it."""
-        self._device_pubs[topic.name][i].publish(msg)
-        self._tap_message(topic, i, msg, stamp_ns)
-
-    def _publish_ground(self, plan: _GroupPlan, ground: np.ndarray, stamp, stamp_ns: int) -> None:
-        offsets = self._models[plan.local[0]].ground.offsets_m
-        points = c.ground_points(offsets, ground[plan.within])     # [k, s], built once per group
-        msgs = self._device_msgs[c.GROUND_SENSORS.name]
-        for k, (i, _) in enumerate(plan.pairs):
-            if not self.failed[i] and self._wanted(c.GROUND_SENSORS, i):
-                c.fill_ground(msgs[i], stamp, points[k])
-                self._send(c.GROUND_SENSORS, i, msgs[i], stamp_ns)
-
-    def _publish_scan(self, plan: _GroupPlan, lidar: np.ndarray, stamp, stamp_ns: int) -> None:
-        ranges = lidar[plan.within].astype(np.float32)             # [k, r], cast once per group
-        msgs = self._device_msgs[c.SCAN.name]
-        for k, (i, _) in enumerate(plan.pairs):
-            if not self.failed[i] and self._wanted(c.SCAN, i):
-                c.fill_scan(msgs[i], stamp, ranges[k])
-                self._send(c.SCAN, i, msgs[i], stamp_ns)
-
-    def _publish_rab(self, plan: _GroupPlan, rab, stamp, stamp_ns: int) -> None:
-        take, offsets = _csr_rows(rab.offsets, plan.rows)
-        points = c.rab_points(rab.ranges[take], rab.horizontal_bearings[take], rab.vertical_bearings[take],
-                              rab.payloads[take])
-        offsets = offsets.tolist()
-        msgs = self._device_msgs[c.RAB_RX.name]
-        for k, i in enumerate(plan.local.tolist()):
-            if not self.failed[i] and self._wanted(c.RAB_RX, i):
-                c.fill_rab(msgs[i], stamp, points[offsets[k]:offsets[k + 1]])
-                self._send(c.RAB_RX, i, msgs[i], stamp_ns)
-
-    def _publish_pose(self, plan: _GroupPlan, frame: SensorFrame, stamp, stamp_ns: int) -> None:
-        xy = frame.pose.positions[plan.rows, :2].tolist()
-        q = frame.pose.quaternions[plan.rows].tolist()          # (x, y, z, w)
-        msgs = self._device_msgs[c.POSE.name]
-        for k, i in enumerate(plan.local.tolist()):
-            if not self.failed[i] and self._wanted(c.POSE, i):
-                c.fill_pose(msgs[i], stamp, xy[k][0], xy[k][1], q[k][2], q[k][3])
-                self._send(c.POSE, i, msgs[i], stamp_ns)
-
-    def _publish_odometry(self, plan: _GroupPlan, frame: SensorFrame, stamp, stamp_ns: int) -> None:
-        pose = frame.odometry[plan.rows]
-        qz, qw = c.half_yaw(pose[:, 2])
-        values = np.column_stack([pose[:, 0], pose[:, 1], qz, qw, frame.odometry_twist[plan.rows]]).tolist()
-        msgs = self._device_msgs[c.ODOM.name]
-        for k, i in enumerate(plan.local.tolist()):
-            if not self.failed[i] and self._wanted(c.ODOM, i):
-                c.fill_odometry(msgs[i], stamp, *values[k])
-                self._send(c.ODOM, i, msgs[i], stamp_ns)
-
-    def _publish_wheels(self, plan: _GroupPlan, frame: SensorFrame, stamp, stamp_ns: int) -> None:
-        radius = self._models[plan.local[0]].wheel_radius_m
-        self._wheel_angles[plan.local] += frame.wheels.distances_m[plan.rows] / radius
-        angles = self._wheel_angles[plan.local]
-        velocities = frame.wheels.velocities_mps[plan.rows] / radius
-        msgs = self._device_msgs[c.WHEELS.name]
-        for k, i in enumerate(plan.local.tolist()):
-            if not self.failed[i] and self._wanted(c.WHEELS, i):
-                c.fill_wheels(msgs[i], stamp, angles[k], velocities[k])
-                self._send(c.WHEELS, i, msgs[i], stamp_ns)
-
-    def _publish_frames(self, plan: _GroupPlan, frame: SensorFrame, stamp, stamp_ns: int) -> None:
-        """tf: world → odom → base_link of each robot, on its own /<r>/tf or gathered for /tf."""
-        poses = moving_frames(frame, plan.rows)                      # [k, 2, 7]
-        encoders = self._device_msgs[c.TF.name]
-        for k, i in enumerate(plan.local.tolist()):
-            if self.failed[i]:
-                continue
-            if not self._frames.per_robot[i]:
-                self._frames.gather(i, poses[k])
-            elif self._wanted(c.TF, i):
-                self._send(c.TF, i, encoders[i].encode(stamp.sec, stamp.nanosec, poses[k]), stamp_ns)
 
     def unmatched_robots(self) -> list[str]:
         """Robots whose controller is not connected yet: no publisher matched on its cmd_vel, or no
@@ -602,41 +435,32 @@ class SimulatorNode(Node):
         tick. It is still applied (it is the latest colour) and recorded as a violation, so
         "same world and seed ⇒ same trajectories unless a violation is recorded" holds.
         """
-        out = {}
-        for i, sub in enumerate(self._led_subs):
-            while (taken := sub.handle.take_message(sub.msg_type, sub.raw)) is not None:
-                msg, info = taken
-                if self.failed[i]:
-                    continue
-                self._tap_message(c.LEDS, i, msg, self._tick_key)
-                with self._lock:
-                    if self._opened_ns is not None and info["source_timestamp"] < self._opened_ns:
-                        self._record(self._current_tick, i, LATE_LEDS)
-                    try:
-                        out[int(self.rows[i])] = c.decode_leds(msg, self._models[i].n_leds)
-                    except ValueError as e:
-                        self._record(self._current_tick, i, f"leds: {e}")
-        return out
+        return self._drain(self._led_subs, c.LEDS, LATE_LEDS,
+                           lambda i, msg: c.decode_leds(msg, self._models[i].n_leds))
 
     def take_rab_payloads(self) -> dict[int, np.ndarray]:
         """Drain the rab_tx inbox like the LEDs': the latest valid payload per simulation row that
         sent any, to be set before the next step (so it is heard one tick later, as in ARGoS)."""
+        return self._drain(self._rab_subs, c.RAB_TX, LATE_RAB,
+                           lambda i, msg: c.decode_rab_payload(msg, self._rab_payload_bytes))
+
+    def _drain(self, subs: list, topic: c.Topic, late: str, decode: Callable) -> dict[int, np.ndarray]:
         out = {}
-        for i, sub in enumerate(self._rab_subs):
+        for i, sub in enumerate(subs):
             if sub is None:
                 continue
             while (taken := sub.handle.take_message(sub.msg_type, sub.raw)) is not None:
                 msg, info = taken
                 if self.failed[i]:
                     continue
-                self._tap_message(c.RAB_TX, i, msg, self._tick_key)
+                self._tap_message(topic, i, msg, self._tick_key)
                 with self._lock:
                     if self._opened_ns is not None and info["source_timestamp"] < self._opened_ns:
-                        self._record(self._current_tick, i, LATE_RAB)
+                        self._record(self._current_tick, i, late)
                     try:
-                        out[int(self.rows[i])] = c.decode_rab_payload(msg, self._rab_payload_bytes)
+                        out[int(self.rows[i])] = decode(i, msg)
                     except ValueError as e:
-                        self._record(self._current_tick, i, f"rab_tx: {e}")
+                        self._record(self._current_tick, i, f"{topic.name}: {e}")
         return out
 
     def _record(self, tick: int, i: int, reason: str) -> None:
@@ -654,25 +478,10 @@ class SimulatorNode(Node):
 _BLOB_BYTES = c.BLOB_DTYPE.itemsize
 
 
-def _csr_rows(offsets: np.ndarray, rows: np.ndarray):
-    """The entries of CSR rows ``rows`` [k] (ascending) of entry arrays with row offsets
-    ``offsets``: (what to take from the entry arrays, [k+1] offsets into what is taken).
-
-    A simulator node serves a shard or a domain of the swarm: converting every robot's entries
-    (blobs, range-and-bearing messages) in every node would cost (number of nodes) × the work."""
-    starts, ends = offsets[rows], offsets[rows + 1]
-    counts = ends - starts
-    local = np.zeros(len(rows) + 1, dtype=np.int64)
-    np.cumsum(counts, out=local[1:])
-    if len(rows) and rows[-1] - rows[0] + 1 == len(rows):     # contiguous rows: a slice
-        return slice(int(starts[0]), int(ends[-1])), local
-    return np.arange(local[-1]) + np.repeat(starts - local[:-1], counts), local
-
-
 def _blob_rows(blobs, within: np.ndarray) -> tuple[bytes, list[int]]:
     """The blob points of the group's robots ``within`` [k] as bytes, and where each robot's
     start in them ([k+1] byte offsets)."""
-    take, local = _csr_rows(blobs.offsets, within)
+    take, local = csr_take(blobs.offsets, within)
     points = c.blob_points(blobs.angles[take], blobs.distances[take], blobs.colors[take])
     return points.tobytes(), (local * _BLOB_BYTES).tolist()
 

@@ -95,7 +95,7 @@ def world_with(groups: list[dict], **extra) -> World:
 
 
 def test_a_robot_has_the_topics_of_the_devices_it_runs():
-    from composed_sim.ros.simulator_node import robot_devices
+    from composed_sim.ros.robot_settings import robot_devices
     world = world_with([
         {"model": "foot-bot", "count": 1, "controller": "x"},
         {"model": "e-puck", "count": 1, "name_prefix": "ep", "controller": "x",
@@ -165,7 +165,8 @@ def test_a_node_serving_some_rows_of_a_mixed_swarm_publishes_each_robot_its_own_
     of its group's arrays, and a robot has no topic of a device it does not run."""
     from rclpy.node import Node
     from composed_sim.core.simulation import Simulation
-    from composed_sim.ros.simulator_node import SimulatorNode, robot_devices
+    from composed_sim.ros.robot_settings import robot_devices
+    from composed_sim.ros.simulator_node import SimulatorNode
     world = world_with([
         {"model": "foot-bot", "count": 3, "controller": "x", "devices": {"ground": {}, "odometry": {}}},
         {"model": "e-puck", "count": 3, "name_prefix": "ep", "controller": "x",
@@ -280,13 +281,13 @@ def test_a_sensor_topic_goes_out_from_the_tick_after_its_first_subscriber(ros_co
 def test_a_node_converts_exactly_its_robots_entries_of_csr_readings():
     """Blobs and range-and-bearing messages are CSR by robot; a node takes its robots' entries,
     as a slice for contiguous rows (a shard) and gathered otherwise (explicit domains)."""
-    from composed_sim.ros.simulator_node import _csr_rows
+    from composed_sim.ros.device_publishing import csr_take
     counts = np.array([2, 0, 3, 1, 4, 0, 2])
     offsets = np.concatenate([[0], np.cumsum(counts)])
     entries = np.arange(offsets[-1]) * 10
     for rows in ([0, 1, 2], [2, 3, 4], [0, 2, 6], [1, 5], [6], [3, 4, 5, 6]):
         rows = np.array(rows)
-        take, local = _csr_rows(offsets, rows)
+        take, local = csr_take(offsets, rows)
         got = entries[take]
         assert local.tolist() == [0, *np.cumsum(counts[rows]).tolist()]
         for k, r in enumerate(rows):
