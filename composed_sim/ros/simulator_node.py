@@ -22,7 +22,7 @@ from composed_sim.core.violations import FAILED, Violation
 from composed_sim.world.schema import Lockstep
 if TYPE_CHECKING:   # only a type here: a controller process must not import the physics
     from composed_sim.core.simulation import SensorFrame
-from composed_sim.ros import cdr, contract as c
+from composed_sim.ros import cdr, contract as c, decoding
 from composed_sim.ros.device_publishing import DevicePublishing, GroupPlan, csr_take
 from composed_sim.ros.frames import RobotFrames
 from composed_sim.ros.robot_settings import quiet_node_options
@@ -361,7 +361,7 @@ class SimulatorNode(DevicePublishing, Node):
     def _on_unstamped_cmd_vel(self, i: int, data: bytes) -> None:
         """A Twist answers the tick whose sensors it follows: the open one. One that arrives while
         no tick is open answers a tick already closed (whose miss is recorded): it is dropped."""
-        linear, angular = c.decode_unstamped_answer_cdr(data)
+        linear, angular = decoding.decode_unstamped_answer_cdr(data)
         with self._lock:
             key = self._current_key
             if key < 0:
@@ -369,7 +369,7 @@ class SimulatorNode(DevicePublishing, Node):
             self._answer(i, key, linear, angular, data)
 
     def _on_cmd_vel(self, i: int, data: bytes) -> None:
-        key, linear, angular = c.decode_answer_cdr(data)
+        key, linear, angular = decoding.decode_answer_cdr(data)
         with self._lock:
             self._answer(i, key, linear, angular, data)
 
@@ -436,13 +436,13 @@ class SimulatorNode(DevicePublishing, Node):
         "same world and seed ⇒ same trajectories unless a violation is recorded" holds.
         """
         return self._drain(self._led_subs, c.LEDS, LATE_LEDS,
-                           lambda i, msg: c.decode_leds(msg, self._models[i].n_leds))
+                           lambda i, msg: decoding.decode_leds(msg, self._models[i].n_leds))
 
     def take_rab_payloads(self) -> dict[int, np.ndarray]:
         """Drain the rab_tx inbox like the LEDs': the latest valid payload per simulation row that
         sent any, to be set before the next step (so it is heard one tick later, as in ARGoS)."""
         return self._drain(self._rab_subs, c.RAB_TX, LATE_RAB,
-                           lambda i, msg: c.decode_rab_payload(msg, self._rab_payload_bytes))
+                           lambda i, msg: decoding.decode_rab_payload(msg, self._rab_payload_bytes))
 
     def _drain(self, subs: list, topic: c.Topic, late: str, decode: Callable) -> dict[int, np.ndarray]:
         out = {}

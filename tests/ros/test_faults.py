@@ -4,7 +4,6 @@ Four robots drive circles far apart (tests/plugin_pkg/faulty.py); bot1 misbehave
 tick on. In every case the run completes, bot0, bot2 and bot3 move exactly as in the run without
 a fault (bit for bit), bot1 gets the fallback, and every violation is bot1's.
 """
-import os
 
 import numpy as np
 import pytest
