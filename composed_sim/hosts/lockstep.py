@@ -84,6 +84,7 @@ class Exchange(Protocol):
     violations: list[Violation]
 
     def publish_tick(self, frame: SensorFrame) -> None: ...
+    def publish_clock(self, tick: int) -> None: ...
     def close_tick(self, fallback: str, previous: tuple[np.ndarray, np.ndarray],
                    commands: tuple[np.ndarray, np.ndarray]) -> None: ...
     def take_led_commands(self) -> dict[int, np.ndarray]: ...
@@ -119,6 +120,10 @@ class NodesExchange:
     def publish_tick(self, frame: SensorFrame) -> None:
         for node in self.nodes:
             node.publish_tick(frame)
+
+    def publish_clock(self, tick: int) -> None:
+        for node in self.nodes:
+            node.publish_clock(tick)
 
     def wait_for_answers(self, timeout_s: float) -> bool:
         """Until every node's robots answered (their callbacks run elsewhere: executor threads,
@@ -210,6 +215,7 @@ def run_lockstep(sim: Simulation, exchange: Exchange, wait_for_answers: Callable
                 memory.append((sim.tick, resident_mb()))
             if checkpoint is not None and sim.tick % CHECKPOINT_EVERY == 0:
                 checkpoint(so_far())
+        exchange.publish_clock(sim.tick)      # the last state simulated is on the wire too
     except BaseException as e:
         # Nothing is lost: whoever handles the error can still write what was simulated so far.
         e.partial_result = so_far()
