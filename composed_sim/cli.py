@@ -119,6 +119,13 @@ def build_parser() -> argparse.ArgumentParser:
                                        "CSV, JSON and figures side by side with the paper's results.")
     from composed_sim import bench as bench_module
     bench_module.add_arguments(bench)
+
+    sweep = sub.add_parser("sweep", help="run a grid of runs over seeds, swarm sizes and world fields",
+                           description="Run a world over seeds, swarm sizes and world fields by dotted path, "
+                                       "in parallel, each run its own process, domain and folder; write runs.csv, "
+                                       "metrics.csv and plots (docs/experiments.md). Resumable.")
+    from composed_sim.sweep import command as sweep_command
+    sweep_command.add_arguments(sweep)
     return parser
 
 
@@ -151,6 +158,9 @@ def main(argv: list[str] | None = None) -> int:
         if args.command == "bench":
             from composed_sim import bench
             return bench.run(args)
+        if args.command == "sweep":
+            from composed_sim.sweep import command as sweep_command
+            return sweep_command.run(args)
         if args.command == "render":
             return cmd_render(args)
         if args.command == "replay":
