@@ -98,3 +98,15 @@ def test_a_bad_set_is_one_line_before_any_run(tmp_path, capsys, given, says):
     assert main(["sweep", str(FLOCKING), "--seeds", "1", "--set", given, "--out", str(tmp_path / "out")]) == 2
     assert capsys.readouterr().err.strip() == f"composed-sim: error: {says}"
     assert not (tmp_path / "out").exists()
+
+
+def test_the_shipped_sweep_file_is_the_done_when_grid():
+    """worlds/sweeps/flocking_gain.yaml holds the grid of docs/experiments.md's command line."""
+    import argparse
+    from composed_sim.sweep.command import grid_from
+    cli = argparse.Namespace(spec=FLOCKING, seeds="1-5", robots="20,80", set=["robots.0.params.gain=500,1000"], ticks=None)
+    file = argparse.Namespace(spec=ROOT / "worlds" / "sweeps" / "flocking_gain.yaml", seeds=None, robots=None, set=[],
+                              ticks=None)
+    from_cli, from_file = grid_from(cli).specs(), grid_from(file).specs()
+    assert len(from_file) == 20 and [s.name for s in from_file] == [s.name for s in from_cli]
+    assert [s.world for s in from_file] == [s.world for s in from_cli]

@@ -37,7 +37,7 @@ def grid_from(args) -> Grid:
     data = {}
     if spec_path.suffix in (".yaml", ".yml") and spec_path.is_file():
         loaded = yaml.safe_load(spec_path.read_text())
-        if isinstance(loaded, dict) and "world" in loaded and "robots" not in loaded:   # a sweep file
+        if isinstance(loaded, dict) and "world" in loaded:   # a sweep file (a world has no `world:` field)
             data = loaded
             unknown = set(data) - {"world", "seeds", "robots", "set", "ticks"}
             if unknown:
