@@ -55,7 +55,7 @@ class FlockingLoopFunctions(LoopFunctions):
     def is_finished(self, sim) -> bool:
         if self.stop_within is None or self.light is None:
             return False
-        return flocking_figures(sim.positions, self.light, self.target)["centroid_to_light_m"] <= self.stop_within
+        return float(np.linalg.norm(sim.positions.mean(axis=0) - np.asarray(self.light))) <= self.stop_within
 
     @staticmethod
     def describe(initial: dict, final: dict) -> list[str]:

@@ -50,25 +50,28 @@ class ForagingLoopFunctions(LoopFunctions):
         return float(spot[0]), float(spot[1])
 
     def post_step(self, sim) -> None:
+        picked: set[int] = set()
         for group in sim.frame.groups:
             if group.ground is None:
                 continue
             zones = ground_zone(group.ground, self.food_below, self.nest_below)
             robots = np.arange(group.robots.start, group.robots.stop)
-            for robot in robots[(zones == FOOD) & ~self.carrying[robots]]:
-                self.carrying[robot] = True
-                self._move_item_under(sim, robot)
+            pickers = robots[(zones == FOOD) & ~self.carrying[robots]]
+            picked.update(self._item_under(sim, robot) for robot in pickers)
+            self.carrying[pickers] = True
             delivered = robots[(zones == NEST) & self.carrying[robots]]
             self.carrying[delivered] = False
             self.score += len(delivered)
+        # Moved once all robots were looked at: two robots on one spot both picked it up, as
+        # their own readings say, and it moves once.
+        for shape in sorted(picked):
+            sim.set_floor_shape(shape, position=self._free_spot(sim))
 
-    def _move_item_under(self, sim, robot: int) -> None:
-        """The food spot nearest the robot goes elsewhere (another robot on the same spot in the
-        same tick picks it up too, as its own readings say)."""
+    def _item_under(self, sim, robot: int) -> int:
+        """The floor shape of the food spot nearest the robot."""
         shapes = sim.world.floor.shapes
         centres = np.array([shapes[i].position for i in self.shapes])
-        nearest = self.shapes[int(np.argmin(np.linalg.norm(centres - sim.positions[robot], axis=1)))]
-        sim.set_floor_shape(nearest, position=self._free_spot(sim))
+        return self.shapes[int(np.argmin(np.linalg.norm(centres - sim.positions[robot], axis=1)))]
 
     def is_finished(self, sim) -> bool:
         return self.target is not None and self.score >= self.target
