@@ -29,7 +29,7 @@ class ForagingController(SwarmController):
         super().__init__("foraging", **node_kwargs)
         p = {name: self.declare_parameter(name, default).value for name, default in (
             ("speed_mps", 0.1), ("food_below", 0.25), ("nest_below", 0.75), ("mean_run_ticks", 40),
-            ("alpha_deg", 7.5), ("delta", 0.1), ("heading_tolerance_deg", 20.0))}
+            ("alpha_deg", 7.5), ("delta", 0.02), ("heading_tolerance_deg", 20.0))}
         self.speed = min(float(p["speed_mps"]), self.model.max_wheel_speed_mps)
         self.food_below, self.nest_below = float(p["food_below"]), float(p["nest_below"])
         self.mean_run = float(p["mean_run_ticks"])
