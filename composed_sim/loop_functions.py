@@ -84,9 +84,7 @@ def make(world: World):
     cls = load_class(ref.name)
     try:
         return cls(**ref.params)
-    except TypeError as e:      # an unknown or missing keyword
-        raise LoopFunctionsError(f"loop functions {ref.name!r}: {e}", ("loop_functions", "params")) from e
-    except ValueError as e:     # a value the class refuses
+    except (TypeError, ValueError) as e:      # an unknown or missing keyword, a value the class refuses
         raise LoopFunctionsError(f"loop functions {ref.name!r}: {e}", ("loop_functions", "params")) from e
 
 
