@@ -286,7 +286,7 @@ def test_unsupported_elements_and_attributes_are_listed_not_dropped():
         "<footbot_light", '<range_and_bearing implementation="medium" medium="rab" />\n        <footbot_light')
     text = argos(ROBOTS.replace('<foot-bot id="fb">', '<foot-bot id="fb" rab_range="3">') + """
     <floor id="floor" source="loop_functions" pixels_per_meter="50" />
-    <e-puck id="ep"><body position="0,0,0" orientation="0,0,0" /><controller config="ffc" /></e-puck>
+    <e-puck id="ep0"><body position="0,0,0" orientation="0,0,0" /><controller config="ffc" /></e-puck>
     <box id="m" size="1,1,1" movable="true" mass="2"><body position="3,3,0" /></box>""",
                  controllers=controllers, extra="""
   <loop_functions library="liblf" label="lf" />
