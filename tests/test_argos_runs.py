@@ -12,6 +12,7 @@ import pytest
 from composed_sim.argos_import import ArgosFileError, loads_argos
 from composed_sim.core.placement import place_robots
 from composed_sim.core.seeding import STREAM_PLACEMENT, stream
+from composed_sim.world.loader import load_world
 from composed_sim.world.robot_models import get_model
 from composed_sim.world.schema import Box
 
@@ -52,6 +53,15 @@ CONTROLLERS = """
       <sensors><proximity implementation="default" show_rays="true" /></sensors>
       <params velocity="5" />
     </epuck_obstacleavoidance_controller>
+    <footbot_diffusion_controller id="kdc" library="libkheperaiv_diffusion">
+      <actuators><differential_steering implementation="default" /><leds implementation="default" medium="leds" /></actuators>
+      <sensors>
+        <kheperaiv_proximity implementation="default" show_rays="true" />
+        <kheperaiv_lidar implementation="default" num_readings="100" />
+        <kheperaiv_ultrasound implementation="default" />
+      </sensors>
+      <params alpha="7.5" delta="0.1" velocity="5" />
+    </footbot_diffusion_controller>
   </controllers>"""
 
 
@@ -84,6 +94,8 @@ def test_every_ported_controller_and_robot_entity_runs(tmp_path):
     <foot-bot id="fs1"><body position="-1.2,1.5,0" orientation="0,0,0" /><controller config="fsc" /></foot-bot>
     <light id="light" position="1.5,-1.5,0.5" orientation="0,0,0" color="yellow" intensity="3.0" />"""
              + distribute('<e-puck id="ep"><controller config="eoa" /></e-puck>', 3, "0.2,-1.8,0", "1.8,-0.2,0")
+             + """
+    <kheperaiv id="kh0"><body position="-1.5,-0.3,0" orientation="90,0,0" /><controller config="kdc" /></kheperaiv>"""
              + distribute('<cylinder id="c" height="0.5" radius="0.1" movable="false" />', 3)
              + distribute('<box id="b" size="0.2,0.2,0.5" movable="false" />', 3))
     path = tmp_path / "all.argos"
@@ -94,13 +106,19 @@ def test_every_ported_controller_and_robot_entity_runs(tmp_path):
     for plugin in ("diffusion", "flocking", "firefly", "epuck-obstacle-avoidance"):
         assert f'runs with the installed plugin "{plugin}"' in r.stderr, r.stderr
     summary = json.loads(r.stdout)
-    assert summary["ticks"] == 15 and summary["robots"] == 11 and summary["violations"] == 0
-    world = (out / "world.yaml").read_text()
-    assert "e-puck" in world and "speed_mps: 0.05" in world and "target_distance_m: 0.75" in world
+    assert summary["ticks"] == 15 and summary["robots"] == 12 and summary["violations"] == 0
+    for omitted in ("kheperaiv_ultrasound: sensor of controller kdc is not simulated",
+                    "kheperaiv_lidar/num_readings: not simulated"):
+        assert omitted in r.stderr
+    world = load_world(out / "world.yaml")
+    by_model = {g.model: g for g in world.robots}
+    assert by_model["kheperaiv"].devices.lidar is not None
+    assert by_model["e-puck"].params == {"speed_mps": pytest.approx(0.05)}
+    assert world.robots[1].params["target_distance_m"] == pytest.approx(0.75)
     with np.load(out / "trajectories.npz") as t:
         moved = np.linalg.norm(t["positions"][-1] - t["positions"][0], axis=1)
     # Diffusion and the e-pucks drive at 5 cm/s for 1.5 s; the fireflies stand still.
-    assert (moved[:3] > 0.02).all() and (moved[-3:] > 0.02).all() and (moved[6:8] < 1e-6).all()
+    assert (moved[:3] > 0.02).all() and (moved[8:] > 0.02).all() and (moved[6:8] < 1e-6).all()
 
 
 def _box_corners(box: Box) -> np.ndarray:

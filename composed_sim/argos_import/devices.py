@@ -29,7 +29,7 @@ SENSORS: dict[str, tuple[str, dict[str, tuple[str, float]]]] = {
     # ARGoS's range-and-bearing readings are in cm: its noise_std too.
     "range_and_bearing": ("range_and_bearing", {"noise_std": ("noise_std_m", 0.01),
                                                 "packet_drop_prob": ("packet_drop_probability", 1.0)}),
-    "kheperaiv_lidar": ("lidar", {"noise_std": ("noise_std_m", 0.001)}),      # mm
+    "kheperaiv_lidar": ("lidar", {}),     # its noise_level is uniform, ours Gaussian: not mapped
     "positioning": ("positioning", {}),
     "differential_steering": ("differential_steering", {}),
 }

@@ -19,12 +19,11 @@ from composed_sim.world.schema import Box, Cylinder
 
 _TINY_M = 1e-6      # stands for a zero extent where the schema needs a positive one
 # ARGoS robot entity tag → our robot model.
-ROBOT_MODELS = {"foot-bot": "foot-bot", "e-puck": "e-puck"}
+ROBOT_MODELS = {"foot-bot": "foot-bot", "e-puck": "e-puck", "kheperaiv": "kheperaiv"}
 # ARGoS robots we do not model: one sentence each.
 UNMODELLED_ROBOTS = {
     "eye-bot": "the eye-bot is a flying robot; the simulation is planar, with ground robots only",
     "kilobot": "the Kilobot (vibration drive, infrared messaging) is not modelled",
-    "kheperaiv": "the Khepera IV is not modelled yet",
     "spiri": "the Spiri is a flying robot; the simulation is planar, with ground robots only",
     "builderbot": "the BuilderBot (a 3D lifting robot) is not modelled",
     "drone": "drones fly; the simulation is planar, with ground robots only",

@@ -69,7 +69,7 @@ class ArgosImporter(EntityTranslator):
         if not any(g["count"] for g in data["robots"]):
             why = (" (its robots may come from the loop functions, which are not run)"
                    if loops is not None else "")
-            raise self.error(arena, "arena", f"has no robot we simulate (foot-bot or e-puck){why}")
+            raise self.error(arena, "arena", f"has no robot we simulate (foot-bot, e-puck or kheperaiv){why}")
         return self.validate(data)
 
     def validate(self, data: dict) -> World:
