@@ -291,7 +291,7 @@ def test_unsupported_elements_and_attributes_are_listed_not_dropped():
                  controllers=controllers, extra="""
   <loop_functions library="liblf" label="lf" />
   <physics_engines><dynamics3d id="dyn3d" /></physics_engines>
-  <media><led id="leds" /><range_and_bearing id="rab" /></media>""")
+  <media><led id="leds" /><range_and_bearing id="rab" /><tag id="tags" /></media>""")
     world, warnings = load(text)
     assert world.robot_count == 6 and len(world.obstacles) == 1
     assert world.robots[-1].model == "e-puck"
@@ -302,7 +302,7 @@ def test_unsupported_elements_and_attributes_are_listed_not_dropped():
         "e-puck": "<e-puck",
         "loop_functions": "<loop_functions",
         "physics_engines/dynamics3d": "<dynamics3d",
-        "media/range_and_bearing": '<range_and_bearing id="rab"',
+        "media/tag": '<tag id="tags"',
     }
     for what, needle in expected.items():
         hits = [w for w in warnings if f": {what}: " in w]

@@ -60,7 +60,7 @@ class ArgosImporter(EntityTranslator):
         media = root.find("media")
         if media is not None:
             for medium in media.children:
-                if medium.tag != "led":
+                if medium.tag not in ("led", "range_and_bearing"):     # ours need no medium
                     self.warn(medium, f"media/{medium.tag}", "this medium is not simulated")
         arena = root.find("arena")
         if arena is None:
