@@ -43,20 +43,21 @@ class AttributeReader:
 
     # -- values --
 
-    def text(self, node: XmlElement, attr: str, default: Optional[str] = None) -> str:
+    def given(self, node: XmlElement, attr: str, *, required: bool) -> Optional[str]:
+        """The attribute's text; None when it is absent and optional; an error when required."""
         value = node.attrib.get(attr)
-        if value is None:
-            if default is None:
-                raise self.error(node, f"{node.tag}/{attr}", "is required")
-            return default
+        if value is None and required:
+            raise self.error(node, f"{node.tag}/{attr}", "is required")
         return value
+
+    def text(self, node: XmlElement, attr: str, default: Optional[str] = None) -> str:
+        value = self.given(node, attr, required=default is None)
+        return default if value is None else value
 
     def number(self, node: XmlElement, attr: str, default: Optional[float] = None, *,
                low: Optional[float] = None, positive: bool = False, unit: str = "") -> float:
-        raw = node.attrib.get(attr)
+        raw = self.given(node, attr, required=default is None)
         if raw is None:
-            if default is None:
-                raise self.error(node, f"{node.tag}/{attr}", "is required")
             return default
         try:
             value = float(raw)
@@ -69,10 +70,8 @@ class AttributeReader:
         return value
 
     def integer(self, node: XmlElement, attr: str, default: Optional[int] = None, *, low: int = 0) -> int:
-        raw = node.attrib.get(attr)
+        raw = self.given(node, attr, required=default is None)
         if raw is None:
-            if default is None:
-                raise self.error(node, f"{node.tag}/{attr}", "is required")
             return default
         try:
             value = int(raw.strip())
@@ -84,10 +83,8 @@ class AttributeReader:
 
     def vector(self, node: XmlElement, attr: str, default: Optional[tuple] = None, *,
                positive: bool = False, nonnegative: bool = False, unit: str = "") -> tuple[float, float, float]:
-        raw = node.attrib.get(attr)
+        raw = self.given(node, attr, required=default is None)
         if raw is None:
-            if default is None:
-                raise self.error(node, f"{node.tag}/{attr}", "is required")
             return default
         parts = raw.split(",")
         try:
