@@ -503,7 +503,7 @@ def _run_observers(args, world, host, outputs: contextlib.ExitStack, interrupts)
 def _warn_unmatched_globs(globs: list[str], world) -> None:
     """A --record-topics glob that matches no topic of this run is a warning naming two that exist."""
     from composed_sim.ros import contract as c
-    from composed_sim.ros.simulator_node import robot_devices
+    from composed_sim.ros.robot_settings import robot_devices
     from composed_sim.ros.taps import TopicGlobs
     topics = [c.topic_name(name, t) for name, devices in zip(world.robot_names(), robot_devices(world))
               for t in c.robot_topics(devices)] + [c.SWARM_MARKERS_TOPIC]

@@ -5,7 +5,6 @@ laughs", no external entities), and every element keeps its line for the message
 """
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass, field
 from typing import Optional
 from xml.parsers import expat

@@ -285,7 +285,7 @@ class WorkerHost(ControllersElsewhere):
             from rclpy.context import Context
             from rclpy.node import Node
 
-            from composed_sim.ros.simulator_node import quiet_node_options
+            from composed_sim.ros.robot_settings import quiet_node_options
             self._observer_context = Context()
             rclpy.init(context=self._observer_context, domain_id=self.domain_id)
             self._observer_node = Node("composed_sim_observers", context=self._observer_context,
