@@ -10,7 +10,7 @@ from typing import Any, Optional
 
 import numpy as np
 
-from composed_sim.argos_import.controllers import ControllerTranslator
+from composed_sim.argos_import.controllers import ControllerChoice, ControllerTranslator
 from composed_sim.argos_import.devices import require_devices
 from composed_sim.argos_import.xml_reader import XmlElement
 from composed_sim.core.placement import CLEARANCE_M, Statics
@@ -40,6 +40,12 @@ class _Pose:
 
 
 class EntityTranslator(ControllerTranslator):
+    def __init__(self, source: str, choice: ControllerChoice):
+        super().__init__(source, choice)
+        self.lines: dict[tuple, int] = {}     # world field path → ARGoS line, for the schema's checks
+        self.statics = Statics()              # what is placed so far, for distributed obstacles
+        self.rab_data_sizes: list[int] = []   # the robots' rab_data_size, for the world's payload
+
     # -- arena --
 
     def arena(self, node: XmlElement, rng: np.random.Generator) -> dict:
@@ -50,13 +56,13 @@ class EntityTranslator(ControllerTranslator):
         out: dict[str, Any] = {"arena": {"center": [center[0], center[1]], "size": [size[0], size[1]],
                                          "walls": False},
                                "lights": [], "obstacles": [], "robots": []}
-        self.statics = Statics()        # what is placed so far, for distributed obstacles
-        self.rab_data_sizes: list[int] = []
         # In the file's order, as ARGoS adds entities to its space: a <distribute> avoids what
         # came before it (random robots are placed at the start of the run, avoiding every obstacle).
         for child in node.children:
-            if child.tag in ("box", "cylinder"):
-                self.add_obstacle(out, child, None)
+            if child.tag == "box":
+                self.add_obstacle(out, child, self.box(child, None))
+            elif child.tag == "cylinder":
+                self.add_obstacle(out, child, self.cylinder(child, None))
             elif child.tag == "light":
                 out["lights"].append(self.light(child, None))
                 self.lines[("lights", len(out["lights"]) - 1)] = child.line
@@ -75,12 +81,10 @@ class EntityTranslator(ControllerTranslator):
             out["range_and_bearing"] = {"payload_bytes": max(self.rab_data_sizes)}
         return out
 
-    def add_obstacle(self, out: dict, node: XmlElement, pose: Optional[_Pose]) -> dict:
-        item = self.box(node, pose) if node.tag == "box" else self.cylinder(node, pose)
+    def add_obstacle(self, out: dict, node: XmlElement, item: dict) -> None:
         out["obstacles"].append(item)
         self.lines[("obstacles", len(out["obstacles"]) - 1)] = node.line
         self.statics.add(_schema_obstacle(item))
-        return item
 
     def name_robots(self, groups: list[dict]) -> None:
         """Drop the bookkeeping of explicit groups; warn where a robot's name is not its ARGoS id."""
@@ -379,7 +383,7 @@ class EntityTranslator(ControllerTranslator):
                     break
                 item = self.box(template, pose) if template.tag == "box" else self.cylinder(template, pose)
                 if self.statics.obstacle_fits(_schema_obstacle(item)):
-                    self.add_obstacle(out, template, pose)
+                    self.add_obstacle(out, template, item)
                     break
             else:
                 raise self.error(template, f"distribute/{template.tag}", f"could place only {i} of "

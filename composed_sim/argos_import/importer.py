@@ -18,7 +18,6 @@ class ArgosImporter(EntityTranslator):
     def __init__(self, source: str, controller: ControllerChoice, ticks: Optional[int] = None):
         super().__init__(source, controller)
         self.ticks = ticks                      # --ticks, for the length warning
-        self.lines: dict[tuple, int] = {}     # world field path → ARGoS line, for the schema's checks
 
     def run(self, root: XmlElement) -> tuple[World, list[str]]:
         """(World, warnings); on failure the ArgosFileError carries the warnings collected so far."""
