@@ -2,10 +2,12 @@
 import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from composed_sim.argos_import import (ArgosFileError, is_argos_file, load_argos, loads_argos,
                                        warning_text)
+from composed_sim.core.placement import place_robots
 from composed_sim.world.loader import WorldFileError, dump_world, load_world, with_overrides
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -257,13 +259,14 @@ def test_distribute_orientations(orientation, expected):
         assert heading.std_rad == pytest.approx(std)
 
 
-def test_partial_uniform_orientation_becomes_a_gaussian_with_a_warning():
+def test_partial_uniform_orientation_is_uniform_over_its_range():
     world, warnings = load(distribute('<position method="uniform" min="0,0,0" max="3,3,0" />',
-                                      '<orientation method="uniform" min="0,0,0" max="90,0,0" />'))
+                                      '<orientation method="uniform" min="30,0,0" max="90,0,0" />'))
     h = world.robots[0].heading
-    assert h.method == "gaussian" and h.value_rad == pytest.approx(math.pi / 4)
-    assert h.std_rad == pytest.approx(math.radians(90) / math.sqrt(12))
-    assert len(warnings) == 1 and "orientation" in warnings[0]
+    assert h.method == "uniform" and h.range_rad == pytest.approx((math.pi / 6, math.pi / 2))
+    assert warnings == []
+    _, headings = place_robots(world, np.random.default_rng(3))
+    assert ((headings >= math.pi / 6) & (headings <= math.pi / 2)).all()
 
 
 def test_distributed_obstacles_are_drawn_once_from_the_seed():

@@ -347,11 +347,7 @@ class EntityTranslator(ControllerTranslator):
                 return {"method": "uniform"}
             if span == 0:
                 return {"method": "constant", "value_rad": math.radians(lo[0])}
-            self.warn(node, "orientation", f"a uniform yaw in [{lo[0]:g}, {hi[0]:g}] degrees is "
-                      f"drawn from a gaussian of the same mean and spread (headings are uniform "
-                      f"over the full circle, constant or gaussian)")
-            return {"method": "gaussian", "value_rad": math.radians((lo[0] + hi[0]) / 2),
-                    "std_rad": math.radians(span / math.sqrt(12))}
+            return {"method": "uniform", "range_rad": [math.radians(lo[0]), math.radians(hi[0])]}
         if method == "grid":
             self.grid(node, 0)
             self.warn(node, "orientation/method", "grid orientations are not supported: every "
@@ -414,7 +410,8 @@ def _draw_yaw(spec: dict, rng: np.random.Generator) -> float:
         return spec["value_rad"]
     if spec["method"] == "gaussian":
         return float(rng.normal(spec["value_rad"], spec["std_rad"]))
-    return float(rng.uniform(-math.pi, math.pi))
+    low, high = spec.get("range_rad", (-math.pi, math.pi))
+    return float(rng.uniform(low, high))
 
 
 def _schema_obstacle(item: dict) -> Box | Cylinder:

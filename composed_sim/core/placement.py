@@ -246,6 +246,8 @@ def _advice(p: Placement) -> str:
 def _draw_headings(group: RobotGroup, rng: np.random.Generator) -> np.ndarray:
     """[count] headings in (-pi, pi]."""
     h, k = group.heading, group.count
+    if h.method == "uniform" and h.range_rad is not None:
+        return wrap_angle(rng.uniform(*h.range_rad, size=k))
     if h.method == "uniform":
         return np.pi - rng.uniform(0.0, 2 * np.pi, size=k)     # uniform in (-pi, pi]
     if h.method == "gaussian":
