@@ -464,7 +464,7 @@ def _load_any_world(args):
             try:
                 world, warnings = load_argos(args.world, controller=args.controller, ticks=args.ticks)
             except ArgosFileError as e:      # the reason first, then what else the import noticed
-                text = warning_text(str(args.world), getattr(e, "warnings", []))
+                text = warning_text(str(args.world), list(e.warnings))
                 raise UserError(str(e) + (f"\ncomposed-sim: warning: {text}" if text else "")) from None
             text = warning_text(str(args.world), warnings)
             if text:

@@ -24,7 +24,7 @@ class ArgosImporter(EntityTranslator):
         try:
             world = self.document(root)
         except ArgosFileError as e:
-            e.warnings = self.sorted_warnings()
+            e.warnings = tuple(self.sorted_warnings())
             raise
         return world, self.sorted_warnings()
 

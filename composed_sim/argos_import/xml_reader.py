@@ -14,8 +14,9 @@ from composed_sim.world.loader import WorldFileError
 
 class ArgosFileError(WorldFileError):
     """An ARGoS file that cannot be imported; ``problems`` holds one
-    ``file:line: element/attribute: message (got "value")`` per problem."""
-
+    ``file:line: element/attribute: message (got "value")`` per problem; ``warnings`` what the
+    import noticed before it failed (the CLI prints them after the reason)."""
+    warnings: tuple[str, ...] = ()
 
 
 @dataclass
