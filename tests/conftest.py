@@ -28,10 +28,10 @@ def mp_domain() -> int:
 
 
 def install_plugin(tmp_path, monkeypatch, module: str, entry_point: str | dict[str, str],
-                   names: tuple[str, ...] = (), dist: str = "") -> str:
-    """Install a test package's controller the way pip would: a module plus a dist-info with
-    entry points in ``composed_sim.controllers`` (named ``names``, by default the module's name
-    with dashes), on sys.path and PYTHONPATH (for child processes). Returns the first name.
+                   names: tuple[str, ...] = (), dist: str = "", group: str = "composed_sim.controllers") -> str:
+    """Install a test package's controller (or loop functions: ``group``) the way pip would: a
+    module plus a dist-info with entry points in ``group`` (named ``names``, by default the module's
+    name with dashes), on sys.path and PYTHONPATH (for child processes). Returns the first name.
     ``entry_point``: the class, or {entry-point name: class} for several classes of the module."""
     dist = dist or module
     site = tmp_path / f"site_{dist}"
@@ -44,7 +44,7 @@ def install_plugin(tmp_path, monkeypatch, module: str, entry_point: str | dict[s
     info.mkdir()
     (info / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {dist.replace('_', '-')}-plugin\nVersion: 1.0\n")
     (info / "entry_points.txt").write_text(
-        "[composed_sim.controllers]\n" + "".join(f"{n} = {module}:{cls}\n" for n, cls in classes.items()))
+        f"[{group}]\n" + "".join(f"{n} = {module}:{cls}\n" for n, cls in classes.items()))
     monkeypatch.syspath_prepend(str(site))
     monkeypatch.setenv("PYTHONPATH", os.pathsep.join(filter(None, [str(site), os.environ.get("PYTHONPATH")])))
     return names[0]

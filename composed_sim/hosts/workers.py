@@ -117,6 +117,14 @@ class WorkersExchange:
                 except OSError:
                     self._lost(w)
 
+    def publish_clock(self, tick: int) -> None:
+        for w in self.workers:
+            if w.dead is None:
+                try:
+                    w.conn.send(("clock", tick))
+                except OSError:
+                    self._lost(w)
+
     def wait_for_answers(self, timeout_s: float) -> bool:
         """Until every live worker sent its answers. Each worker applies the watchdog itself; one
         that is not back well after it (or whose socket closed: it died) is given up."""

@@ -16,8 +16,7 @@ the tick fires once per tick, at the tick's time (rcl skips the periods a time j
 How: each timer runs on a clock of its own (a ``ROSClock`` in ROS-time mode, which only we set),
 advanced to tick k's time when the robot's last sensor callback of tick k has returned. So no
 executor can fire a timer before the readings of its tick were handled, whichever ready entity it
-picks first. A controller without sensor subscriptions has its timers advanced with its clock.
-Callback-driven controllers (no timers) are not touched and pay nothing.
+picks first. Callback-driven controllers (no timers) are not touched and pay nothing.
 """
 from __future__ import annotations
 
@@ -25,8 +24,7 @@ import math
 import threading
 from typing import Callable, Collection, Optional
 
-from rclpy.clock import ClockType, JumpThreshold, ROSClock
-from rclpy.duration import Duration
+from rclpy.clock import ClockType, ROSClock
 from rclpy.node import Node
 from rclpy.subscription import Subscription
 from rclpy.time import Time
@@ -95,17 +93,13 @@ class SimTimers:
         return timer
 
     def _watch(self) -> None:
-        """Count the node's sensor callbacks per tick (or follow its clock, without any)."""
+        """Count the node's sensor callbacks per tick. (A controller has at least one sensor
+        subscription: the hosts wait for one before tick 0.)"""
         self._watching = True
         subs = [s for s in self._node.subscriptions if s.topic_name in self._sensor_topics]
         self._expected = len(subs)
         for sub in subs:
             sub.callback = self._counting(sub)
-        if not subs:
-            # Timers only: advanced whenever the node's clock moves (the host's tick).
-            self._jump_handler = self._node.get_clock().create_jump_handler(
-                JumpThreshold(min_forward=Duration(nanoseconds=1), min_backward=None, on_clock_change=False),
-                post_callback=lambda jump: self._advance(self._node.get_clock().now().nanoseconds))
 
     def _counting(self, sub: Subscription) -> Callable:
         callback = sub.callback

@@ -317,6 +317,13 @@ class SimulatorNode(DevicePublishing, Node):
             self._publish_devices(plan, frame, stamp, stamp_ns)
         self._frames.publish(stamp)
 
+    def publish_clock(self, tick: int) -> None:
+        """/clock alone, for the state after the last tick: its sensors are never published (no
+        controller answers it), but the recordings and the markers show it, and so does the clock."""
+        if self._clock_pub is not None:
+            self._clock_msg.clock = c.stamp_of(tick, self._tick_ns)
+            self._clock_pub.publish(self._clock_msg)
+
     def _wanted(self, topic: c.Topic, i: int) -> bool:
         """Publish robot i's message on ``topic`` this tick? Every tick once a subscriber has
         matched (a subscriber that comes later gets every tick from its match on, as with any

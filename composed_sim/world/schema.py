@@ -432,6 +432,28 @@ class MultiProcess(Strict):
     domains: dict[str, DomainId] = {}           # explicit robot name -> domain; the rest balanced
 
 
+LOOP_FUNCTIONS_GROUP = "composed_sim.loop_functions"
+
+
+class LoopFunctionsRef(Strict):
+    """The world's loop functions (composed_sim/loop_functions.py): an entry point of the group
+    ``composed_sim.loop_functions``, the keyword arguments its class is made with, and how often
+    its metrics are taken (every tick by default)."""
+    name: Annotated[str, Field(min_length=1)]
+    params: dict[str, Any] = {}
+    every_ticks: Annotated[int, Field(ge=1)] = 1
+
+    @field_validator("name")
+    @classmethod
+    def _installed(cls, value: str) -> str:
+        from importlib.metadata import entry_points    # names only: nothing of the plugin is imported
+        known = sorted({ep.name for ep in entry_points(group=LOOP_FUNCTIONS_GROUP)})
+        if value not in known:
+            raise _invalid([((), f"unknown loop functions; installed: {', '.join(known) or 'none'} "
+                             f"(entry points of the group {LOOP_FUNCTIONS_GROUP!r})", value)])
+        return value
+
+
 class World(Strict):
     name: str = "world"
     seed: Annotated[int, Field(ge=0, lt=2**32)] = 0
@@ -446,6 +468,7 @@ class World(Strict):
     lights: list[Light] = []
     obstacles: list[Obstacle] = []
     robots: list[RobotGroup]
+    loop_functions: Optional[LoopFunctionsRef] = None
 
     @model_validator(mode="after")
     def _consistent(self) -> World:

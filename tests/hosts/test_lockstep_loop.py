@@ -29,6 +29,9 @@ class FakeExchange:
             raise RuntimeError("exchange broke")
         self.calls.append(("publish", frame.tick))
 
+    def publish_clock(self, tick: int) -> None:
+        self.calls.append(("clock", tick))
+
     def wait(self, timeout_s: float) -> bool:
         self.calls.append(("wait", self.tick))
         return True
@@ -58,6 +61,7 @@ def test_a_tick_publishes_waits_closes_then_acts_and_the_physics_follows_the_com
     result = run_lockstep(sim, exchange, exchange.wait, 6)
     assert [c for c in exchange.calls if c[1] == 0] == [("publish", 0), ("wait", 0), ("close", 0), ("leds", 0)]
     assert [t for kind, t in exchange.calls if kind == "publish"] == [0, 1, 2, 3, 4, 5]
+    assert exchange.calls[-1] == ("clock", 6)         # the state after the last tick, on /clock alone
     assert result.trajectories.positions.shape == (7, 4, 2) and not result.interrupted
     assert [(v.tick, v.robot) for v in result.violations] == [(3, "bot0")]
     # The same commands given to a Simulation directly give the same trajectories, bit for bit.

@@ -12,6 +12,7 @@ from composed_sim.hosts.choices import EXECUTORS
 from composed_sim.hosts.composed import ComposedHost
 from composed_sim.hosts.controllers import HostError
 from composed_sim.hosts.multiprocess import MultiProcessHost
+from composed_sim.hosts.workers import WorkerHost
 from composed_sim.world.loader import load_world
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -56,13 +57,15 @@ def test_mixed_styles_answer_every_tick_in_every_executor_bit_identically(styles
                                       err_msg=executor)
 
 
-def test_mixed_styles_run_alike_in_multi_process_mode(styles, domain_id, mp_domain):
+def test_mixed_styles_run_alike_in_multi_process_mode_and_in_workers(styles, domain_id, mp_domain):
     world = mixed_world(ticks=25)
     reference = composed(world, domain_id)
-    with MultiProcessHost(world, domain_id=mp_domain, robots_per_domain=3) as host:
-        result = host.run()
-    assert result.violations == [], result.violations[:3]
-    np.testing.assert_array_equal(result.trajectories.positions, reference.trajectories.positions)
+    for host in (MultiProcessHost(world, domain_id=mp_domain, robots_per_domain=3),
+                 WorkerHost(world, workers=2, domain_id=domain_id)):
+        with host:
+            result = host.run()
+        assert result.violations == [], (type(host).__name__, result.violations[:3])
+        np.testing.assert_array_equal(result.trajectories.positions, reference.trajectories.positions)
 
 
 def test_best_effort_subscriber_receives_every_tick_and_timers_fire_once_per_tick(styles, domain_id):

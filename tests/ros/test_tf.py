@@ -1,10 +1,6 @@
 """tf, opt-in per robot group: /<r>/tf and /<r>/tf_static (or /tf and /tf_static), received by a
 listener in another process as tf2_msgs/msg/TFMessage, and consistent with the trajectories."""
-import json
 import math
-import subprocess
-import sys
-import textwrap
 import time
 from pathlib import Path
 
@@ -14,8 +10,8 @@ from rosbags.typesys import Stores, get_typestore
 from composed_sim.hosts.composed import ComposedHost
 from composed_sim.ros import contract as c
 from composed_sim.world.loader import load_world
+from listener import Listener
 
-ROOT = Path(__file__).resolve().parents[2]
 TYPES = get_typestore(Stores.ROS2_JAZZY)
 
 WORLD = """
@@ -38,48 +34,20 @@ robots:
     devices: {{ {tf} }}
 """
 
-# Listens on the given topics (tf2_msgs/msg/TFMessage, as bytes) until a line on stdin; prints
-# what it got as JSON: per topic the list of messages (hex), and every topic it saw published.
-LISTENER = textwrap.dedent("""
-    import json, select, sys, rclpy
-    from rclpy.context import Context
-    from rclpy.node import Node
-    from rclpy.executors import SingleThreadedExecutor
-    from composed_sim.ros import contract as c
-    domain, topics = int(sys.argv[1]), sys.argv[2:]
-    context = Context(); rclpy.init(context=context, domain_id=domain)
-    node = Node("tf_listener", context=context)
-    got = {t: [] for t in topics}
-    for t in topics:
-        qos = c.STATIC_QOS if t.endswith("tf_static") else c.QOS
-        node.create_subscription(c.TF_MESSAGE, t, lambda data, t=t: got[t].append(data.hex()), qos, raw=True)
-    executor = SingleThreadedExecutor(context=context); executor.add_node(node)
-    seen = set()
-    print("listening", flush=True)
-    while not select.select([sys.stdin], [], [], 0)[0]:
-        executor.spin_once(timeout_sec=0.02)
-        seen |= {name for name, _ in node.get_topic_names_and_types() if node.count_publishers(name) > 0}
-    executor.spin_once(timeout_sec=0.2)     # what is still on its way
-    print(json.dumps({"got": got, "seen": sorted(seen)}))
-""")
-
-
 def run_with_listener(tmp_path, domain, ticks, tf, topics):
     """Run the world with a listener process on ``topics``; tick 0 starts once the listener is
     matched on every one of them that the run publishes."""
     tmp_path.mkdir(parents=True, exist_ok=True)
     (tmp_path / "world.yaml").write_text(WORLD.format(ticks=ticks, tf=tf))
     world = load_world(tmp_path / "world.yaml")
-    listener = subprocess.Popen([sys.executable, "-c", LISTENER, str(domain), *topics], cwd=ROOT,
-                                stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
-    assert listener.stdout.readline().strip() == "listening"
+    listener = Listener(domain, topics)
     with ComposedHost(world, executor="lockstep", domain_id=domain) as host:
         ours = [p for node in host.simulator_nodes for p in node.publishers if p.topic_name in topics]
         deadline = time.monotonic() + 30
         while not all(p.get_subscription_count() > 0 for p in ours) and time.monotonic() < deadline:
             time.sleep(0.01)
         result = host.run()
-    heard = json.loads(listener.communicate("stop\n", timeout=60)[0].splitlines()[-1])
+    heard = listener.stop()
     return heard, result.trajectories.positions, result.trajectories.headings
 
 
