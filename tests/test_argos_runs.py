@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from composed_sim.argos_import import ArgosFileError, loads_argos
+from composed_sim.argos_import import ArgosFileError, load_argos, loads_argos
 from composed_sim.core.placement import place_robots
 from composed_sim.core.seeding import STREAM_PLACEMENT, stream
 from composed_sim.world.loader import load_world
@@ -53,6 +53,15 @@ CONTROLLERS = """
       <sensors><proximity implementation="default" show_rays="true" /></sensors>
       <params velocity="5" />
     </epuck_obstacleavoidance_controller>
+    <footbot_foraging_controller id="ffo" library="libfootbot_foraging">
+      <actuators><differential_steering implementation="default" /><leds implementation="default" medium="leds" /></actuators>
+      <sensors>
+        <footbot_proximity implementation="default" />
+        <footbot_light implementation="rot_z_only" />
+        <footbot_motor_ground implementation="rot_z_only" />
+      </sensors>
+      <params><wheel_turning max_speed="8" /><state minimum_resting_time="50" /></params>
+    </footbot_foraging_controller>
     <footbot_diffusion_controller id="kdc" library="libkheperaiv_diffusion">
       <actuators><differential_steering implementation="default" /><leds implementation="default" medium="leds" /></actuators>
       <sensors>
@@ -94,6 +103,7 @@ def test_every_ported_controller_and_robot_entity_runs(tmp_path):
     <foot-bot id="fs1"><body position="-1.2,1.5,0" orientation="0,0,0" /><controller config="fsc" /></foot-bot>
     <light id="light" position="1.5,-1.5,0.5" orientation="0,0,0" color="yellow" intensity="3.0" />"""
              + distribute('<e-puck id="ep"><controller config="eoa" /></e-puck>', 3, "0.2,-1.8,0", "1.8,-0.2,0")
+             + distribute('<foot-bot id="fo"><controller config="ffo" /></foot-bot>', 2, "-1.8,0.2,0", "-0.2,1.8,0")
              + """
     <kheperaiv id="kh0"><body position="-1.5,-0.3,0" orientation="90,0,0" /><controller config="kdc" /></kheperaiv>"""
              + distribute('<cylinder id="c" height="0.5" radius="0.1" movable="false" />', 3)
@@ -103,11 +113,12 @@ def test_every_ported_controller_and_robot_entity_runs(tmp_path):
     out = tmp_path / "out"
     r = cli("run", path, "--out", out, "--no-progress", "--no-picture", "--json")
     assert r.returncode == 0, r.stderr[-3000:]
-    for plugin in ("diffusion", "flocking", "firefly", "epuck-obstacle-avoidance"):
+    for plugin in ("diffusion", "flocking", "firefly", "epuck-obstacle-avoidance", "foraging"):
         assert f'runs with the installed plugin "{plugin}"' in r.stderr, r.stderr
     summary = json.loads(r.stdout)
-    assert summary["ticks"] == 15 and summary["robots"] == 12 and summary["violations"] == 0
-    for omitted in ("kheperaiv_ultrasound: sensor of controller kdc is not simulated",
+    assert summary["ticks"] == 15 and summary["robots"] == 14 and summary["violations"] == 0
+    for omitted in ("params/state.minimum_resting_time: not a parameter the plugin \"foraging\" translates",
+                    "kheperaiv_ultrasound: sensor of controller kdc is not simulated",
                     "kheperaiv_lidar/num_readings: not simulated"):
         assert omitted in r.stderr
     world = load_world(out / "world.yaml")
@@ -115,9 +126,12 @@ def test_every_ported_controller_and_robot_entity_runs(tmp_path):
     assert by_model["kheperaiv"].devices.lidar is not None
     assert by_model["e-puck"].params == {"speed_mps": pytest.approx(0.05)}
     assert world.robots[1].params["target_distance_m"] == pytest.approx(0.75)
+    (foraging,) = [g for g in world.robots if g.controller == "foraging"]
+    assert foraging.params == {"speed_mps": pytest.approx(0.08)} and foraging.devices.ground is not None
     with np.load(out / "trajectories.npz") as t:
         moved = np.linalg.norm(t["positions"][-1] - t["positions"][0], axis=1)
     # Diffusion and the e-pucks drive at 5 cm/s for 1.5 s; the fireflies stand still.
+    # (order: 3 diffusion, 3 flocking, 2 fireflies, 3 e-pucks, 2 foraging, 1 Khepera IV)
     assert (moved[:3] > 0.02).all() and (moved[8:] > 0.02).all() and (moved[6:8] < 1e-6).all()
 
 
@@ -226,3 +240,16 @@ def test_a_failed_import_says_why_first_then_every_warning_and_writes_nothing(tm
     assert lines[1].startswith("composed-sim: warning:")
     assert any("--ticks 3 are run" in line for line in lines) and any("loop_functions:" in line for line in lines)
     assert not (tmp_path / "out").exists()
+
+
+def test_an_image_floor_is_stretched_over_the_arena_and_a_loop_functions_floor_is_warned(tmp_path):
+    import imageio.v3 as iio
+    iio.imwrite(tmp_path / "floor.png", np.full((20, 20), 128, np.uint8))
+    robot = '\n    <foot-bot id="fb0"><body position="0,0,0" /><controller config="fdc" /></foot-bot>'
+    path = tmp_path / "f.argos"
+    path.write_text(experiment('\n    <floor id="f" source="image" path="floor.png" pixels_per_meter="50" />' + robot))
+    world, _ = load_argos(path)
+    assert world.floor.image == str(tmp_path / "floor.png") and world.floor.image_size_m == (5.0, 5.0)
+    text = experiment('\n    <floor id="f" source="loop_functions" pixels_per_meter="50" />' + robot)
+    _, warnings = loads_argos(text, source="t.argos")
+    assert any(": floor: painted by the loop functions" in w for w in warnings)

@@ -71,7 +71,7 @@ class EntityTranslator(ControllerTranslator):
             elif child.tag == "distribute":
                 self.distribute(child, out, rng)
             elif child.tag == "floor":
-                self.warn(child, "floor", "the floor (ground sensor colours) is not simulated")
+                out.update(self.floor(child, size, center))
             elif child.tag in UNMODELLED_ROBOTS:
                 self.warn(child, child.tag, f"{UNMODELLED_ROBOTS[child.tag]}: not simulated")
             else:
@@ -80,6 +80,20 @@ class EntityTranslator(ControllerTranslator):
         if self.rab_data_sizes:
             out["range_and_bearing"] = {"payload_bytes": max(self.rab_data_sizes)}
         return out
+
+    def floor(self, node: XmlElement, size: tuple, center: tuple) -> dict:
+        """<floor source="image" path=..> → the floor image stretched over the arena (as ARGoS)."""
+        self.unknown(node, {"id", "source", "path", "pixels_per_meter"}, "floor")
+        source = self.text(node, "source")
+        if source == "image":
+            self.lines[("floor", "image")] = node.line
+            return {"floor": {"image": self.text(node, "path"), "image_size_m": [size[0], size[1]],
+                              "image_center": [center[0], center[1]]}}
+        if source == "loop_functions":
+            self.warn(node, "floor", "painted by the loop functions, which are not run: a white floor")
+        else:
+            raise self.error(node, "floor/source", 'must be "image" or "loop_functions"', source)
+        return {}
 
     def add_obstacle(self, out: dict, node: XmlElement, item: dict) -> None:
         out["obstacles"].append(item)
