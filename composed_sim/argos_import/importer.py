@@ -52,7 +52,8 @@ class ArgosImporter(EntityTranslator):
             self.read_controllers(controllers)
         loops = root.find("loop_functions")
         if loops is not None:
-            self.warn(loops, "loop_functions", "ARGoS loop functions (C++ code) are not run (ours are Python, named in a world file: docs/experiments.md)")
+            self.warn(loops, "loop_functions", "ARGoS loop functions (C++ code) are not run (ours "
+                      "are Python, named in a world file: docs/experiments.md)")
         engines = root.find("physics_engines")
         if engines is not None:
             data["physics"] = self.physics(engines)
