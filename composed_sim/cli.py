@@ -607,7 +607,9 @@ def _check_recording(rec) -> str | None:
 def _render_target(out: Path) -> Path:
     if out.suffix.lower() not in (".png", ".gif", ".mp4"):
         raise UserError(f"--out {out}: the file must end in .png, .gif or .mp4")
-    check_writable(out.parent if str(out.parent) else Path("."))
+    parent = out.parent if str(out.parent) else Path(".")
+    check_writable(parent)
+    parent.mkdir(parents=True, exist_ok=True)      # the picture is drawn next, right away
     return out
 
 
