@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import struct
 import threading
+import time
 from typing import Iterable, Optional
 
 import foxglove
@@ -32,6 +33,7 @@ from composed_sim.ros.markers import MARKERS_TYPE
 from composed_sim.ros.taps import TopicGlobs
 
 DEFAULT_HOST, DEFAULT_PORT = "127.0.0.1", 8765
+DRAIN_S = 1.0        # at the end of a watched run: time for the viewers to receive the last ticks
 _CDR_HEADER = b"\x00\x01\x00\x00"        # little-endian CDR encapsulation
 
 
@@ -83,6 +85,10 @@ class _Subscriptions:
 
     def watched(self, channel_id: int) -> bool:
         return bool(self._clients.get(channel_id))
+
+    def anyone(self) -> bool:
+        with self._lock:
+            return any(self._clients.values())
 
 
 class FoxgloveServer:
@@ -148,4 +154,8 @@ class FoxgloveServer:
         return True
 
     def close(self) -> None:
+        """Stop serving. Stopping drops what the server has not sent yet; a run ends faster than
+        a viewer on a slow link reads, so a watched run gives it DRAIN_S to get the last ticks."""
+        if self._subscriptions.anyone():
+            time.sleep(DRAIN_S)
         self._server.stop()
