@@ -133,6 +133,13 @@ def build_parser() -> argparse.ArgumentParser:
                                        "CSV, JSON and figures side by side with the paper's results.")
     from composed_sim import bench as bench_module
     bench_module.add_arguments(bench)
+
+    sweep = sub.add_parser("sweep", help="run a grid of runs over seeds, swarm sizes and world fields",
+                           description="Run a world over seeds, swarm sizes and world fields by dotted path, "
+                                       "in parallel, each run its own process, domain and folder; write runs.csv, "
+                                       "metrics.csv and plots (docs/experiments.md). Resumable.")
+    from composed_sim.sweep import command as sweep_command
+    sweep_command.add_arguments(sweep)
     return parser
 
 
@@ -165,6 +172,9 @@ def main(argv: list[str] | None = None) -> int:
         if args.command == "bench":
             from composed_sim import bench
             return bench.run(args)
+        if args.command == "sweep":
+            from composed_sim.sweep import command as sweep_command
+            return sweep_command.run(args)
         if args.command == "render":
             return cmd_render(args)
         if args.command == "replay":
@@ -348,7 +358,7 @@ def cmd_run(args) -> int:
                     # republishes the participant's graph, docs/speed.md): with every result and
                     # the recording written, the process ends and the system reclaims the rest.
                     outputs.close()
-                    _print_summary(args, summary)
+                    _print_summary(args, world, summary)
                     sys.stdout.flush()
                     sys.stderr.flush()
                     os._exit(code)
@@ -357,16 +367,18 @@ def cmd_run(args) -> int:
         except HostError as e:
             raise UserError(str(e)) from None
     claim.release()
-    _print_summary(args, summary)
+    _print_summary(args, world, summary)
     return code
 
 
-def _print_summary(args, summary: dict) -> None:
+def _print_summary(args, world, summary: dict) -> None:
     if args.json:
         with _json_stdout():
             print(json.dumps(summary, indent=2), flush=True)
     else:
-        print(_human_summary(summary))
+        from composed_sim.loop_functions import describe
+        metrics = summary.get("metrics") or {}
+        print(_human_summary(summary, describe(world, metrics.get("initial", {}), metrics.get("final", {}))))
 
 
 _json_fd: int | None = None     # the real stdout while a --json run sends everything else to stderr
@@ -405,6 +417,11 @@ def _check_plugins(world_path, world) -> None:
         except plugins.PluginError as e:
             e.field = ("robots", i, "controller")
             raise UserError(_located(world_path, e)) from None
+    from composed_sim.loop_functions import LoopFunctionsError, make
+    try:
+        make(world)        # loads the class and checks its params; init() comes with the run
+    except LoopFunctionsError as e:
+        raise UserError(_located(world_path, e)) from None
 
 
 def _located(world_path, error: Exception) -> str:
@@ -543,7 +560,7 @@ def _run_observers(args, world, host, outputs: contextlib.ExitStack, interrupts)
 def _run_topics(world) -> list[tuple[str, str]]:
     """(topic, message type) of every robot's contract topic in this run."""
     from composed_sim.ros import contract as c
-    from composed_sim.ros.simulator_node import robot_devices
+    from composed_sim.ros.robot_settings import robot_devices
     return [(c.topic_name(name, t), c.type_name(t.msg_type))
             for name, devices in zip(world.robot_names(), robot_devices(world)) for t in c.robot_topics(devices)]
 
@@ -584,17 +601,16 @@ def cmd_render(args) -> int:
 
 def cmd_replay(args) -> int:
     from composed_sim.render import render
-    from composed_sim.results import swarm_metrics
     out = _render_target(args.out) if args.out else None
     rec = _read_recording(args.recording)
     n = len(rec.names)
     print(f"{args.recording}: {rec.world.name if rec.world else 'unknown world'}, {n} robots, "
           f"{rec.ticks_done} ticks recorded ({rec.ticks_done * rec.tick_s:.1f} s sim time); "
           f"topics: {', '.join(sorted(rec.topics))}")
-    if rec.world is not None and n:
-        final = swarm_metrics(rec.world, rec.positions).get("final", {})
-        if "centroid_to_light_m" in final:
-            print(f"  final centroid to light: {final['centroid_to_light_m']:.2f} m")
+    if rec.world is not None and n and rec.world.lights:
+        import numpy as np
+        centroid = np.asarray(rec.positions[-1]).mean(axis=0)
+        print(f"  final centroid to light: {np.linalg.norm(centroid - rec.world.lights[0].position):.2f} m")
     if out is not None:
         frames = render(rec, rec.world, out, led_colors=rec.led_colors, fps=args.fps, size_px=args.size,
                         trail_ticks=args.trail, every=args.every, tick_s=rec.tick_s)
@@ -740,7 +756,7 @@ def _workers_text(s: dict) -> str:
     return f" in {s['workers']} worker processes" + (" (auto)" if s.get("workers_requested") == "auto" else "")
 
 
-def _human_summary(s: dict) -> str:
+def _human_summary(s: dict, metric_lines: list[str] = ()) -> str:
     ph = s["phases_s"]
     lines = [
         f"{s['world']}: {s['robots']} robots, {s['ticks']} ticks ({s['sim_time_s']:.1f} s sim time), "
@@ -753,13 +769,9 @@ def _human_summary(s: dict) -> str:
         f"ROS exchange {1e3 * ph['ros_exchange_s'] / max(s['ticks'], 1):.1f} ms",
         f"  violations: {s['violations']}",
     ]
-    final = s.get("swarm", {}).get("final", {})
-    initial = s.get("swarm", {}).get("initial", {})
-    if "centroid_to_light_m" in final:
-        lines.append(f"  centroid to light: {initial['centroid_to_light_m']:.2f} m → {final['centroid_to_light_m']:.2f} m")
-    if "mean_nearest_neighbour_m" in final:
-        lines.append(f"  mean nearest-neighbour distance: {final['mean_nearest_neighbour_m']:.3f} m, "
-                     f"closest pair {final['min_pair_distance_m']:.3f} m")
+    lines += metric_lines
+    if s.get("finished"):
+        lines.append(f"  ended by the loop functions at tick {s['ticks']}")
     lines.append(f"  results in {s['out']}/ (summary.json, trajectories.npz, arena.png)")
     return "\n".join(lines)
 

@@ -36,7 +36,7 @@ def measure(robots: int, ticks: int, *, blobs: int = 50, domain_id: int = 0,
 
     from composed_sim.world.robot_models import FOOTBOT
     from composed_sim.ros import contract as c
-    from composed_sim.ros.simulator_node import quiet_node_options
+    from composed_sim.ros.robot_settings import quiet_node_options
 
     light = c.light_encoder(FOOTBOT, "bot0").encode(1, 0, np.zeros(len(FOOTBOT.light.angles_rad)))
     blob_cloud = c.blobs_encoder("bot0").encode(1, 0, bytes(c.BLOB_DTYPE.itemsize * blobs), blobs)

@@ -1,7 +1,8 @@
 """What a run leaves behind in its output directory.
 
 summary.json     figures of the run (sizes, times per phase, real-time factor, violations count,
-                 swarm metrics) plus what reproduces it (seed, versions)
+                 the loop functions' first and final metrics) plus what reproduces it (seed, versions)
+metrics.csv      the loop functions' metrics, one row per tick they were taken (only with loop functions)
 world.yaml       the resolved world, loadable as is to re-run the same experiment
 trajectories.npz positions [T+1, n, 2], headings [T+1, n], led_colors [T+1, n, 3] (each robot's
                  display colour), names [n], tick_s
@@ -22,7 +23,6 @@ from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from composed_sim.core.violations import FAILED
 from composed_sim.hosts.lockstep import LoopResult, Trajectories
@@ -32,6 +32,7 @@ from composed_sim.world.schema import World
 SUMMARY = "summary.json"
 TRAJECTORIES = "trajectories.npz"
 VIOLATIONS = "violations.csv"
+METRICS = "metrics.csv"
 PICTURE = "arena.png"
 WORLD = "world.yaml"
 
@@ -50,23 +51,6 @@ def versions() -> dict[str, str]:
 def peak_rss_mb() -> float:
     """Peak resident set of this process (Linux reports kB)."""
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
-
-
-def swarm_metrics(world: World, positions: np.ndarray) -> dict:
-    """Flocking figures at the first and the last recorded tick. positions: [T+1, n, 2]."""
-    def at(p: np.ndarray) -> dict:
-        m: dict = {"centroid": [float(v) for v in p.mean(axis=0)]}
-        if len(p) > 1:
-            d, _ = cKDTree(p).query(p, k=2)
-            m["mean_nearest_neighbour_m"] = float(d[:, 1].mean())
-            m["min_pair_distance_m"] = float(d[:, 1].min())
-        if world.lights:
-            light = np.asarray(world.lights[0].position)
-            m["centroid_to_light_m"] = float(np.linalg.norm(p.mean(axis=0) - light))
-        return m
-    if positions.shape[0] == 0 or positions.shape[1] == 0:
-        return {}
-    return {"initial": at(positions[0]), "final": at(positions[-1])}
 
 
 def summarize(world: World, result: LoopResult, *, setup_s: float, mode: str, executor: str,
@@ -95,7 +79,8 @@ def summarize(world: World, result: LoopResult, *, setup_s: float, mode: str, ex
                                 key=t.names.index),
         "peak_rss_mb": peak_rss_mb(),
         "rss_mb_by_tick": [[tick, round(mb, 1)] for tick, mb in result.memory],
-        "swarm": swarm_metrics(world, t.positions),
+        "finished": result.finished,      # the loop functions ended the run (is_finished)
+        "metrics": {"initial": result.metrics[0], "final": result.metrics[-1]} if result.metrics else {},
         "versions": versions(),
     }
 
@@ -122,6 +107,14 @@ def write_results(out_dir: Path, world: World, result: LoopResult, summary: dict
         w.writerow(["tick", "robot", "reason"])
         w.writerows((v.tick, v.robot, v.reason) for v in result.violations)
         text.detach()
+    if result.metrics:
+        with _replacing(out_dir / METRICS) as f:
+            text = io.TextIOWrapper(f, newline="")
+            columns = list(dict.fromkeys(k for row in result.metrics for k in row))
+            w = csv.DictWriter(text, columns)
+            w.writeheader()
+            w.writerows(result.metrics)
+            text.detach()
     with _replacing(out_dir / SUMMARY) as f:
         f.write((json.dumps(summary, indent=2) + "\n").encode())
     if picture:

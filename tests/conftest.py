@@ -20,21 +20,31 @@ def domain_id() -> int:
     return int(os.environ["ROS_DOMAIN_ID"])
 
 
-def install_plugin(tmp_path, monkeypatch, module: str, entry_point: str,
-                   names: tuple[str, ...] = (), dist: str = "") -> str:
-    """Install a test package's controller the way pip would: a module plus a dist-info with
-    entry points in ``composed_sim.controllers`` (named ``names``, by default the module's name
-    with dashes), on sys.path and PYTHONPATH (for child processes). Returns the first name."""
+@pytest.fixture
+def mp_domain() -> int:
+    """First of up to 4 domains for this test process, outside the 1 … 100 of ROS_DOMAIN_ID, so
+    the composed run of a comparison never shares a domain with a multi-process run's children."""
+    return 101 + 4 * (os.getpid() % 32)
+
+
+def install_plugin(tmp_path, monkeypatch, module: str, entry_point: str | dict[str, str],
+                   names: tuple[str, ...] = (), dist: str = "", group: str = "composed_sim.controllers") -> str:
+    """Install a test package's controller (or loop functions: ``group``) the way pip would: a
+    module plus a dist-info with entry points in ``group`` (named ``names``, by default the module's
+    name with dashes), on sys.path and PYTHONPATH (for child processes). Returns the first name.
+    ``entry_point``: the class, or {entry-point name: class} for several classes of the module."""
     dist = dist or module
     site = tmp_path / f"site_{dist}"
     site.mkdir()
     shutil.copy(PLUGIN_SOURCE / f"{module}.py", site / f"{module}.py")
-    names = names or (module.replace("_", "-"),)
+    classes = entry_point if isinstance(entry_point, dict) else \
+        {n: entry_point for n in (names or (module.replace("_", "-"),))}
+    names = tuple(classes)
     info = site / f"{dist}_plugin-1.0.dist-info"
     info.mkdir()
     (info / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {dist.replace('_', '-')}-plugin\nVersion: 1.0\n")
     (info / "entry_points.txt").write_text(
-        "[composed_sim.controllers]\n" + "".join(f"{n} = {module}:{entry_point}\n" for n in names))
+        f"[{group}]\n" + "".join(f"{n} = {module}:{cls}\n" for n, cls in classes.items()))
     monkeypatch.syspath_prepend(str(site))
     monkeypatch.setenv("PYTHONPATH", os.pathsep.join(filter(None, [str(site), os.environ.get("PYTHONPATH")])))
     return names[0]

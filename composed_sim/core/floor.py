@@ -116,6 +116,18 @@ class Floor:
         return out.reshape(points.shape[:-1])
 
 
+# What a robot's ground sensors say it stands on (foraging: loop functions and controllers both
+# decide from the same readings with this one rule, as ARGoS's foraging example does).
+FLOOR, NEST, FOOD = 0, 1, 2
+
+
+def ground_zone(readings: np.ndarray, food_below: float = 0.25, nest_below: float = 0.75) -> np.ndarray:
+    """readings [..., s] grey levels of each robot's sensors → [...] FOOD where a sensor reads
+    darker than ``food_below``, else NEST where one reads darker than ``nest_below``, else FLOOR."""
+    darkest = np.min(readings, axis=-1)
+    return np.where(darkest < food_below, FOOD, np.where(darkest < nest_below, NEST, FLOOR))
+
+
 def body_points(positions: np.ndarray, headings: np.ndarray, offsets: np.ndarray) -> np.ndarray:
     """positions [n, 2], headings [n], offsets [k, 2] body frame → [n, k, 2] world points."""
     c, s = np.cos(headings)[:, None], np.sin(headings)[:, None]

@@ -188,15 +188,11 @@ class StaticScene:
         if arena.walls:
             if arena.size is None:
                 raise ValueError("arena.walls is on but arena.size is None")
-            (cx, cy), (sx, sy), t = arena.center, arena.size, arena.wall_thickness_m
-            # As core/physics.py builds them: inner faces on the arena rectangle's sides, the
-            # two walls along x spanning the corners.
-            for centre, size in (((cx, cy + (sy + t) / 2), (sx + 2 * t, t)),
-                                 ((cx, cy - (sy + t) / 2), (sx + 2 * t, t)),
-                                 ((cx + (sx + t) / 2, cy), (t, sy)),
-                                 ((cx - (sx + t) / 2, cy), (t, sy))):
-                boxes.append(box_corners(centre, size, 0.0))
-                heights.append(arena.wall_height_m)
+            # The walls the physics has (the schema owns their geometry: inside the arena
+            # rectangle), so the sensors see them where the robots bump into them.
+            for wall in arena.wall_boxes():
+                boxes.append(box_corners(wall.position, wall.size, 0.0))
+                heights.append(wall.height_m)
         # Movable objects are not static: the simulation adds them at their pose of each tick.
         fixed = [ob for ob in world.obstacles if not ob.movable]
         cyls = [ob for ob in fixed if isinstance(ob, Cylinder)]

@@ -111,6 +111,7 @@ class PhysicsWorld:
 
         # Added after the robots, so the batch rows are robots first, then movable objects.
         self.movable = [ob for ob in world.obstacles if ob.movable]
+        self._movable_bodies: list[pymunk.Body] = []
         self._add_movable_objects(self.movable)
 
         self._buffer = pymunk.batch.Buffer()
@@ -161,6 +162,7 @@ class PhysicsWorld:
             angular.max_bias = 0.0
             angular.max_force = MOVABLE_GROUND_TORQUE_NM
             self.space.add(body, shape, linear, angular)
+            self._movable_bodies.append(body)
 
     def set_wheel_speeds(self, left_mps: np.ndarray, right_mps: np.ndarray) -> None:
         """Store wheel speeds [n] each (m/s); they act from the start of the next step()."""
@@ -202,6 +204,22 @@ class PhysicsWorld:
         if len(self.movable):
             k = len(self.movable)
             self._movable_state[:] = flat[self.n * _N_FIELDS:(self.n + k) * _N_FIELDS].reshape(k, _N_FIELDS)
+
+    def place_movable(self, index: int, position, yaw_rad: float) -> None:
+        """Put movable object ``index`` at rest at a new pose (between steps)."""
+        body = self._movable_bodies[index]
+        body.position, body.angle = (float(position[0]), float(position[1])), float(yaw_rad)
+        body.velocity, body.angular_velocity = (0.0, 0.0), 0.0
+        self.space.reindex_shapes_for_body(body)
+        self._read_state()
+
+    def add_movable(self, obstacle) -> int:
+        """Add a movable object (after the others: the batch rows stay robots, then movables)."""
+        self._add_movable_objects([obstacle])
+        self.movable.append(obstacle)
+        self._movable_state = np.zeros((len(self.movable), _N_FIELDS))
+        self._read_state()
+        return len(self.movable) - 1
 
     def poses(self) -> tuple[np.ndarray, np.ndarray]:
         """Positions [n, 2] (m) and headings [n] (rad, wrapped to (-pi, pi])."""

@@ -19,6 +19,7 @@ from typing import Optional
 import numpy as np
 from scipy.spatial import cKDTree
 
+from composed_sim.core import world_edits
 from composed_sim.core.floor import Floor, ground_sensors
 from composed_sim.core.geometry import StaticScene, box_corners
 from composed_sim.core.lidar import lidar_scan
@@ -222,6 +223,24 @@ class Simulation:
             RangeAndBearingReadings.empty(self.n, medium.payload_bytes) if self.rab_equipped.any() else None)
 
         self.positions, self.headings = self.physics.poses()
+        self.frame: Optional[SensorFrame] = None
+
+    # --- world edits between ticks (loop functions): core/world_edits.py ---------------
+
+    def move_object(self, index: int, position, yaw_rad: Optional[float] = None) -> None:
+        world_edits.move_object(self, index, position, yaw_rad)
+
+    def add_object(self, obstacle) -> int:
+        return world_edits.add_object(self, obstacle)
+
+    def set_floor_shape(self, index: int, **changes) -> None:
+        world_edits.set_floor_shape(self, index, **changes)
+
+    def add_floor_shape(self, shape) -> int:
+        return world_edits.add_floor_shape(self, shape)
+
+    def set_light(self, index: int, **changes) -> None:
+        world_edits.set_light(self, index, **changes)
 
     # --- commands (act at the next step) ---------------------------------------------
 
@@ -325,6 +344,7 @@ class Simulation:
         frame = SensorFrame(self.tick, groups, pose, self._wheels, self.odometry.pose.copy(),
                             self.odometry.twist(self._wheels), self._rab)
         self.times.sensing_s += time.perf_counter() - t0
+        self.frame = frame      # the latest readings, for loop functions (composed_sim/loop_functions.py)
         return frame
 
     def _led_world(self) -> np.ndarray:

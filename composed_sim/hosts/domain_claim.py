@@ -93,7 +93,7 @@ def foreign_simulators(domain: int, probe_s: float = PROBE_S) -> list[str]:
 
     from composed_sim.ros import contract as c
     from composed_sim.ros.participants import ignore_participants_of_this_process
-    from composed_sim.ros.simulator_node import quiet_node_options
+    from composed_sim.ros.robot_settings import quiet_node_options
 
     ignore_participants_of_this_process()     # before this process's first participant (profile loaded once)
     context = Context()

@@ -30,7 +30,8 @@ from composed_sim.hosts.robot_ranges import format_ranges
 from composed_sim.hosts.shard_announce import ShardInfo, ShardRegistry, world_fingerprint
 from composed_sim.ros import contract as c
 from composed_sim.ros.lockstep_executor import LockstepExecutor
-from composed_sim.ros.simulator_node import SimulatorNode, robot_devices
+from composed_sim.ros.robot_settings import robot_settings
+from composed_sim.ros.simulator_node import AnswerTypeError, SimulatorNode
 from composed_sim.world.schema import World
 
 GONE_REASON = "its shard is gone (no cmd_vel publisher left)"
@@ -55,7 +56,6 @@ class ExternalControllersHost(ControllersElsewhere):
         self._registry: Optional[ShardRegistry] = None
         self._executor: Optional[LockstepExecutor] = None
         self._thread: Optional[threading.Thread] = None
-        self._cmd_subs: list = []
         self._startup_interrupted = False
 
     def __enter__(self) -> "ExternalControllersHost":
@@ -66,10 +66,9 @@ class ExternalControllersHost(ControllersElsewhere):
             rclpy.init(context=self._context, domain_id=self.domain_id)
             self.sim_node = SimulatorNode(self.sim.names, self.sim.models, context=self._context,
                                           tick_ns=self.world.tick_ns, lockstep=self.world.lockstep,
-                                          devices=robot_devices(self.world),
-                                          rab_payload_bytes=self.world.range_and_bearing.payload_bytes)
+                                          rab_payload_bytes=self.world.range_and_bearing.payload_bytes,
+                                          **robot_settings(self.world, range(self.world.robot_count)))
             endpoints = _endpoints_by_topic(self.sim_node)
-            self._cmd_subs = [endpoints[c.topic_name(name, c.CMD_VEL)] for name in self.sim.names]
             self._registry = ShardRegistry(self._context, self.sim.n)
             with InterruptWatch() as interrupts:
                 self._wait_for_shards(endpoints, lambda: interrupts.requested)
@@ -114,11 +113,14 @@ class ExternalControllersHost(ControllersElsewhere):
             host_of: dict[int, ShardInfo] = {}
             for info in self.shards.values():     # arrival order: a restarted shard replaces its predecessor
                 host_of.update({i: info for i in info.robots})
-            doubled = [i for i in range(self.sim.n) if self._cmd_subs[i].get_publisher_count() > 1]
+            try:
+                unmatched_sim_side = set(names.index(r) for r in self.sim_node.unmatched_robots())
+            except AnswerTypeError as e:
+                raise HostError(str(e)) from None
+            doubled = [i for i in range(self.sim.n) if self._answer_publishers(i) > 1]
             if doubled:
                 raise HostError(f"robots {format_ranges(doubled)} have more than one cmd_vel publisher: "
                                 f"two shards (or another run in ROS domain {self.domain_id}) host them")
-            unmatched_sim_side = set(names.index(r) for r in self.sim_node.unmatched_robots())
             unmatched_sim_side |= {i for i, info in host_of.items()
                                    if not all(matched(endpoints.get(c.topic_name(names[i], c.TOPICS[t])))
                                               for t in info.topics.get(i, []) if t in c.TOPICS)}
@@ -150,8 +152,13 @@ class ExternalControllersHost(ControllersElsewhere):
         node = self.sim_node
         waiting = ~node.answered & ~node.failed
         for i in waiting.nonzero()[0]:
-            if self._cmd_subs[i].get_publisher_count() == 0:
+            if self._answer_publishers(i) == 0:
                 node.mark_failed(self.sim.names[i], GONE_REASON)
+
+    def _answer_publishers(self, i: int) -> int:
+        """Publishers matched on robot i's cmd_vel (0 while its answer type is not known)."""
+        sub = self.sim_node.answer_subscription(self.sim.names[i])
+        return 0 if sub is None else sub.get_publisher_count()
 
     def __exit__(self, *exc) -> None:
         if self._executor is not None:

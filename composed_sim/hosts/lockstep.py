@@ -16,6 +16,7 @@ import psutil
 from composed_sim.world.robot_models import display_colors
 from composed_sim.core.simulation import SensorFrame, Simulation
 from composed_sim.core.violations import Violation
+from composed_sim.loop_functions import LoopHooks
 if TYPE_CHECKING:   # the tick loop itself needs no rclpy: the worker host's main process runs it without
     from composed_sim.ros.simulator_node import SimulatorNode
 
@@ -64,6 +65,8 @@ class LoopResult:
     interrupted: bool = False
     # (tick, resident MB of this process) about 50 times per run: flat memory, or where it grows
     memory: list[tuple[int, float]] = field(default_factory=list)
+    metrics: list[dict] = field(default_factory=list)   # the loop functions' rows, {"tick": t, ...}
+    finished: bool = False     # the loop functions ended the run (is_finished)
 
 
 MEMORY_SAMPLES = 50
@@ -84,6 +87,7 @@ class Exchange(Protocol):
     violations: list[Violation]
 
     def publish_tick(self, frame: SensorFrame) -> None: ...
+    def publish_clock(self, tick: int) -> None: ...
     def close_tick(self, fallback: str, previous: tuple[np.ndarray, np.ndarray],
                    commands: tuple[np.ndarray, np.ndarray]) -> None: ...
     def take_led_commands(self) -> dict[int, np.ndarray]: ...
@@ -119,6 +123,10 @@ class NodesExchange:
     def publish_tick(self, frame: SensorFrame) -> None:
         for node in self.nodes:
             node.publish_tick(frame)
+
+    def publish_clock(self, tick: int) -> None:
+        for node in self.nodes:
+            node.publish_clock(tick)
 
     def wait_for_answers(self, timeout_s: float) -> bool:
         """Until every node's robots answered (their callbacks run elsewhere: executor threads,
@@ -168,7 +176,10 @@ def run_lockstep(sim: Simulation, exchange: Exchange, wait_for_answers: Callable
     traj = Trajectories.allocate(sim, ticks)
     times = LoopTimes()
     previous = (np.zeros(sim.n), np.zeros(sim.n))
+    hooks = LoopHooks(sim)      # the world's loop functions (composed_sim/loop_functions.py)
+    hooks.start(sim)
     frame = sim.sense()
+    hooks.at_tick_0(sim)
     for observer in observers:
         observer.on_tick(sim)
     interrupted = False
@@ -179,7 +190,7 @@ def run_lockstep(sim: Simulation, exchange: Exchange, wait_for_answers: Callable
     def so_far() -> LoopResult:
         """What was simulated until now, as an interrupted run's result."""
         times.ticks_wall_s = time.perf_counter() - t_start
-        return LoopResult(traj.filled(), list(exchange.violations), times, True, memory)
+        return LoopResult(traj.filled(), list(exchange.violations), times, True, memory, list(hooks.rows))
 
     if checkpoint is not None:
         checkpoint(so_far())
@@ -200,8 +211,10 @@ def run_lockstep(sim: Simulation, exchange: Exchange, wait_for_answers: Callable
             times.ros_exchange_s += time.perf_counter() - t0
             sim.set_velocity_commands(*commands)
             previous = commands
+            hooks.pre_step(sim)
             frame = sim.step()
             traj.record(sim)
+            finished = hooks.post_step(sim)
             for observer in observers:
                 observer.on_tick(sim)
             if progress is not None:
@@ -210,6 +223,10 @@ def run_lockstep(sim: Simulation, exchange: Exchange, wait_for_answers: Callable
                 memory.append((sim.tick, resident_mb()))
             if checkpoint is not None and sim.tick % CHECKPOINT_EVERY == 0:
                 checkpoint(so_far())
+            if finished:
+                break
+        hooks.end(sim)
+        exchange.publish_clock(sim.tick)      # the last state simulated is on the wire too
     except BaseException as e:
         # Nothing is lost: whoever handles the error can still write what was simulated so far.
         e.partial_result = so_far()
@@ -217,4 +234,5 @@ def run_lockstep(sim: Simulation, exchange: Exchange, wait_for_answers: Callable
     times.ticks_wall_s = time.perf_counter() - t_start
     if memory[-1][0] != sim.tick:
         memory.append((sim.tick, resident_mb()))
-    return LoopResult(traj.filled(), list(exchange.violations), times, interrupted, memory)
+    return LoopResult(traj.filled(), list(exchange.violations), times, interrupted, memory, hooks.rows,
+                      hooks.finished)

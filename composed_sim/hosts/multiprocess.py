@@ -41,7 +41,8 @@ from composed_sim.hosts.processes import InterruptWatch, exit_reason, last_words
 from composed_sim.hosts.lockstep import NodesExchange
 from composed_sim.ros import contract as c
 from composed_sim.ros.lockstep_executor import LockstepExecutor
-from composed_sim.ros.simulator_node import SimulatorNode, robot_devices
+from composed_sim.ros.robot_settings import robot_settings
+from composed_sim.ros.simulator_node import AnswerTypeError, SimulatorNode
 from composed_sim.world.loader import dump_world
 from composed_sim.world.schema import World
 
@@ -49,6 +50,7 @@ from composed_sim.world.schema import World
 # so a few per core keeps every core busy without thrashing a small machine.
 SPAWN_AT_ONCE = max(2, 2 * (os.cpu_count() or 1))
 STALL_TIMEOUT_S = 60.0     # start-up fails when no child became ready for this long
+DETECT_PERIOD_S = 0.1      # how often start-up looks up the cmd_vel types not known yet
 POLL_S = NodesExchange.POLL_S   # look for dead children this often
 TERM_GRACE_S = 5.0         # SIGTERM → SIGKILL
 
@@ -140,7 +142,6 @@ class MultiProcessHost(ControllersElsewhere):
             world_file = self._tmp / "world.yaml"
             world_file.write_text(dump_world(self.world), encoding="utf-8")
             tick_ns, lockstep = self.world.tick_ns, self.world.lockstep
-            devices = robot_devices(self.world)
             for d in sorted(set(self.domains.values())):
                 rows = [i for i, name in enumerate(self.sim.names) if self.domains[name] == d]
                 context = Context()
@@ -150,8 +151,8 @@ class MultiProcessHost(ControllersElsewhere):
                                                [self.sim.models[i] for i in rows], context=context,
                                                tick_ns=tick_ns, rows=np.array(rows, dtype=int),
                                                node_name=f"composed_sim_d{d}", lockstep=lockstep,
-                                               devices=[devices[i] for i in rows],
-                                               rab_payload_bytes=self.world.range_and_bearing.payload_bytes)
+                                               rab_payload_bytes=self.world.range_and_bearing.payload_bytes,
+                                               **robot_settings(self.world, rows))
                 self._nodes[d].on_failed.append(self._stop_failed)
             self.exchange = NodesExchange(list(self._nodes.values()), self._check_children)
             with InterruptWatch() as interrupts:
@@ -182,7 +183,7 @@ class MultiProcessHost(ControllersElsewhere):
         waiting = list(self.sim.names)
         unmatched: dict[str, ControllerProcess] = {}
         endpoints = {d: _endpoints_by_topic(node) for d, node in self._nodes.items()}
-        last_progress = time.monotonic()
+        last_progress = next_detection = time.monotonic()
         with selectors.DefaultSelector() as pipes:
             while (waiting or unmatched) and not interrupts.requested:
                 while waiting and sum(not p.created for p in unmatched.values()) < SPAWN_AT_ONCE:
@@ -196,8 +197,11 @@ class MultiProcessHost(ControllersElsewhere):
                         p.close_pipe()
                         if p.topics is None:
                             self._failed_start(p)
+                if time.monotonic() >= next_detection:     # a graph query per robot not known yet
+                    next_detection = time.monotonic() + DETECT_PERIOD_S
+                    self._detect_answer_types(endpoints)
                 for robot, p in list(unmatched.items()):
-                    if p.topics is not None and all(matched(endpoints[p.domain].get(t)) for t in p.topics):
+                    if p.topics is not None and self._nodes[p.domain].answer_subscription(robot) is not None and all(matched(endpoints[p.domain].get(t)) for t in p.topics):
                         p.startup_s = time.perf_counter() - p.spawned
                         del unmatched[robot]
                         last_progress = time.monotonic()
@@ -206,6 +210,16 @@ class MultiProcessHost(ControllersElsewhere):
                     raise HostError(f"controllers of {', '.join(missing)} were not matched with the simulator "
                                     f"within {STALL_TIMEOUT_S:.0f} s (each must publish {c.CMD_VEL.name} and "
                                     f"subscribe to a sensor); {len(waiting)} more not started")
+
+    def _detect_answer_types(self, endpoints: dict) -> None:
+        """Subscribe to each robot's cmd_vel with the type its controller publishes (the graph says)."""
+        for d, node in self._nodes.items():
+            try:
+                node.detect_answer_types()
+            except AnswerTypeError as e:
+                raise HostError(str(e)) from None
+            for robot in node.robots:
+                endpoints[d][c.topic_name(robot, c.CMD_VEL)] = node.answer_subscription(robot)
 
     def _failed_start(self, p: ControllerProcess) -> None:
         try:

@@ -27,12 +27,13 @@ from composed_sim import plugins
 from composed_sim.world.robot_models import get_model
 from composed_sim.hosts.callback_guard import CallbackGuard, refuse_shutdown_from_callbacks
 from composed_sim.hosts.choices import ROBOTS_PER_PARTICIPANT
-from composed_sim.hosts.controllers import (HostError, check_executor, create_controller, make_executor,
+from composed_sim.hosts.controllers import (HostError, answer_type, check_executor, create_controller, make_executor,
                                              spin_until_shutdown)
 from composed_sim.hosts.lockstep import NodesExchange
 from composed_sim.ros import contract as c
 from composed_sim.ros.participants import ignore_participants_of_this_process
-from composed_sim.ros.simulator_node import SimulatorNode, robot_devices
+from composed_sim.ros.robot_settings import robot_settings
+from composed_sim.ros.simulator_node import AnswerTypeError, SimulatorNode
 from composed_sim.world.schema import World
 
 DISCOVERY_TIMEOUT_S = 60.0
@@ -84,7 +85,7 @@ class ParticipantGroups:
         ignore_participants_of_this_process()
         lockstep = world.lockstep
         self.guard = CallbackGuard(lockstep.watchdog_s, lockstep.unresponsive_s)
-        names, groups, devices = world.robot_names(), world.group_of_robot(), robot_devices(world)
+        names, groups = world.robot_names(), world.group_of_robot()
         robots = frozenset(names)
         for k, first in enumerate(range(self.start, self.stop, self.robots_per_participant)):
             block = range(first, min(self.stop, first + self.robots_per_participant))
@@ -93,21 +94,27 @@ class ParticipantGroups:
             refuse_shutdown_from_callbacks(context, self.guard)
             self.contexts.append(context)
             group = self.first_group + k
+            # The controllers first: the simulator node subscribes to each robot's cmd_vel with the
+            # type its controller publishes (one participant allows one type per topic).
+            first_node = len(self.controllers)
+            for i in block:
+                self.controllers.append(create_controller(classes[world.robots[groups[i]].controller], names[i],
+                                                          world, groups[i], context, robots=robots))
+            controllers = self.controllers[first_node:]
             sim_node = SimulatorNode([names[i] for i in block], [get_model(world.robots[groups[i]].model) for i in block],
                                      context=context, tick_ns=world.tick_ns,
                                      rows=np.arange(block.start - self.start, block.stop - self.start),
                                      node_name=simulator_node_name(group), lockstep=lockstep,
-                                     devices=[devices[i] for i in block],
                                      rab_payload_bytes=world.range_and_bearing.payload_bytes,
-                                     publish_clock=group == 0)
+                                     publish_clock=group == 0,
+                                     **{**robot_settings(world, block),
+                                        "answer_types": [answer_type(node, names[i], world.robots[groups[i]].cmd_vel)
+                                                         for i, node in zip(block, controllers)]})
             sim_node.on_failed.append(self.guard.stop_worker)
             self.simulator_nodes.append(sim_node)
-            for i in block:
-                node = create_controller(classes[world.robots[groups[i]].controller], names[i], world,
-                                         groups[i], context, robots=robots)
+            for i, node in zip(block, controllers):
                 self.guard.guard(node, names[i], sim_node)
                 sim_node.drive_clock_of(node)
-                self.controllers.append(node)
         self.exchange = NodesExchange(self.simulator_nodes)
         self.executor = make_executor(self.executor_kind, self.contexts[0])
         # Simulator nodes last, so that the lockstep executor's one ordered pass runs every
@@ -123,12 +130,18 @@ class ParticipantGroups:
     def _wait_for_discovery(self) -> None:
         """Every robot's answer topic has a publisher and its sensors a subscriber before tick 0."""
         deadline = time.monotonic() + DISCOVERY_TIMEOUT_S
-        while missing := [r for node in self.simulator_nodes for r in node.unmatched_robots()]:
+        while missing := self._unmatched():
             if time.monotonic() > deadline:
                 raise HostError(f"the controllers of {', '.join(missing[:5])}{' …' if len(missing) > 5 else ''} "
                                 f"were not connected within {DISCOVERY_TIMEOUT_S:.0f} s: each must publish "
                                 f"{c.CMD_VEL.name} and subscribe to at least one sensor topic")
             time.sleep(0.01)
+
+    def _unmatched(self) -> list[str]:
+        try:
+            return [r for node in self.simulator_nodes for r in node.unmatched_robots()]
+        except AnswerTypeError as e:
+            raise HostError(str(e)) from None
 
     # --- running the callbacks while a tick is open --------------------------------------------
 

@@ -85,7 +85,7 @@ class ShardHost:
                     break
                 group = groups[i]
                 node = create_controller(classes[self.world.robots[group].controller], names[i], self.world,
-                                         group, self.context, robots=robot_names)
+                                         group, self.context, robots=robot_names, clock_from_stamps=True)
                 clock = node.get_clock()
                 clock._set_ros_time_is_active(True)    # as SimulatorNode.drive_clock_of
                 self._clocks.append(clock)

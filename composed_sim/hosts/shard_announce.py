@@ -22,7 +22,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from std_msgs.msg import String
 
 from composed_sim.hosts.robot_ranges import format_ranges, parse_ranges
-from composed_sim.ros.simulator_node import quiet_node_options
+from composed_sim.ros.robot_settings import quiet_node_options
 from composed_sim.world.schema import World
 
 SHARDS_TOPIC = "/composed_sim/shards"

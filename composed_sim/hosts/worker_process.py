@@ -7,6 +7,7 @@
     main → worker   ("setup", WorkerSetup)         once, first
                     ("tap", [glob, …])             record these topics' messages (--record-topics)
                     ("tick", SensorFrame)          the block's readings of one tick
+                    ("clock", tick)                /clock alone, for the state after the last tick
                     ("stop",)                      end now
     worker → main   ("ready", nodes)               discovery done: tick 0 can start
                     ("error", kind, message, field) the block could not be built
@@ -120,6 +121,8 @@ def main(argv: list[str] | None = None) -> int:
                     answers.tapped = tap.drain()
                 answers.peak_rss_kb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
                 conn.send(("answers", answers))
+            elif message[0] == "clock":
+                exchange.publish_clock(message[1])
             elif message[0] == "tap":
                 tap = TapBuffer(message[1])
                 node.set_message_tap(tap)

@@ -117,6 +117,14 @@ class WorkersExchange:
                 except OSError:
                     self._lost(w)
 
+    def publish_clock(self, tick: int) -> None:
+        for w in self.workers:
+            if w.dead is None:
+                try:
+                    w.conn.send(("clock", tick))
+                except OSError:
+                    self._lost(w)
+
     def wait_for_answers(self, timeout_s: float) -> bool:
         """Until every live worker sent its answers. Each worker applies the watchdog itself; one
         that is not back well after it (or whose socket closed: it died) is given up."""
@@ -285,7 +293,7 @@ class WorkerHost(ControllersElsewhere):
             from rclpy.context import Context
             from rclpy.node import Node
 
-            from composed_sim.ros.simulator_node import quiet_node_options
+            from composed_sim.ros.robot_settings import quiet_node_options
             self._observer_context = Context()
             rclpy.init(context=self._observer_context, domain_id=self.domain_id)
             self._observer_node = Node("composed_sim_observers", context=self._observer_context,

@@ -198,3 +198,47 @@ def decode_twist(data) -> tuple[float, float]:
     """TwistStamped bytes → (linear.x, angular.z)."""
     pos = align(after_header(data), 8)
     return _F64.unpack_from(data, pos)[0], _F64.unpack_from(data, pos + 40)[0]
+
+
+def decode_unstamped_twist(data) -> tuple[float, float]:
+    """Twist bytes → (linear.x, angular.z): six float64 after the encapsulation header."""
+    return _F64.unpack_from(data, HEADER)[0], _F64.unpack_from(data, HEADER + 40)[0]
+
+
+_POSE = struct.Struct("<7d")
+
+
+class TransformsEncoder:
+    """``tf2_msgs/msg/TFMessage`` bytes for a fixed list of (parent, child) frames: the frame
+    names are laid out once; each message then only writes the stamps and the poses."""
+
+    def __init__(self, frames) -> None:
+        buffer = bytearray(b"\x00\x01\x00\x00")          # CDR little endian
+
+        def pad(size: int) -> None:
+            buffer.extend(bytes(-(len(buffer) - HEADER) % size))
+
+        def string(text: str) -> None:
+            data = text.encode() + b"\0"
+            pad(4)
+            buffer.extend(_U32.pack(len(data)) + data)
+        buffer.extend(_U32.pack(len(frames)))
+        self._stamps, self._poses = [], []
+        for parent, child in frames:                     # geometry_msgs/TransformStamped
+            pad(4)
+            self._stamps.append(len(buffer))
+            buffer.extend(bytes(_STAMP.size))
+            string(parent)
+            string(child)
+            pad(8)
+            self._poses.append(len(buffer))              # translation x y z, rotation x y z w
+            buffer.extend(bytes(_POSE.size))
+        self._buffer = buffer
+
+    def encode(self, sec: int, nanosec: int, poses) -> bytes:
+        """``poses``: per frame pair (x, y, z, qx, qy, qz, qw)."""
+        for at in self._stamps:
+            _STAMP.pack_into(self._buffer, at, sec, nanosec)
+        for at, pose in zip(self._poses, poses):
+            _POSE.pack_into(self._buffer, at, *pose)
+        return bytes(self._buffer)

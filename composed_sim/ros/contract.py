@@ -45,8 +45,8 @@ from typing import Container, Optional, Sequence
 import numpy as np
 from builtin_interfaces.msg import Time
 from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
-from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
-from geometry_msgs.msg import PoseStamped, TwistStamped
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from geometry_msgs.msg import PoseStamped, TransformStamped, Twist, TwistStamped
 from nav_msgs.msg import Odometry
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState, LaserScan, PointCloud2, PointField
@@ -55,6 +55,7 @@ from std_msgs.msg import MultiArrayDimension, UInt8MultiArray
 from composed_sim.world import robot_models as devices
 from composed_sim.world.robot_models import Lidar, RobotModel
 from composed_sim.ros import cdr
+from composed_sim.ros.raw_types import raw_message_type
 from composed_sim.ros.global_topics import CLOCK_TOPIC, SWARM_MARKERS_TOPIC, SWARM_STATE_TOPIC, WORLD_FRAME  # noqa: F401 (part of the contract)
 
 
@@ -76,7 +77,12 @@ BLOBS = Topic("blobs", PointCloud2, "sensor",
               "base_link (m; z = 0, the camera is planar), rgb = 0x00RRGGBB (uint32)")
 CMD_VEL = Topic("cmd_vel", TwistStamped, "actuator",
                 "differential drive: linear.x m/s, angular.z rad/s; header.stamp must equal the "
-                "answered sensor tick's stamp (this message is the controller's answer to a tick)")
+                "answered sensor tick's stamp (this message is the controller's answer to a tick); "
+                "or geometry_msgs/Twist, unstamped, which answers the tick whose sensors it follows")
+# What a controller may publish on cmd_vel (per robot group; the world file's ``cmd_vel`` or the
+# controller's publisher says which): the stamped answer of this contract, or the unstamped
+# Twist that most ROS nodes publish and the ROS 2-ARGoS bridge took.
+ANSWER_TYPES: dict[str, type] = {"stamped": TwistStamped, "unstamped": Twist}
 LEDS = Topic("leds", UInt8MultiArray, "actuator",
              "LED colours: data = [n_leds × 3] RGB bytes, ring LEDs first, beacon last; "
              "kept until changed")
@@ -102,9 +108,23 @@ RAB_TX = Topic("rab_tx", UInt8MultiArray, "actuator",
                "range-and-bearing payload: data = exactly payload_bytes bytes, broadcast from the next "
                "tick on (heard one tick later), kept until changed")
 
+# tf's message type has no Python package among the ROS wheels: it travels as bytes
+# (ros/raw_types.py), with the type's real name and hash, so any tf listener matches it.
+TF_MESSAGE = raw_message_type("tf2_msgs/msg/TFMessage",
+                              "RIHS01_e369d0f05a23ae52508854b66f6aa0437f3449d652e8cbf22d5abe85d020f087",
+                              TransformStamped)
+TF = Topic("tf", TF_MESSAGE, "frames",
+           "the robot's moving frames, each tick: world → <r>/odom (so that world → base_link is the "
+           "positioning reading) and <r>/odom → <r>/base_link (the odometry reading)")
+TF_STATIC = Topic("tf_static", TF_MESSAGE, "frames",
+                  "the robot's fixed sensor mounts (<r>/base_link → <r>/base_scan), once, transient local")
+
 # Reliable and a few ticks deep, for sensors and commands alike: in lockstep a controller reads
 # every tick before the next is published, and an outside monitor still sees every message.
 QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
+# tf_static as tf2's static broadcasters offer it: a late listener still gets the mounts.
+STATIC_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST,
+                        durability=DurabilityPolicy.TRANSIENT_LOCAL)
 # The simulator's and the base class's endpoints create no QoS event handlers. rclpy's default
 # ones (a warning on an incompatible QoS or type; the other side still warns) are waitables, and
 # the stock executors look each one up in the list of all waitables on every wait: with thousands
@@ -114,12 +134,14 @@ SUBSCRIPTION_EVENTS = SubscriptionEventCallbacks(use_default_callbacks=False)
 
 SENSOR_TOPICS: tuple[Topic, ...] = (PROXIMITY, LIGHT, BLOBS, GROUND_SENSORS, SCAN, RAB_RX, POSE, ODOM, WHEELS)
 ACTUATOR_TOPICS: tuple[Topic, ...] = (CMD_VEL, LEDS, RAB_TX)
-TOPICS: dict[str, Topic] = {t.name: t for t in SENSOR_TOPICS + ACTUATOR_TOPICS}
+FRAME_TOPICS: tuple[Topic, ...] = (TF, TF_STATIC)
+TOPICS: dict[str, Topic] = {t.name: t for t in SENSOR_TOPICS + ACTUATOR_TOPICS + FRAME_TOPICS}
 # The topics each device gives a robot that runs it (cmd_vel and leds: every robot).
 DEVICE_TOPICS: dict[str, tuple[Topic, ...]] = {
     devices.PROXIMITY: (PROXIMITY,), devices.LIGHT: (LIGHT,), devices.CAMERA: (BLOBS,),
     devices.GROUND: (GROUND_SENSORS,), devices.LIDAR: (SCAN,), devices.RANGE_AND_BEARING: (RAB_RX, RAB_TX),
-    devices.POSITIONING: (POSE,), devices.ODOMETRY: (ODOM,), devices.DIFFERENTIAL_STEERING: (WHEELS,)}
+    devices.POSITIONING: (POSE,), devices.ODOMETRY: (ODOM,), devices.DIFFERENTIAL_STEERING: (WHEELS,),
+    devices.TF: (TF, TF_STATIC)}
 
 
 def robot_topics(running) -> tuple[Topic, ...]:
@@ -162,8 +184,10 @@ def type_name(msg_type: type) -> str:
     return f"{msg_type.__module__.split('.')[0]}/msg/{msg_type.__name__}"
 
 
-def publisher_problem(robot: str, topic: str, msg_type: type, robots: Container[str]) -> Optional[str]:
+def publisher_problem(robot: str, topic: str, msg_type: type, robots: Container[str],
+                      answer_type: Optional[type] = None) -> Optional[str]:
     """Why ``robot``'s controller may not publish ``msg_type`` on the resolved ``topic``, or None.
+    ``answer_type``: the cmd_vel type the robot's answers already have, if known.
 
     A controller publishes its own actuator topics only, with their contract types: another
     robot's topic would make its answers ambiguous (DDS tells a subscriber nothing about which
@@ -176,6 +200,15 @@ def publisher_problem(robot: str, topic: str, msg_type: type, robots: Container[
         return f"{topic} is a topic of {owner}, not of {robot}" if owner in robots else None
     if contract.direction == "sensor":
         return f"{topic} is published by the simulator only"
+    if contract.direction == "frames":
+        return None                        # a controller may add frames (a localiser's map → odom)
+    if contract is CMD_VEL:
+        if answer_type is not None and msg_type is not answer_type and msg_type in ANSWER_TYPES.values():
+            return f"{topic} carries {type_name(answer_type)} (this robot's answers), not {type_name(msg_type)}"
+        if msg_type not in ANSWER_TYPES.values():
+            return (f"{topic} carries {' or '.join(type_name(t) for t in ANSWER_TYPES.values())} (the topic "
+                    f"contract), not {type_name(msg_type)}")
+        return None
     if msg_type is not contract.msg_type:
         return f"{topic} carries {type_name(contract.msg_type)} (the topic contract), not {type_name(msg_type)}"
     return None
@@ -420,6 +453,9 @@ def joint_state(robot: str) -> JointState:
     msg = JointState()
     msg.header.frame_id = base_link(robot)
     msg.name = list(WHEEL_JOINTS)
+    # Not simulated, so zero, as a TurtleBot 3 reports it. Not empty: Fast CDR pads an empty
+    # float64 sequence at the message's end to 8 bytes, and rosbags refuses such a message.
+    msg.effort = [0.0] * len(WHEEL_JOINTS)
     return msg
 
 
@@ -433,99 +469,6 @@ def fill_wheels(msg: JointState, stamp: Time, angles_rad: np.ndarray, velocities
 def half_yaw(yaws: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """[n] yaws → (qz, qw) [n] each of the planar quaternions."""
     return np.sin(0.5 * yaws), np.cos(0.5 * yaws)
-
-
-# --- decoding (controller side): arrays, never raw fields -----------------------------------
-
-class Blobs:
-    """The coloured blobs a camera sees this tick. Colours are kept as 0x00RRGGBB words when decoded
-    from a cloud; ``colors`` (RGB rows) is derived on first use. Read-only by convention: ``of_color``
-    returns this very object when every blob has that colour."""
-    __slots__ = ("angles", "distances", "rgb", "_colors")
-
-    def __init__(self, angles: np.ndarray, distances: np.ndarray, colors: Optional[np.ndarray] = None,
-                 rgb: Optional[np.ndarray] = None):
-        if colors is None and rgb is None:
-            raise ValueError("Blobs needs colors ([m, 3] uint8) or rgb ([m] uint32)")
-        self.angles = angles          # [m] rad, bearing relative to the heading, CCW
-        self.distances = distances    # [m] planar distance from the robot centre, m
-        self.rgb = rgb                # [m] uint32 0x00RRGGBB, or None
-        self._colors = colors         # [m, 3] uint8 RGB, or None until asked for
-
-    @property
-    def colors(self) -> np.ndarray:
-        """[m, 3] uint8 RGB."""
-        if self._colors is None:
-            colors = np.empty((len(self.rgb), 3), dtype=np.uint8)
-            colors[:, 0], colors[:, 1], colors[:, 2] = self.rgb >> 16, self.rgb >> 8, self.rgb  # uint8 keeps the low byte
-            self._colors = colors
-        return self._colors
-
-    def __len__(self) -> int:
-        return len(self.angles)
-
-    def of_color(self, rgb: Sequence[int]) -> "Blobs":
-        if self.rgb is not None:
-            r, g, b = (int(v) for v in rgb)
-            keep = self.rgb == ((r << 16) | (g << 8) | b)
-        else:
-            keep = np.all(self.colors == np.asarray(rgb, dtype=np.uint8), axis=1)
-        if keep.all():      # the common case in a swarm of one beacon colour: no copies
-            return self
-        return Blobs(self.angles[keep], self.distances[keep], None if self._colors is None else self._colors[keep],
-                     None if self.rgb is None else self.rgb[keep])
-
-
-def ring_angles(msg: LaserScan, count: int) -> np.ndarray:
-    """[count] sensor angles of a ring scan."""
-    return msg.angle_min + msg.angle_increment * np.arange(count)
-
-
-def decode_proximity(msg: LaserScan) -> tuple[np.ndarray, np.ndarray]:
-    """→ distances [k] (m from the rim, inf = none), readings [k] in [0, 1]."""
-    return (np.frombuffer(msg.ranges, dtype=np.float32).astype(float),
-            np.frombuffer(msg.intensities, dtype=np.float32).astype(float))
-
-
-def decode_light(msg: LaserScan) -> np.ndarray:
-    """→ readings [k] in [0, 1]."""
-    return np.frombuffer(msg.intensities, dtype=np.float32).astype(float)
-
-
-def decode_blobs(msg: PointCloud2) -> Blobs:
-    fields = tuple((f.name, f.offset, f.datatype) for f in msg.fields)
-    return _blobs(np.frombuffer(msg.data, dtype=_cloud_dtype(fields, msg.point_step), count=msg.width))
-
-
-def _blobs(points: np.ndarray) -> Blobs:
-    if len(points) == 0:
-        return Blobs(_NO_FLOATS, _NO_FLOATS, rgb=_NO_WORDS)
-    x = points["x"].astype(float)
-    y = points["y"].astype(float)
-    return Blobs(np.arctan2(y, x), np.hypot(x, y), rgb=points["rgb"] & 0xFFFFFF)
-
-
-_NO_FLOATS, _NO_WORDS = np.empty(0), np.empty(0, dtype=np.uint32)
-for _empty in (_NO_FLOATS, _NO_WORDS):
-    _empty.flags.writeable = False
-
-
-_CLOUD_DTYPES: dict = {}
-
-
-def _cloud_dtype(fields: tuple, point_step: int) -> np.dtype:
-    """The numpy dtype of a blob cloud's points from its fields ((name, offset, datatype) …):
-    x, y float32 and rgb uint32, wherever the publisher put them."""
-    key = (fields, point_step)
-    dtype = _CLOUD_DTYPES.get(key)
-    if dtype is None:
-        found = {name: (offset, datatype) for name, offset, datatype in fields}
-        wanted = {"x": PointField.FLOAT32, "y": PointField.FLOAT32, "rgb": PointField.UINT32}
-        if any(found.get(name, (0, None))[1] != datatype for name, datatype in wanted.items()):
-            raise ValueError(f"not a blob cloud: fields {sorted(found)} (need x, y float32 and rgb uint32)")
-        dtype = _CLOUD_DTYPES[key] = np.dtype({"names": list(wanted), "formats": ["<f4", "<f4", "<u4"],
-                                               "offsets": [found[n][0] for n in wanted], "itemsize": point_step})
-    return dtype
 
 
 # --- the same messages as serialized bytes (rclpy publishes bytes, raw subscriptions take them) ---
@@ -546,103 +489,6 @@ def blobs_encoder(robot: str) -> cdr.CloudEncoder:
 
 def answer_encoder() -> cdr.TwistEncoder:
     return cdr.TwistEncoder(TwistStamped())
-
-
-def decode_proximity_cdr(data: bytes) -> tuple[np.ndarray, np.ndarray]:
-    """Like decode_proximity, from the message's bytes."""
-    return cdr.decode_scan(data)
-
-
-def decode_light_cdr(data: bytes) -> np.ndarray:
-    return cdr.decode_scan_intensities(data)
-
-
-def decode_blobs_cdr(data: bytes, decoder: Optional[cdr.CloudDecoder] = None) -> Blobs:
-    """``decoder``: one per stream of clouds (a subscription), so their layout is parsed once."""
-    width, fields, point_step, points = (decoder or cdr.CloudDecoder()).decode(data)
-    return _blobs(np.frombuffer(points, dtype=_cloud_dtype(fields, point_step), count=width))
-
-
-def decode_answer_cdr(data: bytes) -> tuple[int, float, float]:
-    """cmd_vel bytes → (stamp ns, linear.x, angular.z)."""
-    return (cdr.stamp_ns(data), *cdr.decode_twist(data))
-
-
-def decode_leds(msg: UInt8MultiArray, n_leds: int) -> np.ndarray:
-    """→ [n_leds, 3] uint8; ValueError when the message does not carry n_leds colours."""
-    data = np.frombuffer(msg.data, dtype=np.uint8)
-    if data.size != 3 * n_leds:
-        raise ValueError(f"leds message has {data.size} bytes, expected {3 * n_leds} ({n_leds} LEDs × RGB)")
-    return data.reshape(n_leds, 3)
-
-
-def decode_ground(msg: PointCloud2) -> np.ndarray:
-    """→ [s] grey levels in [0, 1], in the model's sensor order."""
-    return np.frombuffer(msg.data, dtype=GROUND_DTYPE, count=msg.width)["intensity"].astype(float)
-
-
-def decode_scan(msg: LaserScan) -> np.ndarray:
-    """→ [r] ranges in m from the scanner (±inf per REP-117)."""
-    return np.frombuffer(msg.ranges, dtype=np.float32).astype(float)
-
-
-def scan_angles(msg: LaserScan) -> np.ndarray:
-    """[r] ray angles of a scan, rad in its frame."""
-    return msg.angle_min + msg.angle_increment * np.arange(len(msg.ranges))
-
-
-@dataclass(frozen=True)
-class RabMessages:
-    """The range-and-bearing messages one robot heard in a tick (one per sender, no sender id)."""
-    ranges: np.ndarray      # [m] m, emitter to emitter
-    bearings: np.ndarray    # [m] rad, horizontal, relative to the heading, CCW
-    elevations: np.ndarray  # [m] rad, vertical bearing
-    payloads: np.ndarray    # [m, B] uint8
-
-    def __len__(self) -> int:
-        return len(self.ranges)
-
-
-def decode_rab(msg: PointCloud2) -> RabMessages:
-    fields = {f.name: f for f in msg.fields}
-    payload = fields.get("payload")
-    if payload is None:
-        raise ValueError("rab_rx message has no 'payload' field")
-    points = np.frombuffer(msg.data, dtype=rab_dtype(payload.count), count=msg.width)
-    return RabMessages(points["range"].astype(float), points["bearing"].astype(float),
-                       points["elevation"].astype(float), points["payload"].copy())
-
-
-def decode_rab_payload(msg: UInt8MultiArray, payload_bytes: int) -> np.ndarray:
-    """→ [B] uint8; ValueError when the message does not carry exactly payload_bytes bytes."""
-    data = np.frombuffer(msg.data, dtype=np.uint8)
-    if data.size != payload_bytes:
-        raise ValueError(f"rab_tx message has {data.size} bytes, expected {payload_bytes} "
-                         f"(range_and_bearing.payload_bytes of the world file)")
-    return data
-
-
-def yaw_of(qz: float, qw: float) -> float:
-    """Yaw of a planar quaternion (0, 0, qz, qw)."""
-    return 2.0 * np.arctan2(qz, qw)
-
-
-def decode_pose(msg: PoseStamped) -> np.ndarray:
-    """→ [3] x, y (m), yaw (rad) in the world frame."""
-    p, q = msg.pose.position, msg.pose.orientation
-    return np.array([p.x, p.y, yaw_of(q.z, q.w)])
-
-
-def decode_odometry(msg: Odometry) -> tuple[np.ndarray, np.ndarray]:
-    """→ pose [3] x, y, yaw in odom; twist [2] linear (m/s), angular (rad/s) in base_link."""
-    p, q, t = msg.pose.pose.position, msg.pose.pose.orientation, msg.twist.twist
-    return np.array([p.x, p.y, yaw_of(q.z, q.w)]), np.array([t.linear.x, t.angular.z])
-
-
-def decode_wheels(msg: JointState, wheel_radius_m: float) -> tuple[np.ndarray, np.ndarray]:
-    """→ (left, right) wheel speeds [2] m/s, and wheel travel since the start [2] m."""
-    return (np.frombuffer(msg.velocity, dtype=np.float64) * wheel_radius_m,
-            np.frombuffer(msg.position, dtype=np.float64) * wheel_radius_m)
 
 
 def wheel_speeds(linear: float, angular: float, model: RobotModel) -> tuple[float, float]:

@@ -15,7 +15,7 @@ from rclpy.parameter import Parameter
 
 from composed_sim.world.robot_models import RobotModel, get_model
 from composed_sim.core.seeding import robot_rng
-from composed_sim.ros import cdr, contract as c
+from composed_sim.ros import cdr, contract as c, decoding
 
 _TAKEN_AS_BYTES = ("proximity", "light", "blobs")   # the sensors with decoders of their bytes
 
@@ -34,10 +34,10 @@ class Tick:
     proximity: Optional[np.ndarray] = None            # [k] readings in [0, 1]
     proximity_distances: Optional[np.ndarray] = None  # [k] m from the rim, inf = nothing
     light: Optional[np.ndarray] = None                # [k] readings in [0, 1]
-    blobs: Optional[c.Blobs] = None
+    blobs: Optional[decoding.Blobs] = None
     ground: Optional[np.ndarray] = None               # [s] floor grey levels in [0, 1]
     scan: Optional[np.ndarray] = None                 # [r] LiDAR ranges, m from the mount (±inf: REP-117)
-    rab: Optional[c.RabMessages] = None               # range-and-bearing messages heard this tick
+    rab: Optional[decoding.RabMessages] = None               # range-and-bearing messages heard this tick
     pose: Optional[np.ndarray] = None                 # [3] x, y (m), yaw (rad) in the world frame
     odom: Optional[np.ndarray] = None                 # [3] x, y, yaw in the robot's odom frame
     odom_twist: Optional[np.ndarray] = None           # [2] linear m/s, angular rad/s
@@ -114,11 +114,11 @@ class SwarmController(Node):
         sec, nanosec = divmod(self._pending_key, 1_000_000_000)
         tick = Tick(stamp=Time(sec=sec, nanosec=nanosec), time_s=sec + nanosec * 1e-9)
         if "proximity" in msgs:
-            tick.proximity_distances, tick.proximity = c.decode_proximity_cdr(msgs["proximity"])
+            tick.proximity_distances, tick.proximity = decoding.decode_proximity_cdr(msgs["proximity"])
         if "light" in msgs:
-            tick.light = c.decode_light_cdr(msgs["light"])
+            tick.light = decoding.decode_light_cdr(msgs["light"])
         if "blobs" in msgs:
-            tick.blobs = c.decode_blobs_cdr(msgs["blobs"], self._blobs_decoder)
+            tick.blobs = decoding.decode_blobs_cdr(msgs["blobs"], self._blobs_decoder)
         if self._device_sensors:
             self._decode_devices(msgs, tick)
         linear, angular = self.on_tick(tick)
@@ -175,20 +175,20 @@ class SwarmController(Node):
                 _DEVICE_DECODERS[name](self, msg, tick)
 
     def _decode_wheels(self, msg, tick: Tick) -> None:
-        tick.wheel_speeds, travel = c.decode_wheels(msg, self.model.wheel_radius_m)
+        tick.wheel_speeds, travel = decoding.decode_wheels(msg, self.model.wheel_radius_m)
         tick.wheel_distances = travel - self._wheel_travel
         self._wheel_travel = travel
 
 
 def _set_odom(node: SwarmController, msg, tick: Tick) -> None:
-    tick.odom, tick.odom_twist = c.decode_odometry(msg)
+    tick.odom, tick.odom_twist = decoding.decode_odometry(msg)
 
 
 _DEVICE_DECODERS = {
-    c.GROUND_SENSORS.name: lambda node, msg, tick: setattr(tick, "ground", c.decode_ground(msg)),
-    c.SCAN.name: lambda node, msg, tick: setattr(tick, "scan", c.decode_scan(msg)),
-    c.RAB_RX.name: lambda node, msg, tick: setattr(tick, "rab", c.decode_rab(msg)),
-    c.POSE.name: lambda node, msg, tick: setattr(tick, "pose", c.decode_pose(msg)),
+    c.GROUND_SENSORS.name: lambda node, msg, tick: setattr(tick, "ground", decoding.decode_ground(msg)),
+    c.SCAN.name: lambda node, msg, tick: setattr(tick, "scan", decoding.decode_scan(msg)),
+    c.RAB_RX.name: lambda node, msg, tick: setattr(tick, "rab", decoding.decode_rab(msg)),
+    c.POSE.name: lambda node, msg, tick: setattr(tick, "pose", decoding.decode_pose(msg)),
     c.ODOM.name: _set_odom,
     c.WHEELS.name: SwarmController._decode_wheels,
 }

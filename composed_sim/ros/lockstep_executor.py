@@ -4,11 +4,12 @@ The stock executors rebuild a wait set over every entity of every node on each s
 thousands of hosted nodes that dominates the tick (docs/architecture.md: 360–770 µs per robot-tick). In a
 lockstep tick the work is known: the simulator publishes every robot's sensors, and inside one
 DDS participant a published message is ready to take at once. So this executor first walks the
-subscriptions of its nodes in a fixed order (nodes in the order they were added, subscriptions
-in creation order), takes one ready message from each and runs the callbacks; a callback's own
-publishes (a controller's answer) are picked up by the same walk. Only when a walk finds nothing does it
-fall back to the ordinary wait set, which also serves timers, services, guard conditions and
-messages from other processes.
+subscriptions and timers of its nodes in a fixed order (nodes in the order they were added, each
+node's subscriptions in creation order, then its timers), takes one ready message from each
+subscription, fires each timer that is due, and runs the callbacks; a callback's own publishes (a
+controller's answer) are picked up by the same walk. Only when a walk finds nothing does it fall
+back to the ordinary wait set, which also serves services, guard conditions and messages from
+other processes.
 
 Callbacks run in the calling thread, in that fixed order: runs are deterministic and a plugin
 needs no locks.
@@ -26,24 +27,24 @@ class LockstepExecutor(SingleThreadedExecutor):
     def __init__(self, *, context=None) -> None:
         super().__init__(context=context)
         self._ordered_nodes: list[Node] = []
-        self._subscriptions: Optional[list[tuple]] = None   # rebuilt when entities change
+        self._entities: Optional[list[tuple]] = None   # rebuilt when entities change
 
     def add_node(self, node: Node) -> bool:
         added = super().add_node(node)
         if added:
             self._ordered_nodes.append(node)
-            self._subscriptions = None
+            self._entities = None
         return added
 
     def remove_node(self, node: Node) -> None:
         super().remove_node(node)
         if node in self._ordered_nodes:
             self._ordered_nodes.remove(node)
-        self._subscriptions = None
+        self._entities = None
 
     def wake(self) -> None:
         # Nodes call this when they create or destroy an entity.
-        self._subscriptions = None
+        self._entities = None
         super().wake()
 
     def spin_once(self, timeout_sec: Optional[float] = None) -> None:
@@ -51,15 +52,30 @@ class LockstepExecutor(SingleThreadedExecutor):
             super().spin_once(timeout_sec)
 
     def dispatch_ready(self) -> int:
-        """Take and handle every message ready now, in the fixed order; returns how many."""
-        subs = self._subscriptions
-        if subs is None:
-            # What a walk needs of each subscription, resolved once (properties cost a call each).
+        """Take and handle every message ready now, and fire every timer due now, in the fixed
+        order; returns how many callbacks ran."""
+        entities = self._entities
+        if entities is None:
+            # What a walk needs of each entity, resolved once (properties cost a call each): per
+            # node its subscriptions, then its timers. A timer on sim time is due only after its
+            # robot's sensor callbacks of the tick (ros/sim_timers.py), which the walk has just run:
+            # its answer is then taken by the simulator node later in the same walk, as an answer
+            # published from a sensor callback is.
             message_only = Subscription.CallbackType.MessageOnly
-            subs = self._subscriptions = [(s, s.handle, s.msg_type, s.raw, s._callback_type is message_only)
-                                          for node in self._ordered_nodes for s in node.subscriptions]
+            entities = self._entities = [
+                entity for node in self._ordered_nodes
+                for entity in [(s, s.handle, s.msg_type, s.raw, s._callback_type is message_only)
+                               for s in node.subscriptions] + [(t, t.handle, None, None, None) for t in node.timers]]
         handled = 0
-        for sub, handle, msg_type, raw, message_only in subs:
+        for entity, handle, msg_type, raw, message_only in entities:
+            if msg_type is None:                   # a timer
+                with handle:
+                    if not handle.is_timer_ready():
+                        continue
+                    handle.call_timer()
+                entity.callback()
+                handled += 1
+                continue
             # One message per subscription and walk: in a lockstep tick there is one, and
             # looking for a second would cost an empty take per subscription. Any more are taken
             # by the next walk, in the same order.
@@ -68,8 +84,8 @@ class LockstepExecutor(SingleThreadedExecutor):
             if taken is None:
                 continue
             if message_only:
-                sub.callback(taken[0])
+                entity.callback(taken[0])
             else:
-                sub.callback(*taken)
+                entity.callback(*taken)
             handled += 1
         return handled

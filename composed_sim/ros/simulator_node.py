@@ -8,25 +8,24 @@ from __future__ import annotations
 import math
 import threading
 import time
-from dataclasses import dataclass
 from typing import TYPE_CHECKING, Callable, Collection, Optional, Protocol, Sequence
 
 import numpy as np
 from rclpy.context import Context
 from rclpy.node import Node
-from rclpy.parameter import Parameter
 from rclpy.serialization import serialize_message
-from rclpy.type_description_service import START_TYPE_DESCRIPTION_SERVICE_PARAM
 from rclpy.time import Time as RosTime
 from rosgraph_msgs.msg import Clock
 
-from composed_sim.world.robot_models import (CAMERA, DIFFERENTIAL_STEERING, GROUND, LIDAR, LIGHT, ODOMETRY,
-                                            POSITIONING, PROXIMITY, RANGE_AND_BEARING, RobotModel, get_model)
+from composed_sim.world.robot_models import CAMERA, LIGHT, PROXIMITY, RANGE_AND_BEARING, RobotModel
 from composed_sim.core.violations import FAILED, Violation
-from composed_sim.world.schema import Lockstep, World
+from composed_sim.world.schema import Lockstep
 if TYPE_CHECKING:   # only a type here: a controller process must not import the physics
     from composed_sim.core.simulation import SensorFrame
-from composed_sim.ros import cdr, contract as c
+from composed_sim.ros import cdr, contract as c, decoding
+from composed_sim.ros.device_publishing import DevicePublishing, GroupPlan, csr_take
+from composed_sim.ros.frames import RobotFrames
+from composed_sim.ros.robot_settings import quiet_node_options
 
 
 
@@ -35,37 +34,15 @@ class MessageTap(Protocol):
     def write_serialized(self, topic: str, msgtype: str, data: bytes, stamp_ns: int) -> object: ...
 
 
+class AnswerTypeError(Exception):
+    """A controller publishes a type on cmd_vel that the topic contract does not accept."""
+
+
 LATE_LEDS = "leds answering an earlier tick arrived after that tick closed: applied one tick late"
 LATE_RAB = "rab_tx answering an earlier tick arrived after that tick closed: applied one tick late"
 
 
-@dataclass
-class _GroupPlan:
-    """This node's robots of one robot group, for publishing from ``frame.groups[group]``."""
-    group: int
-    pairs: list[tuple[int, int]]   # (index among this node's robots, row in the group's arrays)
-    rows: np.ndarray               # [k] their simulation rows
-    local: np.ndarray              # [k] their indices among this node's robots
-    within: np.ndarray             # [k] their rows in the group's arrays
-    devices: frozenset[str]        # what the group runs (the same for all its robots)
-
-
-def robot_devices(world: World) -> list[tuple[str, ...]]:
-    """Per robot of ``world`` (in robot order): the devices whose topics it has."""
-    published = [g.devices.published(get_model(g.model)) for g in world.robots]
-    return [published[g] for g in world.group_of_robot()]
-
-
-def quiet_node_options(parameter_overrides: Sequence[Parameter] = ()) -> dict:
-    """Node options for thousands of nodes: no parameter services, no /rosout and no
-    ~/get_type_description service. Each would add endpoints, and every new endpoint is
-    announced to the whole participant, so node creation would grow quadratically."""
-    return dict(start_parameter_services=False, enable_rosout=False,
-                parameter_overrides=[*parameter_overrides,
-                                     Parameter(START_TYPE_DESCRIPTION_SERVICE_PARAM, value=False)])
-
-
-class SimulatorNode(Node):
+class SimulatorNode(DevicePublishing, Node):
     """Sensor publishers and command subscriptions for a set of robots, in one node.
 
     One node serves every robot in composed mode; in multi-process mode there is one per ROS
@@ -80,12 +57,20 @@ class SimulatorNode(Node):
     def __init__(self, names: list[str], models: list[RobotModel], *, context: Context,
                  tick_ns: int, rows: Optional[np.ndarray] = None, node_name: str = "composed_sim",
                  lockstep: Optional[Lockstep] = None, devices: Optional[Sequence[Collection[str]]] = None,
-                 rab_payload_bytes: int = 10, publish_clock: bool = True):
+                 rab_payload_bytes: int = 10, publish_clock: bool = True,
+                 answer_types: Optional[Sequence[Optional[type]]] = None,
+                 answers_every_ticks: Optional[Sequence[int]] = None, global_tf: Optional[Sequence[bool]] = None):
         """``lockstep``: the world's fault policy (unresponsive_after_s, max_violations); None:
         robots are never failed for being unresponsive or for their violations. ``devices``: per
         robot, the devices whose topics it has (``Devices.published``; None: each model's
         defaults). ``rab_payload_bytes``: the world's range_and_bearing.payload_bytes.
-        ``publish_clock``: False where another node of this process and domain publishes it."""
+        ``publish_clock``: False where another node of this process and domain publishes it.
+        ``answer_types``: per robot, what its controller publishes on cmd_vel (a type of
+        ``contract.ANSWER_TYPES``), or None to read it from the ROS graph once the controller's
+        publisher is discovered (``detect_answer_types``); None: TwistStamped for all.
+        ``answers_every_ticks``: per robot, k: it answers ticks 0, k, 2k … and keeps its last
+        command in between (None: every tick). ``global_tf``: per robot running tf, whether its
+        frames go to /tf and /tf_static instead of its own /<robot>/tf (None: its own)."""
         super().__init__(node_name, context=context, **quiet_node_options())
         self._names = names
         self._index = {name: i for i, name in enumerate(names)}
@@ -112,9 +97,15 @@ class SimulatorNode(Node):
         # out as serialized bytes, and answers come in as bytes (cdr.py: a quarter of the cost).
         self._proximity_pubs, self._light_pubs, self._blob_pubs = [None] * n, [None] * n, [None] * n
         self._proximity_enc, self._light_enc, self._blob_enc = [None] * n, [None] * n, [None] * n
-        self._device_pubs: dict[str, list] = {t.name: [None] * n for t in c.SENSOR_TOPICS}
-        self._device_msgs: dict[str, list] = {t.name: [None] * n for t in c.SENSOR_TOPICS}
-        self._led_subs, self._cmd_subs, self._rab_subs = [], [], [None] * n
+        self._device_pubs: dict[str, list] = {t.name: [None] * n for t in c.SENSOR_TOPICS + (c.TF,)}
+        self._device_msgs: dict[str, list] = {t.name: [None] * n for t in c.SENSOR_TOPICS + (c.TF,)}
+        self._frames = RobotFrames(self, names, models, self._devices, global_tf)
+        self._led_subs, self._rab_subs = [], [None] * n
+        self._cmd_subs: list = [None] * n               # per robot, once its answer type is known
+        self._answer_types: list[Optional[type]] = [c.CMD_VEL.msg_type] * n if answer_types is None \
+            else list(answer_types)
+        self._every = None if answers_every_ticks is None or all(k == 1 for k in answers_every_ticks) \
+            else np.asarray(answers_every_ticks)
         for i, (name, model) in enumerate(zip(names, models)):
             has = self._devices[i]
             if PROXIMITY in has:
@@ -127,9 +118,8 @@ class SimulatorNode(Node):
                 self._blob_pubs[i] = self._publisher(name, c.BLOBS)
                 self._blob_enc[i] = c.blobs_encoder(name)
             self._create_device_publishers(i, name, model, has)
-            self._cmd_subs.append(self.create_subscription(
-                c.CMD_VEL.msg_type, c.topic_name(name, c.CMD_VEL), lambda data, i=i: self._on_cmd_vel(i, data),
-                c.QOS, raw=True, event_callbacks=c.SUBSCRIPTION_EVENTS))
+            if self._answer_types[i] is not None:
+                self._subscribe_answers(i, self._answer_types[i])
             self._led_subs.append(self._inbox.create_subscription(
                 c.LEDS.msg_type, c.topic_name(name, c.LEDS), lambda msg: None, c.QOS,
                 event_callbacks=c.SUBSCRIPTION_EVENTS))
@@ -144,7 +134,7 @@ class SimulatorNode(Node):
         self._sensor_pubs = [[p for p in (self._proximity_pubs[i], self._light_pubs[i], self._blob_pubs[i],
                                           *(pubs[i] for pubs in self._device_pubs.values())) if p is not None]
                              for i in range(n)]
-        self._plans: Optional[list[_GroupPlan]] = None   # built from the first frame's groups
+        self._plans: Optional[list[GroupPlan]] = None   # built from the first frame's groups
         self._wheel_angles = np.zeros((n, 2))            # [n, 2] rad since the start, for WHEELS
 
         # Answers to the current tick, written by callbacks (any thread), read by the host.
@@ -167,23 +157,30 @@ class SimulatorNode(Node):
         self._current_tick = -1
         self.violations: list[Violation] = []
 
-    def _create_device_publishers(self, i: int, name: str, model: RobotModel, has: frozenset[str]) -> None:
-        """Publishers and reused messages of robot i's devices beyond the proximity/light/camera set."""
-        def add(topic: c.Topic, msg) -> None:
-            self._device_pubs[topic.name][i] = self._publisher(name, topic)
-            self._device_msgs[topic.name][i] = msg
-        if GROUND in has:
-            add(c.GROUND_SENSORS, c.ground_cloud(name, len(model.ground.offsets_m)))
-        if LIDAR in has:
-            add(c.SCAN, c.lidar_scan_message(model.lidar, name, self._tick_ns * 1e-9))
-        if RANGE_AND_BEARING in has:
-            add(c.RAB_RX, c.rab_cloud(name, self._rab_payload_bytes))
-        if POSITIONING in has:
-            add(c.POSE, c.pose_stamped(name))
-        if ODOMETRY in has:
-            add(c.ODOM, c.odometry_message(name))
-        if DIFFERENTIAL_STEERING in has:
-            add(c.WHEELS, c.joint_state(name))
+    def _subscribe_answers(self, i: int, msg_type: type) -> None:
+        on_answer = self._on_cmd_vel if msg_type is c.CMD_VEL.msg_type else self._on_unstamped_cmd_vel
+        self._answer_types[i] = msg_type
+        self._cmd_subs[i] = self.create_subscription(
+            msg_type, c.topic_name(self._names[i], c.CMD_VEL), lambda data, i=i: on_answer(i, data),
+            c.QOS, raw=True, event_callbacks=c.SUBSCRIPTION_EVENTS)
+
+    def detect_answer_types(self) -> None:
+        """Subscribe to the cmd_vel of each robot whose answer type is not known yet, with the type
+        its controller's publisher has in the ROS graph (multi-process and distributed mode). A type
+        the contract does not accept raises ``AnswerTypeError``."""
+        accepted = {c.type_name(t): t for t in c.ANSWER_TYPES.values()}
+        for i in [i for i, t in enumerate(self._answer_types) if t is None]:
+            topic = c.topic_name(self._names[i], c.CMD_VEL)
+            found = {info.topic_type for info in self.get_publishers_info_by_topic(topic)}
+            if wrong := sorted(found - accepted.keys()):
+                raise AnswerTypeError(f"the controller of {self._names[i]} publishes {wrong[0]} on {topic}; the "
+                                      f"topic contract accepts {' or '.join(accepted)}")
+            if found:
+                self._subscribe_answers(i, accepted[sorted(found)[0]])
+
+    def answer_subscription(self, robot: str):
+        """``robot``'s cmd_vel subscription (None until its answer type is known)."""
+        return self._cmd_subs[self._index[robot]]
 
     def _publisher(self, robot: str, topic: c.Topic):
         return self.create_publisher(topic.msg_type, c.topic_name(robot, topic), c.QOS,
@@ -203,14 +200,19 @@ class SimulatorNode(Node):
         self._tapped = {topic.name: [tap.wants(c.topic_name(name, topic)) for name in self._names]
                         for topic in c.TOPICS.values()}
 
-    def _tap_message(self, topic: c.Topic, i: int, data, stamp_ns: int) -> None:
-        """``data``: the message's bytes, or the message."""
+    def _tap_message(self, topic: c.Topic, i: int, data, stamp_ns: int, msg_type: Optional[type] = None) -> None:
+        """``data``: the message's bytes, or the message; ``msg_type``: when not the topic's."""
         if self._tap is not None and self._tapped[topic.name][i]:
             if not isinstance(data, bytes):
                 data = serialize_message(data)
             with self._tap_lock:   # answers may arrive on executor worker threads
-                self._tap.write_serialized(c.topic_name(self._names[i], topic), c.type_name(topic.msg_type),
+                self._tap.write_serialized(c.topic_name(self._names[i], topic), c.type_name(msg_type or topic.msg_type),
                                            data, stamp_ns)
+
+    @property
+    def robots(self) -> list[str]:
+        """The names of this node's robots, in row order."""
+        return self._names
 
     def row_of(self, robot: str) -> int:
         """``robot``'s index among this node's robots (its row in ``failed``, ``answered`` …)."""
@@ -259,10 +261,11 @@ class SimulatorNode(Node):
         """Publish /clock and every robot's sensors for ``frame.tick``; open the answer window."""
         stamp = c.stamp_of(frame.tick, self._tick_ns)
         with self._lock:
-            self.answered[:] = False
+            # Robots answering every k-th tick are settled, keeping their last command, in between.
+            self.answered[:] = False if self._every is None else frame.tick % self._every != 0
             self.rejected[:] = False
             self._n_answered = 0
-            self._n_expected = int(np.count_nonzero(~self.failed))
+            self._n_expected = int(np.count_nonzero(~self.failed & ~self.answered))
             if self._n_expected == 0:
                 self._all_answered.set()
             else:
@@ -312,6 +315,14 @@ class SimulatorNode(Node):
                         self._blob_pubs[i].publish(data)
                         self._tap_message(c.BLOBS, i, data, stamp_ns)
             self._publish_devices(plan, frame, stamp, stamp_ns)
+        self._frames.publish(stamp)
+
+    def publish_clock(self, tick: int) -> None:
+        """/clock alone, for the state after the last tick: its sensors are never published (no
+        controller answers it), but the recordings and the markers show it, and so does the clock."""
+        if self._clock_pub is not None:
+            self._clock_msg.clock = c.stamp_of(tick, self._tick_ns)
+            self._clock_pub.publish(self._clock_msg)
 
     def _wanted(self, topic: c.Topic, i: int) -> bool:
         """Publish robot i's message on ``topic`` this tick? Every tick once a subscriber has
@@ -324,102 +335,23 @@ class SimulatorNode(Node):
                 self._tap is not None and self._tapped[topic.name][i])
         return read[i]
 
-    def _make_plans(self, frame: SensorFrame) -> list[_GroupPlan]:
+    def _make_plans(self, frame: SensorFrame) -> list[GroupPlan]:
         """Which of this node's robots are in which group of the frame (fixed for a run)."""
         self._plans = []
         for gi, g in enumerate(frame.groups):
             local = np.flatnonzero((self.rows >= g.robots.start) & (self.rows < g.robots.stop))
             if len(local):
                 within = self.rows[local] - g.robots.start
-                self._plans.append(_GroupPlan(gi, list(zip(local.tolist(), within.tolist())), self.rows[local],
+                self._plans.append(GroupPlan(gi, list(zip(local.tolist(), within.tolist())), self.rows[local],
                                               local, within, self._devices[local[0]]))
         return self._plans
-
-    # --- devices beyond the flocking set: one helper each, called only for groups running it ----
-
-    def _publish_devices(self, plan: _GroupPlan, frame: SensorFrame, stamp, stamp_ns: int) -> None:
-        has = plan.devices
-        if GROUND in has:
-            self._publish_ground(plan, frame.groups[plan.group].ground, stamp, stamp_ns)
-        if LIDAR in has:
-            self._publish_scan(plan, frame.groups[plan.group].lidar, stamp, stamp_ns)
-        if RANGE_AND_BEARING in has:
-            self._publish_rab(plan, frame.range_and_bearing, stamp, stamp_ns)
-        if POSITIONING in has:
-            self._publish_pose(plan, frame, stamp, stamp_ns)
-        if ODOMETRY in has:
-            self._publish_odometry(plan, frame, stamp, stamp_ns)
-        if DIFFERENTIAL_STEERING in has:
-            self._publish_wheels(plan, frame, stamp, stamp_ns)
-
-    def _send(self, topic: c.Topic, i: int, msg, stamp_ns: int) -> None:
-        """Publish a device message; the caller asked ``_wanted`` before filling it."""
-        self._device_pubs[topic.name][i].publish(msg)
-        self._tap_message(topic, i, msg, stamp_ns)
-
-    def _publish_ground(self, plan: _GroupPlan, ground: np.ndarray, stamp, stamp_ns: int) -> None:
-        offsets = self._models[plan.local[0]].ground.offsets_m
-        points = c.ground_points(offsets, ground[plan.within])     # [k, s], built once per group
-        msgs = self._device_msgs[c.GROUND_SENSORS.name]
-        for k, (i, _) in enumerate(plan.pairs):
-            if not self.failed[i] and self._wanted(c.GROUND_SENSORS, i):
-                c.fill_ground(msgs[i], stamp, points[k])
-                self._send(c.GROUND_SENSORS, i, msgs[i], stamp_ns)
-
-    def _publish_scan(self, plan: _GroupPlan, lidar: np.ndarray, stamp, stamp_ns: int) -> None:
-        ranges = lidar[plan.within].astype(np.float32)             # [k, r], cast once per group
-        msgs = self._device_msgs[c.SCAN.name]
-        for k, (i, _) in enumerate(plan.pairs):
-            if not self.failed[i] and self._wanted(c.SCAN, i):
-                c.fill_scan(msgs[i], stamp, ranges[k])
-                self._send(c.SCAN, i, msgs[i], stamp_ns)
-
-    def _publish_rab(self, plan: _GroupPlan, rab, stamp, stamp_ns: int) -> None:
-        take, offsets = _csr_rows(rab.offsets, plan.rows)
-        points = c.rab_points(rab.ranges[take], rab.horizontal_bearings[take], rab.vertical_bearings[take],
-                              rab.payloads[take])
-        offsets = offsets.tolist()
-        msgs = self._device_msgs[c.RAB_RX.name]
-        for k, i in enumerate(plan.local.tolist()):
-            if not self.failed[i] and self._wanted(c.RAB_RX, i):
-                c.fill_rab(msgs[i], stamp, points[offsets[k]:offsets[k + 1]])
-                self._send(c.RAB_RX, i, msgs[i], stamp_ns)
-
-    def _publish_pose(self, plan: _GroupPlan, frame: SensorFrame, stamp, stamp_ns: int) -> None:
-        xy = frame.pose.positions[plan.rows, :2].tolist()
-        q = frame.pose.quaternions[plan.rows].tolist()          # (x, y, z, w)
-        msgs = self._device_msgs[c.POSE.name]
-        for k, i in enumerate(plan.local.tolist()):
-            if not self.failed[i] and self._wanted(c.POSE, i):
-                c.fill_pose(msgs[i], stamp, xy[k][0], xy[k][1], q[k][2], q[k][3])
-                self._send(c.POSE, i, msgs[i], stamp_ns)
-
-    def _publish_odometry(self, plan: _GroupPlan, frame: SensorFrame, stamp, stamp_ns: int) -> None:
-        pose = frame.odometry[plan.rows]
-        qz, qw = c.half_yaw(pose[:, 2])
-        values = np.column_stack([pose[:, 0], pose[:, 1], qz, qw, frame.odometry_twist[plan.rows]]).tolist()
-        msgs = self._device_msgs[c.ODOM.name]
-        for k, i in enumerate(plan.local.tolist()):
-            if not self.failed[i] and self._wanted(c.ODOM, i):
-                c.fill_odometry(msgs[i], stamp, *values[k])
-                self._send(c.ODOM, i, msgs[i], stamp_ns)
-
-    def _publish_wheels(self, plan: _GroupPlan, frame: SensorFrame, stamp, stamp_ns: int) -> None:
-        radius = self._models[plan.local[0]].wheel_radius_m
-        self._wheel_angles[plan.local] += frame.wheels.distances_m[plan.rows] / radius
-        angles = self._wheel_angles[plan.local]
-        velocities = frame.wheels.velocities_mps[plan.rows] / radius
-        msgs = self._device_msgs[c.WHEELS.name]
-        for k, i in enumerate(plan.local.tolist()):
-            if not self.failed[i] and self._wanted(c.WHEELS, i):
-                c.fill_wheels(msgs[i], stamp, angles[k], velocities[k])
-                self._send(c.WHEELS, i, msgs[i], stamp_ns)
 
     def unmatched_robots(self) -> list[str]:
         """Robots whose controller is not connected yet: no publisher matched on its cmd_vel, or no
         subscriber on any of its sensors. Matched counts are local to each endpoint (O(1))."""
+        self.detect_answer_types()
         return [name for i, name in enumerate(self._names)
-                if self._cmd_subs[i].get_publisher_count() < 1
+                if self._cmd_subs[i] is None or self._cmd_subs[i].get_publisher_count() < 1
                 or not any(p.get_subscription_count() >= 1 for p in self._sensor_pubs[i])]
 
     def wait_for_answers(self, timeout_s: float) -> bool:
@@ -433,30 +365,44 @@ class SimulatorNode(Node):
     def answered_count(self) -> int:
         return self._n_answered
 
-    def _on_cmd_vel(self, i: int, data: bytes) -> None:
-        key, linear, angular = c.decode_answer_cdr(data)
+    def _on_unstamped_cmd_vel(self, i: int, data: bytes) -> None:
+        """A Twist answers the tick whose sensors it follows: the open one. One that arrives while
+        no tick is open answers a tick already closed (whose miss is recorded): it is dropped."""
+        linear, angular = decoding.decode_unstamped_answer_cdr(data)
         with self._lock:
-            if self.failed[i]:
+            key = self._current_key
+            if key < 0:
                 return
-            if key != self._current_key:
-                # An answer to an earlier tick comes from a robot whose miss of that tick is
-                # recorded already; any other stamp is a contract violation of its own.
-                if not (key <= self._tick_key and key % self._tick_ns == 0):
-                    self._record(self._current_tick, i, f"answer stamped {key} ns answers no tick "
-                                 f"published so far (the last is {self._tick_key} ns)")
-                return
-            if self.answered[i]:
-                return  # a second answer to the same tick, or one already rejected: the first counts
-            self._tap_message(c.CMD_VEL, i, data, key)
-            if not (math.isfinite(linear) and math.isfinite(angular)):
-                self.rejected[i] = True
-                self._record(self._current_tick, i, f"non-finite velocity command rejected "
-                             f"(linear {linear}, angular {angular})")
-            else:
-                self.linear[i] = linear
-                self.angular[i] = angular
-                self._last_accepted_s[i] = time.monotonic()
-            self._settle(i)
+            self._answer(i, key, linear, angular, data)
+
+    def _on_cmd_vel(self, i: int, data: bytes) -> None:
+        key, linear, angular = decoding.decode_answer_cdr(data)
+        with self._lock:
+            self._answer(i, key, linear, angular, data)
+
+    def _answer(self, i: int, key: int, linear: float, angular: float, data: bytes) -> None:
+        """Called with the lock held."""
+        if self.failed[i]:
+            return
+        if key != self._current_key:
+            # An answer to an earlier tick comes from a robot whose miss of that tick is
+            # recorded already; any other stamp is a contract violation of its own.
+            if not (key <= self._tick_key and key % self._tick_ns == 0):
+                self._record(self._current_tick, i, f"answer stamped {key} ns answers no tick "
+                             f"published so far (the last is {self._tick_key} ns)")
+            return
+        if self.answered[i]:
+            return  # a second answer to the same tick, or one already rejected: the first counts
+        self._tap_message(c.CMD_VEL, i, data, key, self._answer_types[i])
+        if not (math.isfinite(linear) and math.isfinite(angular)):
+            self.rejected[i] = True
+            self._record(self._current_tick, i, f"non-finite velocity command rejected "
+                         f"(linear {linear}, angular {angular})")
+        else:
+            self.linear[i] = linear
+            self.angular[i] = angular
+            self._last_accepted_s[i] = time.monotonic()
+        self._settle(i)
 
     def close_tick(self, fallback: str, previous: tuple[np.ndarray, np.ndarray],
                    commands: tuple[np.ndarray, np.ndarray]) -> None:
@@ -496,41 +442,32 @@ class SimulatorNode(Node):
         tick. It is still applied (it is the latest colour) and recorded as a violation, so
         "same world and seed ⇒ same trajectories unless a violation is recorded" holds.
         """
-        out = {}
-        for i, sub in enumerate(self._led_subs):
-            while (taken := sub.handle.take_message(sub.msg_type, sub.raw)) is not None:
-                msg, info = taken
-                if self.failed[i]:
-                    continue
-                self._tap_message(c.LEDS, i, msg, self._tick_key)
-                with self._lock:
-                    if self._opened_ns is not None and info["source_timestamp"] < self._opened_ns:
-                        self._record(self._current_tick, i, LATE_LEDS)
-                    try:
-                        out[int(self.rows[i])] = c.decode_leds(msg, self._models[i].n_leds)
-                    except ValueError as e:
-                        self._record(self._current_tick, i, f"leds: {e}")
-        return out
+        return self._drain(self._led_subs, c.LEDS, LATE_LEDS,
+                           lambda i, msg: decoding.decode_leds(msg, self._models[i].n_leds))
 
     def take_rab_payloads(self) -> dict[int, np.ndarray]:
         """Drain the rab_tx inbox like the LEDs': the latest valid payload per simulation row that
         sent any, to be set before the next step (so it is heard one tick later, as in ARGoS)."""
+        return self._drain(self._rab_subs, c.RAB_TX, LATE_RAB,
+                           lambda i, msg: decoding.decode_rab_payload(msg, self._rab_payload_bytes))
+
+    def _drain(self, subs: list, topic: c.Topic, late: str, decode: Callable) -> dict[int, np.ndarray]:
         out = {}
-        for i, sub in enumerate(self._rab_subs):
+        for i, sub in enumerate(subs):
             if sub is None:
                 continue
             while (taken := sub.handle.take_message(sub.msg_type, sub.raw)) is not None:
                 msg, info = taken
                 if self.failed[i]:
                     continue
-                self._tap_message(c.RAB_TX, i, msg, self._tick_key)
+                self._tap_message(topic, i, msg, self._tick_key)
                 with self._lock:
                     if self._opened_ns is not None and info["source_timestamp"] < self._opened_ns:
-                        self._record(self._current_tick, i, LATE_RAB)
+                        self._record(self._current_tick, i, late)
                     try:
-                        out[int(self.rows[i])] = c.decode_rab_payload(msg, self._rab_payload_bytes)
+                        out[int(self.rows[i])] = decode(i, msg)
                     except ValueError as e:
-                        self._record(self._current_tick, i, f"rab_tx: {e}")
+                        self._record(self._current_tick, i, f"{topic.name}: {e}")
         return out
 
     def _record(self, tick: int, i: int, reason: str) -> None:
@@ -548,25 +485,10 @@ class SimulatorNode(Node):
 _BLOB_BYTES = c.BLOB_DTYPE.itemsize
 
 
-def _csr_rows(offsets: np.ndarray, rows: np.ndarray):
-    """The entries of CSR rows ``rows`` [k] (ascending) of entry arrays with row offsets
-    ``offsets``: (what to take from the entry arrays, [k+1] offsets into what is taken).
-
-    A simulator node serves a shard or a domain of the swarm: converting every robot's entries
-    (blobs, range-and-bearing messages) in every node would cost (number of nodes) × the work."""
-    starts, ends = offsets[rows], offsets[rows + 1]
-    counts = ends - starts
-    local = np.zeros(len(rows) + 1, dtype=np.int64)
-    np.cumsum(counts, out=local[1:])
-    if len(rows) and rows[-1] - rows[0] + 1 == len(rows):     # contiguous rows: a slice
-        return slice(int(starts[0]), int(ends[-1])), local
-    return np.arange(local[-1]) + np.repeat(starts - local[:-1], counts), local
-
-
 def _blob_rows(blobs, within: np.ndarray) -> tuple[bytes, list[int]]:
     """The blob points of the group's robots ``within`` [k] as bytes, and where each robot's
     start in them ([k+1] byte offsets)."""
-    take, local = _csr_rows(blobs.offsets, within)
+    take, local = csr_take(blobs.offsets, within)
     points = c.blob_points(blobs.angles[take], blobs.distances[take], blobs.colors[take])
     return points.tobytes(), (local * _BLOB_BYTES).tolist()
 

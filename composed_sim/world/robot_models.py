@@ -26,6 +26,9 @@ RANGE_AND_BEARING, LIDAR = "range_and_bearing", "lidar"
 # Every model has these: they need no layout (the wheels are the drive itself).
 DIFFERENTIAL_STEERING, POSITIONING, ODOMETRY = "differential_steering", "positioning", "odometry"
 ALWAYS_ON = (DIFFERENTIAL_STEERING, POSITIONING, ODOMETRY)
+# Not a device of the robot: its frames (world → odom → base_link → sensor mounts) as tf, made
+# from the positioning and odometry readings every model has.
+TF = "tf"
 
 # How a proximity ray's distance becomes a reading; one calibration per robot family.
 ProximityCalibration = Literal["foot-bot", "e-puck", "exponential"]

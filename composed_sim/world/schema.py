@@ -234,6 +234,13 @@ class LidarConfig(DeviceSwitch):
     noise_std_m: NonNegativeFloat = 0.0
 
 
+class TfConfig(DeviceSwitch):
+    # per_robot: /<robot>/tf and /<robot>/tf_static, the multi-robot (Nav2) way: a robot's
+    # listeners receive its own frames only. global: /tf and /tf_static, what RViz and Foxglove
+    # read by default; every listener then receives every robot's frames (docs/devices.md).
+    topics: Literal["per_robot", "global"] = "per_robot"
+
+
 class WheelsConfig(Strict):
     """Actuator noise (speed · factor + bias) and differential steering sensor noise."""
     bias_mean_mps: float = 0.0
@@ -254,7 +261,7 @@ SWITCHED_DEVICES = ("proximity", "light", "camera", "ground", "range_and_bearing
 # Every robot computes these (cheap, vectorised); their ROS topics exist only where the world
 # file switches them on, as ARGoS lists a controller's sensors: publishing three more messages
 # per robot and tick that no controller reads would cost every swarm, the paper's included.
-TOPIC_SWITCHED_DEVICES = ("positioning", "odometry", "differential_steering")
+TOPIC_SWITCHED_DEVICES = ("positioning", "odometry", "differential_steering", "tf")
 
 
 class Devices(Strict):
@@ -270,6 +277,7 @@ class Devices(Strict):
     positioning: Optional[PositioningConfig] = None
     odometry: Optional[DeviceSwitch] = None
     differential_steering: Optional[DeviceSwitch] = None
+    tf: Optional[TfConfig] = None
 
     def running(self, model: RobotModel) -> tuple[str, ...]:
         """The switched devices that run on robots of ``model``, in SWITCHED_DEVICES order."""
@@ -295,7 +303,7 @@ class Devices(Strict):
         return {"proximity": ProximityConfig, "light": LightConfig, "camera": BlobCameraConfig,
                 "ground": GroundConfig, "range_and_bearing": RangeAndBearingConfig,
                 "lidar": LidarConfig, "positioning": PositioningConfig, "odometry": DeviceSwitch,
-                "differential_steering": DeviceSwitch}[name]()
+                "differential_steering": DeviceSwitch, "tf": TfConfig}[name]()
 
 
 ParamValue = Union[float, int, str, bool, list[float]]
@@ -311,6 +319,13 @@ class RobotGroup(Strict):
     heading: Heading = Heading()
     camera: CameraConfig = CameraConfig()
     devices: Devices = Devices()
+    # What the controllers publish on cmd_vel: "stamped" (TwistStamped, stamped like the readings
+    # it answers), "unstamped" (Twist, answering the tick whose sensors it follows), or "auto":
+    # read from the controller's publisher (docs/contract.md).
+    cmd_vel: Literal["auto", "stamped", "unstamped"] = "auto"
+    # A controller that decides on a timer slower than the tick answers every k-th tick (ticks
+    # 0, k, 2k …); in between its robot keeps its last command, and that is no violation.
+    answers_every_ticks: Annotated[int, Field(ge=1)] = 1
 
     @field_validator("model")
     @classmethod
@@ -415,6 +430,28 @@ class MultiProcess(Strict):
     domains: dict[str, DomainId] = {}           # explicit robot name -> domain; the rest balanced
 
 
+LOOP_FUNCTIONS_GROUP = "composed_sim.loop_functions"
+
+
+class LoopFunctionsRef(Strict):
+    """The world's loop functions (composed_sim/loop_functions.py): an entry point of the group
+    ``composed_sim.loop_functions``, the keyword arguments its class is made with, and how often
+    its metrics are taken (every tick by default)."""
+    name: Annotated[str, Field(min_length=1)]
+    params: dict[str, Any] = {}
+    every_ticks: Annotated[int, Field(ge=1)] = 1
+
+    @field_validator("name")
+    @classmethod
+    def _installed(cls, value: str) -> str:
+        from importlib.metadata import entry_points    # names only: nothing of the plugin is imported
+        known = sorted({ep.name for ep in entry_points(group=LOOP_FUNCTIONS_GROUP)})
+        if value not in known:
+            raise _invalid([((), f"unknown loop functions; installed: {', '.join(known) or 'none'} "
+                             f"(entry points of the group {LOOP_FUNCTIONS_GROUP!r})", value)])
+        return value
+
+
 class World(Strict):
     name: str = "world"
     seed: Annotated[int, Field(ge=0, lt=2**32)] = 0
@@ -429,6 +466,7 @@ class World(Strict):
     lights: list[Light] = []
     obstacles: list[Obstacle] = []
     robots: list[RobotGroup]
+    loop_functions: Optional[LoopFunctionsRef] = None
 
     @model_validator(mode="after")
     def _consistent(self) -> World:

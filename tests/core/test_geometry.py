@@ -58,7 +58,8 @@ def test_ray_segments_first_hit_on_the_scene_edges():
                                          obstacles=[Box(position=(1, 0), size=(0.2, 0.2))]))
     o = np.array([[0, 0], [0, 0], [0, 0], [1.5, 0.5]], dtype=float)
     d = np.array([[1, 0], [-1, 0], [0, 1], [0, -1]], dtype=float)
-    np.testing.assert_allclose(ray_segments_first_hit(o, d, scene.segments), [0.9, 2.0, 1.0, 1.5])
+    # The walls (0.1 m thick) stand inside the arena rectangle, where the physics has them.
+    np.testing.assert_allclose(ray_segments_first_hit(o, d, scene.segments), [0.9, 1.9, 0.9, 1.4])
     assert ray_segments_first_hit(o, d, np.zeros((0, 2, 2))).tolist() == [INF] * 4
 
 
@@ -136,15 +137,15 @@ def test_scene_from_world_with_walls_boxes_and_cylinders():
     np.testing.assert_allclose(scene.box_heights, [0.3] * 4 + [0.2])
     np.testing.assert_allclose(scene.segment_heights, [0.3] * 16 + [0.2] * 4)
     np.testing.assert_allclose(scene.cyl_centres, [[1, 0.5]])
-    # walls: inner faces on the arena rectangle [-1, 3] x [-1, 1], closed corners
+    # walls: inside the arena rectangle [-1, 3] x [-1, 1] (outer faces on it), where the physics has them
     walls = scene.box_corners[:4]
-    assert walls[:, :, 0].min() == pytest.approx(-1.1) and walls[:, :, 0].max() == pytest.approx(3.1)
-    assert walls[:, :, 1].min() == pytest.approx(-1.1) and walls[:, :, 1].max() == pytest.approx(1.1)
-    inside = np.array([[-0.99, 0.0], [2.99, 0.99], [1.0, -0.99]])
+    assert walls[:, :, 0].min() == pytest.approx(-1) and walls[:, :, 0].max() == pytest.approx(3)
+    assert walls[:, :, 1].min() == pytest.approx(-1) and walls[:, :, 1].max() == pytest.approx(1)
+    inside = np.array([[-0.89, 0.0], [2.89, 0.89], [1.0, -0.89]])
     assert not points_in_polygons(inside[:, None], walls).any()
     # a ray to the +x wall from the arena centre, and one that starts inside a wall
-    d = scene.ray_distance(np.array([[1.0, -0.5], [3.05, -0.5]]), np.array([[1.0, 0], [1, 0]]), 5.0)
-    np.testing.assert_allclose(d, [2.0, 0.0])
+    d = scene.ray_distance(np.array([[1.0, -0.5], [2.95, -0.5]]), np.array([[1.0, 0], [1, 0]]), 5.0)
+    np.testing.assert_allclose(d, [1.9, 0.0])
     with pytest.raises(ValueError, match="walls"):
         StaticScene.from_world(World(robots=[], arena=Arena(walls=True)))
 
@@ -170,8 +171,8 @@ def test_scene_blocks_and_chunking(monkeypatch):
     m = 500
     p0 = np.column_stack([rng.uniform(-3.5, 3.5, (m, 2)), rng.uniform(0, 0.6, m)])
     p1 = np.column_stack([rng.uniform(-3.5, 3.5, (m, 2)), rng.uniform(0, 0.6, m)])
-    bodies = [("box", ((0, 3.05), (6.2, 0.1), 0.0), 0.5), ("box", ((0, -3.05), (6.2, 0.1), 0.0), 0.5),
-              ("box", ((3.05, 0), (0.1, 6), 0.0), 0.5), ("box", ((-3.05, 0), (0.1, 6), 0.0), 0.5),
+    bodies = [("box", ((0, 2.95), (6, 0.1), 0.0), 0.5), ("box", ((0, -2.95), (6, 0.1), 0.0), 0.5),
+              ("box", ((2.95, 0), (0.1, 6), 0.0), 0.5), ("box", ((-2.95, 0), (0.1, 6), 0.0), 0.5),
               ("box", ((1, 1), (0.5, 0.5), 0.4), 0.3), ("cyl", ((-1, 1), 0.3), 0.3)]
 
     def ref(a, b):

@@ -222,8 +222,8 @@ def test_proximity_sees_a_cylinder_a_wall_and_another_robot():
     dist, _ = proximity_ring(pos, hd, radii, heights, RING, scene_of(Cylinder(position=(R + 0.03 + 0.2, 0),
                                                                              radius_m=0.2)))
     assert dist[0, 0] == pytest.approx(0.03)
-    # the +x wall's inner face is at x = 1 in a 2 m arena
-    pos2 = np.array([[1 - R - 0.04, 0.0]])
+    # the +x wall's inner face is at x = 0.9 in a 2 m arena (walls 0.1 m thick, inside it)
+    pos2 = np.array([[0.9 - R - 0.04, 0.0]])
     dist, _ = proximity_ring(pos2, hd, radii, heights, RING, scene_of(arena=Arena(size=(2, 2), walls=True)))
     assert dist[0, 0] == pytest.approx(0.04)
     assert np.isfinite(dist[0]).sum() == 7           # the rays within ±45°-ish of +x reach the wall

@@ -7,7 +7,7 @@ from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import LaserScan, PointCloud2, PointField
 
 from composed_sim.world.robot_models import get_model
-from composed_sim.ros import cdr, contract as c
+from composed_sim.ros import cdr, contract as c, decoding
 
 FOOTBOT = get_model("foot-bot")
 NAMES = ["b", "bot7", "bot42", "bot123", "bot1234", "a_long_robot_name_99"]   # every CDR padding case
@@ -53,14 +53,14 @@ def test_decoding_bytes_equals_decoding_messages(name):
     k = len(FOOTBOT.proximity.angles_rad)
     scan = c.ring_scan(FOOTBOT.proximity.angles_rad, name, FOOTBOT.proximity.range_m)
     c.fill_proximity(scan, stamp, rng.random(k), rng.random(k))
-    for got, want in zip(c.decode_proximity_cdr(serialize_message(scan)), c.decode_proximity(scan)):
+    for got, want in zip(decoding.decode_proximity_cdr(serialize_message(scan)), decoding.decode_proximity(scan)):
         assert np.array_equal(got, want)
-    assert np.array_equal(c.decode_light_cdr(serialize_message(scan)), c.decode_light(scan))
+    assert np.array_equal(decoding.decode_light_cdr(serialize_message(scan)), decoding.decode_light(scan))
 
     cloud = c.blob_cloud(name)
     c.fill_blobs(cloud, stamp, c.blob_points(rng.uniform(-3, 3, 5), rng.uniform(0.1, 2, 5),
                                              rng.integers(0, 256, (5, 3)).astype(np.uint8)))
-    got, want = c.decode_blobs_cdr(serialize_message(cloud)), c.decode_blobs(cloud)
+    got, want = decoding.decode_blobs_cdr(serialize_message(cloud)), decoding.decode_blobs(cloud)
     for field in ("angles", "distances", "colors"):
         assert np.array_equal(getattr(got, field), getattr(want, field))
     red = tuple(int(v) for v in want.colors[2])
@@ -71,14 +71,14 @@ def test_a_cloud_with_other_fields_is_refused():
     cloud = PointCloud2()
     cloud.fields = c.BLOB_FIELDS[:2]
     with pytest.raises(ValueError, match="not a blob cloud"):
-        c.decode_blobs_cdr(serialize_message(cloud))
+        decoding.decode_blobs_cdr(serialize_message(cloud))
 
 
 def test_answers_round_trip():
     stamp = c.stamp_of(12345, 100_000_000)
     data = c.answer_encoder().encode(stamp.sec, stamp.nanosec, 0.07, -1.25)
     assert deserialize_message(data, TwistStamped) == received(c.twist_stamped(stamp, 0.07, -1.25))
-    assert c.decode_answer_cdr(serialize_message(c.twist_stamped(stamp, 0.3, 2.0))) == \
+    assert decoding.decode_answer_cdr(serialize_message(c.twist_stamped(stamp, 0.3, 2.0))) == \
         (c.stamp_key(stamp), 0.3, 2.0)
 
 
@@ -98,7 +98,7 @@ def test_one_decoder_follows_a_stream_whose_cloud_layout_changes():
             cloud.fields = reordered
             data = points.view(np.uint8).reshape(m, 16)
             cloud.data = np.concatenate([data[:, 12:], data[:, :12]], axis=1).tobytes()
-        got, want = c.decode_blobs_cdr(serialize_message(cloud), decoder), c.decode_blobs(cloud)
+        got, want = decoding.decode_blobs_cdr(serialize_message(cloud), decoder), decoding.decode_blobs(cloud)
         assert len(got) == m
         for field in ("angles", "distances", "colors", "rgb"):
             assert np.array_equal(getattr(got, field), getattr(want, field)), (name, m, field)

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from composed_sim.world.robot_models import FOOTBOT
-from composed_sim.ros import contract as c
+from composed_sim.ros import contract as c, decoding
 
 DOC = Path(__file__).resolve().parents[2] / "docs" / "contract.md"
 
@@ -41,13 +41,13 @@ def test_proximity_and_light_round_trip():
     msg = c.ring_scan(FOOTBOT.proximity.angles_rad, "bot3", FOOTBOT.proximity.range_m)
     c.fill_proximity(msg, c.stamp_of(1, 10), dist, read)
     assert msg.header.frame_id == "bot3/base_link"
-    d2, r2 = c.decode_proximity(msg)
+    d2, r2 = decoding.decode_proximity(msg)
     np.testing.assert_allclose(d2, dist.astype(np.float32))
     np.testing.assert_allclose(r2, read.astype(np.float32))
-    np.testing.assert_allclose(c.ring_angles(msg, k), FOOTBOT.proximity.angles_rad, atol=1e-6)
+    np.testing.assert_allclose(decoding.ring_angles(msg, k), FOOTBOT.proximity.angles_rad, atol=1e-6)
     light = c.ring_scan(FOOTBOT.light.angles_rad, "bot3", 0.0)
     c.fill_light(light, c.stamp_of(1, 10), read)
-    np.testing.assert_allclose(c.decode_light(light), read.astype(np.float32))
+    np.testing.assert_allclose(decoding.decode_light(light), read.astype(np.float32))
 
 
 def test_blobs_round_trip_bearing_distance_colour():
@@ -57,23 +57,23 @@ def test_blobs_round_trip_bearing_distance_colour():
     msg = c.blob_cloud("bot0")
     c.fill_blobs(msg, c.stamp_of(2, 10), c.blob_points(angles, dists, colors))
     assert msg.width == 4 and msg.row_step == 4 * msg.point_step
-    blobs = c.decode_blobs(msg)
+    blobs = decoding.decode_blobs(msg)
     np.testing.assert_allclose(blobs.angles, angles, atol=1e-6)
     np.testing.assert_allclose(blobs.distances, dists, atol=1e-6)
     np.testing.assert_array_equal(blobs.colors, colors)
     red = blobs.of_color((255, 0, 0))
     assert len(red) == 1 and red.distances[0] == pytest.approx(0.2, abs=1e-6)
     c.fill_blobs(msg, c.stamp_of(3, 10), c.blob_points(angles[:0], dists[:0], colors[:0]))
-    assert len(c.decode_blobs(msg)) == 0
+    assert len(decoding.decode_blobs(msg)) == 0
 
 
 def test_leds_round_trip_and_wrong_size_is_rejected():
     colors = np.zeros((FOOTBOT.n_leds, 3), dtype=np.uint8)
     colors[12] = (255, 0, 0)
     msg = c.led_message(colors)
-    np.testing.assert_array_equal(c.decode_leds(msg, FOOTBOT.n_leds), colors)
+    np.testing.assert_array_equal(decoding.decode_leds(msg, FOOTBOT.n_leds), colors)
     with pytest.raises(ValueError, match="expected 39"):
-        c.decode_leds(c.led_message(colors[:5]), FOOTBOT.n_leds)
+        decoding.decode_leds(c.led_message(colors[:5]), FOOTBOT.n_leds)
 
 
 def test_twist_and_wheels_are_inverse():

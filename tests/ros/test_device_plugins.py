@@ -51,7 +51,8 @@ def test_diffusion_spreads_the_swarm_without_collisions(domain_id):
     # Packed on a 0.3 m grid (0.13 m between bodies, beyond the 0.10 m IR range): they drive off
     # in their random headings and turn away from each other and the walls.
     assert nearest(pos[0]).mean() == pytest.approx(0.3)
-    assert nearest(pos[-1]).mean() > 0.45, nearest(pos[-1]).mean()
+    spread = np.mean([nearest(p).mean() for p in pos[150:]])        # over the second half
+    assert spread > 0.35, spread
     # Coverage: the 0.5 m cells the swarm has been in, of the 4 × 4 m arena's 64.
     assert cells(pos[:1]) == 4 and cells(pos) >= 40, cells(pos)
     assert min_gap(pos) > 2 * FOOTBOT.body_radius_m              # no two robots ever touch

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from composed_sim.world.robot_models import FOOTBOT, TURTLEBOT3_BURGER
-from composed_sim.ros import contract as c
+from composed_sim.ros import contract as c, decoding
 from composed_sim.world.schema import World
 
 
@@ -20,7 +20,7 @@ def test_ground_round_trip_keeps_sensor_positions_and_readings():
     msg = c.ground_cloud("bot1", len(offsets))
     c.fill_ground(msg, STAMP, points[1])
     assert (msg.width, msg.point_step, msg.header.frame_id) == (4, 16, "bot1/base_link")
-    np.testing.assert_array_equal(c.decode_ground(msg), readings[1])
+    np.testing.assert_array_equal(decoding.decode_ground(msg), readings[1])
     cloud = np.frombuffer(msg.data, dtype=c.GROUND_DTYPE)
     np.testing.assert_allclose(np.column_stack([cloud["x"], cloud["y"]]), offsets, atol=1e-7)
 
@@ -33,9 +33,9 @@ def test_scan_round_trip_keeps_rep117_infinities_and_ray_angles():
     msg = c.lidar_scan_message(lidar, "tb0", 0.1)
     c.fill_scan(msg, STAMP, ranges)
     assert msg.header.frame_id == "tb0/base_scan" and (msg.range_min, msg.range_max) == (0.12, 3.5)
-    np.testing.assert_allclose(c.decode_scan(msg), ranges.astype(np.float32))
-    np.testing.assert_allclose(c.scan_angles(msg), lidar.angles_array(), atol=1e-6)
-    assert c.scan_angles(msg)[90] == pytest.approx(math.pi / 2, abs=1e-6)
+    np.testing.assert_allclose(decoding.decode_scan(msg), ranges.astype(np.float32))
+    np.testing.assert_allclose(decoding.scan_angles(msg), lidar.angles_array(), atol=1e-6)
+    assert decoding.scan_angles(msg)[90] == pytest.approx(math.pi / 2, abs=1e-6)
 
 
 def test_rab_round_trip_range_bearing_elevation_and_payload_bytes():
@@ -47,7 +47,7 @@ def test_rab_round_trip_range_bearing_elevation_and_payload_bytes():
     msg = c.rab_cloud("bot0", b)
     c.fill_rab(msg, STAMP, points[1:4])
     assert msg.point_step == 24 + b and msg.width == 3
-    got = c.decode_rab(msg)
+    got = decoding.decode_rab(msg)
     assert len(got) == 3
     np.testing.assert_allclose(got.ranges, ranges[1:4], rtol=1e-6)
     np.testing.assert_allclose(got.bearings, bearings[1:4], rtol=1e-6)
@@ -57,14 +57,14 @@ def test_rab_round_trip_range_bearing_elevation_and_payload_bytes():
     np.testing.assert_allclose(np.hypot(np.hypot(xyz["x"], xyz["y"]), xyz["z"]), ranges[1:4], rtol=1e-5)
     np.testing.assert_allclose(np.arctan2(xyz["y"], xyz["x"]), bearings[1:4], atol=1e-5)
     c.fill_rab(msg, STAMP, points[:0])
-    assert len(c.decode_rab(msg)) == 0
+    assert len(decoding.decode_rab(msg)) == 0
 
 
 def test_rab_tx_round_trip_and_wrong_size_names_the_setting():
     msg = c.rab_payload_message(bytes(range(10)))
-    np.testing.assert_array_equal(c.decode_rab_payload(msg, 10), np.arange(10))
+    np.testing.assert_array_equal(decoding.decode_rab_payload(msg, 10), np.arange(10))
     with pytest.raises(ValueError, match=r"has 3 bytes, expected 10 \(range_and_bearing.payload_bytes"):
-        c.decode_rab_payload(c.rab_payload_message([1, 2, 3]), 10)
+        decoding.decode_rab_payload(c.rab_payload_message([1, 2, 3]), 10)
 
 
 def test_pose_odometry_and_wheels_round_trip():
@@ -72,19 +72,19 @@ def test_pose_odometry_and_wheels_round_trip():
     qz, qw = c.half_yaw(np.array([2.5]))
     c.fill_pose(pose, STAMP, 1.5, -2.0, float(qz[0]), float(qw[0]))
     assert pose.header.frame_id == "world"
-    np.testing.assert_allclose(c.decode_pose(pose), [1.5, -2.0, 2.5])
+    np.testing.assert_allclose(decoding.decode_pose(pose), [1.5, -2.0, 2.5])
     odom = c.odometry_message("bot2")
     qz, qw = c.half_yaw(np.array([-3.0]))
     c.fill_odometry(odom, STAMP, 0.3, 0.4, float(qz[0]), float(qw[0]), 0.05, -0.2)
     assert (odom.header.frame_id, odom.child_frame_id) == ("bot2/odom", "bot2/base_link")
-    p, t = c.decode_odometry(odom)
+    p, t = decoding.decode_odometry(odom)
     np.testing.assert_allclose(p, [0.3, 0.4, -3.0])
     np.testing.assert_allclose(t, [0.05, -0.2])
     wheels = c.joint_state("bot2")
     r = FOOTBOT.wheel_radius_m
     c.fill_wheels(wheels, STAMP, np.array([1.0, 2.0]) / r, np.array([0.05, 0.1]) / r)
     assert list(wheels.name) == ["wheel_left_joint", "wheel_right_joint"]
-    speeds, travel = c.decode_wheels(wheels, r)
+    speeds, travel = decoding.decode_wheels(wheels, r)
     np.testing.assert_allclose(speeds, [0.05, 0.1])
     np.testing.assert_allclose(travel, [1.0, 2.0])
 
@@ -95,7 +95,7 @@ def world_with(groups: list[dict], **extra) -> World:
 
 
 def test_a_robot_has_the_topics_of_the_devices_it_runs():
-    from composed_sim.ros.simulator_node import robot_devices
+    from composed_sim.ros.robot_settings import robot_devices
     world = world_with([
         {"model": "foot-bot", "count": 1, "controller": "x"},
         {"model": "e-puck", "count": 1, "name_prefix": "ep", "controller": "x",
@@ -165,7 +165,8 @@ def test_a_node_serving_some_rows_of_a_mixed_swarm_publishes_each_robot_its_own_
     of its group's arrays, and a robot has no topic of a device it does not run."""
     from rclpy.node import Node
     from composed_sim.core.simulation import Simulation
-    from composed_sim.ros.simulator_node import SimulatorNode, robot_devices
+    from composed_sim.ros.robot_settings import robot_devices
+    from composed_sim.ros.simulator_node import SimulatorNode
     world = world_with([
         {"model": "foot-bot", "count": 3, "controller": "x", "devices": {"ground": {}, "odometry": {}}},
         {"model": "e-puck", "count": 3, "name_prefix": "ep", "controller": "x",
@@ -194,22 +195,22 @@ def test_a_node_serving_some_rows_of_a_mixed_swarm_publishes_each_robot_its_own_
                               ("ep2", "pose"), ("tb1", "scan"), ("tb1", "wheels")}
         node.publish_tick(frame)
         fb, ep, tb = frame.groups
-        np.testing.assert_allclose(c.decode_ground(take(subs["bot1", "ground"])), fb.ground[1], atol=1e-6)
-        np.testing.assert_allclose(c.decode_proximity(take(subs["bot1", "proximity"]))[1], fb.proximity[1], atol=1e-6)
-        odom, twist = c.decode_odometry(take(subs["bot1", "odom"]))
+        np.testing.assert_allclose(decoding.decode_ground(take(subs["bot1", "ground"])), fb.ground[1], atol=1e-6)
+        np.testing.assert_allclose(decoding.decode_proximity(take(subs["bot1", "proximity"]))[1], fb.proximity[1], atol=1e-6)
+        odom, twist = decoding.decode_odometry(take(subs["bot1", "odom"]))
         np.testing.assert_allclose(odom, frame.odometry[1], atol=1e-12)
         np.testing.assert_allclose(twist, frame.odometry_twist[1], atol=1e-12)
         for robot, row in (("ep1", 4), ("ep2", 5)):
-            np.testing.assert_allclose(c.decode_ground(take(subs[robot, "ground"])), ep.ground[row - 3], atol=1e-6)
-            np.testing.assert_allclose(c.decode_pose(take(subs[robot, "pose"])),
+            np.testing.assert_allclose(decoding.decode_ground(take(subs[robot, "ground"])), ep.ground[row - 3], atol=1e-6)
+            np.testing.assert_allclose(decoding.decode_pose(take(subs[robot, "pose"])),
                                        [*frame.pose.positions[row, :2], frame.pose.yaws[row]], atol=1e-9)
-            heard = c.decode_rab(take(subs[robot, "rab_rx"]))
+            heard = decoding.decode_rab(take(subs[robot, "rab_rx"]))
             senders = frame.range_and_bearing.of(row)[0]
             # Global medium: the other e-pucks, payload = the sender's index set before the step.
             assert sorted(senders.tolist()) == [3, 4, 5][:row - 3] + [3, 4, 5][row - 2:]
             assert sorted(heard.payloads[:, 0].tolist()) == sorted(senders.tolist())
-        np.testing.assert_allclose(c.decode_scan(take(subs["tb1", "scan"])), tb.lidar[1], rtol=1e-6)
-        speeds, travel = c.decode_wheels(take(subs["tb1", "wheels"]), TURTLEBOT3_BURGER.wheel_radius_m)
+        np.testing.assert_allclose(decoding.decode_scan(take(subs["tb1", "scan"])), tb.lidar[1], rtol=1e-6)
+        speeds, travel = decoding.decode_wheels(take(subs["tb1", "wheels"]), TURTLEBOT3_BURGER.wheel_radius_m)
         np.testing.assert_allclose(speeds, [0.05, 0.07])
         np.testing.assert_allclose(travel, frame.wheels.distances_m[7])
     finally:
@@ -272,7 +273,7 @@ def test_a_sensor_topic_goes_out_from_the_tick_after_its_first_subscriber(ros_co
             msg, info = sub.handle.take_message(sub.msg_type, sub.raw)
             assert c.stamp_key(msg.header.stamp) == tick * world.tick_ns
             assert info["publication_sequence_number"] == sequence, (sub.topic_name, tick)
-    np.testing.assert_allclose(c.decode_proximity(msg)[1], frame.groups[0].proximity[1], atol=1e-6)
+    np.testing.assert_allclose(decoding.decode_proximity(msg)[1], frame.groups[0].proximity[1], atol=1e-6)
     node.destroy_node()
     listener.destroy_node()
 
@@ -280,13 +281,13 @@ def test_a_sensor_topic_goes_out_from_the_tick_after_its_first_subscriber(ros_co
 def test_a_node_converts_exactly_its_robots_entries_of_csr_readings():
     """Blobs and range-and-bearing messages are CSR by robot; a node takes its robots' entries,
     as a slice for contiguous rows (a shard) and gathered otherwise (explicit domains)."""
-    from composed_sim.ros.simulator_node import _csr_rows
+    from composed_sim.ros.device_publishing import csr_take
     counts = np.array([2, 0, 3, 1, 4, 0, 2])
     offsets = np.concatenate([[0], np.cumsum(counts)])
     entries = np.arange(offsets[-1]) * 10
     for rows in ([0, 1, 2], [2, 3, 4], [0, 2, 6], [1, 5], [6], [3, 4, 5, 6]):
         rows = np.array(rows)
-        take, local = _csr_rows(offsets, rows)
+        take, local = csr_take(offsets, rows)
         got = entries[take]
         assert local.tolist() == [0, *np.cumsum(counts[rows]).tolist()]
         for k, r in enumerate(rows):

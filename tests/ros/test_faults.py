@@ -4,7 +4,6 @@ Four robots drive circles far apart (tests/plugin_pkg/faulty.py); bot1 misbehave
 tick on. In every case the run completes, bot0, bot2 and bot3 move exactly as in the run without
 a fault (bit for bit), bot1 gets the fallback, and every violation is bot1's.
 """
-import os
 
 import numpy as np
 import pytest
@@ -19,11 +18,6 @@ WATCHDOG_S = 0.25
 OTHERS = [0, 2, 3]
 MODES = ["composed", "workers", "multi-process"]
 _reference = {}
-
-
-@pytest.fixture
-def mp_domain() -> int:
-    return 101 + 4 * (os.getpid() % 32)    # as in test_multiprocess: clear of conftest's domain
 
 
 def fault_world(fault: str, *, fallback="zero", max_violations=None, watchdog_s=WATCHDOG_S, **params):
@@ -208,7 +202,7 @@ def test_a_rejected_answer_gets_the_previous_command_when_so_configured(faulty_p
 
 @pytest.mark.parametrize("mode", MODES)
 @pytest.mark.parametrize("fault, reason", [
-    ("wrong_type", "/bot1/cmd_vel carries geometry_msgs/msg/TwistStamped (the topic contract), "
+    ("wrong_type", "/bot1/cmd_vel carries geometry_msgs/msg/TwistStamped (this robot's answers), "
                    "not geometry_msgs/msg/Twist"),
     ("intrude", "/bot2/cmd_vel is a topic of bot2, not of bot1")])
 def test_publishing_a_wrong_type_or_on_another_robots_topic_fails_the_publisher(

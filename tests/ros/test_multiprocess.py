@@ -22,13 +22,6 @@ ROOT = Path(__file__).resolve().parents[2]
 FLOCKING = ROOT / "worlds" / "flocking.yaml"
 
 
-@pytest.fixture
-def mp_domain() -> int:
-    """First of up to 4 domains for this test process, outside the 1 … 100 of conftest's
-    ROS_DOMAIN_ID, so the composed run of a comparison never shares a domain with the children."""
-    return 101 + 4 * (os.getpid() % 32)
-
-
 def children() -> list[psutil.Process]:
     """Live (not zombie) descendants of this test process."""
     alive = []

@@ -1,0 +1,366 @@
+"""The sweep: every (size, mode, workers, executor, trial) run as its own ``composed-sim run``
+subprocess, in domains no earlier run used, skipped when it would not fit in memory."""
+from __future__ import annotations
+
+import json
+import os
+import platform
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Optional
+
+from composed_sim.bench.arguments import command_line
+from composed_sim.bench.report import write_outputs
+from composed_sim.bench.rules import (CALIBRATION_ABOVE, CALIBRATION_ROBOTS, COLUMNS, FALLBACK_PROCESS_MB, DomainAllocator,
+                                      as_number, domains_needed, host_label, skip_reason)
+from composed_sim.bench.tree import LEFTOVER_GRACE_S, measure_tree, parse_summary, tail
+
+CHECKOUT = Path(__file__).resolve().parents[2]     # the repository, when run from a checkout
+
+
+@dataclass
+class MemoryEstimate:
+    """Per-controller-process cost for the multi-process skip rule."""
+    per_process_mb: float = FALLBACK_PROCESS_MB
+    base_mb: float = 0.0
+    source: str = f"not measured yet: {FALLBACK_PROCESS_MB:.0f} MB per rclpy process (docs/architecture.md)"
+    measured: bool = False
+
+    def update(self, row: dict) -> None:
+        """From a multi-process run: PSS per controller process (shared library pages counted once
+        over all processes, as the memory they really take), RSS where PSS is not known."""
+        n, root = int(row["Robots"]), as_number(row.get("ArgosMem(kB)"))
+        pss, rss = as_number(row.get("Ros2Pss(kB)")), as_number(row.get("Ros2Mem(kB)"))
+        others, figure = (pss, "PSS") if pss else (rss, "RSS")
+        if others is None or root is None or others <= 0:
+            return
+        self.per_process_mb = others / 1024 / n
+        self.base_mb = root / 1024
+        self.source = f"{figure} measured at N={n}, {row['executor']} executor"
+        self.measured = True
+
+
+@dataclass
+class Sweep:
+    world: Path
+    ticks: int
+    timeout_s: float
+    robots_per_domain: Optional[int]         # given on the bench's command line, passed on
+    memory_fraction: float
+    domains: DomainAllocator
+    estimate: MemoryEstimate = field(default_factory=MemoryEstimate)
+    calibration: list = field(default_factory=list)
+    interrupted: bool = False         # the last run was ended because the sweep was interrupted
+    world_robots_per_domain: Optional[int] = None   # the world's multi_process.robots_per_domain
+
+    def command(self, robots: int, mode: str, executor: str, domain: int, out: Path, ticks: int,
+                workers: Optional[str] = None) -> list[str]:
+        cmd = [sys.executable, "-m", "composed_sim.cli", "run", str(self.world), "--robots", str(robots),
+               "--ticks", str(ticks), "--mode", mode, "--executor", executor, "--domain-id", str(domain),
+               "--out", str(out), "--json", "--no-progress", "--no-picture"]
+        if mode == "multi-process" and self.robots_per_domain:
+            cmd += ["--robots-per-domain", str(self.robots_per_domain)]
+        if mode == "composed" and workers is not None:
+            cmd += ["--workers", workers]
+        return cmd
+
+    def one(self, robots: int, mode: str, executor: str, trial: int, ticks: Optional[int] = None,
+            workers: Optional[str] = None) -> dict:
+        ticks = ticks or self.ticks
+        row = {c: None for c in COLUMNS}
+        row.update({"Robots": robots, "Repetition": trial, "mode": mode, "executor": executor, "ticks": ticks,
+                    "workers": workers if mode == "composed" else None})
+        if mode == "multi-process":
+            available = available_memory_mb()
+            reason = skip_reason(self.estimate.per_process_mb, robots, available, base_mb=self.estimate.base_mb,
+                                 fraction=self.memory_fraction, source=self.estimate.source)
+            if reason:
+                row.update(status="skipped", reason=reason)
+                return row
+        width = domains_needed(mode, robots, self.robots_per_domain or self.world_robots_per_domain)
+        domain = self.domains.take(width)
+        if domain is None:
+            row.update(status="skipped", reason=f"needs {width} ROS domains from --domain-id {self.domains.base}, "
+                                                f"beyond {self.domains.top}")
+            return row
+        row["domain_id"] = domain
+        env = dict(os.environ, ROS_DOMAIN_ID=str(domain), MPLBACKEND="Agg")
+        if "ROS_LOCALHOST_ONLY" not in env:
+            env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+        with tempfile.TemporaryDirectory(prefix="composed-sim-bench-") as tmp:
+            m = measure_tree(self.command(robots, mode, executor, domain, Path(tmp), ticks, workers), env=env,
+                             timeout_s=self.timeout_s)
+        summary = parse_summary(m.stdout)
+        wall = m.wall_s
+        row.update({
+            "WallTime(s)": round(wall, 3), "CPU(%)": round(100 * m.cpu_core_s / wall, 1) if wall > 0 else None,
+            "MaxMem(kB)": m.peak_tree_rss_kb, "MaxPss(kB)": m.peak_tree_pss_kb or None,
+            "total_wall_s": round(wall, 3), "cpu_core_s": round(m.cpu_core_s, 3),
+            "processes": m.max_processes, "exit_code": m.exit_code,
+            "other_load_cores": None if m.other_cores is None else round(m.other_cores, 2),
+        })
+        if mode == "multi-process" and wall > 0:
+            row.update({"ArgosCPU(%)": round(100 * m.root_cpu_s / wall, 1),
+                        "Ros2CPU(%)": round(100 * max(m.cpu_core_s - m.root_cpu_s, 0.0) / wall, 1),
+                        "ArgosMem(kB)": max(m.peak_root_rss_kb, int(1024 * (as_number((summary or {}).get("peak_rss_mb")) or 0))),
+                        "Ros2Mem(kB)": m.peak_others_rss_kb, "Ros2Pss(kB)": m.peak_others_pss_kb or None})
+        if summary:
+            phases = summary.get("phases_s") or {}
+            row.update({k: _round(summary.get(k), 6) for k in ("setup_s", "ticks_wall_s")})
+            row["real_time_factor"] = _round(summary.get("real_time_factor"), 4)
+            row["workers_used"] = summary.get("workers") if mode == "composed" else None
+            row.update({"per_robot_tick_us": _round(summary.get("per_robot_tick_us"), 2),
+                        "violations": summary.get("violations"),
+                        **{k: _round(phases.get(k), 6) for k in ("physics_s", "sensing_s", "ros_exchange_s")}})
+        notes = []
+        if m.interrupted:
+            row["status"] = "interrupted"
+            notes.append("the sweep was interrupted (Ctrl-C or SIGTERM) during this run")
+        elif m.timed_out:
+            row["status"] = "timeout"
+            notes.append(f"stopped after the {self.timeout_s:g} s timeout")
+        elif m.exit_code == 130:        # the run was stopped from outside the bench
+            row["status"] = "interrupted"
+            notes.append("the run was interrupted from outside the bench (exit code 130)")
+        elif m.exit_code != 0:
+            row["status"] = "failed"
+            notes.append(f"exit code {m.exit_code}")
+        elif summary is None:
+            row["status"] = "failed"
+            notes.append("no JSON summary on stdout")
+        elif summary.get("ticks") != ticks:
+            row["status"] = "failed"
+            notes.append(f"ran {summary.get('ticks')} of {ticks} ticks")
+        else:
+            row["status"] = "ok"
+        if m.leftovers_killed:
+            notes.append(f"{m.leftovers_killed} processes outlived the run by {LEFTOVER_GRACE_S:g} s and were killed")
+        if row["status"] != "ok" and m.stderr.strip():
+            notes.append("stderr: " + tail(m.stderr))
+        row["reason"] = "; ".join(notes) or None
+        if mode == "multi-process" and row["status"] == "ok":
+            self.estimate.update(row)
+        self.interrupted = m.interrupted
+        return row
+
+    def calibrate(self, executor: str) -> None:
+        """A small multi-process run that measures the per-process cost before bigger ones."""
+        row = self.one(CALIBRATION_ROBOTS, "multi-process", executor, 0, ticks=min(self.ticks, 20))
+        self.calibration.append(row)
+
+
+def available_memory_mb() -> float:
+    """Available memory, bounded by this process's cgroup limit when there is one."""
+    import psutil
+    avail = psutil.virtual_memory().available
+    for limit_file, usage_file in (("/sys/fs/cgroup/memory.max", "/sys/fs/cgroup/memory.current"),
+                                   ("/sys/fs/cgroup/memory/memory.limit_in_bytes",
+                                    "/sys/fs/cgroup/memory/memory.usage_in_bytes")):
+        try:
+            limit = Path(limit_file).read_text().strip()
+            usage = int(Path(usage_file).read_text().strip())
+        except (OSError, ValueError):
+            continue
+        if limit.isdigit() and int(limit) < 2**60:
+            avail = min(avail, max(int(limit) - usage, 0))
+        break
+    return avail / 2**20
+
+
+def _round(v, digits: int):
+    x = as_number(v)
+    return None if x is None else round(x, digits)
+
+
+def machine_info() -> dict:
+    import psutil
+
+    from composed_sim.results import versions
+    model = None
+    try:
+        with open("/proc/cpuinfo") as f:
+            for line in f:
+                if line.lower().startswith("model name"):
+                    model = line.split(":", 1)[1].strip()
+                    break
+    except OSError:
+        pass
+    vm = psutil.virtual_memory()
+    try:
+        load = [round(x, 2) for x in os.getloadavg()]
+    except OSError:
+        load = None
+    return {
+        "cpu_model": model or platform.processor() or platform.machine(),
+        "logical_cores": psutil.cpu_count(),
+        "physical_cores": psutil.cpu_count(logical=False),
+        "memory_total_mb": round(vm.total / 2**20),
+        "memory_available_mb_at_start": round(available_memory_mb()),
+        "load_average_at_start": load,
+        "os": platform.platform(),
+        "versions": versions(),
+        "commit": _git_commit(),
+        "date": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+    }
+
+
+def _git_commit() -> Optional[str]:
+    """HEAD of the checkout the package runs from, if it is one (read-only)."""
+    root = CHECKOUT
+    if not (root / ".git").exists():
+        return None
+    try:
+        res = subprocess.run(["git", "-C", str(root), "rev-parse", "--short", "HEAD"], capture_output=True,
+                             text=True, timeout=10, env=dict(os.environ, GIT_OPTIONAL_LOCKS="0"))
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return res.stdout.strip() or None if res.returncode == 0 else None
+
+
+def resolve_world(given: Optional[Path]) -> Path:
+    """The world to run: as given, else worlds/flocking.yaml of this package's checkout, else of
+    the current folder."""
+    from composed_sim.command_line import UserError
+    if given is not None:
+        if not given.is_file():
+            raise UserError(f"--world {given}: no such file")
+        return given.resolve()
+    candidates = [CHECKOUT / "worlds" / "flocking.yaml", Path.cwd() / "worlds" / "flocking.yaml"]
+    for c in candidates:
+        if c.is_file():
+            return c
+    raise UserError("no default world found (looked for " + ", ".join(map(str, candidates)) +
+                    "); pass --world WORLD.yaml")
+
+
+def run(args) -> int:
+    from composed_sim.command_line import UserError, check_writable
+    if args.replot is not None:
+        return _replot(args)
+
+    from composed_sim.world.loader import WorldFileError, load_world
+    world_path = resolve_world(args.world)
+    try:
+        world = load_world(world_path, ticks=args.ticks)
+    except WorldFileError as e:
+        raise UserError(str(e)) from None
+    base = args.domain_id
+    if base is None:
+        text = os.environ.get("ROS_DOMAIN_ID", "0") or "0"
+        try:
+            base = int(text)
+        except ValueError:
+            raise UserError(f"ROS_DOMAIN_ID: expected a whole number, got {text!r}") from None
+    try:
+        domains = DomainAllocator(base)
+    except ValueError as e:
+        raise UserError(str(e)) from None
+    check_writable(args.out)
+    if args.report is not None:
+        check_writable(args.report.parent / "figures")
+
+    machine = machine_info()
+    sweep = Sweep(world=world_path, ticks=args.ticks, timeout_s=args.timeout,
+                  robots_per_domain=args.robots_per_domain, memory_fraction=args.memory_fraction,
+                  domains=domains,
+                  world_robots_per_domain=getattr(getattr(world, "multi_process", None), "robots_per_domain", None))
+    plan = [(n, trial, mode, executor, workers) for n in args.sizes for trial in range(1, args.trials + 1)
+            for mode in args.modes for executor in args.executors
+            for workers in (args.workers if mode == "composed" else (None,))]
+    settings = {"sizes": list(args.sizes), "modes": list(args.modes), "executors": list(args.executors),
+                "workers": list(args.workers),
+                "trials": args.trials, "ticks": args.ticks, "world": str(world_path), "world_name": world.name,
+                "tick_s": world.tick_s, "timeout_s": args.timeout, "domain_base": base,
+                "robots_per_domain": args.robots_per_domain, "memory_fraction": args.memory_fraction}
+    command = command_line(args)
+    print(f"bench: {len(plan)} runs of {world_path.name} ({args.ticks} ticks each) → {args.out}/", file=sys.stderr)
+
+    rows: list[dict] = []
+    interrupted = False
+    t_start = time.perf_counter()
+    old_term = _sigterm_interrupts()
+    try:
+        for i, (n, trial, mode, executor, workers) in enumerate(plan, 1):
+            first_multi = mode == "multi-process" and not any(r["mode"] == mode for r in rows)
+            if first_multi and n > CALIBRATION_ABOVE:
+                print(f"bench: calibrating the multi-process memory cost with {CALIBRATION_ROBOTS} robots",
+                      file=sys.stderr)
+                sweep.calibrate(executor)
+                cal = sweep.calibration[-1]
+                print(f"bench: calibration {cal['status']}: {sweep.estimate.per_process_mb:.1f} MB per process "
+                      f"({sweep.estimate.source})" + (f" — {cal['reason']}" if cal["reason"] else ""), file=sys.stderr)
+                if sweep.interrupted:
+                    interrupted = True
+                    break
+            row = sweep.one(n, mode, executor, trial, workers=workers)
+            rows.append(row)
+            print(_progress_line(i, len(plan), row, args.trials), file=sys.stderr)
+            if sweep.interrupted:
+                interrupted = True
+                break
+    except KeyboardInterrupt:
+        interrupted = True
+    finally:
+        if old_term is not None:
+            signal.signal(signal.SIGTERM, old_term)
+    elapsed = time.perf_counter() - t_start
+
+    doc = {"command": command, "machine": machine, "settings": settings, "elapsed_s": round(elapsed, 1),
+           "interrupted": interrupted,
+           "memory_estimate": {"per_process_mb": round(sweep.estimate.per_process_mb, 2),
+                               "base_mb": round(sweep.estimate.base_mb, 1), "source": sweep.estimate.source},
+           "calibration_runs": sweep.calibration, "columns": list(COLUMNS), "rows": rows}
+    write_outputs(doc, args.out, args.report)
+    bad = [r for r in rows if r["status"] not in ("ok", "skipped")]
+    print(f"bench: {len(rows)} runs in {elapsed:.0f} s: "
+          + ", ".join(f"{s} {sum(r['status'] == s for r in rows)}" for s in sorted({r['status'] for r in rows}))
+          + f"; results in {args.out}/" + (f", report {args.report}" if args.report else ""), file=sys.stderr)
+    if interrupted:
+        return 130
+    return 1 if bad else 0
+
+
+def _sigterm_interrupts():
+    """SIGTERM stops the sweep like Ctrl-C: the current run is ended, what ran so far is written.
+    Returns the previous handler (None when not on the main thread, where it cannot be set)."""
+    def handle(signum, frame):
+        raise KeyboardInterrupt
+    try:
+        return signal.signal(signal.SIGTERM, handle)
+    except ValueError:
+        return None
+
+
+def _progress_line(i: int, total: int, row: dict, trials: int) -> str:
+    head = (f"bench [{i}/{total}] N={row['Robots']} {host_label(row)} {row['executor']} "
+            f"trial {row['Repetition']}/{trials}: {row['status']}")
+    if row["WallTime(s)"] is not None:
+        head += f", wall {row['WallTime(s)']:.1f} s"
+        if row["setup_s"] is not None:
+            head += f" (setup {row['setup_s']:.1f} s, ticks {row['ticks_wall_s']:.1f} s)"
+        head += f", CPU {row['CPU(%)']:.0f} %, peak {row['MaxMem(kB)'] / 1024:.0f} MB"
+    if row["status"] != "ok" and row["reason"]:
+        reason = row["reason"]
+        head += f" — {reason if len(reason) <= 300 else '…' + reason[-300:]}"
+    return head
+
+
+def _replot(args) -> int:
+    from composed_sim.command_line import UserError, check_writable
+    try:
+        doc = json.loads(args.replot.read_text())
+        doc["rows"], doc["machine"]
+    except (OSError, ValueError, KeyError, TypeError) as e:
+        raise UserError(f"--replot {args.replot}: not a runs.json of composed-sim bench ({e})") from None
+    check_writable(args.out)
+    if args.report is not None:
+        check_writable(args.report.parent / "figures")
+    write_outputs(doc, args.out, args.report)
+    print(f"bench: redrew {len(doc['rows'])} runs from {args.replot} into {args.out}/"
+          + (f" and {args.report}" if args.report else ""), file=sys.stderr)
+    return 0

@@ -1,0 +1,151 @@
+"""Loop functions, the ARGoS concept: per-experiment Python code run by the tick loop.
+
+ROS-free. A world names its loop functions (``loop_functions: {name, params, every_ticks}``); the
+name is an entry point of the group ``composed_sim.loop_functions`` whose class is made with
+``params`` as keyword arguments. Every hook is optional (``LoopFunctions`` gives them all, doing
+nothing):
+
+- ``init(world, sim)``: once, before tick 0 is sensed (a world edit made here is seen at tick 0);
+- ``pre_step(sim)``: each tick, once the controllers' commands are in, before the physics step;
+- ``post_step(sim)``: each tick, after the step and its sensing (``sim.frame``: the readings the
+  controllers get next); a world edit here is seen by the physics and the sensors of the next tick;
+- ``is_finished(sim) -> bool``: after ``post_step``; true ends the run as a normal end;
+- ``metrics(sim) -> dict``: at tick 0 and every ``every_ticks`` ticks (and at the last tick), one
+  row of ``metrics.csv`` each; the last row is the run's final metrics in summary.json;
+- ``describe(initial, final) -> list[str]`` (a static method): lines for the run's printed summary.
+
+The world edits go through the simulation (``sim.move_object``, ``sim.add_object``,
+``sim.set_floor_shape``, ``sim.add_floor_shape``, ``sim.set_light``; core/world_edits.py), read
+state from ``sim.positions``, ``sim.headings``, ``sim.led_colors``, ``sim.frame``. The
+controllers never see the loop functions: they are ROS nodes and only get their readings.
+"""
+from __future__ import annotations
+
+from importlib.metadata import EntryPoint, entry_points
+from typing import Optional
+
+from composed_sim.core.simulation import Simulation
+from composed_sim.world.schema import LOOP_FUNCTIONS_GROUP, World
+
+GROUP = LOOP_FUNCTIONS_GROUP
+
+
+class LoopFunctionsError(Exception):
+    """Loop functions that cannot be loaded or made; ``field`` is the world file's field."""
+
+    def __init__(self, message: str, field: tuple = ("loop_functions",)):
+        super().__init__(message)
+        self.field = field
+
+
+class LoopFunctions:
+    """A base class with every hook, each doing nothing; subclassing it is optional."""
+
+    def init(self, world: World, sim: Simulation) -> None: ...
+    def pre_step(self, sim: Simulation) -> None: ...
+    def post_step(self, sim: Simulation) -> None: ...
+
+    def is_finished(self, sim: Simulation) -> bool:
+        return False
+
+    def metrics(self, sim: Simulation) -> dict:
+        return {}
+
+    @staticmethod
+    def describe(initial: dict, final: dict) -> list[str]:
+        """Default: the final metrics, one line."""
+        if not final:
+            return []
+        return ["  metrics: " + ", ".join(f"{k} {v:.3g}" if isinstance(v, float) else f"{k} {v}"
+                                          for k, v in final.items() if k != "tick")]
+
+
+def installed() -> dict[str, EntryPoint]:
+    return {ep.name: ep for ep in sorted(entry_points(group=GROUP), key=lambda e: e.name)}
+
+
+def load_class(name: str) -> type:
+    found = installed()
+    if name not in found:
+        raise LoopFunctionsError(f"unknown loop functions {name!r} (installed: {', '.join(found) or 'none'})",
+                                 ("loop_functions", "name"))
+    try:
+        return found[name].load()
+    except Exception as e:     # any import-time failure is the plugin's, reported as such
+        raise LoopFunctionsError(f"loop functions {name!r} ({found[name].value}) failed to import: "
+                                 f"{type(e).__name__}: {e}", ("loop_functions", "name")) from e
+
+
+def make(world: World):
+    """The world's loop functions object, or None; a bad parameter is a LoopFunctionsError."""
+    ref = world.loop_functions
+    if ref is None:
+        return None
+    cls = load_class(ref.name)
+    try:
+        return cls(**ref.params)
+    except (TypeError, ValueError) as e:      # an unknown or missing keyword, a value the class refuses
+        raise LoopFunctionsError(f"loop functions {ref.name!r}: {e}", ("loop_functions", "params")) from e
+
+
+def describe(world: World, initial: dict, final: dict) -> list[str]:
+    """The loop functions' lines for a run's printed summary (none without loop functions)."""
+    if world.loop_functions is None:
+        return []
+    cls = load_class(world.loop_functions.name)
+    return getattr(cls, "describe", LoopFunctions.describe)(initial, final)
+
+
+class LoopHooks:
+    """What the tick loop (hosts/lockstep.py) calls: the world's loop functions, if any, with
+    their metric rows and whether they ended the run."""
+
+    def __init__(self, sim: Simulation):
+        self.functions = make(sim.world)
+        self.every = sim.world.loop_functions.every_ticks if self.functions is not None else 1
+        self.rows: list[dict] = []
+        self.finished = False        # is_finished() said so
+
+    def _call(self, hook: str, *args):
+        fn = getattr(self.functions, hook, None)
+        return None if fn is None else fn(*args)
+
+    def start(self, sim: Simulation) -> None:
+        if self.functions is not None:
+            self._call("init", sim.world, sim)
+
+    def at_tick_0(self, sim: Simulation) -> None:
+        self._take_metrics(sim)
+
+    def pre_step(self, sim: Simulation) -> None:
+        if self.functions is not None:
+            self._call("pre_step", sim)
+
+    def post_step(self, sim: Simulation) -> bool:
+        """After a step; true: the loop functions ended the run."""
+        if self.functions is None:
+            return False
+        self._call("post_step", sim)
+        self.finished = bool(self._call("is_finished", sim))
+        if sim.tick % self.every == 0 or self.finished:
+            self._take_metrics(sim)
+        return self.finished
+
+    def end(self, sim: Simulation) -> None:
+        """The run's last tick has a row (the final metrics), whatever ``every_ticks``."""
+        if self.functions is not None and (not self.rows or self.rows[-1]["tick"] != sim.tick):
+            self._take_metrics(sim)
+
+    def _take_metrics(self, sim: Simulation) -> None:
+        values = self._call("metrics", sim) if self.functions is not None else None
+        if values:
+            self.rows.append({"tick": sim.tick, **{k: _plain(v) for k, v in values.items()}})
+
+    @property
+    def final(self) -> Optional[dict]:
+        return self.rows[-1] if self.rows else None
+
+
+def _plain(value):
+    """numpy scalars as Python numbers (for JSON and CSV)."""
+    return value.item() if hasattr(value, "item") else value

@@ -1,0 +1,161 @@
+"""A hosted controller's timers on sim time, fired at a defined point of the tick.
+
+The order within tick k, for each robot, in every executor and both host modes:
+
+1. the simulator publishes tick k's sensors; from then on the node's clock reads tick k's time;
+2. the robot's sensor callbacks of tick k run;
+3. then its timers due at or before tick k's time fire. A ``cmd_vel`` published from a timer
+   callback answers tick k, exactly as one published from a sensor callback.
+
+A timer created while the controller is constructed (before tick 0) fires first at tick 0 and then
+every period: a 0.1 s timer on a 10 Hz world answers every tick, tick 0 included. One created
+later fires first one period after the time it was created at, as in ROS. A timer slower than the
+tick fires every k-th tick (the world file says so with ``answers_every_ticks``); one faster than
+the tick fires once per tick, at the tick's time (rcl skips the periods a time jump passed over).
+
+How: each timer runs on a clock of its own (a ``ROSClock`` in ROS-time mode, which only we set),
+advanced to tick k's time when the robot's last sensor callback of tick k has returned. So no
+executor can fire a timer before the readings of its tick were handled, whichever ready entity it
+picks first. Callback-driven controllers (no timers) are not touched and pay nothing.
+"""
+from __future__ import annotations
+
+import math
+import threading
+from typing import Callable, Collection, Optional
+
+from rclpy.clock import ClockType, ROSClock
+from rclpy.node import Node
+from rclpy.subscription import Subscription
+from rclpy.time import Time
+
+from composed_sim.ros import cdr
+
+
+class SimTimers:
+    """The timers of one controller node (one robot)."""
+
+    def __init__(self, tick_ns: int, *, follow_stamps: bool = False):
+        """``follow_stamps``: set the node's clock to a sensor message's stamp when it is behind,
+        before the callback runs (multi-process mode, where the node's clock follows /clock, which
+        may arrive after the sensors; in composed mode the host sets it at publish)."""
+        self._tick_ns = tick_ns
+        self._follow_stamps = follow_stamps
+        self._node: Optional[Node] = None
+        self._clocks: list[tuple[ROSClock, int]] = []   # (a timer's clock, ns it runs ahead of sim time)
+        self.periods_s: list[float] = []
+        self._constructed = False
+        self._sensor_topics: frozenset[str] = frozenset()
+        self._watching = False
+        self._expected = 0              # sensor callbacks per tick: the node's sensor subscriptions
+        self._stamp = -1                # the tick (stamp ns) whose callbacks are being counted
+        self._seen = 0
+        self._lock = threading.Lock()   # sensor callbacks of one node may run on several threads
+
+    # --- set-up ------------------------------------------------------------------------------
+
+    def construct(self, cls: type[Node], **node_kwargs) -> Node:
+        """``cls(**node_kwargs)``, with its ``create_timer`` put on sim time before its
+        constructor runs (controllers create their timers there)."""
+        node = cls.__new__(cls)
+        self._node = node
+        node.create_timer = self._create_timer
+        node.__init__(**node_kwargs)
+        return node
+
+    def started(self, sensor_topics: Collection[str]) -> None:
+        """The node is constructed; ``sensor_topics``: its robot's sensor topics (resolved names),
+        the subscriptions whose callbacks a tick's timers wait for."""
+        self._constructed = True
+        self._sensor_topics = frozenset(sensor_topics)
+        if self._clocks:
+            self._watch()
+
+    def _create_timer(self, timer_period_sec: float, callback: Callable, callback_group=None,
+                      clock=None, autostart: bool = True):
+        create = Node.create_timer.__get__(self._node)
+        if clock is not None:       # the controller chose its clock (a steady one, say): its own
+            return create(timer_period_sec, callback, callback_group, clock, autostart)
+        period_ns = round(timer_period_sec * 1e9)
+        timer_clock = ROSClock()
+        timer_clock._set_ros_time_is_active(True)
+        if self._constructed:       # ROS: first due one period after now
+            start, ahead = self._node.get_clock().now().nanoseconds, 0
+        else:                       # before tick 0: due at tick 0, then every period
+            start, ahead = 0, period_ns
+        timer_clock.set_ros_time_override(Time(nanoseconds=start, clock_type=ClockType.ROS_TIME))
+        timer = create(timer_period_sec, callback, callback_group, timer_clock, autostart)
+        with self._lock:
+            self._clocks.append((timer_clock, ahead))
+        self.periods_s.append(timer_period_sec)
+        if self._constructed and not self._watching:
+            self._watch()
+        return timer
+
+    def _watch(self) -> None:
+        """Count the node's sensor callbacks per tick. (A controller has at least one sensor
+        subscription: the hosts wait for one before tick 0.)"""
+        self._watching = True
+        subs = [s for s in self._node.subscriptions if s.topic_name in self._sensor_topics]
+        self._expected = len(subs)
+        for sub in subs:
+            sub.callback = self._counting(sub)
+
+    def _counting(self, sub: Subscription) -> Callable:
+        callback = sub.callback
+        raw = sub.raw
+        node_clock = self._node.get_clock()
+
+        def run(msg, *info):
+            stamp = cdr.stamp_ns(msg) if raw else msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+            if self._follow_stamps and node_clock.now().nanoseconds < stamp:
+                node_clock.set_ros_time_override(Time(nanoseconds=stamp, clock_type=ClockType.ROS_TIME))
+            try:
+                return callback(msg, *info)
+            finally:
+                self._handled(stamp)
+        # rclpy picks a subscription's call signature from the callback's: keep the original's.
+        if sub._callback_type is Subscription.CallbackType.WithMessageInfo:
+            return lambda msg, info: run(msg, info)
+        return lambda msg: run(msg)
+
+    # --- per tick ------------------------------------------------------------------------------
+
+    def _handled(self, stamp: int) -> None:
+        with self._lock:
+            if stamp != self._stamp:
+                if stamp < self._stamp:
+                    return          # a reading of an earlier tick, handled late: its tick is over
+                self._stamp, self._seen = stamp, 0
+            self._seen += 1
+            if self._seen != self._expected:
+                return
+        self._advance(stamp)
+
+    def _advance(self, now_ns: int) -> None:
+        with self._lock:
+            clocks = list(self._clocks)
+        for clock, ahead in clocks:
+            clock.set_ros_time_override(Time(nanoseconds=now_ns + ahead, clock_type=ClockType.ROS_TIME))
+
+    def period_warnings(self, controller: str, answers_every_ticks: int) -> list[str]:
+        """Timers that will not answer the ticks as the world file expects. The messages name the
+        group's controller, not the robot, so that they are the same for every robot of a group."""
+        out = []
+        tick_s = self._tick_ns * 1e-9
+        for period in self.periods_s:
+            ratio = period / tick_s
+            if period <= 0:
+                continue
+            if not (_whole(ratio) or _whole(1 / ratio)):
+                out.append(f"controller {controller!r} has a timer of {period:g} s, neither a multiple nor a "
+                           f"divisor of the world's tick ({tick_s:g} s): it fires at irregular ticks")
+            elif ratio > 1.5 and answers_every_ticks == 1:
+                out.append(f"controller {controller!r} has a timer of {period:g} s, {round(ratio)} ticks: if it "
+                           f"answers from that timer, set answers_every_ticks: {round(ratio)} in its robot group, "
+                           f"or each tick in between is a violation")
+        return out
+
+
+def _whole(x: float) -> bool:
+    return math.isclose(x, round(x), rel_tol=1e-9, abs_tol=1e-9)

@@ -1,0 +1,108 @@
+"""The ``composed-sim sweep`` command: arguments, the grid from the command line or a sweep file,
+the runs (local pool or Dask cluster) with progress, the tables and plots."""
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import yaml
+
+from composed_sim.command_line import UserError, check_writable, number_arg
+from composed_sim.sweep import report
+from composed_sim.sweep.grid import Grid, GridError, parse_list, parse_set
+from composed_sim.sweep.runner import dask_cluster, local_pool
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("spec", type=Path, help="a world file (YAML) or a sweep file (YAML with `world:`)")
+    parser.add_argument("--seeds", help="seeds: 1-5 or 1,2,7")
+    parser.add_argument("--robots", help="swarm sizes: 20,80")
+    parser.add_argument("--set", action="append", default=[], metavar="PATH=V1,V2",
+                        help="a world field by dotted path and its values, e.g. robots.0.params.gain=500,1000 "
+                             "(repeatable)")
+    parser.add_argument("--ticks", type=number_arg(int, minimum=1), help="ticks per run (overrides length_ticks)")
+    parser.add_argument("--jobs", type=number_arg(int, minimum=1), default=None,
+                        help="runs at once on this machine (default: the usable cores)")
+    parser.add_argument("--cluster", metavar="ADDRESS",
+                        help="run on a Dask distributed cluster, e.g. tcp://scheduler:8786 (--out on a shared file system)")
+    parser.add_argument("--out", type=Path, default=Path("out/sweep"), help="output directory (default: %(default)s)")
+    parser.add_argument("--no-plots", action="store_true", help="skip the plots")
+
+
+def grid_from(args) -> Grid:
+    """The grid of the command line, over a sweep file's when one is given (the command line wins)."""
+    spec_path = args.spec
+    data = {}
+    if spec_path.suffix in (".yaml", ".yml") and spec_path.is_file():
+        loaded = yaml.safe_load(spec_path.read_text())
+        if isinstance(loaded, dict) and "world" in loaded:   # a sweep file (a world has no `world:` field)
+            data = loaded
+            unknown = set(data) - {"world", "seeds", "robots", "set", "ticks"}
+            if unknown:
+                raise GridError(f"{spec_path}: unknown sweep file field {sorted(unknown)[0]!r} "
+                                f"(fields: world, seeds, robots, set, ticks)")
+            spec_path = (spec_path.parent / data["world"]).resolve()
+
+    def values(cli: str | None, key: str) -> list:
+        if cli is not None:
+            return parse_list(cli, f"--{key}")
+        given = data.get(key, [])
+        return parse_list(str(given), key) if isinstance(given, (str, int)) else list(given)
+
+    sets = {path: (list(v) if isinstance(v, list) else parse_list(str(v), f"set.{path}"))
+            for path, v in (data.get("set") or {}).items()}
+    sets.update(parse_set(text) for text in args.set)
+    return Grid(spec_path, seeds=values(args.seeds, "seeds"), robots=values(args.robots, "robots"), sets=sets,
+                ticks=args.ticks if args.ticks is not None else data.get("ticks"))
+
+
+def run(args) -> int:
+    try:
+        grid = grid_from(args)
+        specs = grid.specs()       # every world checked before any run starts
+    except GridError as e:
+        raise UserError(str(e)) from None
+    check_writable(args.out)
+    args.out.mkdir(parents=True, exist_ok=True)
+    swept = list(specs[0].values) if specs else []
+    if args.cluster:
+        where, rows_as_done = f"Dask cluster {args.cluster}", dask_cluster(specs, str(args.out), args.cluster)
+    else:
+        from composed_sim.hosts.workers import usable_cores
+        jobs = args.jobs or usable_cores()
+        where, rows_as_done = f"{jobs} at a time", local_pool(specs, str(args.out), jobs)
+    print(f"composed-sim sweep: {len(specs)} runs ({' × '.join(f'{k} {len(set(s.values[k] for s in specs))}' for k in swept)}), "
+          f"{where}, into {args.out}/", file=sys.stderr)
+    rows: list[dict] = []
+    t0 = time.perf_counter()
+    progress = _progress(len(specs))
+    try:
+        for row in rows_as_done:
+            rows.append(row)
+            failed = sum(r["status"] != "ok" for r in rows)
+            progress.set_postfix_str(f"{failed} failed", refresh=False)
+            progress.update(1)
+            if row["status"] != "ok":
+                last = row["error"].strip().splitlines()[-1:] or ["?"]
+                progress.write(f"composed-sim sweep: run {row['run']} {row['status']} (exit {row['exit_code']}): {last[0]}")
+    except KeyboardInterrupt:
+        print("\ncomposed-sim sweep: interrupted; writing the runs done so far", file=sys.stderr)
+    finally:
+        progress.close()
+        report.write_tables(args.out, rows, swept)
+    wall = time.perf_counter() - t0
+    plots = [] if args.no_plots else report.plot(args.out, rows, swept)
+    failed = sum(r["status"] != "ok" for r in rows)
+    reused = sum(bool(r.get("reused")) for r in rows)
+    print(f"{len(rows)} runs ({failed} failed, {reused} reused) in {wall:.1f} s wall; {args.out / report.RUNS}"
+          + (f", {args.out / report.METRICS}" if (args.out / report.METRICS).exists() else "")
+          + (f", {len(plots)} plots" if plots else ""))
+    return 1 if failed or len(rows) < len(specs) else 0
+
+
+def _progress(total: int):
+    from tqdm import tqdm
+    return tqdm(total=total, unit="run", desc="sweep", file=sys.stderr, dynamic_ncols=True,
+                mininterval=0 if not sys.stderr.isatty() else 0.1)

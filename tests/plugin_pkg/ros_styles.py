@@ -1,0 +1,94 @@
+"""Controllers written the ways ROS users write nodes, with no composed_sim import: unstamped
+Twist, timer-driven decisions, sensor-data QoS. They all steer alike (drive on, turn away from
+what is close), so runs that mix them can be compared bit for bit across hosts and executors."""
+from geometry_msgs.msg import Twist, TwistStamped
+from rclpy.node import Node
+from rclpy.qos import qos_profile_sensor_data
+from sensor_msgs.msg import LaserScan
+from std_msgs.msg import String
+
+
+def steer(scan: LaserScan) -> tuple[float, float]:
+    close = max(scan.intensities) if len(scan.intensities) else 0.0
+    return 0.05 * (1.0 - close), (1.0 if close > 0.3 else 0.0)
+
+
+class TwistOnScan(Node):
+    """Decides in its sensor callback (best effort, as sensor data usually is), publishes Twist."""
+
+    def __init__(self, **kwargs):
+        super().__init__("twist_on_scan", **kwargs)
+        self.cmd = self.create_publisher(Twist, "cmd_vel", 10)
+        self.create_subscription(LaserScan, "proximity", self.on_scan, qos_profile_sensor_data)
+        self.readings = 0
+
+    def on_scan(self, scan: LaserScan) -> None:
+        self.readings += 1
+        out = Twist()
+        out.linear.x, out.angular.z = steer(scan)
+        self.cmd.publish(out)
+
+
+class _OnTimer(Node):
+    """Keeps the latest reading; decides on a timer (``period`` s)."""
+    msg_type, qos = Twist, qos_profile_sensor_data
+
+    def __init__(self, name, **kwargs):
+        super().__init__(name, **kwargs)
+        period = self.declare_parameter("period", 0.1).value
+        self.cmd = self.create_publisher(self.msg_type, "cmd_vel", 10)
+        self.create_subscription(LaserScan, "proximity", self.on_scan, self.qos)
+        self.scan = None
+        self.decisions = 0
+        self.create_timer(period, self.decide)
+
+    def on_scan(self, scan: LaserScan) -> None:
+        self.scan = scan
+
+    def decide(self) -> None:
+        if self.scan is None:
+            return
+        self.decisions += 1
+        self.cmd.publish(self.command(*steer(self.scan)))
+
+
+class StampedTimer(_OnTimer):
+    """TwistStamped stamped with its own clock, reliable subscription."""
+    msg_type, qos = TwistStamped, 10
+
+    def __init__(self, **kwargs):
+        super().__init__("stamped_timer", **kwargs)
+
+    def command(self, linear: float, angular: float) -> TwistStamped:
+        out = TwistStamped()
+        out.header.stamp = self.get_clock().now().to_msg()
+        out.twist.linear.x, out.twist.angular.z = linear, angular
+        return out
+
+
+class TwistTimer(_OnTimer):
+    """The usual ROS node: sensor-data QoS, latest reading kept, Twist from a timer."""
+
+    def __init__(self, **kwargs):
+        super().__init__("twist_timer", **kwargs)
+
+    def command(self, linear: float, angular: float) -> Twist:
+        out = Twist()
+        out.linear.x, out.angular.z = linear, angular
+        return out
+
+
+class NoOptions(Node):
+    """Forgets to take the host's node options."""
+
+    def __init__(self):
+        super().__init__("no_options")
+
+
+class StringCommands(Node):
+    """Publishes the wrong type on cmd_vel."""
+
+    def __init__(self, **kwargs):
+        super().__init__("string_commands", **kwargs)
+        self.create_publisher(String, "cmd_vel", 10)
+        self.create_subscription(LaserScan, "proximity", lambda scan: None, 10)

@@ -1,0 +1,61 @@
+"""A ROS listener in another process (the simulator's participants ignore the ones of their own
+process), for tests that check what goes over the wire."""
+import json
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+
+# Listens on the given topics until a line on stdin; says "matched" once each has a publisher
+# matched; at the end prints what it got as JSON: per topic the list
+# of messages (tf as hex bytes, /clock as stamp nanoseconds), and every topic it saw published.
+SCRIPT = textwrap.dedent("""
+    import json, select, sys, rclpy
+    from rclpy.context import Context
+    from rclpy.node import Node
+    from rclpy.executors import SingleThreadedExecutor
+    from rosgraph_msgs.msg import Clock
+    from composed_sim.ros import contract as c
+    domain, topics = int(sys.argv[1]), sys.argv[2:]
+    context = Context(); rclpy.init(context=context, domain_id=domain)
+    node = Node("listener", context=context)
+    got = {t: [] for t in topics}
+    subs = []
+    for t in topics:
+        if t == "/clock":
+            subs.append(node.create_subscription(Clock, t, lambda m: got["/clock"].append(
+                m.clock.sec * 1_000_000_000 + m.clock.nanosec), 100))
+        else:
+            qos = c.STATIC_QOS if t.endswith("tf_static") else c.QOS
+            subs.append(node.create_subscription(c.TF_MESSAGE, t, lambda data, t=t: got[t].append(data.hex()), qos,
+                                                 raw=True))
+    executor = SingleThreadedExecutor(context=context); executor.add_node(node)
+    seen, matched = set(), False
+    print("listening", flush=True)
+    while not select.select([sys.stdin], [], [], 0)[0]:
+        executor.spin_once(timeout_sec=0.02)
+        if not matched and all(s.get_publisher_count() > 0 for s in subs):
+            matched = True
+            print("matched", flush=True)
+        seen |= {name for name, _ in node.get_topic_names_and_types() if node.count_publishers(name) > 0}
+    for _ in range(10):
+        executor.spin_once(timeout_sec=0.02)     # what is still on its way
+    print(json.dumps({"got": got, "seen": sorted(seen)}))
+""")
+
+
+class Listener:
+    def __init__(self, domain: int, topics: list[str]):
+        self.process = subprocess.Popen([sys.executable, "-c", SCRIPT, str(domain), *topics], cwd=ROOT,
+                                        stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+        assert self.process.stdout.readline().strip() == "listening"
+
+    def wait_matched(self) -> None:
+        """Until each of the topics has a publisher matched with the listener."""
+        assert self.process.stdout.readline().strip() == "matched"
+
+    def stop(self) -> dict:
+        """{"got": {topic: [message, …]}, "seen": [topic, …]}"""
+        return json.loads(self.process.communicate("stop\n", timeout=60)[0].splitlines()[-1])

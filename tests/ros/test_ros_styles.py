@@ -1,0 +1,140 @@
+"""Nodes as ROS users write them, hosted as they are (tests/plugin_pkg/ros_styles.py): unstamped
+Twist, timer-driven decisions on sim time, sensor-data QoS; mixed in one world, in every executor
+and in both host modes."""
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from composed_sim import plugins
+from composed_sim.hosts.choices import EXECUTORS
+from composed_sim.hosts.composed import ComposedHost
+from composed_sim.hosts.controllers import HostError
+from composed_sim.hosts.multiprocess import MultiProcessHost
+from composed_sim.hosts.workers import WorkerHost
+from composed_sim.world.loader import load_world
+
+ROOT = Path(__file__).resolve().parents[2]
+FLOCKING = ROOT / "worlds" / "flocking.yaml"
+sys.path.insert(0, str(ROOT / "tests"))
+from conftest import install_plugin  # noqa: E402
+
+STYLES = {"twist-on-scan": "TwistOnScan", "stamped-timer": "StampedTimer", "twist-timer": "TwistTimer",
+          "no-options": "NoOptions", "string-commands": "StringCommands"}
+
+
+@pytest.fixture
+def styles(tmp_path, monkeypatch):
+    install_plugin(tmp_path, monkeypatch, "ros_styles", STYLES)
+    yield
+    sys.modules.pop("ros_styles", None)
+
+
+def mixed_world(ticks=30, seed=3, **extra_groups):
+    """Two robots of each style, side by side in the flocking arena."""
+    world = load_world(FLOCKING, robots=6, ticks=ticks, seed=seed)
+    base = world.robots[0]
+    groups = [base.model_copy(update={"count": 2, "controller": name, "params": {}})
+              for name in ("twist-on-scan", "stamped-timer", "twist-timer")]
+    return world.model_copy(update={"robots": groups})
+
+
+def composed(world, domain_id, executor="lockstep"):
+    with ComposedHost(world, executor=executor, domain_id=domain_id) as host:
+        return host.run()
+
+
+def test_mixed_styles_answer_every_tick_in_every_executor_bit_identically(styles, domain_id):
+    world = mixed_world()
+    results = {ex: composed(world, domain_id, ex) for ex in EXECUTORS}
+    reference = results["lockstep"]
+    moved = np.linalg.norm(reference.trajectories.positions[-1] - reference.trajectories.positions[0], axis=1)
+    assert (moved > 0.03).all(), moved           # every style drove its robot
+    for executor, result in results.items():
+        assert result.violations == [], (executor, result.violations[:3])
+        np.testing.assert_array_equal(result.trajectories.positions, reference.trajectories.positions,
+                                      err_msg=executor)
+
+
+def test_mixed_styles_run_alike_in_multi_process_mode_and_in_workers(styles, domain_id, mp_domain):
+    world = mixed_world(ticks=25)
+    reference = composed(world, domain_id)
+    for host in (MultiProcessHost(world, domain_id=mp_domain, robots_per_domain=3),
+                 WorkerHost(world, workers=2, domain_id=domain_id)):
+        with host:
+            result = host.run()
+        assert result.violations == [], (type(host).__name__, result.violations[:3])
+        np.testing.assert_array_equal(result.trajectories.positions, reference.trajectories.positions)
+
+
+def test_best_effort_subscriber_receives_every_tick_and_timers_fire_once_per_tick(styles, domain_id):
+    world = mixed_world(ticks=20)
+    with ComposedHost(world, executor="single-threaded", domain_id=domain_id) as host:
+        result = host.run()
+        readings = [n.readings for n in host.controllers if type(n).__name__ == "TwistOnScan"]
+        decisions = [n.decisions for n in host.controllers if type(n).__name__ == "TwistTimer"]
+    assert result.violations == []
+    assert readings == [20, 20]          # best effort (qos_profile_sensor_data): no tick lost
+    assert decisions == [20, 20]         # a 0.1 s timer on a 10 Hz world: ticks 0 … 19
+
+
+def with_timer(world, period, **group):
+    g = world.robots[0].model_copy(update={"count": 3, "controller": "twist-timer",
+                                           "params": {"period": period}, **group})
+    return world.model_copy(update={"robots": [g]})
+
+
+def test_timer_slower_than_the_tick_answers_every_kth_tick_without_violations(styles, domain_id, capfd):
+    world = with_timer(load_world(FLOCKING, robots=3, ticks=20, seed=2), 0.2, answers_every_ticks=2)
+    with ComposedHost(world, executor="lockstep", domain_id=domain_id) as host:
+        result = host.run()
+        assert [n.decisions for n in host.controllers] == [10, 10, 10]     # ticks 0, 2 … 18
+    assert result.violations == []
+    # In between, each robot kept its last command: it moved on every tick.
+    step = np.linalg.norm(np.diff(result.trajectories.positions, axis=0), axis=2)
+    assert (step[1:] > 0).all()
+    # Not declared: each tick in between is a violation, and the set-up said why.
+    undeclared = with_timer(load_world(FLOCKING, robots=3, ticks=6, seed=2), 0.2)
+    result = composed(undeclared, domain_id)
+    assert sorted({v.tick for v in result.violations}) == [1, 3, 5]
+    assert "set answers_every_ticks: 2" in capfd.readouterr().err
+
+
+def test_timer_faster_than_the_tick_fires_once_per_tick_and_odd_periods_are_warned(styles, domain_id, capfd):
+    world = with_timer(load_world(FLOCKING, robots=3, ticks=10, seed=2), 0.05)
+    with ComposedHost(world, executor="lockstep", domain_id=domain_id) as host:
+        result = host.run()
+        assert [n.decisions for n in host.controllers] == [10, 10, 10]
+    assert result.violations == []
+    composed(with_timer(load_world(FLOCKING, robots=3, ticks=3, seed=2), 0.15), domain_id)
+    assert "has a timer of 0.15 s, neither a multiple nor a divisor of the world's tick (0.1 s)" in capfd.readouterr().err
+
+
+def one_group(controller, **group):
+    world = load_world(FLOCKING, robots=2, ticks=3)
+    return world.model_copy(update={"robots": [world.robots[0].model_copy(
+        update={"controller": controller, "params": {}, **group})]})
+
+
+def test_a_node_without_node_options_is_told_to_take_kwargs(styles, domain_id):
+    with pytest.raises(plugins.PluginError, match=r"robots\[0\]\.controller: .*ros_styles\.NoOptions\.__init__ "
+                                                  r"takes no \*\*kwargs: accept them and pass them on"):
+        composed(one_group("no-options"), domain_id)
+
+
+def test_wrong_cmd_vel_types_are_one_error_naming_robot_topic_and_types(styles, domain_id, mp_domain):
+    accepted = r"geometry_msgs/msg/TwistStamped or geometry_msgs/msg/Twist"
+    with pytest.raises(plugins.PluginError, match=rf"bot0: /bot0/cmd_vel carries {accepted} \(the topic contract\), "
+                                                  r"not std_msgs/msg/String"):
+        composed(one_group("string-commands"), domain_id)
+    with pytest.raises(plugins.PluginError, match=r"publishes geometry_msgs/msg/Twist on /bot0/cmd_vel, but the world "
+                                                  r"file says cmd_vel: stamped"):
+        composed(one_group("twist-on-scan", cmd_vel="stamped"), domain_id)
+
+
+def test_wrong_cmd_vel_type_in_multi_process_mode_is_the_same_one_error(styles, mp_domain):
+    with pytest.raises(HostError, match=r"bot0: /bot0/cmd_vel carries geometry_msgs/msg/TwistStamped or "
+                                        r"geometry_msgs/msg/Twist \(the topic contract\), not std_msgs/msg/String"):
+        with MultiProcessHost(one_group("string-commands"), domain_id=mp_domain) as host:
+            host.run()
