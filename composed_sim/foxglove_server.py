@@ -115,9 +115,9 @@ class FoxgloveServer:
         self.port = self._server.port
         self._globs = TopicGlobs(globs)
         self.topics_globs = self._globs.topics_globs      # the workers tap these (hosts/workers.py)
-        self._scene = self._channel(SWARM_MARKERS_TOPIC, MARKERS_TYPE)
-        self._subscriptions.scene_id = self._scene.id()
-        self._clock = self._channel(CLOCK_TOPIC, CLOCK_TYPE)
+        self._scene_channel = self._channel(SWARM_MARKERS_TOPIC, MARKERS_TYPE)
+        self._subscriptions.scene_id = self._scene_channel.id()
+        self._clock_channel = self._channel(CLOCK_TOPIC, CLOCK_TYPE)
         self._robot_channels = {topic: self._channel(topic, msgtype) for topic, msgtype in topics.items()
                                 if self._globs.wants(topic)}
 
@@ -135,11 +135,11 @@ class FoxgloveServer:
             self._subscriptions.viewer.wait(self.wait_for_viewer_s)
         stamp_ns = sim.tick * self.tick_ns
         self._server.broadcast_time(stamp_ns)
-        if self._subscriptions.watched(self._clock.id()):
+        if self._subscriptions.watched(self._clock_channel.id()):
             sec, nanosec = divmod(stamp_ns, 1_000_000_000)
-            self._clock.log(_CDR_HEADER + struct.pack("<iI", sec, nanosec), log_time=stamp_ns)
-        if self._subscriptions.watched(self._scene.id()):
-            self._scene.log(self.scene.cdr(sim), log_time=stamp_ns)
+            self._clock_channel.log(_CDR_HEADER + struct.pack("<iI", sec, nanosec), log_time=stamp_ns)
+        if self._subscriptions.watched(self._scene_channel.id()):
+            self._scene_channel.log(self.scene.cdr(sim), log_time=stamp_ns)
 
     # -- message tap (per-robot topics, from the simulator nodes or the workers) --
 
