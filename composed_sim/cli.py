@@ -497,12 +497,16 @@ def cmd_host(args) -> int:
 
 def _load_any_world(args):
     """A YAML world file or an ARGoS experiment file, with the command line's overrides."""
-    from composed_sim.argos_import import is_argos_file, load_argos, warning_text
+    from composed_sim.argos_import import ArgosFileError, is_argos_file, load_argos, warning_text
     from composed_sim.world.loader import WorldFileError, load_world, with_overrides
 
     try:
         if is_argos_file(args.world):
-            world, warnings = load_argos(args.world, controller=args.controller)
+            try:
+                world, warnings = load_argos(args.world, controller=args.controller, ticks=args.ticks)
+            except ArgosFileError as e:      # the reason first, then what else the import noticed
+                text = warning_text(str(args.world), list(e.warnings))
+                raise UserError(str(e) + (f"\ncomposed-sim: warning: {text}" if text else "")) from None
             text = warning_text(str(args.world), warnings)
             if text:
                 print(f"composed-sim: warning: {text}", file=sys.stderr)
@@ -664,7 +668,9 @@ def _check_recording(rec) -> str | None:
 def _render_target(out: Path) -> Path:
     if out.suffix.lower() not in (".png", ".gif", ".mp4"):
         raise UserError(f"--out {out}: the file must end in .png, .gif or .mp4")
-    check_writable(out.parent if str(out.parent) else Path("."))
+    parent = out.parent if str(out.parent) else Path(".")
+    check_writable(parent)
+    parent.mkdir(parents=True, exist_ok=True)      # the picture is drawn next, right away
     return out
 
 

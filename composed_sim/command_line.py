@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import tempfile
 from pathlib import Path
 
 
@@ -24,11 +25,15 @@ def number_arg(kind: type, *, minimum: float, inclusive: bool = True):
 
 
 def check_writable(out: Path) -> None:
-    """An output directory that can be created and written, or one UserError naming it."""
+    """An output directory that can be created and written, or one UserError naming it. Creates
+    nothing: a run that fails before it writes leaves no empty folder behind."""
+    existing = out
+    while not existing.exists() and existing != existing.parent:
+        existing = existing.parent
+    if not existing.is_dir():
+        raise UserError(f"--out {out}: cannot write there (Not a directory)")
     try:
-        out.mkdir(parents=True, exist_ok=True)
-        probe = out / ".write-test"
-        probe.write_text("")
-        probe.unlink()
+        with tempfile.TemporaryFile(dir=existing):
+            pass
     except OSError as e:
         raise UserError(f"--out {out}: cannot write there ({e.strerror or e})") from None

@@ -1,7 +1,9 @@
 """Controller plugins: rclpy Node classes declared in the entry-point group ``composed_sim.controllers``."""
 from __future__ import annotations
 
+from dataclasses import dataclass, field
 from importlib.metadata import EntryPoint, entry_points
+from typing import Mapping
 
 from rclpy.node import Node
 
@@ -49,3 +51,32 @@ def load(name: str) -> type[Node]:
 def _origin(ep: EntryPoint) -> str:
     dist = getattr(ep, "dist", None)
     return f"package {dist.name}" if dist is not None else "an unknown package"
+
+
+@dataclass(frozen=True)
+class ArgosPort:
+    """What a plugin declares when it ports an ARGoS controller, so that the ARGoS importer
+    (composed_sim/argos_import) runs an experiment file's controller with it and translates its
+    ``<params>``. ``controller``: the ARGoS controller's XML tag (its REGISTER_CONTROLLER label).
+    ``params``: ARGoS attribute path under ``<params>`` ("velocity", or "child.attr" for an
+    attribute of a nested element) → (the plugin's parameter, factor from ARGoS's unit to ours,
+    e.g. 0.01 for cm → m). Attributes not listed are reported as not translated."""
+    controller: str
+    params: Mapping[str, tuple[str, float]] = field(default_factory=dict)
+
+
+def argos_ports() -> dict[str, tuple[str, ArgosPort]]:
+    """ARGoS controller tag → (plugin name, its port), over every installed plugin that
+    declares one (a class attribute ``argos = ArgosPort(...)``). Loads every plugin."""
+    found: dict[str, tuple[str, ArgosPort]] = {}
+    for name in installed():
+        port = getattr(load(name), "argos", None)
+        if isinstance(port, ArgosPort):
+            found.setdefault(port.controller, (name, port))
+    return found
+
+
+def argos_port(name: str) -> ArgosPort | None:
+    """The ARGoS port plugin ``name`` declares, or None."""
+    port = getattr(load(name), "argos", None)
+    return port if isinstance(port, ArgosPort) else None

@@ -16,6 +16,7 @@ import math
 
 import numpy as np
 
+from composed_sim.plugins import ArgosPort
 from composed_sim.ros.contract import twist_of_wheels
 from composed_sim.ros.controller import SwarmController, Tick
 
@@ -46,6 +47,9 @@ class DiffusionController(SwarmController):
     """Spread out over the arena, avoiding walls and each other with the proximity ring."""
 
     sensors = ("proximity",)
+    # ARGoS footbot_diffusion: alpha (degrees), delta, velocity (cm/s).
+    argos = ArgosPort("footbot_diffusion_controller", {
+        "alpha": ("alpha_deg", 1.0), "delta": ("delta", 1.0), "velocity": ("speed_mps", 0.01)})
 
     def __init__(self, **node_kwargs):
         super().__init__("diffusion", **node_kwargs)

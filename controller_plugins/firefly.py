@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from composed_sim.plugins import ArgosPort
 from composed_sim.ros.controller import SwarmController, Tick
 
 FLASH = (255, 255, 0)
@@ -30,6 +31,9 @@ class FireflyController(SwarmController):
     """Flash the LEDs in step with the neighbours heard over range and bearing."""
 
     sensors = ("rab_rx",)
+    # ARGoS footbot_synchronization (the same oscillators; ARGoS sees flashes with the camera,
+    # this port hears them over range and bearing). Its <params> are empty.
+    argos = ArgosPort("footbot_synchronization_controller")
 
     def __init__(self, **node_kwargs):
         super().__init__("firefly", **node_kwargs)

@@ -14,6 +14,7 @@ from enum import Enum
 
 import numpy as np
 
+from composed_sim.plugins import ArgosPort
 from composed_sim.ros.contract import twist_of_wheels
 from composed_sim.ros.controller import SwarmController, Tick
 
@@ -96,6 +97,15 @@ class FlockingController(SwarmController):
     """Flock towards the light: ARGoS's footbot_flocking, parameters from the world file."""
 
     sensors = ("light", "blobs")
+    # ARGoS footbot_flocking: <flocking> and <wheel_turning> in cm, cm/s and degrees.
+    argos = ArgosPort("footbot_flocking_controller", {
+        "flocking.target_distance": ("target_distance_m", 0.01),
+        "flocking.gain": ("gain", 1.0),
+        "flocking.exponent": ("exponent", 1.0),
+        "wheel_turning.max_speed": ("max_speed_mps", 0.01),
+        "wheel_turning.hard_turn_angle_threshold": ("hard_turn_deg", 1.0),
+        "wheel_turning.soft_turn_angle_threshold": ("soft_turn_deg", 1.0),
+        "wheel_turning.no_turn_angle_threshold": ("no_turn_deg", 1.0)})
 
     def __init__(self, **node_kwargs):
         super().__init__("flocking", **node_kwargs)

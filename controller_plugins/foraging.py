@@ -14,6 +14,7 @@ import math
 import numpy as np
 
 from composed_sim.core.floor import FOOD, NEST, ground_zone
+from composed_sim.plugins import ArgosPort
 from composed_sim.ros.contract import twist_of_wheels
 from composed_sim.ros.controller import SwarmController, Tick
 from controller_plugins.diffusion import diffusion_wheels, obstacle_vector
@@ -24,6 +25,9 @@ OFF = (0, 0, 0)
 
 class ForagingController(SwarmController):
     sensors = ("proximity", "light", "ground")
+    # ARGoS footbot_foraging: its wheel speed (cm/s). Its rest/explore state machine's
+    # probabilities and times have no counterpart here and are listed as not translated.
+    argos = ArgosPort("footbot_foraging_controller", {"wheel_turning.max_speed": ("speed_mps", 0.01)})
 
     def __init__(self, **node_kwargs):
         super().__init__("foraging", **node_kwargs)

@@ -2,10 +2,12 @@
 import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from composed_sim.argos_import import (ArgosFileError, is_argos_file, load_argos, loads_argos,
                                        warning_text)
+from composed_sim.core.placement import place_robots
 from composed_sim.world.loader import WorldFileError, dump_world, load_world, with_overrides
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -82,9 +84,16 @@ def test_shipped_flocking_experiment_maps_to_the_paper_world():
     assert world.lights == yaml_world.lights
 
 
-def test_shipped_flocking_experiment_needs_a_controller_choice():
-    message = str(pytest.raises(ArgosFileError, load_argos, ROOT / "worlds" / "flocking.argos").value)
-    assert "flocking.argos:" in message and "--controller" in message and "ffc" in message
+def test_shipped_flocking_experiment_runs_with_the_plugin_that_ports_it():
+    world, warnings = load_argos(ROOT / "worlds" / "flocking.argos")
+    assert world.robots[0].controller == "flocking"
+    assert any('runs with the installed plugin "flocking"' in w for w in warnings)
+
+
+def test_a_controller_no_plugin_ports_needs_a_choice():
+    text = argos(ROBOTS).replace("footbot_flocking_controller", "my_controller")
+    message = error(text, controller=None)
+    assert "--controller" in message and "ffc" in message and "no installed plugin ports" in message
 
 
 def test_imported_world_round_trips_and_places_its_robots(tmp_path):
@@ -144,8 +153,13 @@ def test_controller_from_params_plugin_mapping_and_pass_through_params():
     robots = ROBOTS.replace('config="ffc"', 'config="fdc"')
     world, warnings = load(argos(robots, controllers=controllers), controller=None)
     (group,) = world.robots
-    assert group.controller == "diffusion" and warnings == []
-    assert group.params == {"alpha": 7.5, "delta": 0.1, "velocity": 5, "mode": "fast", "wheels.max": 10}
+    # The diffusion plugin declares its port of footbot_diffusion: units converted, the rest listed.
+    assert group.controller == "diffusion"
+    assert group.params == pytest.approx({"alpha_deg": 7.5, "delta": 0.1, "speed_mps": 0.05})
+    assert [w.split(": ")[1] for w in warnings] == ["params/mode", "params/wheels.max"]
+    passed, _ = load(argos(robots, controllers=controllers), controller="aggregation")
+    assert passed.robots[0].params == {"alpha": 7.5, "delta": 0.1, "velocity": 5, "mode": "fast",
+                                       "wheels.max": 10}
     mapped, _ = load(argos(robots, controllers=controllers), controller={"fdc": "plain"})
     assert mapped.robots[0].controller == "plain"
     by_tag, _ = load(argos(robots, controllers=controllers),
@@ -245,13 +259,14 @@ def test_distribute_orientations(orientation, expected):
         assert heading.std_rad == pytest.approx(std)
 
 
-def test_partial_uniform_orientation_becomes_a_gaussian_with_a_warning():
+def test_partial_uniform_orientation_is_uniform_over_its_range():
     world, warnings = load(distribute('<position method="uniform" min="0,0,0" max="3,3,0" />',
-                                      '<orientation method="uniform" min="0,0,0" max="90,0,0" />'))
+                                      '<orientation method="uniform" min="30,0,0" max="90,0,0" />'))
     h = world.robots[0].heading
-    assert h.method == "gaussian" and h.value_rad == pytest.approx(math.pi / 4)
-    assert h.std_rad == pytest.approx(math.radians(90) / math.sqrt(12))
-    assert len(warnings) == 1 and "orientation" in warnings[0]
+    assert h.method == "uniform" and h.range_rad == pytest.approx((math.pi / 6, math.pi / 2))
+    assert warnings == []
+    _, headings = place_robots(world, np.random.default_rng(3))
+    assert ((headings >= math.pi / 6) & (headings <= math.pi / 2)).all()
 
 
 def test_distributed_obstacles_are_drawn_once_from_the_seed():
@@ -274,32 +289,32 @@ def test_unsupported_elements_and_attributes_are_listed_not_dropped():
         "<footbot_light", '<range_and_bearing implementation="medium" medium="rab" />\n        <footbot_light')
     text = argos(ROBOTS.replace('<foot-bot id="fb">', '<foot-bot id="fb" rab_range="3">') + """
     <floor id="floor" source="loop_functions" pixels_per_meter="50" />
-    <e-puck id="ep"><body position="0,0,0" orientation="0,0,0" /><controller config="ffc" /></e-puck>
+    <e-puck id="ep0"><body position="0,0,0" orientation="0,0,0" /><controller config="ffc" /></e-puck>
     <box id="m" size="1,1,1" movable="true" mass="2"><body position="3,3,0" /></box>""",
                  controllers=controllers, extra="""
   <loop_functions library="liblf" label="lf" />
   <physics_engines><dynamics3d id="dyn3d" /></physics_engines>
-  <media><led id="leds" /><range_and_bearing id="rab" /></media>""")
+  <media><led id="leds" /><range_and_bearing id="rab" /><tag id="tags" /></media>""")
     world, warnings = load(text)
-    assert world.robot_count == 5 and len(world.obstacles) == 1
+    assert world.robot_count == 6 and len(world.obstacles) == 1
+    assert world.robots[-1].model == "e-puck"
+    assert world.robots[0].devices.range_and_bearing.range_m == 3.0
     assert world.obstacles[0].movable and world.obstacles[0].mass_kg == 2.0   # imported, not a warning
     expected = {
-        "range_and_bearing": "<range_and_bearing implementation",
-        "foot-bot/rab_range": 'rab_range="3"',
         "floor": "<floor",
         "e-puck": "<e-puck",
         "loop_functions": "<loop_functions",
         "physics_engines/dynamics3d": "<dynamics3d",
-        "media/range_and_bearing": '<range_and_bearing id="rab"',
+        "media/tag": '<tag id="tags"',
     }
     for what, needle in expected.items():
         hits = [w for w in warnings if f": {what}: " in w]
         assert hits, f"no warning for {what}: {warnings}"
         assert hits[0].startswith(f"t.argos:{line_of(text, needle)}: "), hits[0]
-    assert len(warnings) == len(expected)
+    assert {w.split(": ")[1] for w in warnings} == set(expected)
     text_block = warning_text("t.argos", warnings)
-    assert text_block.startswith(f"t.argos: {len(expected)} ARGoS settings not simulated as written:")
-    assert text_block.count("\n  ") == len(expected)
+    assert text_block.startswith(f"t.argos: {len(warnings)} ARGoS settings not simulated as written:")
+    assert text_block.count("\n  ") == len(warnings)
     assert warning_text("t.argos", []) is None
 
 
@@ -356,7 +371,7 @@ def test_undeclared_entity_is_an_error_with_its_line():
     ('max="1,2,0"', 'max="-3,2,0"', 'position/min: must not exceed max in any coordinate', "<position"),
     ('method="uniform" min="0,0,0" max="360,0,0"', 'method="spiral"',
      'orientation/method: must be uniform, gaussian, constant or grid (got "spiral")', "<orientation"),
-    ('target_distance="50"', 'target_distance="0"', "flocking/target_distance: must be a positive number",
+    ('target_distance="50"', 'target_distance="far"', "flocking/target_distance: must be a number",
      "<flocking"),
     ('<foot-bot id="fb">', '<foot-bot id="fb" omnidirectional_camera_aperture="95">',
      'foot-bot/omnidirectional_camera_aperture: must be below 90 degrees (got "95")', "<foot-bot"),
@@ -381,7 +396,7 @@ def test_schema_problems_point_at_the_argos_line():
 def test_missing_pieces_and_wrong_root():
     assert "root element" in error("<config/>")
     assert "needs an <arena>" in error(argos().split("  <arena")[0] + "</argos-configuration>")
-    assert "has no foot-bot" in error(argos(""))
+    assert "has no robot we simulate" in error(argos(""))
     assert "no such ARGoS file" in str(pytest.raises(ArgosFileError, load_argos, "/nonexistent.argos").value)
 
 

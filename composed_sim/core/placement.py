@@ -44,7 +44,7 @@ def place_robots(world: World, rng: np.random.Generator) -> tuple[np.ndarray, np
     positions = np.empty((n, 2))
     headings = np.empty(n)
     radii = np.empty(n)
-    statics = _Statics(world)
+    statics = Statics.of_world(world)
     start = 0
     for gi, group in enumerate(world.robots):
         end = start + group.count
@@ -60,7 +60,7 @@ def place_robots(world: World, rng: np.random.Generator) -> tuple[np.ndarray, np
 # --- positions -----------------------------------------------------------------------
 
 def _place_group(gi: int, group: RobotGroup, radius: float, others: np.ndarray,
-                 other_radii: np.ndarray, statics: _Statics,
+                 other_radii: np.ndarray, statics: Statics,
                  rng: np.random.Generator) -> np.ndarray:
     """[count, 2] positions of one group, clear of ``others`` [m, 2] and of the statics."""
     p = group.placement
@@ -159,18 +159,41 @@ def _first_of_each_clash(cand: np.ndarray, radius: float, fits: np.ndarray) -> n
     return keep
 
 
-class _Statics:
-    """Static obstacles and walls as arrays, for vectorised clearance tests."""
+class Statics:
+    """Static obstacles (and the walls' inner faces) as arrays, for vectorised clearance tests.
+    The ARGoS importer grows one while it distributes obstacles (``add``), as ARGoS checks a
+    new entity against everything already in the space."""
 
-    def __init__(self, world: World):
-        boxes = [o for o in world.obstacles if isinstance(o, Box)]
-        cylinders = [o for o in world.obstacles if isinstance(o, Cylinder)]
-        self.box_center = np.array([b.position for b in boxes]).reshape(-1, 2)   # [b, 2]
-        self.box_half = np.array([b.size for b in boxes]).reshape(-1, 2) / 2      # [b, 2]
-        self.box_yaw = np.array([b.yaw_rad for b in boxes])                        # [b]
-        self.cyl_center = np.array([c.position for c in cylinders]).reshape(-1, 2)  # [c, 2]
-        self.cyl_radius = np.array([c.radius_m for c in cylinders])                # [c]
-        self.inner = world.arena.inner_bounds()     # the walls' inner faces, or None
+    def __init__(self, obstacles: list = (), inner: tuple | None = None):
+        self.box_center = np.empty((0, 2))    # [b, 2]
+        self.box_half = np.empty((0, 2))      # [b, 2]
+        self.box_yaw = np.empty(0)            # [b]
+        self.cyl_center = np.empty((0, 2))    # [c, 2] (cylinders, and discs such as robots)
+        self.cyl_radius = np.empty(0)         # [c]
+        self.inner = inner                    # the walls' inner faces, or None
+        for obstacle in obstacles:
+            self.add(obstacle)
+
+    @classmethod
+    def of_world(cls, world: World) -> Statics:
+        return cls(world.obstacles, world.arena.inner_bounds())
+
+    def add(self, obstacle: Box | Cylinder) -> None:
+        if isinstance(obstacle, Box):
+            self.box_center = np.vstack([self.box_center, obstacle.position])
+            self.box_half = np.vstack([self.box_half, np.asarray(obstacle.size) / 2])
+            self.box_yaw = np.append(self.box_yaw, obstacle.yaw_rad)
+        else:
+            self.add_disc(obstacle.position, obstacle.radius_m)
+
+    def add_disc(self, center, radius: float) -> None:
+        self.cyl_center = np.vstack([self.cyl_center, center])
+        self.cyl_radius = np.append(self.cyl_radius, radius)
+
+    def obstacle_fits(self, obstacle: Box | Cylinder) -> bool:
+        """The obstacle, taken as its bounding disc (a box's half diagonal), touches nothing here."""
+        reach = (math.hypot(*obstacle.size) / 2 if isinstance(obstacle, Box) else obstacle.radius_m)
+        return bool(self.clear(np.asarray([obstacle.position], dtype=float), reach)[0])
 
     def clear(self, points: np.ndarray, reach: float) -> np.ndarray:
         """[k] bool: a disc of radius ``reach`` at each point [k, 2] touches nothing static.
@@ -223,6 +246,8 @@ def _advice(p: Placement) -> str:
 def _draw_headings(group: RobotGroup, rng: np.random.Generator) -> np.ndarray:
     """[count] headings in (-pi, pi]."""
     h, k = group.heading, group.count
+    if h.method == "uniform" and h.range_rad is not None:
+        return wrap_angle(rng.uniform(*h.range_rad, size=k))
     if h.method == "uniform":
         return np.pi - rng.uniform(0.0, 2 * np.pi, size=k)     # uniform in (-pi, pi]
     if h.method == "gaussian":

@@ -12,6 +12,7 @@ import numpy as np
 STREAM_PLACEMENT = 0
 STREAM_NOISE = 1
 STREAM_CONTROLLERS = 2
+STREAM_OBSTACLES = 3      # obstacles an ARGoS <distribute> places at import
 
 
 def stream(seed: int, purpose: int) -> np.random.Generator:

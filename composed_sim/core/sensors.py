@@ -61,7 +61,17 @@ def exponential_proximity_reading(distances: np.ndarray) -> np.ndarray:
     return np.exp(-distances)
 
 
+def kheperaiv_proximity_reading(distances: np.ndarray) -> np.ndarray:
+    """[...] distance from the rim (m, inf = nothing) → [...] reading: the ARGoS Khepera IV
+    plugin's curve (docs/architecture.md "Khepera IV"), 1 below 4 cm, 0 beyond 12 cm, clamped
+    at 0 (the curve dips to −0.007 just before 12 cm)."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        curve = 4.14 * np.exp(-33.0 * distances) - 0.085
+    return np.where(distances < 0.04, 1.0, np.where(distances > 0.12, 0.0, np.maximum(curve, 0.0)))
+
+
 PROXIMITY_READINGS = {"foot-bot": footbot_proximity_reading, "e-puck": epuck_proximity_reading,
+                      "kheperaiv": kheperaiv_proximity_reading,
                       "exponential": exponential_proximity_reading}
 
 

@@ -31,7 +31,7 @@ ALWAYS_ON = (DIFFERENTIAL_STEERING, POSITIONING, ODOMETRY)
 TF = "tf"
 
 # How a proximity ray's distance becomes a reading; one calibration per robot family.
-ProximityCalibration = Literal["foot-bot", "e-puck", "exponential"]
+ProximityCalibration = Literal["foot-bot", "e-puck", "exponential", "kheperaiv"]
 
 
 @dataclass(frozen=True)
@@ -243,7 +243,35 @@ THYMIO2 = RobotModel(
     default_devices=frozenset({PROXIMITY, GROUND}),
 )
 
-MODELS: dict[str, RobotModel] = {m.name: m for m in (FOOTBOT, EPUCK, TURTLEBOT3_BURGER, THYMIO2)}
+# --- Khepera IV (docs/architecture.md "Khepera IV") -------------------------------------
+KHEPERAIV = RobotModel(
+    name="kheperaiv",
+    body_radius_m=0.0704,
+    body_height_m=0.0047 + 0.053,       # the base's elevation plus its height: its top
+    mass_kg=0.4,
+    wheel_separation_m=0.1054,
+    wheel_radius_m=0.021,
+    max_wheel_speed_mps=0.813,          # the real robot's top speed; ARGoS's plugin sets no cap
+    max_force_n=1.5,
+    max_torque_nm=1.5,
+    friction=0.7,
+    # 8 IR sensors on the rim from the front, 45° apart, 14.5 mm up, 12 cm range, their own curve.
+    proximity=ProximityRing(angles_rad=_ring_angles(0.0, 45.0, 8), range_m=0.12,
+                            elevation_m=0.0145, calibration="kheperaiv"),
+    light=LightRing(angles_rad=_ring_angles(0.0, 45.0, 8)),      # the same IR ring
+    ground=GroundSensors(offsets_m=((0.0614, 0.01), (0.0206, 0.059), (0.0206, -0.059),
+                                    (0.0614, -0.01))),
+    range_and_bearing=RangeAndBearingDevice(elevation_m=0.0577, range_m=3.0),
+    # 682 rays over 210° centred on the front, 2 cm to 4 m, 8.4 cm above the top.
+    lidar=Lidar(n_rays=682, angle_min_rad=math.radians(-105.0), angle_max_rad=math.radians(105.0),
+                min_range_m=0.02, max_range_m=4.0, mount_m=(0.0, 0.0, 0.0577 + 0.084)),
+    # 3 LEDs on the top: two at the front, one at the back.
+    led_positions_m=((0.04, 0.025, 0.0577), (-0.05, 0.0, 0.0577), (0.04, -0.025, 0.0577)),
+    default_devices=frozenset({PROXIMITY, GROUND}),
+)
+
+MODELS: dict[str, RobotModel] = {m.name: m for m in (FOOTBOT, EPUCK, TURTLEBOT3_BURGER, THYMIO2,
+                                                     KHEPERAIV)}
 
 
 def get_model(name: str) -> RobotModel:

@@ -194,6 +194,8 @@ class Heading(Strict):
     method: Literal["uniform", "constant", "gaussian"] = "uniform"
     value_rad: float = 0.0      # constant, and the gaussian's mean
     std_rad: NonNegativeFloat = 0.5
+    # uniform: over [low, high] rad (an ARGoS <orientation method="uniform"> range); None: the full circle
+    range_rad: Optional[tuple[float, float]] = None
 
 
 class CameraConfig(Strict):
