@@ -69,6 +69,13 @@ def build_parser() -> argparse.ArgumentParser:
                      help="per-robot topics to record too, e.g. '/bot1*/cmd_vel' '/*/light'")
     run.add_argument("--markers", action="store_true",
                      help="publish the swarm as one visualization_msgs/MarkerArray on /swarm/markers")
+    run.add_argument("--foxglove", nargs="?", const="127.0.0.1:8765", metavar="[HOST:]PORT",
+                     help="serve the run live to the Foxglove app (WebSocket; default 127.0.0.1:8765)")
+    run.add_argument("--foxglove-topics", nargs="+", default=[], metavar="GLOB",
+                     help="per-robot topics to serve too, e.g. '/bot0/*'")
+    run.add_argument("--rate", type=_positive_float, metavar="R", help="run at most R x real time (1: real time)")
+    run.add_argument("--wait-for-viewer", type=_positive_float, metavar="SECONDS", default=0.0,
+                     help="with --foxglove: wait at tick 0 until a viewer subscribes, at most SECONDS")
     run.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
     run.add_argument("--no-picture", action="store_true", help="skip arena.png")
     run.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
@@ -95,6 +102,13 @@ def build_parser() -> argparse.ArgumentParser:
     _add_distributed_options(host, "")
 
     sub.add_parser("plugins", help="list the installed controller plugins")
+
+    export = sub.add_parser("export", help="write a run's trajectories as a tidy table (CSV or Parquet)",
+                            description="One row per (tick, robot): tick, time_s, robot, group, model, x, y, yaw, "
+                                        "LED colour; for pandas or polars.")
+    export.add_argument("results", type=Path, help="a results directory (--out of run)")
+    export.add_argument("--format", choices=("csv", "parquet"), default="csv")
+    export.add_argument("--out", type=Path, help="the table file (default: RESULTS/trajectories.csv|parquet)")
 
     render = sub.add_parser("render", help="draw a run's results or recording as PNG, GIF or MP4",
                             description="Draw the arena, robots with heading and LED colour, trails and a "
@@ -165,6 +179,8 @@ def main(argv: list[str] | None = None) -> int:
             return cmd_render(args)
         if args.command == "replay":
             return cmd_replay(args)
+        if args.command == "export":
+            return cmd_export(args)
         if args.command == "worlds":
             return cmd_worlds()
         if args.command == "host":
@@ -248,6 +264,14 @@ def cmd_run(args) -> int:
         raise UserError(f"--record {args.record}: already exists; a recording goes into a new directory")
     if args.record_topics and args.record is None:
         raise UserError("--record-topics: needs --record DIR")
+    if (args.foxglove_topics or args.wait_for_viewer) and args.foxglove is None:
+        raise UserError("--foxglove-topics and --wait-for-viewer: need --foxglove")
+    if args.foxglove is not None:
+        from composed_sim.foxglove_server import parse_address
+        try:
+            args.foxglove = parse_address(args.foxglove)
+        except ValueError as e:
+            raise UserError(f"--foxglove: {e}") from None
     if not args.external_controllers:
         _check_no_distributed_flags(args)
 
@@ -496,11 +520,13 @@ def _load_any_world(args):
 
 
 def _run_observers(args, world, host, outputs: contextlib.ExitStack, interrupts) -> list:
-    """The recording and live markers asked for on the command line, as tick observers."""
-    from composed_sim.observers import MarkerObserver, RecordingObserver
+    """The recording, live markers, the Foxglove server and pacing asked for on the command
+    line, as tick observers (in that order: a tick is shown before the pause after it)."""
+    from composed_sim.observers import MarkerObserver, RecordingObserver, Scene
+    from composed_sim.ros.taps import Taps
 
-    observers = []
-    tick_ns = world.tick_ns
+    observers, taps = [], []
+    scene = Scene(host.sim, world.tick_ns)
     recorder = None
     if args.record is not None:
         from composed_sim.recording import BagRecorder
@@ -508,28 +534,63 @@ def _run_observers(args, world, host, outputs: contextlib.ExitStack, interrupts)
                                                      topics_globs=args.record_topics, world=world))
         interrupts.on_second = recorder.close_if_idle   # even a hard quit leaves a readable bag
         recorder.set_custom("executor", args.executor)  # what `replay --check` re-simulates with
-        observers.append(RecordingObserver(recorder, tick_ns))
+        observers.append(RecordingObserver(recorder, scene))
         if args.record_topics:
-            _warn_unmatched_globs(args.record_topics, world)
-            host.set_message_tap(recorder)
+            _warn_unmatched_globs(args.record_topics, world, "--record-topics")
+            taps.append(recorder)
     if args.markers:
-        observers.append(MarkerObserver(host.observer_node(), tick_ns, recorder))
+        observers.append(MarkerObserver(host.observer_node(), scene))
+    if args.foxglove is not None:
+        from composed_sim.foxglove_server import FoxgloveError, FoxgloveServer
+        try:
+            server = FoxgloveServer(scene, args.foxglove, dict(_run_topics(world)), args.foxglove_topics,
+                                    wait_for_viewer_s=args.wait_for_viewer)
+        except FoxgloveError as e:
+            raise UserError(str(e)) from None
+        outputs.callback(server.close)
+        print(f"composed-sim: serving Foxglove on ws://{args.foxglove[0]}:{server.port}", file=sys.stderr)
+        observers.append(server)
+        if args.foxglove_topics:
+            _warn_unmatched_globs(args.foxglove_topics, world, "--foxglove-topics")
+            taps.append(server)
+    if taps:
+        host.set_message_tap(Taps(taps))
+    if args.rate is not None:
+        from composed_sim.pacing import Pacer
+        observers.append(Pacer(args.rate, world.tick_s))
     return observers
 
 
-def _warn_unmatched_globs(globs: list[str], world) -> None:
-    """A --record-topics glob that matches no topic of this run is a warning naming two that exist."""
+def _run_topics(world) -> list[tuple[str, str]]:
+    """(topic, message type) of every robot's contract topic in this run."""
     from composed_sim.ros import contract as c
     from composed_sim.ros.robot_settings import robot_devices
+    return [(c.topic_name(name, t), c.type_name(t.msg_type))
+            for name, devices in zip(world.robot_names(), robot_devices(world)) for t in c.robot_topics(devices)]
+
+
+def _warn_unmatched_globs(globs: list[str], world, flag: str) -> None:
+    """A topic glob that matches no topic of this run is a warning naming two that exist."""
+    from composed_sim.ros import contract as c
     from composed_sim.ros.taps import TopicGlobs
-    topics = [c.topic_name(name, t) for name, devices in zip(world.robot_names(), robot_devices(world))
-              for t in c.robot_topics(devices)] + [c.SWARM_MARKERS_TOPIC]
+    topics = [topic for topic, _ in _run_topics(world)] + [c.SWARM_MARKERS_TOPIC]
     for glob in globs:
         matcher = TopicGlobs([glob])
         if not any(matcher.wants(t) for t in topics):
-            print(f"composed-sim: warning: --record-topics {glob!r} matches no topic of this run "
+            print(f"composed-sim: warning: {flag} {glob!r} matches no topic of this run "
                   f"(its topics are like {topics[0]} and {topics[-2] if len(topics) > 1 else topics[0]})",
                   file=sys.stderr)
+
+
+def cmd_export(args) -> int:
+    from composed_sim.export import ExportError, export_table
+    out = args.out or args.results / f"trajectories.{args.format}"
+    try:
+        rows = export_table(args.results, out, args.format)
+    except ExportError as e:
+        raise UserError(str(e)) from None
+    print(f"{out}: {rows} rows")
+    return 0
 
 
 def cmd_render(args) -> int:

@@ -8,6 +8,8 @@ Topics
   /clock         rosgraph_msgs/msg/Clock          once per tick (``write_clock``)
   /swarm/state   sensor_msgs/msg/PointCloud2      once per tick, every robot in one message
                                                   (``write_swarm_state``; layout below)
+  /swarm/markers visualization_msgs/msg/MarkerArray  once per tick in a run's bag: the scene
+                                                  Foxglove draws (ros/markers.py, observers.py)
   any other      whatever rclpy message is given   only topics matching the recorder's globs
                                                   (``wants``, ``write_message``)
 
@@ -40,6 +42,7 @@ interface package (the venv or $AMENT_PREFIX_PATH).
 """
 from __future__ import annotations
 
+import functools
 import json
 import math
 import os
@@ -103,6 +106,22 @@ def ros_type_name(msg: Any) -> str:
 def _new_typestore():
     from rosbags.typesys import Stores, get_typestore
     return get_typestore(Stores.ROS2_JAZZY)
+
+
+@functools.lru_cache(maxsize=None)
+def message_definition(msgtype: str) -> tuple[str, str]:
+    """(the ``ros2msg`` definition with its dependencies, the RIHS01 type hash) of a ROS 2
+    message type: what a bag's schema holds, and what a Foxglove server advertises."""
+    typestore = _definitions_typestore()
+    if msgtype not in typestore.fielddefs:
+        _ensure_type(typestore, msgtype)
+    msgdef, _ = typestore.generate_msgdef(msgtype, ros_version=2)   # ~5 ms: once per type
+    return msgdef, typestore.hash_rihs01(msgtype)
+
+
+@functools.lru_cache(maxsize=1)
+def _definitions_typestore():
+    return _new_typestore()
 
 
 def _interface_dirs() -> list[Path]:
@@ -209,7 +228,6 @@ class BagRecorder:
         self._closed = False
         self._busy = False                          # inside a write: see close_if_idle
         self._connections: dict[str, Any] = {}     # topic -> rosbags Connection
-        self._definitions: dict[str, tuple[str, str]] = {}   # msgtype -> (msgdef, rihs01)
         self._qos = _qos_profiles()
         self.ticks_written = 0
         self.counts: dict[str, int] = {}            # topic -> messages written
@@ -301,9 +319,11 @@ class BagRecorder:
         self._write(topic, int(stamp_ns), serialize_message(msg), ros_type_name(msg))
         return True
 
-    def write_serialized(self, topic: str, msgtype: str, data: bytes, stamp_ns: int) -> bool:
-        """Like ``write_message`` for an already CDR-serialised message of type ``msgtype``."""
-        if not self.wants(topic):
+    def write_serialized(self, topic: str, msgtype: str, data: bytes, stamp_ns: int, *,
+                         always: bool = False) -> bool:
+        """Like ``write_message`` for an already CDR-serialised message of type ``msgtype``;
+        ``always``: whatever the globs (the run's own global topics)."""
+        if not (always or self.wants(topic)):
             return False
         self._write(topic, int(stamp_ns), data, msgtype)
         return True
@@ -342,12 +362,7 @@ class BagRecorder:
     def _connection(self, topic: str, msgtype: str):
         conn = self._connections.get(topic)
         if conn is None:
-            definition = self._definitions.get(msgtype)
-            if definition is None:      # generated once per type: per topic it costs ~5 ms
-                if msgtype not in self._typestore.fielddefs:
-                    _ensure_type(self._typestore, msgtype)
-                msgdef, _ = self._typestore.generate_msgdef(msgtype, ros_version=2)
-                definition = self._definitions[msgtype] = (msgdef, self._typestore.hash_rihs01(msgtype))
+            definition = message_definition(msgtype)
             conn = self._writer.add_connection(topic, msgtype, msgdef=definition[0],
                                                rihs01=definition[1], offered_qos_profiles=self._qos)
             self._connections[topic] = conn

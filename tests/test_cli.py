@@ -122,7 +122,8 @@ def test_live_markers_reach_a_subscriber_in_another_process(tmp_path, domain_id,
         node.destroy_node()
         rclpy.shutdown(context=ctx)
     assert received, "no MarkerArray arrived while the run was going"
-    bodies, headings = received[0].markers
+    bodies, headings, *world = received[0].markers     # then the static world: walls, light
+    assert world and all(m.ns == "world" for m in world)
     assert len(bodies.points) == 6 and len(bodies.colors) == 6 and len(headings.points) == 12
     assert bodies.header.frame_id == "world"
 

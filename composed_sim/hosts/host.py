@@ -13,7 +13,7 @@ as ``sim``, a ``SetupInfo`` as ``setup``) and destroys it in ``__exit__``, also 
 exception; ``run`` is ``hosts.lockstep.run_lockstep`` over the host's ``Exchange``. Example::
 
     with ComposedHost(world) as host:
-        result = host.run(observers=[RecordingObserver(recorder, world.tick_ns)])
+        result = host.run(observers=[RecordingObserver(recorder, Scene(host.sim, world.tick_ns))])
         print(host.setup.setup_s, len(result.violations))
 """
 from __future__ import annotations

@@ -1,14 +1,20 @@
 """Live markers for RViz and Foxglove: the whole swarm in one ``visualization_msgs/MarkerArray``.
 
-Published on ``/swarm/markers`` (optional). Two markers, whatever the swarm size, so a viewer
-handles 1280 robots as two draw calls rather than 1280 markers:
+Published on ``/swarm/markers`` (optional) and served as the Foxglove scene (tools layer,
+``composed_sim/foxglove_server.py``). One marker per robot size plus one, whatever the swarm size,
+so a viewer handles 1280 robots as two or three draw calls rather than 1280 markers:
 
-  ns "swarm_bodies",   id 0, SPHERE_LIST: one flattened sphere per robot (diameter = body
-                       diameter, height = body height), coloured per point by its display LED
-                       colour (``composed_sim.world.robot_models.display_colors``; robots with no LED lit
-                       get ``DEFAULT_COLOR``)
-  ns "swarm_headings", id 1, LINE_LIST: one segment per robot from its centre to 1.5 body
+  ns "swarm_bodies",   id k, SPHERE_LIST: one flattened sphere per robot of the k-th distinct
+                       (radius, height) in the swarm (diameter = body diameter, height = body
+                       height: each robot sized by its own model), coloured per point by its display
+                       LED colour (``composed_sim.world.robot_models.display_colors``; robots with
+                       no LED lit get ``DEFAULT_COLOR``)
+  ns "swarm_headings", id 1, LINE_LIST: one segment per robot from its centre to 1.5 of its body
                        radii ahead, black
+  ns "world",          id 0 …, the static world when given (``world_shapes``): walls and boxes
+                       (CUBE), cylinders (CYLINDER), lights (SPHERE in their colour), floor shapes
+                       (flat CYLINDER / CUBE at z = 0). They are sent with every message, so a
+                       viewer that attaches late sees them too.
 
 Frame ``world`` (``composed_sim.recording.FRAME_ID``), the same fixed frame as the recorded
 ``/swarm/state``: the simulator's planar world frame, z up, origin at the world's (0, 0). Set it
@@ -25,17 +31,23 @@ rmw leaves unset, can differ).
 from __future__ import annotations
 
 import struct
-from typing import Optional, Sequence
+import math
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Optional, Sequence, Union
 
 import numpy as np
 from builtin_interfaces.msg import Duration, Time
-from geometry_msgs.msg import Point
+from geometry_msgs.msg import Point, Pose
 from std_msgs.msg import ColorRGBA
 from visualization_msgs.msg import Marker, MarkerArray
 
+from composed_sim.core.geometry import StaticScene
 from composed_sim.world.robot_models import display_colors
 from composed_sim.ros.contract import SWARM_MARKERS_TOPIC
 from composed_sim.ros.contract import WORLD_FRAME as FRAME_ID
+
+if TYPE_CHECKING:
+    from composed_sim.world.schema import World
 
 MARKERS_TOPIC = SWARM_MARKERS_TOPIC
 MARKERS_TYPE = "visualization_msgs/msg/MarkerArray"
@@ -43,52 +55,125 @@ DEFAULT_COLOR = (0.12, 0.47, 0.71)      # matplotlib's tab:blue, for robots with
 HEADING_LENGTH = 1.5                    # heading segment length in body radii
 
 
+Sizes = Union[float, np.ndarray]    # one value for every robot, or [n]: one per robot
+
+
+@dataclass(frozen=True)
+class Shape:
+    """One static marker of the world: a CUBE, CYLINDER or SPHERE at a planar pose."""
+    marker_id: int
+    kind: int                               # Marker.CUBE, CYLINDER or SPHERE
+    pose: tuple[float, float, float, float]  # x, y, z (centre) m, yaw rad
+    scale: tuple[float, float, float]        # m
+    color: tuple[float, float, float, float]  # RGBA in [0, 1]
+
+
+def world_shapes(world: "World") -> list[Shape]:
+    """The world's static parts as markers (ns "world"): floor shapes, walls and fixed boxes,
+    fixed cylinders, lights. Movable objects are not drawn (they move: the scene would lie)."""
+    out: list[Shape] = []
+
+    def add(kind, pose, scale, color):
+        out.append(Shape(len(out), kind, tuple(map(float, pose)), tuple(map(float, scale)),
+                         tuple(map(float, color))))
+
+    floor_z = 0.001
+    for shape in world.floor.shapes if world.floor is not None else ():
+        rgba = (*(c / 255 for c in shape.color), 1.0)
+        if shape.type == "circle":
+            add(Marker.CYLINDER, (*shape.position, floor_z / 2, 0.0),
+                (2 * shape.radius_m, 2 * shape.radius_m, floor_z), rgba)
+        else:
+            add(Marker.CUBE, (*shape.position, floor_z / 2, shape.yaw_rad), (*shape.size, floor_z), rgba)
+    grey = (0.55, 0.55, 0.55, 1.0)
+    scene = StaticScene.from_world(world)
+    for corners, height in zip(scene.box_corners, scene.box_heights):
+        centre = corners.mean(axis=0)
+        along, across = corners[1] - corners[0], corners[3] - corners[0]
+        add(Marker.CUBE, (*centre, height / 2, math.atan2(along[1], along[0])),
+            (np.hypot(*along), np.hypot(*across), height), grey)
+    for centre, r, height in zip(scene.cyl_centres, scene.cyl_radii, scene.cyl_heights):
+        add(Marker.CYLINDER, (*centre, height / 2, 0.0), (2 * r, 2 * r, height), grey)
+    for light in world.lights:
+        add(Marker.SPHERE, (*light.position, light.height_m, 0.0), (0.08, 0.08, 0.08),
+            (*(c / 255 for c in light.color), 1.0))
+    return out
+
+
 def swarm_markers(names: Sequence[str], positions: np.ndarray, headings: np.ndarray,
-                  led_colors: Optional[np.ndarray], radius: float, stamp: Time, *,
-                  height: Optional[float] = None, frame_id: str = FRAME_ID) -> MarkerArray:
-    """The swarm as one MarkerArray: bodies (SPHERE_LIST) and headings (LINE_LIST).
+                  led_colors: Optional[np.ndarray], radius: Sizes, stamp: Time, *,
+                  height: Optional[Sizes] = None, frame_id: str = FRAME_ID,
+                  shapes: Sequence[Shape] = ()) -> MarkerArray:
+    """The swarm as one MarkerArray: bodies (one SPHERE_LIST per robot size), headings
+    (LINE_LIST), then the world's static ``shapes``.
 
     names: [n] (only checked against n; the points follow this order). positions [n, 2] m,
     headings [n] rad, led_colors [n, L, 3] or [n, 3] uint8 or None (all DEFAULT_COLOR),
-    radius: body radius m, height: body height m (default: the diameter), stamp: sim time.
+    radius: body radius m, height: body height m (default: the diameter), each a number or [n]
+    (``Simulation.radii``, ``Simulation.heights``), stamp: sim time.
     """
     g = _geometry(names, positions, headings, led_colors, radius, height)
-    bodies = _marker(0, "swarm_bodies", Marker.SPHERE_LIST, stamp, frame_id)
-    bodies.scale.x, bodies.scale.y, bodies.scale.z = g.body_scale
-    bodies.color = ColorRGBA(r=1.0, g=1.0, b=1.0, a=1.0)   # per-point colours override it
-    # One tolist() per array: building Points from Python floats is the cost here.
-    bodies.points = [Point(x=x, y=y, z=z) for x, y, z in g.body_points.tolist()]
-    bodies.colors = [ColorRGBA(r=r, g=g_, b=b, a=a) for r, g_, b, a in g.body_colors.tolist()]
+    out = MarkerArray()
+    for k, (scale, members) in enumerate(g.body_groups):
+        bodies = _marker(k, "swarm_bodies", Marker.SPHERE_LIST, stamp, frame_id)
+        bodies.scale.x, bodies.scale.y, bodies.scale.z = scale
+        bodies.color = ColorRGBA(r=1.0, g=1.0, b=1.0, a=1.0)   # per-point colours override it
+        # One tolist() per array: building Points from Python floats is the cost here.
+        bodies.points = [Point(x=x, y=y, z=z) for x, y, z in g.body_points[members].tolist()]
+        bodies.colors = [ColorRGBA(r=r, g=g_, b=b, a=a) for r, g_, b, a in g.body_colors[members].tolist()]
+        out.markers.append(bodies)
 
     arrows = _marker(1, "swarm_headings", Marker.LINE_LIST, stamp, frame_id)
     arrows.scale.x = g.line_width
     arrows.color = ColorRGBA(r=0.0, g=0.0, b=0.0, a=1.0)
     arrows.points = [Point(x=x, y=y, z=z) for x, y, z in g.line_points.tolist()]
-
-    out = MarkerArray()
-    out.markers = [bodies, arrows]
+    out.markers.append(arrows)
+    for shape in shapes:
+        m = _marker(shape.marker_id, "world", shape.kind, stamp, frame_id)
+        m.pose = _pose(*shape.pose)
+        m.scale.x, m.scale.y, m.scale.z = shape.scale
+        m.color = ColorRGBA(r=shape.color[0], g=shape.color[1], b=shape.color[2], a=shape.color[3])
+        out.markers.append(m)
     return out
 
 
 def swarm_markers_cdr(names: Sequence[str], positions: np.ndarray, headings: np.ndarray,
-                      led_colors: Optional[np.ndarray], radius: float, stamp: Time, *,
-                      height: Optional[float] = None, frame_id: str = FRAME_ID) -> bytes:
+                      led_colors: Optional[np.ndarray], radius: Sizes, stamp: Time, *,
+                      height: Optional[Sizes] = None, frame_id: str = FRAME_ID,
+                      shapes: Sequence[Shape] = ()) -> bytes:
     """``swarm_markers(...)`` serialised (CDR, little-endian), built from the arrays directly."""
     g = _geometry(names, positions, headings, led_colors, radius, height)
     w = _CdrWriter()
-    w.u32(2)                                   # MarkerArray.markers: 2 markers
-    _write_marker(w, 0, "swarm_bodies", Marker.SPHERE_LIST, stamp, frame_id, g.body_scale,
-                  (1.0, 1.0, 1.0, 1.0), g.body_points, g.body_colors)
-    _write_marker(w, 1, "swarm_headings", Marker.LINE_LIST, stamp, frame_id,
+    w.u32(len(g.body_groups) + 1 + len(shapes))     # MarkerArray.markers
+    identity = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)
+    for k, (scale, members) in enumerate(g.body_groups):
+        _write_marker(w, k, "swarm_bodies", Marker.SPHERE_LIST, stamp, frame_id, identity, scale,
+                      (1.0, 1.0, 1.0, 1.0), g.body_points[members], g.body_colors[members])
+    _write_marker(w, 1, "swarm_headings", Marker.LINE_LIST, stamp, frame_id, identity,
                   (g.line_width, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0), g.line_points, None)
+    for shape in shapes:
+        x, y, z, yaw = shape.pose
+        pose = (x, y, z, 0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2))
+        _write_marker(w, shape.marker_id, "world", shape.kind, stamp, frame_id, pose, shape.scale,
+                      shape.color, _NO_POINTS, None)
     return w.bytes()
+
+
+_NO_POINTS = np.zeros((0, 3))
+
+
+def _pose(x: float, y: float, z: float, yaw: float) -> Pose:
+    pose = Pose()
+    pose.position.x, pose.position.y, pose.position.z = x, y, z
+    pose.orientation.z, pose.orientation.w = math.sin(yaw / 2), math.cos(yaw / 2)
+    return pose
 
 
 class _Geometry:
     """The arrays both builders share."""
 
-    def __init__(self, body_scale, body_points, body_colors, line_width, line_points):
-        self.body_scale = body_scale        # (x, y, z) m
+    def __init__(self, body_groups, body_points, body_colors, line_width, line_points):
+        self.body_groups = body_groups      # [(scale (x, y, z) m, robot indices)] one per size
         self.body_points = body_points      # [n, 3] float64
         self.body_colors = body_colors      # [n, 4] float32 RGBA in [0, 1]
         self.line_width = line_width        # m
@@ -103,10 +188,10 @@ def _geometry(names, positions, headings, led_colors, radius, height) -> _Geomet
         raise ValueError(f"positions must be [{n}, 2] for {n} names, got shape {p.shape}")
     if h.shape != (n,):
         raise ValueError(f"headings must be [{n}], got shape {h.shape}")
-    if not radius > 0:
-        raise ValueError(f"radius must be > 0 m (got {radius})")
-    radius = float(radius)
-    height = 2 * radius if height is None else float(height)
+    radius = np.broadcast_to(np.asarray(radius, dtype=float), (n,))
+    if not np.all(radius > 0):
+        raise ValueError(f"radius must be > 0 m (got {radius.min()})")
+    height = 2 * radius if height is None else np.broadcast_to(np.asarray(height, dtype=float), (n,))
 
     # float32 like ColorRGBA's fields, so that both builders give the same numbers.
     rgba = np.empty((n, 4), dtype=np.float32)
@@ -122,12 +207,15 @@ def _geometry(names, positions, headings, led_colors, radius, height) -> _Geomet
     bodies = np.empty((n, 3))
     bodies[:, :2] = p
     bodies[:, 2] = height / 2
-    tips = p + HEADING_LENGTH * radius * np.stack([np.cos(h), np.sin(h)], axis=1)
+    tips = p + (HEADING_LENGTH * radius)[:, None] * np.stack([np.cos(h), np.sin(h)], axis=1)
     lines = np.empty((n, 2, 3))
     lines[:, 0, :2], lines[:, 1, :2] = p, tips
-    lines[:, :, 2] = height + 0.01                  # above the bodies, so always visible
-    return _Geometry((2 * radius, 2 * radius, height), bodies, rgba, 0.25 * radius,
-                     lines.reshape(-1, 3))
+    lines[:, :, 2] = (height + 0.01)[:, None]        # above the bodies, so always visible
+    # One SPHERE_LIST per distinct size (a marker has one scale); a homogeneous swarm has one.
+    sizes, which = np.unique(np.stack([radius, height], axis=1), axis=0, return_inverse=True)
+    groups = [((2 * r, 2 * r, z), np.flatnonzero(which.ravel() == k)) for k, (r, z) in enumerate(sizes.tolist())]
+    line_width = 0.25 * float(radius.min()) if n else 0.02
+    return _Geometry(groups, bodies, rgba, line_width, lines.reshape(-1, 3))
 
 
 class _CdrWriter:
@@ -175,7 +263,7 @@ class _CdrWriter:
 
 
 def _write_marker(w: _CdrWriter, marker_id: int, ns: str, kind: int, stamp: Time, frame_id: str,
-                  scale, color, points: np.ndarray, colors: Optional[np.ndarray]) -> None:
+                  pose, scale, color, points: np.ndarray, colors: Optional[np.ndarray]) -> None:
     # Field order of visualization_msgs/msg/Marker (ROS 2 Jazzy).
     w.i32(stamp.sec)
     w.u32(stamp.nanosec)
@@ -184,7 +272,7 @@ def _write_marker(w: _CdrWriter, marker_id: int, ns: str, kind: int, stamp: Time
     w.i32(marker_id)
     w.i32(kind)
     w.i32(Marker.ADD)
-    w.f64s(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)          # pose: origin, identity orientation
+    w.f64s(*pose)                                         # position, orientation (x, y, z, w)
     w.f64s(*scale)
     w.f32s(*color)
     w.i32(0)                                              # lifetime: 0 = forever

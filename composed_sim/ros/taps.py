@@ -41,3 +41,21 @@ class TapBuffer(TopicGlobs):
         """(topic, type, serialized message, stamp ns) of every message since the last drain."""
         out, self._messages = self._messages, []
         return out
+
+
+class Taps:
+    """Several message taps as one (a recording and a live viewer)."""
+
+    def __init__(self, taps: Iterable):
+        self.taps = list(taps)
+        self.topics_globs = [g for tap in self.taps for g in tap.topics_globs]
+
+    def wants(self, topic: str) -> bool:
+        return any(tap.wants(topic) for tap in self.taps)
+
+    def write_serialized(self, topic: str, msgtype: str, data: bytes, stamp_ns: int) -> bool:
+        wrote = False
+        for tap in self.taps:
+            if tap.wants(topic):
+                wrote = tap.write_serialized(topic, msgtype, data, stamp_ns) or wrote
+        return wrote
