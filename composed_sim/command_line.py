@@ -6,6 +6,10 @@ import tempfile
 from pathlib import Path
 
 
+EXIT_USAGE = 2       # bad input: world file, plugin, CLI value
+EXIT_INTERRUPTED = 130
+
+
 class UserError(Exception):
     """A mistake in what the user gave us: reported as one line, never a traceback."""
 

@@ -1,0 +1,196 @@
+"""The ``composed-sim`` command: its arguments, and the dispatch to each subcommand's module
+(``run``: a run and its outputs; ``report``: what a run prints; ``distributed``: ``host``;
+``files``: worlds, plugins, results and recordings)."""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from composed_sim.command_line import EXIT_USAGE, UserError, number_arg
+from composed_sim.cli.distributed import cmd_host
+from composed_sim.cli.files import cmd_export, cmd_plugins, cmd_render, cmd_replay, cmd_worlds
+from composed_sim.cli.report import keep_stdout_for_json
+from composed_sim.cli.run import cmd_run
+
+
+_positive_int = number_arg(int, minimum=1)
+
+
+_non_negative_int = number_arg(int, minimum=0)
+
+
+_positive_float = number_arg(float, minimum=0, inclusive=False)
+
+
+def _workers(text: str):
+    """--workers: a whole number >= 1, or auto."""
+    return "auto" if text == "auto" else _positive_int(text)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from composed_sim.hosts.choices import EXECUTORS, MODES, ROBOTS_PER_PARTICIPANT
+
+    parser = argparse.ArgumentParser(prog="composed-sim", description=(
+        "Swarm simulator whose robot controllers are ROS 2 nodes, hosted with the simulator in a few processes."))
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    run = sub.add_parser("run", help="run a world file headless and write its results",
+                         description="Run a world: the controller nodes hosted with simulator nodes in "
+                                     "worker processes, in lockstep; writes summary.json, trajectories.npz, "
+                                     "violations.csv, world.yaml and arena.png into --out.")
+    run.add_argument("world", type=Path, help="world file (YAML, e.g. worlds/flocking.yaml) or an ARGoS .argos file")
+    run.add_argument("--robots", type=_positive_int, help="total number of robots (overrides the world)")
+    run.add_argument("--ticks", type=_positive_int, help="ticks to simulate (overrides length_ticks)")
+    run.add_argument("--seed", type=_non_negative_int, help="random seed (overrides the world)")
+    run.add_argument("--mode", choices=MODES, default="composed",
+                     help="composed: the controllers hosted together (see --workers); multi-process: one process per "
+                          "controller over balanced ROS domains, as in the paper (default: %(default)s)")
+    run.add_argument("--executor", choices=EXECUTORS, default="lockstep",
+                     help="rclpy executor running the nodes (default: %(default)s)")
+    run.add_argument("--robots-per-domain", type=_positive_int, default=None,
+                     help="multi-process mode: robots per ROS domain (default: the world's, else 50)")
+    run.add_argument("--robots-per-participant", type=_positive_int, default=ROBOTS_PER_PARTICIPANT,
+                     help="composed mode with --workers 1: robots per DDS participant, all in one domain; fewer "
+                          "make set-up faster, each costs a participant (default: %(default)s; each worker "
+                          "process holds one participant)")
+    run.add_argument("--workers", type=_workers, default="auto", metavar="K|auto",
+                     help="composed mode: worker processes hosting the controller nodes, each with its own "
+                          "executor on its own core; 1: everything in this process; auto: from the swarm "
+                          "size and the usable cores (default: %(default)s)")
+    run.add_argument("--watchdog", type=_positive_float, metavar="SECONDS",
+                     help="wall seconds to wait for a controller's answer before its fallback")
+    run.add_argument("--fallback", choices=("zero", "previous"), help="command given to a late robot")
+    run.add_argument("--domain-id", type=int, default=None,
+                     help="ROS domain (default: $ROS_DOMAIN_ID or 0)")
+    run.add_argument("--controller", metavar="NAME",
+                     help="for an ARGoS .argos file: the controller plugin its robots run")
+    run.add_argument("--out", type=Path, default=Path("out"), help="output directory (default: %(default)s)")
+    run.add_argument("--record", type=Path, metavar="DIR",
+                     help="record a rosbag2 (MCAP) directory: /clock, /swarm/state and --record-topics")
+    run.add_argument("--record-topics", nargs="+", default=[], metavar="GLOB",
+                     help="per-robot topics to record too, e.g. '/bot1*/cmd_vel' '/*/light'")
+    run.add_argument("--markers", action="store_true",
+                     help="publish the swarm as one visualization_msgs/MarkerArray on /swarm/markers")
+    run.add_argument("--foxglove", nargs="?", const="127.0.0.1:8765", metavar="[HOST:]PORT",
+                     help="serve the run live to the Foxglove app (WebSocket; default 127.0.0.1:8765)")
+    run.add_argument("--foxglove-topics", nargs="+", default=[], metavar="GLOB",
+                     help="per-robot topics to serve too, e.g. '/bot0/*'")
+    run.add_argument("--rate", type=_positive_float, metavar="R", help="run at most R x real time (1: real time)")
+    run.add_argument("--wait-for-viewer", type=_positive_float, metavar="SECONDS", default=0.0,
+                     help="with --foxglove: wait at tick 0 until a viewer subscribes, at most SECONDS")
+    run.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
+    run.add_argument("--no-picture", action="store_true", help="skip arena.png")
+    run.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
+    run.add_argument("--external-controllers", action="store_true",
+                     help="run the simulator only; the controllers are hosted by `composed-sim host` shards "
+                          "(on this or other machines), waited for before tick 0 (docs/distributed.md)")
+    _add_distributed_options(run, "with --external-controllers: ")
+
+    host = sub.add_parser("host", help="host a range of robots' controllers for a simulator elsewhere",
+                          description="Host some robots' controller nodes in this process (one context, one "
+                                      "executor) for a simulator started with `run --external-controllers`, on "
+                                      "this or another machine; ends when that simulator is gone, or on "
+                                      "Ctrl-C/SIGTERM (docs/distributed.md).")
+    host.add_argument("world", type=Path, help="the simulator's world file (YAML or ARGoS)")
+    host.add_argument("--robots", required=True, metavar="RANGES",
+                      help="robot indices to host: 0-639, 5 or 0-9,20-29")
+    host.add_argument("--world-robots", type=_positive_int, metavar="N",
+                      help="total number of robots, when the simulator was given --robots N")
+    host.add_argument("--seed", type=_non_negative_int, help="random seed, when the simulator was given --seed")
+    host.add_argument("--controller", metavar="NAME", help="for an ARGoS .argos file: the controller plugin")
+    host.add_argument("--executor", choices=EXECUTORS, default="lockstep",
+                      help="rclpy executor running the hosted nodes (default: %(default)s)")
+    host.add_argument("--domain-id", type=int, default=None, help="ROS domain (default: $ROS_DOMAIN_ID or 0)")
+    _add_distributed_options(host, "")
+
+    sub.add_parser("plugins", help="list the installed controller plugins")
+
+    export = sub.add_parser("export", help="write a run's trajectories as a tidy table (CSV or Parquet)",
+                            description="One row per (tick, robot): tick, time_s, robot, group, model, x, y, yaw, "
+                                        "LED colour; for pandas or polars.")
+    export.add_argument("results", type=Path, help="a results directory (--out of run)")
+    export.add_argument("--format", choices=("csv", "parquet"), default="csv")
+    export.add_argument("--out", type=Path, help="the table file (default: RESULTS/trajectories.csv|parquet)")
+
+    render = sub.add_parser("render", help="draw a run's results or recording as PNG, GIF or MP4",
+                            description="Draw the arena, robots with heading and LED colour, trails and a "
+                                        "tick caption from a results directory (of `run`) or a recording.")
+    render.add_argument("source", type=Path, help="a results directory (--out of run) or a --record directory")
+    render.add_argument("--out", type=Path, required=True, help="run.mp4, run.gif or final.png")
+    _add_render_options(render)
+
+    replay = sub.add_parser("replay", help="re-render or re-check a recorded run without simulating it",
+                            description="Read a --record directory back: print what it holds, check it is "
+                                        "complete, and optionally render it.")
+    replay.add_argument("recording", type=Path, help="a --record directory (rosbag2 with MCAP)")
+    replay.add_argument("--out", type=Path, help="also render it: run.mp4, run.gif or final.png")
+    replay.add_argument("--check", action="store_true", help="exit 1 unless every tick of the world was recorded")
+    _add_render_options(replay)
+
+    sub.add_parser("worlds", help="list the shipped world files")
+
+    bench = sub.add_parser("bench", help="benchmark swarm sizes, modes and executors against the paper",
+                           description="Sweep swarm sizes, host modes and executors; measure setup, "
+                                       "wall time, CPU and peak memory of each run's process tree; write "
+                                       "CSV, JSON and figures side by side with the paper's results.")
+    from composed_sim import bench as bench_module
+    bench_module.add_arguments(bench)
+
+    sweep = sub.add_parser("sweep", help="run a grid of runs over seeds, swarm sizes and world fields",
+                           description="Run a world over seeds, swarm sizes and world fields by dotted path, "
+                                       "in parallel, each run its own process, domain and folder; write runs.csv, "
+                                       "metrics.csv and plots (docs/experiments.md). Resumable.")
+    from composed_sim.sweep import command as sweep_command
+    sweep_command.add_arguments(sweep)
+    return parser
+
+
+def _add_distributed_options(parser: argparse.ArgumentParser, prefix: str) -> None:
+    from composed_sim.hosts.discovery import DEFAULT_DISCOVERY_TIMEOUT_S, RANGES
+    parser.add_argument("--discovery-timeout", type=_positive_float, metavar="SECONDS",
+                        default=DEFAULT_DISCOVERY_TIMEOUT_S,
+                        help=f"{prefix}how long to wait for the other side before giving up (default: %(default)s)")
+    parser.add_argument("--discovery-range", choices=RANGES, type=str.lower, default=None,
+                        help=f"{prefix}ROS_AUTOMATIC_DISCOVERY_RANGE (default: the environment's, else subnet)")
+    parser.add_argument("--static-peers", metavar="ADDR;ADDR",
+                        help=f"{prefix}ROS_STATIC_PEERS: addresses of the other machines, for networks without multicast")
+    parser.add_argument("--discovery-server", metavar="ADDR:PORT",
+                        help=f"{prefix}ROS_DISCOVERY_SERVER: a Fast DDS discovery server")
+
+
+def _add_render_options(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--fps", type=_positive_float, default=10.0, help="frames per second (default: %(default)s)")
+    parser.add_argument("--size", type=_positive_int, default=800, help="frame side in pixels (default: %(default)s)")
+    parser.add_argument("--trail", type=_non_negative_int, default=50, help="trail length in ticks (default: %(default)s)")
+    parser.add_argument("--every", type=_positive_int, default=1, help="draw every k-th tick (default: %(default)s)")
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    args.exit_when_done = argv is None    # a program of its own (not called from Python): see cmd_run
+    try:
+        if args.command == "plugins":
+            return cmd_plugins()
+        if args.command == "bench":
+            from composed_sim import bench
+            return bench.run(args)
+        if args.command == "sweep":
+            from composed_sim.sweep import command as sweep_command
+            return sweep_command.run(args)
+        if args.command == "render":
+            return cmd_render(args)
+        if args.command == "replay":
+            return cmd_replay(args)
+        if args.command == "export":
+            return cmd_export(args)
+        if args.command == "worlds":
+            return cmd_worlds()
+        if args.command == "host":
+            return cmd_host(args)
+        if args.json and args.exit_when_done:
+            keep_stdout_for_json()
+        return cmd_run(args)
+    except UserError as e:
+        print(f"composed-sim: error: {e}", file=sys.stderr)
+        return EXIT_USAGE

@@ -1,0 +1,42 @@
+"""``composed-sim host``: a controller shard for a simulator on another machine, and the discovery
+settings the distributed commands share."""
+from __future__ import annotations
+
+import argparse
+import sys
+
+from composed_sim.command_line import EXIT_INTERRUPTED, UserError
+from composed_sim.cli.common import Interrupts, distributed_settings, load_any_world, pick_domain
+
+
+def cmd_host(args) -> int:
+    """A controller shard: serves until the simulator is gone (0) or Ctrl-C/SIGTERM (130)."""
+    from composed_sim import plugins
+    from composed_sim.hosts.controllers import HostError
+    from composed_sim.hosts.robot_ranges import RangeError, parse_ranges
+    from composed_sim.hosts.shard import ShardHost
+
+    world = load_any_world(argparse.Namespace(world=args.world, robots=args.world_robots, ticks=None,
+                                               seed=args.seed, controller=args.controller))
+    try:
+        robots = parse_ranges(args.robots, len(world.robot_names()))
+    except RangeError as e:
+        raise UserError(f"--robots: {e}") from None
+    domain_id = pick_domain(args.domain_id)
+    discovery = distributed_settings(args)
+    with Interrupts("stopping the shard") as interrupts:
+        try:
+            with ShardHost(world, robots, executor=args.executor, domain_id=domain_id,
+                           should_stop=lambda: interrupts.requested) as shard:
+                print(f"composed-sim host: {len(robots)} controllers ({args.robots}) in ROS domain {domain_id}, "
+                      f"discovery {discovery}; waiting for the simulator", file=sys.stderr)
+                if shard.wait_for_simulator(args.discovery_timeout):
+                    print("composed-sim host: matched with the simulator; serving", file=sys.stderr)
+                    ended = shard.serve()
+                else:
+                    ended = "stopped"
+        except (plugins.PluginError, HostError) as e:
+            raise UserError(str(e)) from None
+    print(f"composed-sim host: {'the simulator is gone' if ended == 'simulator gone' else 'stopped'}; done",
+          file=sys.stderr)
+    return EXIT_INTERRUPTED if ended == "stopped" else 0

@@ -1,0 +1,110 @@
+"""What ``composed-sim run`` prints: the progress (a bar on a terminal, a line every few seconds
+elsewhere) and the summary, for people or as JSON."""
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import sys
+
+
+
+
+def print_summary(args, world, summary: dict) -> None:
+    if args.json:
+        with json_stdout():
+            print(json.dumps(summary, indent=2), flush=True)
+    else:
+        from composed_sim.loop_functions import describe
+        metrics = summary.get("metrics") or {}
+        print(_human_summary(summary, describe(world, metrics.get("initial", {}), metrics.get("final", {}))))
+
+
+_json_fd: int | None = None     # the real stdout while a --json run sends everything else to stderr
+
+
+def keep_stdout_for_json() -> None:
+    """Fast DDS's C++ logging writes to file descriptor 1 (e.g. about stale shared-memory ports
+    of a killed run): with --json, stdout must hold the summary only, so until then fd 1 is stderr."""
+    global _json_fd
+    if _json_fd is None:
+        sys.stdout.flush()
+        _json_fd = os.dup(1)
+        os.dup2(2, 1)
+
+
+@contextlib.contextmanager
+def json_stdout():
+    if _json_fd is None:
+        yield
+        return
+    sys.stdout.flush()
+    os.dup2(_json_fd, 1)
+    try:
+        yield
+    finally:
+        sys.stdout.flush()
+
+
+PROGRESS_LOG_S = 5.0    # without a terminal: a progress line this often at most
+
+
+def progress_bar(total: int, disabled: bool):
+    """tqdm's bar on a terminal; on a log (CI, a file, a pipe) a plain line now and then instead
+    of thousands of carriage returns."""
+    from tqdm import tqdm
+    if disabled or sys.stderr.isatty():
+        return tqdm(total=total, unit="tick", file=sys.stderr, disable=disabled, dynamic_ncols=True,
+                    desc="simulating")
+    return _ProgressLines(total)
+
+
+class _ProgressLines:
+    def __init__(self, total: int):
+        import time
+        self._clock = time.monotonic
+        self.total, self.done = total, 0
+        self._start = self._last = self._clock()
+        self._said = False
+
+    def update(self, n: int = 1) -> None:
+        self.done += n
+        now = self._clock()
+        if not self._said or now - self._last >= PROGRESS_LOG_S:
+            self._said, self._last = True, now
+            self._line(now)
+
+    def _line(self, now: float) -> None:
+        rate = self.done / max(now - self._start, 1e-9)
+        print(f"simulating: {self.done}/{self.total} ticks ({100 * self.done / max(self.total, 1):.0f} %), "
+              f"{rate:.1f} tick/s", file=sys.stderr, flush=True)
+
+    def close(self) -> None:
+        if self.done and self._last != self._clock():
+            self._line(self._clock())
+
+
+def _workers_text(s: dict) -> str:
+    if not s.get("workers") or s["workers"] == 1:
+        return ""
+    return f" in {s['workers']} worker processes" + (" (auto)" if s.get("workers_requested") == "auto" else "")
+
+
+def _human_summary(s: dict, metric_lines: list[str] = ()) -> str:
+    ph = s["phases_s"]
+    lines = [
+        f"{s['world']}: {s['robots']} robots, {s['ticks']} ticks ({s['sim_time_s']:.1f} s sim time), "
+        f"{s['mode']} mode{_workers_text(s)}, {s['executor']} executor"
+        + ("  [interrupted]" if s["interrupted"] else ""),
+        f"  setup {s['setup_s']:.2f} s, ticks {s['ticks_wall_s']:.2f} s wall, "
+        f"real-time factor {s['real_time_factor'] or 0:.2f}, peak RSS {s['peak_rss_mb']:.0f} MB",
+        f"  per tick: physics {1e3 * ph['physics_s'] / max(s['ticks'], 1):.1f} ms, "
+        f"sensing {1e3 * ph['sensing_s'] / max(s['ticks'], 1):.1f} ms, "
+        f"ROS exchange {1e3 * ph['ros_exchange_s'] / max(s['ticks'], 1):.1f} ms",
+        f"  violations: {s['violations']}",
+    ]
+    lines += metric_lines
+    if s.get("finished"):
+        lines.append(f"  ended by the loop functions at tick {s['ticks']}")
+    lines.append(f"  results in {s['out']}/ (summary.json, trajectories.npz, arena.png)")
+    return "\n".join(lines)

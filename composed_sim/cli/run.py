@@ -1,0 +1,204 @@
+"""``composed-sim run``: load the world, pick and start the host, run the ticks with the observers,
+write the results, whatever ends the run."""
+from __future__ import annotations
+
+import contextlib
+import os
+import sys
+
+from composed_sim.command_line import EXIT_INTERRUPTED, UserError, check_writable
+from composed_sim.cli.common import (Interrupts, check_no_distributed_flags, check_plugins, distributed_settings,
+                                     load_any_world, located, pick_domain)
+from composed_sim.cli.report import print_summary, progress_bar
+
+
+def cmd_run(args) -> int:
+    from composed_sim import plugins
+    from composed_sim.core.placement import PlacementError
+    from composed_sim.hosts.composed import ComposedHost
+    from composed_sim.hosts.controllers import HostError
+    from composed_sim.hosts.domain_claim import DomainTaken, claim_domains, claim_free_domain, run_identity
+    from composed_sim.hosts.workers import WorkerHost, auto_workers, usable_cores
+    from composed_sim.results import summarize, write_results
+
+    world = load_any_world(args)
+    lockstep = {k: v for k, v in (("watchdog_s", args.watchdog), ("fallback", args.fallback)) if v is not None}
+    if lockstep:
+        world = world.model_copy(update={"lockstep": world.lockstep.model_copy(update=lockstep)})
+    from composed_sim.ros.participants import remove_stale_shared_memory
+    remove_stale_shared_memory()        # what dead runs left in /dev/shm (ros/participants.py)
+    domain_given = args.domain_id is not None or bool(os.environ.get("ROS_DOMAIN_ID"))
+    domain_id = pick_domain(args.domain_id)
+    check_writable(args.out)
+    if args.record is not None and args.record.exists():
+        raise UserError(f"--record {args.record}: already exists; a recording goes into a new directory")
+    if args.record_topics and args.record is None:
+        raise UserError("--record-topics: needs --record DIR")
+    if (args.foxglove_topics or args.wait_for_viewer) and args.foxglove is None:
+        raise UserError("--foxglove-topics and --wait-for-viewer: need --foxglove")
+    if args.foxglove is not None:
+        from composed_sim.foxglove_server import parse_address
+        try:
+            args.foxglove = parse_address(args.foxglove)
+        except ValueError as e:
+            raise UserError(f"--foxglove: {e}") from None
+    if not args.external_controllers:
+        check_no_distributed_flags(args)
+
+    distributed = distributed_settings(args) if args.external_controllers else None
+    check_plugins(args.world, world)
+
+    def make_host(domain_id: int):
+        if args.external_controllers:
+            from composed_sim.hosts.external import ExternalControllersHost
+            return ExternalControllersHost(world, domain_id=domain_id, discovery_timeout_s=args.discovery_timeout,
+                                           discovery=distributed)
+        if args.mode == "multi-process":
+            from composed_sim.hosts.multiprocess import MultiProcessHost
+            return MultiProcessHost(world, executor=args.executor, domain_id=domain_id,
+                                    robots_per_domain=args.robots_per_domain)
+        workers = auto_workers(len(world.robot_names())) if args.workers == "auto" else args.workers
+        if workers == 1:
+            return ComposedHost(world, executor=args.executor, domain_id=domain_id,
+                                robots_per_participant=args.robots_per_participant)
+        return WorkerHost(world, workers=workers, executor=args.executor, domain_id=domain_id)
+
+    try:
+        host = make_host(domain_id)
+        # The run owns its domains (hosts/domain_claim.py): a given one must be free, else the
+        # first free block is taken and the host rebuilt there.
+        used = sorted(set(host.domains.values())) if args.mode == "multi-process" and not args.external_controllers \
+            else [domain_id]
+        given = domain_given or (args.mode == "multi-process" and used[0] != domain_id)
+        about = run_identity(world.name)
+        if given:
+            claim = claim_domains(used, about, given=True)
+        else:
+            claim, domain_id = claim_free_domain(len(used), about)
+            host = make_host(domain_id)
+            used = [domain_id + i for i in range(len(used))]
+            print(f"composed-sim: ROS domain {domain_id}{f'..{used[-1]}' if len(used) > 1 else ''} (free, "
+                  f"picked; to watch it: ROS_DOMAIN_ID={domain_id} ros2 topic list)", file=sys.stderr)
+    except (HostError, DomainTaken) as e:
+        raise UserError(str(e)) from None
+
+    def finish(result, checkpoint: bool = False) -> dict:
+        mode = "external-controllers" if args.external_controllers else args.mode
+        summary = summarize(world, result, setup_s=host.setup.setup_s, mode=mode,
+                            executor=args.executor,
+                            phases={"physics_s": host.sim.times.physics_s, "sensing_s": host.sim.times.sensing_s})
+        summary["participants"] = host.setup.participants
+        summary["workers"] = host.setup.workers
+        summary["workers_requested"] = args.workers if args.mode == "composed" else None
+        if isinstance(host, WorkerHost):        # every process's peak (pages shared between them count in each)
+            summary["workers_peak_rss_mb"] = [round(mb, 1) for mb in host.workers_peak_rss_mb()]
+            summary["peak_rss_mb"] += sum(summary["workers_peak_rss_mb"])
+        summary["domain_id"], summary["domains"] = used[0], used
+        summary["checkpoint"] = checkpoint     # true: written while running; the run did not end
+        summary["out"] = str(args.out)
+        write_results(args.out, world, result, summary, picture=not (args.no_picture or checkpoint),
+                      checkpoint=checkpoint)
+        return summary
+
+    with Interrupts() as interrupts, contextlib.ExitStack() as outputs:
+        try:
+            with host:
+                if host.setup.workers > 1 and not args.json:     # said once set-up went well
+                    print(f"composed-sim: {len(host.sim.names)} robots in {host.setup.workers} worker processes"
+                          + (f" (--workers auto, {usable_cores()} usable cores)" if args.workers == "auto" else ""),
+                          file=sys.stderr)
+                observers = _run_observers(args, world, host, outputs, interrupts)
+                progress = progress_bar(world.length_ticks, disabled=args.no_progress)
+                try:
+                    result = host.run(progress=progress.update, should_stop=lambda: interrupts.requested,
+                                      observers=observers, checkpoint=lambda partial: finish(partial, True))
+                except Exception as e:
+                    partial = getattr(e, "partial_result", None)
+                    if partial is not None:   # write what was simulated before the failure
+                        finish(partial)
+                        print(f"composed-sim: the run failed at tick {partial.trajectories.ticks_done}; "
+                              f"results so far are in {args.out}/", file=sys.stderr)
+                    raise
+                finally:
+                    progress.close()
+                summary = finish(result)
+                code = EXIT_INTERRUPTED if result.interrupted else 0
+                if args.exit_when_done and isinstance(host, (ComposedHost, WorkerHost)):
+                    # Destroying thousands of nodes one by one takes minutes (each destruction
+                    # republishes the participant's graph, docs/speed.md): with every result and
+                    # the recording written, the process ends and the system reclaims the rest.
+                    outputs.close()
+                    print_summary(args, world, summary)
+                    sys.stdout.flush()
+                    sys.stderr.flush()
+                    os._exit(code)
+        except (plugins.PluginError, PlacementError) as e:
+            raise UserError(located(args.world, e)) from None
+        except HostError as e:
+            raise UserError(str(e)) from None
+    claim.release()
+    print_summary(args, world, summary)
+    return code
+
+
+def _run_observers(args, world, host, outputs: contextlib.ExitStack, interrupts) -> list:
+    """The recording, live markers, the Foxglove server and pacing asked for on the command
+    line, as tick observers (in that order: a tick is shown before the pause after it)."""
+    from composed_sim.observers import MarkerObserver, RecordingObserver, Scene
+    from composed_sim.ros.taps import Taps
+
+    observers, taps = [], []
+    scene = Scene(host.sim, world.tick_ns)
+    recorder = None
+    if args.record is not None:
+        from composed_sim.recording import BagRecorder
+        recorder = outputs.enter_context(BagRecorder(args.record, robot_names=host.sim.names, tick_s=world.tick_s,
+                                                     topics_globs=args.record_topics, world=world))
+        interrupts.on_second = recorder.close_if_idle   # even a hard quit leaves a readable bag
+        recorder.set_custom("executor", args.executor)  # what `replay --check` re-simulates with
+        observers.append(RecordingObserver(recorder, scene))
+        if args.record_topics:
+            _warn_unmatched_globs(args.record_topics, world, "--record-topics")
+            taps.append(recorder)
+    if args.markers:
+        observers.append(MarkerObserver(host.observer_node(), scene))
+    if args.foxglove is not None:
+        from composed_sim.foxglove_server import FoxgloveError, FoxgloveServer
+        try:
+            server = FoxgloveServer(scene, args.foxglove, dict(_run_topics(world)), args.foxglove_topics,
+                                    wait_for_viewer_s=args.wait_for_viewer)
+        except FoxgloveError as e:
+            raise UserError(str(e)) from None
+        outputs.callback(server.close)
+        print(f"composed-sim: serving Foxglove on ws://{args.foxglove[0]}:{server.port}", file=sys.stderr)
+        observers.append(server)
+        if args.foxglove_topics:
+            _warn_unmatched_globs(args.foxglove_topics, world, "--foxglove-topics")
+            taps.append(server)
+    if taps:
+        host.set_message_tap(Taps(taps))
+    if args.rate is not None:
+        from composed_sim.pacing import Pacer
+        observers.append(Pacer(args.rate, world.tick_s))
+    return observers
+
+
+def _run_topics(world) -> list[tuple[str, str]]:
+    """(topic, message type) of every robot's contract topic in this run."""
+    from composed_sim.ros import contract as c
+    from composed_sim.ros.robot_settings import robot_devices
+    return [(c.topic_name(name, t), c.type_name(t.msg_type))
+            for name, devices in zip(world.robot_names(), robot_devices(world)) for t in c.robot_topics(devices)]
+
+
+def _warn_unmatched_globs(globs: list[str], world, flag: str) -> None:
+    """A topic glob that matches no topic of this run is a warning naming two that exist."""
+    from composed_sim.ros import contract as c
+    from composed_sim.ros.taps import TopicGlobs
+    topics = [topic for topic, _ in _run_topics(world)] + [c.SWARM_MARKERS_TOPIC]
+    for glob in globs:
+        matcher = TopicGlobs([glob])
+        if not any(matcher.wants(t) for t in topics):
+            print(f"composed-sim: warning: {flag} {glob!r} matches no topic of this run "
+                  f"(its topics are like {topics[0]} and {topics[-2] if len(topics) > 1 else topics[0]})",
+                  file=sys.stderr)
