@@ -3,7 +3,8 @@
 ``render(trajectories, world, out, ...)`` picks the format from ``out``'s suffix
 (``.png``: the final tick; ``.gif``, ``.mp4``: every ``every``-th tick and the last one).
 
-Each frame shows the arena (its walls, or its floor rectangle dashed when it has none), boxes
+Each frame shows the arena (its walls, or its floor rectangle dashed when it has none), the
+floor's painted circles and rectangles (not a floor image), boxes
 (with their yaw), cylinders, lights (a star, and a dotted circle where the foot-bot light sensor
 still sees it: 2.5 × intensity m), every robot as a disc in its display LED colour (the beacon
 when lit, else the first lit ring LED: ``composed_sim.world.robot_models.display_colors``;
@@ -338,6 +339,14 @@ def _draw_scene(ax, world: World, k: float) -> None:
     """Arena, walls, obstacles and lights as matplotlib artists (drawn once)."""
     from matplotlib.patches import Circle, Polygon, Rectangle
 
+    # The floor's painted shapes, as the ground sensors see them (the nest and food of foraging,
+    # the dark patch of aggregation), under everything else; the page's white is the floor colour.
+    for shape in world.floor.shapes:
+        color = np.array(shape.color) / 255.0
+        if shape.type == "circle":
+            ax.add_patch(Circle(shape.position, shape.radius_m, fc=color, ec="0.75", lw=0.4 * k, zorder=0))
+        else:
+            ax.add_patch(Polygon(_box_corners(shape), closed=True, fc=color, ec="0.75", lw=0.4 * k, zorder=0))
     if world.arena.size is not None and not world.arena.walls:
         (cx, cy), (sx, sy) = world.arena.center, world.arena.size
         ax.add_patch(Rectangle((cx - sx / 2, cy - sy / 2), sx, sy, fill=False, ls="--",

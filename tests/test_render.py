@@ -12,11 +12,12 @@ from composed_sim.world.loader import world_from_dict
 N, T = 12, 30
 
 
-def make_world(n=N, obstacles=True, walls=True):
+def make_world(n=N, obstacles=True, walls=True, floor_shapes=()):
     return world_from_dict({
         "name": "render-test",
         "robots": [{"count": n, "controller": "flocking"}],
         "arena": {"size": [6, 6], "walls": walls},
+        "floor": {"shapes": list(floor_shapes)},
         "lights": [{"position": [0, 2.5], "intensity": 1.0}],
         "obstacles": [{"type": "box", "position": [1.5, -1.5], "size": [0.8, 0.3], "yaw_rad": 0.5},
                       {"type": "cylinder", "position": [-1.5, -1.5], "radius_m": 0.3}] if obstacles else [],
@@ -131,3 +132,17 @@ def test_1280_robots_600_ticks_mp4_in_reasonable_time(tmp_path):
     seconds = time.perf_counter() - t0
     print(f"1280 robots x 600 ticks -> MP4 800 px: {seconds:.1f} s")
     assert seconds < 120
+
+
+def test_floor_shapes_are_drawn_under_the_robots(tmp_path):
+    traj, _ = make_run(n=3, ticks=2)
+    plain = make_world(n=3)
+    painted = make_world(n=3, floor_shapes=[
+        {"type": "circle", "position": [2.0, 2.0], "radius_m": 0.5, "color": [40, 200, 40]},
+        {"type": "rectangle", "position": [-2.0, 2.0], "size": [1.0, 0.6], "yaw_rad": 0.3, "color": [40, 200, 40]}])
+    render(traj, painted, tmp_path / "floor.png", size_px=300)
+    render(traj, plain, tmp_path / "plain.png", size_px=300)
+    green = (40, 200, 40)
+    # A 0.5 m disc and a 1 x 0.6 m rectangle: over 500 pixels at 300 px for this 6.5 m view.
+    assert count_near(iio.imread(tmp_path / "floor.png"), green, 6) > 500
+    assert count_near(iio.imread(tmp_path / "plain.png"), green, 6) == 0
