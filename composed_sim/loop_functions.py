@@ -21,8 +21,9 @@ controllers never see the loop functions: they are ROS nodes and only get their 
 """
 from __future__ import annotations
 
-from importlib.metadata import EntryPoint, entry_points
 from typing import Optional
+
+from composed_sim import entry_points
 
 from composed_sim.core.simulation import Simulation
 from composed_sim.world.schema import LOOP_FUNCTIONS_GROUP, World
@@ -60,20 +61,9 @@ class LoopFunctions:
                                           for k, v in final.items() if k != "tick")]
 
 
-def installed() -> dict[str, EntryPoint]:
-    return {ep.name: ep for ep in sorted(entry_points(group=GROUP), key=lambda e: e.name)}
-
-
 def load_class(name: str) -> type:
-    found = installed()
-    if name not in found:
-        raise LoopFunctionsError(f"unknown loop functions {name!r} (installed: {', '.join(found) or 'none'})",
-                                 ("loop_functions", "name"))
-    try:
-        return found[name].load()
-    except Exception as e:     # any import-time failure is the plugin's, reported as such
-        raise LoopFunctionsError(f"loop functions {name!r} ({found[name].value}) failed to import: "
-                                 f"{type(e).__name__}: {e}", ("loop_functions", "name")) from e
+    return entry_points.load(GROUP, name, "loop functions",
+                             lambda message: LoopFunctionsError(message, ("loop_functions", "name")))
 
 
 def make(world: World):

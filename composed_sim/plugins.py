@@ -2,10 +2,12 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from importlib.metadata import EntryPoint, entry_points
+from importlib.metadata import EntryPoint
 from typing import Mapping
 
 from rclpy.node import Node
+
+from composed_sim import entry_points
 
 GROUP = "composed_sim.controllers"
 
@@ -21,36 +23,15 @@ class PluginError(Exception):
 
 def installed() -> dict[str, EntryPoint]:
     """Every installed controller plugin by name; two distributions claiming one name is an error."""
-    found: dict[str, EntryPoint] = {}
-    for ep in entry_points(group=GROUP):
-        other = found.get(ep.name)
-        if other is not None and other.value != ep.value:
-            raise PluginError(f"controller plugin {ep.name!r} is declared twice: by {_origin(other)} "
-                              f"({other.value}) and by {_origin(ep)} ({ep.value}); uninstall one")
-        found[ep.name] = ep
-    return dict(sorted(found.items()))
+    return entry_points.installed(GROUP, "controller plugin", PluginError)
 
 
 def load(name: str) -> type[Node]:
-    plugins = installed()
-    if name not in plugins:
-        known = ", ".join(plugins) or "none"
-        raise PluginError(f"unknown controller plugin {name!r} (installed: {known}); "
-                          f"a plugin is an entry point in the group {GROUP!r}")
-    ep = plugins[name]
-    try:
-        cls = ep.load()
-    except Exception as e:  # any import-time failure is the plugin's, reported as such
-        raise PluginError(f"controller plugin {name!r} ({ep.value}) failed to import: "
-                          f"{type(e).__name__}: {e}") from e
+    cls = entry_points.load(GROUP, name, "controller plugin", PluginError,
+                            f"; a plugin is an entry point in the group {GROUP!r}")
     if not (isinstance(cls, type) and issubclass(cls, Node)):
-        raise PluginError(f"controller plugin {name!r} ({ep.value}) is not an rclpy Node subclass")
+        raise PluginError(f"controller plugin {name!r} ({installed()[name].value}) is not an rclpy Node subclass")
     return cls
-
-
-def _origin(ep: EntryPoint) -> str:
-    dist = getattr(ep, "dist", None)
-    return f"package {dist.name}" if dist is not None else "an unknown package"
 
 
 @dataclass(frozen=True)

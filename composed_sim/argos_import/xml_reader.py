@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 from typing import Optional
 from xml.parsers import expat
 
-from composed_sim.world.loader import WorldFileError
+from composed_sim.world.loader import WorldFileError, read_file as read_world_file
 
 
 class ArgosFileError(WorldFileError):
@@ -78,13 +78,4 @@ def parse_xml(data: bytes, source: str) -> XmlElement:
 
 
 def read_file(source: str) -> bytes:
-    try:
-        with open(source, "rb") as file:
-            return file.read()
-    except FileNotFoundError:
-        raise ArgosFileError(f"{source}: no such ARGoS file") from None
-    except IsADirectoryError:
-        raise ArgosFileError(f"{source}: is a directory, not an ARGoS file") from None
-    except OSError as e:
-        raise ArgosFileError(f"{source}: cannot read the ARGoS file: {e.strerror or e}") from None
-
+    return read_world_file(source, "ARGoS file", ArgosFileError, binary=True)

@@ -42,7 +42,7 @@ def load_world(path: str | os.PathLike, *, robots: Optional[int] = None,
                ticks: Optional[int] = None, seed: Optional[int] = None) -> World:
     """Load a world file, then apply the command-line overrides (see ``with_overrides``)."""
     source = os.fspath(path)
-    data, lines = _parse(_read(source), source)
+    data, lines = _parse(read_file(source), source)
     world = validate(data, source, lines)
     return with_overrides(world, robots=robots, ticks=ticks, seed=seed, source=source)
 
@@ -57,7 +57,7 @@ def field_line(source: str | os.PathLike, path: FieldPath) -> str:
     writes); just ``file`` where there is no line to give (an ARGoS file, an unreadable one)."""
     source = os.fspath(source)
     try:
-        _, lines = _parse(_read(source), source)
+        _, lines = _parse(read_file(source), source)
     except WorldFileError:
         return source
     line = _line(lines, path)
@@ -124,20 +124,23 @@ def split_count(total: int, counts: list[int]) -> list[int]:
 
 # --- reading and parsing -------------------------------------------------------------
 
-def _read(source: str) -> str:
+def read_file(source: str, what: str = "world file", error: type[WorldFileError] = WorldFileError,
+              binary: bool = False) -> str | bytes:
+    """The file's text (UTF-8), or its bytes; an ``error`` naming the file and ``what`` it should
+    be when it cannot be read."""
+    a = "an" if what[0].lower() in "aeiou" else "a"
     try:
-        with open(source, encoding="utf-8") as file:
+        with open(source, "rb" if binary else "r", **({} if binary else {"encoding": "utf-8"})) as file:
             return file.read()
     except FileNotFoundError:
-        raise WorldFileError(f"{source}: no such world file") from None
+        raise error(f"{source}: no such {what}") from None
     except IsADirectoryError:
-        raise WorldFileError(f"{source}: is a directory, not a world file") from None
+        raise error(f"{source}: is a directory, not {a} {what}") from None
     except UnicodeDecodeError as exc:
-        raise WorldFileError(f"{source}: not a UTF-8 text file (byte {exc.object[exc.start]:#04x} "
-                             f"at offset {exc.start})") from None
+        raise error(f"{source}: not a UTF-8 text file (byte {exc.object[exc.start]:#04x} "
+                    f"at offset {exc.start})") from None
     except OSError as exc:
-        raise WorldFileError(f"{source}: cannot read the world file: "
-                             f"{exc.strerror or exc}") from None
+        raise error(f"{source}: cannot read the {what}: {exc.strerror or exc}") from None
 
 
 def _parse(text: str, source: str) -> tuple[Any, dict[FieldPath, int]]:

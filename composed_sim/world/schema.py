@@ -18,6 +18,7 @@ from typing import Annotated, Any, Literal, Optional, Union
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 from pydantic_core import PydanticCustomError
 
+from composed_sim.entry_points import installed
 from composed_sim.world.robot_models import MODELS, RobotModel
 
 Vec2 = tuple[float, float]
@@ -446,8 +447,7 @@ class LoopFunctionsRef(Strict):
     @field_validator("name")
     @classmethod
     def _installed(cls, value: str) -> str:
-        from importlib.metadata import entry_points    # names only: nothing of the plugin is imported
-        known = sorted({ep.name for ep in entry_points(group=LOOP_FUNCTIONS_GROUP)})
+        known = installed(LOOP_FUNCTIONS_GROUP, "loop functions", ValueError)   # names only: nothing imported
         if value not in known:
             raise _invalid([((), f"unknown loop functions; installed: {', '.join(known) or 'none'} "
                              f"(entry points of the group {LOOP_FUNCTIONS_GROUP!r})", value)])
