@@ -24,7 +24,6 @@ from composed_sim.hosts.lockstep import NodesExchange
 from composed_sim.hosts.controllers import HostError
 from composed_sim.hosts.discovery import DEFAULT_DISCOVERY_TIMEOUT_S
 from composed_sim.hosts.controllers import matched, spin_until_shutdown
-from composed_sim.hosts.multiprocess import _endpoints_by_topic
 from composed_sim.hosts.processes import InterruptWatch
 from composed_sim.hosts.robot_ranges import format_ranges
 from composed_sim.hosts.shard_announce import ShardInfo, ShardRegistry, world_fingerprint
@@ -68,7 +67,7 @@ class ExternalControllersHost(ControllersElsewhere):
                                           tick_ns=self.world.tick_ns, lockstep=self.world.lockstep,
                                           rab_payload_bytes=self.world.range_and_bearing.payload_bytes,
                                           **robot_settings(self.world, range(self.world.robot_count)))
-            endpoints = _endpoints_by_topic(self.sim_node)
+            endpoints = self.sim_node.endpoints_by_topic()
             self._registry = ShardRegistry(self._context, self.sim.n)
             with InterruptWatch() as interrupts:
                 self._wait_for_shards(endpoints, lambda: interrupts.requested)

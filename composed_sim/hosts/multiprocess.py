@@ -182,7 +182,7 @@ class MultiProcessHost(ControllersElsewhere):
         """
         waiting = list(self.sim.names)
         unmatched: dict[str, ControllerProcess] = {}
-        endpoints = {d: _endpoints_by_topic(node) for d, node in self._nodes.items()}
+        endpoints = {d: node.endpoints_by_topic() for d, node in self._nodes.items()}
         last_progress = next_detection = time.monotonic()
         with selectors.DefaultSelector() as pipes:
             while (waiting or unmatched) and not interrupts.requested:
@@ -318,11 +318,3 @@ class MultiProcessHost(ControllersElsewhere):
         for p in self.processes:
             signal_group(p.popen, signal.SIGTERM)
         reap([p.popen for p in self.processes], TERM_GRACE_S)
-
-
-def _endpoints_by_topic(node: SimulatorNode) -> dict:
-    """The simulator side of each robot topic: sensor publishers, cmd_vel subscriptions and the
-    LED inbox's subscriptions (the inbox node is the SimulatorNode's own, never spun)."""
-    found = list(node.publishers) + list(node.subscriptions) + list(node._inbox.subscriptions)
-    return {e.topic_name: e for e in found if e.topic_name != c.CLOCK_TOPIC}
-

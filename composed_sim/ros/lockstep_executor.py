@@ -5,8 +5,9 @@ thousands of hosted nodes that dominates the tick (docs/architecture.md: 360–7
 lockstep tick the work is known: the simulator publishes every robot's sensors, and inside one
 DDS participant a published message is ready to take at once. So this executor first walks the
 subscriptions and timers of its nodes in a fixed order (nodes in the order they were added, each
-node's subscriptions in creation order, then its timers), takes one ready message from each
-subscription, fires each timer that is due, and runs the callbacks; a callback's own publishes (a
+node's subscriptions in creation order, then the waitables that can be taken without a wait set
+(the simulator's cmd_vel subscriptions, ros/answer_subscription.py), then its timers), takes one
+ready message from each subscription, fires each timer that is due, and runs the callbacks; a callback's own publishes (a
 controller's answer) are picked up by the same walk. Only when a walk finds nothing does it fall
 back to the ordinary wait set, which also serves services, guard conditions and messages from
 other processes.
@@ -21,6 +22,9 @@ from typing import Optional
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.subscription import Subscription
+
+
+_WAITABLE = object()     # marks a waitable with dispatch_ready() in the walk's entity list
 
 
 class LockstepExecutor(SingleThreadedExecutor):
@@ -65,9 +69,14 @@ class LockstepExecutor(SingleThreadedExecutor):
             entities = self._entities = [
                 entity for node in self._ordered_nodes
                 for entity in [(s, s.handle, s.msg_type, s.raw, s._callback_type is message_only)
-                               for s in node.subscriptions] + [(t, t.handle, None, None, None) for t in node.timers]]
+                               for s in node.subscriptions]
+                + [(w, None, _WAITABLE, None, None) for w in node.waitables if hasattr(w, "dispatch_ready")]
+                + [(t, t.handle, None, None, None) for t in node.timers]]
         handled = 0
         for entity, handle, msg_type, raw, message_only in entities:
+            if msg_type is _WAITABLE:
+                handled += entity.dispatch_ready()
+                continue
             if msg_type is None:                   # a timer
                 with handle:
                     if not handle.is_timer_ready():

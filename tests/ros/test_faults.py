@@ -15,6 +15,9 @@ from composed_sim.world.loader import world_from_dict
 
 ROBOTS, TICKS, FAULTY, FROM_TICK = 4, 24, "bot1", 5
 WATCHDOG_S = 0.25
+# Where no answer is meant to be late: a stall of a loaded 2-core machine (several controller
+# processes in multi-process mode) must not count as a miss of the others.
+SLACK_WATCHDOG_S = 2.0
 OTHERS = [0, 2, 3]
 MODES = ["composed", "workers", "multi-process"]
 _reference = {}
@@ -54,9 +57,9 @@ def check_isolated(result, domain_id: int) -> list[tuple[int, str]]:
     """The run completed, the others are untouched and every violation is bot1's; returns bot1's
     violations as (tick, reason)."""
     assert result.trajectories.ticks_done == TICKS and not result.interrupted
+    assert {v.robot for v in result.violations} == {FAULTY}, result.violations   # first: it says why
     positions = result.trajectories.positions
     assert np.array_equal(positions[:, OTHERS], reference(domain_id)[:, OTHERS])
-    assert {v.robot for v in result.violations} == {FAULTY}, result.violations
     return [(v.tick, v.reason) for v in result.violations]
 
 
@@ -183,7 +186,7 @@ def test_a_controller_that_never_publishes_is_failed_as_unresponsive(faulty_plug
     ("wrong_stamp", "answer stamped 1000", 2)])
 def test_garbage_answers_are_rejected_and_max_violations_stops_the_robot(faulty_plugin, mode, fault, reason,
                                                                          per_tick, domain_id, mp_domain):
-    result = run(fault_world(fault, max_violations=3), mode, domain_id, mp_domain)
+    result = run(fault_world(fault, max_violations=3, watchdog_s=SLACK_WATCHDOG_S), mode, domain_id, mp_domain)
     violations = check_isolated(result, domain_id)
     tick = failed(violations, "stopped after 3 violations (max_violations)")
     assert tick == FROM_TICK + (3 - 1) // per_tick
@@ -207,7 +210,7 @@ def test_a_rejected_answer_gets_the_previous_command_when_so_configured(faulty_p
     ("intrude", "/bot2/cmd_vel is a topic of bot2, not of bot1")])
 def test_publishing_a_wrong_type_or_on_another_robots_topic_fails_the_publisher(
         faulty_plugin, mode, fault, reason, domain_id, mp_domain):
-    result = run(fault_world(fault, victim="bot2"), mode, domain_id, mp_domain)
+    result = run(fault_world(fault, victim="bot2", watchdog_s=SLACK_WATCHDOG_S), mode, domain_id, mp_domain)
     violations = check_isolated(result, domain_id)     # bot2 included: the hijack never reached it
     tick = failed(violations, f"ContractViolation: {reason}")
     assert FROM_TICK <= tick <= FROM_TICK + 1 and stands_still_from(result, FROM_TICK)

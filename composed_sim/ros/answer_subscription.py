@@ -1,0 +1,155 @@
+"""A robot's ``cmd_vel`` subscription that tells who published each answer.
+
+The simulator accepts a robot's answers from that robot's controller only: a ``cmd_vel`` that
+another process publishes on the robot's topic (a second run in the same ROS domain, a stray
+teleop node) must never move the robot (docs/faults.md). The middleware knows each sample's
+writer: rcl's take fills ``rmw_message_info_t.publisher_gid``. rclpy 7.1's take returns the
+timestamps and sequence numbers of that struct but not the GID, so the answers are taken through
+rcl with ctypes (``rcl_take_serialized_message``, the serialized bytes the simulator decodes
+anyway) with the structs laid out as in the rmw and rcutils headers that ship with the ROS wheels
+(``rmw/types.h``, ``rcutils/types/uint8_array.h``).
+
+Every executor takes through it: the subscription is an rclpy ``Waitable``, which the stock
+executors and the events executor drive through a wait set, and the lockstep executor calls its
+``dispatch_ready`` in its walk, as it takes an ordinary subscription's message.
+"""
+from __future__ import annotations
+
+import ctypes
+import threading
+from typing import Callable, Optional
+
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+from rclpy.node import Node
+from rclpy.qos import QoSProfile
+from rclpy.type_support import check_is_valid_msg_type
+from rclpy.waitable import NumberOfEntities, Waitable
+
+_GID_BYTES = 16                      # RMW_GID_STORAGE_SIZE
+_RET_OK, _RET_TAKE_FAILED = 0, 401   # RCL_RET_OK, RCL_RET_SUBSCRIPTION_TAKE_FAILED (nothing to take)
+
+
+class _Allocator(ctypes.Structure):          # rcutils_allocator_t
+    _fields_ = [("allocate", ctypes.c_void_p), ("deallocate", ctypes.c_void_p), ("reallocate", ctypes.c_void_p),
+                ("zero_allocate", ctypes.c_void_p), ("state", ctypes.c_void_p)]
+
+
+class _Bytes(ctypes.Structure):              # rcutils_uint8_array_t (= rcl_serialized_message_t)
+    _fields_ = [("buffer", ctypes.c_void_p), ("buffer_length", ctypes.c_size_t),
+                ("buffer_capacity", ctypes.c_size_t), ("allocator", _Allocator)]
+
+
+class _Gid(ctypes.Structure):                # rmw_gid_t
+    _fields_ = [("implementation_identifier", ctypes.c_char_p), ("data", ctypes.c_uint8 * _GID_BYTES)]
+
+
+class _MessageInfo(ctypes.Structure):        # rmw_message_info_t
+    _fields_ = [("source_timestamp", ctypes.c_int64), ("received_timestamp", ctypes.c_int64),
+                ("publication_sequence_number", ctypes.c_uint64), ("reception_sequence_number", ctypes.c_uint64),
+                ("publisher_gid", _Gid), ("from_intra_process", ctypes.c_bool)]
+
+
+# rclpy's extension module has loaded librcl (and, as its dependencies, rcutils and the rmw), so
+# these open the copies already in the process.
+_rcl = ctypes.CDLL("librcl.so")
+_rcutils = ctypes.CDLL("librcutils.so")
+_take = _rcl.rcl_take_serialized_message
+_take.argtypes = [ctypes.c_void_p, ctypes.POINTER(_Bytes), ctypes.POINTER(_MessageInfo), ctypes.c_void_p]
+_take.restype = ctypes.c_int
+_rcutils.rcutils_get_default_allocator.restype = _Allocator
+_rcutils.rcutils_uint8_array_init.argtypes = [ctypes.POINTER(_Bytes), ctypes.c_size_t, ctypes.POINTER(_Allocator)]
+_rcutils.rcutils_uint8_array_fini.argtypes = [ctypes.POINTER(_Bytes)]
+
+
+class _ErrorString(ctypes.Structure):        # rcutils_error_string_t, returned by value
+    _fields_ = [("text", ctypes.c_char * 1024)]
+
+
+_rcutils.rcutils_get_error_string.restype = _ErrorString
+
+
+def gid_text(gid: bytes) -> str:
+    """A GID as ``ros2 topic info --verbose`` prints it."""
+    return ".".join(f"{b:02x}" for b in gid)
+
+
+class AnswerSubscription(Waitable):
+    """A subscription taken as serialized bytes with the publisher's GID: ``callback(data, gid)``."""
+
+    def __init__(self, node: Node, msg_type: type, topic: str, qos: QoSProfile,
+                 callback: Callable[[bytes, bytes], None]):
+        super().__init__(node.default_callback_group)
+        check_is_valid_msg_type(msg_type)      # also loads the type's support, as create_subscription does
+        with node.handle:
+            self.handle = _rclpy.Subscription(node.handle, msg_type, topic, qos.get_c_qos_profile())
+        self.topic_name = self.handle.get_topic_name()
+        self._pointer = self.handle.pointer
+        self._callback = callback
+        self._message = _Bytes()
+        allocator = _rcutils.rcutils_get_default_allocator()
+        if _rcutils.rcutils_uint8_array_init(ctypes.byref(self._message), 128, ctypes.byref(allocator)) != _RET_OK:
+            raise MemoryError(f"no buffer for {self.topic_name}'s messages")
+        self._info = _MessageInfo()
+        self._args = (self._pointer, ctypes.byref(self._message), ctypes.byref(self._info), None)
+        self._lock = threading.Lock()          # a take against the buffer's release
+        self._wait_set_index: Optional[int] = None
+        node.add_waitable(self)
+
+    def get_publisher_count(self) -> int:
+        return self.handle.get_publisher_count()
+
+    def take(self) -> Optional[tuple[bytes, bytes]]:
+        """The next message's bytes and its publisher's GID; None when there is none."""
+        with self._lock, self.handle:
+            if self._args is None:
+                return None
+            ret = _take(*self._args)
+            if ret == _RET_TAKE_FAILED:
+                return None
+            if ret != _RET_OK:
+                reason = _rcutils.rcutils_get_error_string().text.decode(errors="replace")
+                _rcutils.rcutils_reset_error()
+                raise RuntimeError(f"taking a message of {self.topic_name} failed: {reason} (rcl {ret})")
+            return (ctypes.string_at(self._message.buffer, self._message.buffer_length),
+                    bytes(self._info.publisher_gid.data))
+
+    def dispatch_ready(self) -> int:
+        """Take one message, if any, and run the callback on it (the lockstep executor's walk)."""
+        taken = self.take()
+        if taken is None:
+            return 0
+        self._callback(*taken)
+        return 1
+
+    def destroy(self, node: Node) -> None:
+        node.remove_waitable(self)
+        with self._lock:
+            self._args = None
+            _rcutils.rcutils_uint8_array_fini(ctypes.byref(self._message))
+        self.handle.destroy_when_not_in_use()
+
+    # --- the Waitable interface, for executors that wait on a wait set ------------------------
+
+    def __enter__(self):
+        self.handle.__enter__()
+
+    def __exit__(self, *exc) -> None:
+        self.handle.__exit__(*exc)
+
+    def get_num_entities(self) -> NumberOfEntities:
+        return NumberOfEntities(num_subs=1)
+
+    def add_to_wait_set(self, wait_set) -> None:
+        self._wait_set_index = wait_set.add_subscription(self.handle)
+
+    def is_ready(self, wait_set) -> bool:
+        return wait_set.is_ready("subscription", self._wait_set_index)
+
+    def take_data(self) -> None:
+        # The callback runs here, as the message is taken: the events executor would otherwise
+        # queue ``execute`` as a task behind whatever else is queued (a hung controller callback,
+        # say), and the answer would miss its tick. It is the simulator's own short callback.
+        self.dispatch_ready()
+
+    async def execute(self, taken: None) -> None:
+        pass

@@ -1,0 +1,91 @@
+"""A cmd_vel from a publisher that is not the robot's controller never moves the robot
+(ros/answer_subscription.py, SimulatorNode._from_controller)."""
+import csv
+import json
+import signal
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+FLOCKING = ROOT / "worlds" / "flocking.yaml"
+TICK_NS = 100_000_000      # flocking.yaml: 10 ticks per second
+
+# Another process in the run's domain. Once the run's /clock is on the wire (so after the run has
+# noted each robot's controller), it publishes on /bot0/cmd_vel, after every tick, an answer
+# stamped for the next tick. It arrives while the run is paced between two ticks, so it waits
+# in the subscription's queue ahead of the controller's own answer to that next tick: taken
+# without a check, it would be that tick's answer. It says "intruded" once 20 of its answers
+# went to a matched subscription.
+INTRUDER = textwrap.dedent("""
+    import sys, rclpy
+    from rclpy.context import Context
+    from rclpy.node import Node
+    from rclpy.executors import SingleThreadedExecutor
+    from geometry_msgs.msg import TwistStamped
+    from rosgraph_msgs.msg import Clock
+    from composed_sim.ros import contract as c
+    domain, tick_ns = int(sys.argv[1]), int(sys.argv[2])
+    context = Context(); rclpy.init(context=context, domain_id=domain)
+    node = Node("intruder", context=context)
+    publisher, sent = [], []
+    def on_clock(m):
+        if not publisher:
+            publisher.append(node.create_publisher(TwistStamped, "/bot0/cmd_vel", c.QOS))
+        msg = TwistStamped()
+        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(
+            m.clock.sec * 1_000_000_000 + m.clock.nanosec + tick_ns, 1_000_000_000)
+        msg.twist.linear.x, msg.twist.angular.z = 0.3, 2.5
+        if publisher[0].get_subscription_count() > 0:
+            sent.append(msg)
+            if len(sent) == 20:
+                print("intruded", flush=True)
+        publisher[0].publish(msg)
+    node.create_subscription(Clock, "/clock", on_clock, 10)
+    executor = SingleThreadedExecutor(context=context); executor.add_node(node)
+    while context.ok():
+        executor.spin_once(timeout_sec=0.05)
+""")
+
+
+def command(out: Path, domain: int, mode: str, *extra) -> list[str]:
+    return [sys.executable, "-m", "composed_sim.cli", "run", str(FLOCKING), "--robots", "4", "--seed", "3",
+            "--mode", mode, "--domain-id", str(domain), "--out", str(out), "--no-progress", "--no-picture", *extra]
+
+
+@pytest.mark.parametrize("mode", ["composed", "multi-process"])
+def test_a_foreign_cmd_vel_is_rejected_and_names_its_node(tmp_path, domain_id, mp_domain, mode):
+    domain = domain_id if mode == "composed" else mp_domain
+    intruder = subprocess.Popen([sys.executable, "-c", INTRUDER, str(domain), str(TICK_NS)], cwd=ROOT,
+                                stdout=subprocess.PIPE, text=True)
+    # A run far longer than needed, paced at 4× real time (25 ms between ticks, for the intruder's
+    # answers to arrive); stopped as a user would (Ctrl-C) once the intruder has done its part.
+    run = subprocess.Popen(command(tmp_path / "intruded", domain, mode, "--ticks", "100000", "--rate", "4"),
+                           cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    try:
+        assert intruder.stdout.readline().strip() == "intruded"
+        run.send_signal(signal.SIGINT)
+        assert run.wait(timeout=120) == 130, run.stderr.read()[-2000:]
+    finally:
+        for p in (intruder, run):
+            p.kill()
+            p.wait()
+    intruded = json.loads((tmp_path / "intruded" / "summary.json").read_text())
+    alone = subprocess.run(command(tmp_path / "alone", domain, mode, "--ticks", str(intruded["ticks"]), "--json"),
+                           cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert alone.returncode == 0 and json.loads(alone.stdout)["violations"] == 0, alone.stderr
+
+    with open(tmp_path / "intruded" / "violations.csv") as f:
+        rows = list(csv.DictReader(f))
+    assert len(rows) >= 10, rows       # the intruder's answers reached the run (some after it stopped)
+    assert {r["robot"] for r in rows} == {"bot0"}
+    assert all(r["reason"].startswith("cmd_vel from node /intruder (publisher GID ")
+               and r["reason"].endswith("which is not bot0's controller: rejected") for r in rows), rows[0]
+    assert len({r["tick"] for r in rows}) == len(rows)            # once per tick and publisher
+    assert intruded["failed_robots"] == []
+    with np.load(tmp_path / "intruded" / "trajectories.npz") as a, np.load(tmp_path / "alone" / "trajectories.npz") as b:
+        assert np.array_equal(a["positions"], b["positions"]) and np.array_equal(a["headings"], b["headings"])
