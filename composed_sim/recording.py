@@ -54,6 +54,7 @@ from typing import TYPE_CHECKING, Any, Iterable, Optional
 
 import numpy as np
 
+from composed_sim.core.poses import checked_poses
 from composed_sim.world.robot_models import display_colors
 from composed_sim.ros.global_topics import CLOCK_TOPIC, SWARM_STATE_TOPIC
 from composed_sim.ros.global_topics import WORLD_FRAME as FRAME_ID
@@ -286,12 +287,7 @@ class BagRecorder:
         """/swarm/state: positions [n, 2] m, headings [n] rad, led_colors [n, L, 3] or [n, 3]
         uint8 (None: no LED lit). n must equal ``len(robot_names)``."""
         n = len(self.robot_names)
-        p = np.asarray(positions, dtype=float)
-        h = np.asarray(headings, dtype=float)
-        if p.shape != (n, 2):
-            raise ValueError(f"positions must be [{n}, 2], got shape {p.shape}")
-        if h.shape != (n,):
-            raise ValueError(f"headings must be [{n}], got shape {h.shape}")
+        p, h = checked_poses(n, positions, headings)
         pts = self._points
         pts["x"], pts["y"], pts["yaw"] = p[:, 0], p[:, 1], h
         if led_colors is None:

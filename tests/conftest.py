@@ -21,6 +21,17 @@ def domain_id() -> int:
 
 
 @pytest.fixture
+def ros_context(domain_id):
+    """An rclpy context of its own in this test process's domain, shut down after the test."""
+    import rclpy
+    from rclpy.context import Context
+    context = Context()
+    rclpy.init(context=context, domain_id=domain_id)
+    yield context
+    rclpy.shutdown(context=context)
+
+
+@pytest.fixture
 def mp_domain() -> int:
     """First of up to 4 domains for this test process, outside the 1 … 100 of ROS_DOMAIN_ID, so
     the composed run of a comparison never shares a domain with a multi-process run's children."""

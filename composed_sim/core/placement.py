@@ -13,6 +13,7 @@ import math
 import numpy as np
 from scipy.spatial import cKDTree
 
+from composed_sim.core.poses import wrap_angle
 from composed_sim.world.robot_models import get_model
 from composed_sim.world.schema import Box, Cylinder, Placement, RobotGroup, World
 
@@ -255,6 +256,3 @@ def _draw_headings(group: RobotGroup, rng: np.random.Generator) -> np.ndarray:
     return wrap_angle(np.full(k, h.value_rad))
 
 
-def wrap_angle(a: np.ndarray) -> np.ndarray:
-    """Angles mapped to (-pi, pi]."""
-    return np.pi - np.mod(np.pi - a, 2 * np.pi)

@@ -24,7 +24,8 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from composed_sim.core.geometry import StaticScene
-from composed_sim.core.sensors import _pair_order, blocked_by_robots, wrap_angle
+from composed_sim.core.poses import wrap_angle
+from composed_sim.core.sensors import _pair_order, blocked_by_robots
 
 Mode = Literal["local", "global"]
 

@@ -22,6 +22,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from composed_sim.core.geometry import StaticScene, ray_circle_distance, segments_blocked_by_cylinders
+from composed_sim.core.poses import wrap_angle
 from composed_sim.world.robot_models import LightRing, ProximityRing
 from composed_sim.world.schema import Light
 
@@ -34,12 +35,6 @@ _BLOB_CHUNK = 1 << 20
 
 # Occlusion search: sample spacing along a segment, in robot radii (see blocked_by_robots).
 _SPACING_RADII = 4.0
-
-
-def wrap_angle(a: np.ndarray) -> np.ndarray:
-    """Angles [any shape] wrapped to (-pi, pi]."""
-    w = a - 2.0 * math.pi * np.floor((a + math.pi) / (2.0 * math.pi))   # np.mod is ~7x slower
-    return np.where(w <= -math.pi, w + 2.0 * math.pi, w)
 
 
 def footbot_proximity_reading(distances: np.ndarray) -> np.ndarray:

@@ -154,12 +154,35 @@ CLOCK_TYPE = Clock
 
 # One point per blob. float32 coordinates are ample for a camera with cm-level range.
 BLOB_DTYPE = np.dtype([("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("rgb", "<u4")])
-BLOB_FIELDS = [
-    PointField(name="x", offset=0, datatype=PointField.FLOAT32, count=1),
-    PointField(name="y", offset=4, datatype=PointField.FLOAT32, count=1),
-    PointField(name="z", offset=8, datatype=PointField.FLOAT32, count=1),
-    PointField(name="rgb", offset=12, datatype=PointField.UINT32, count=1),
-]
+_POINT_FIELD_TYPES = {np.dtype("<f4"): PointField.FLOAT32, np.dtype("<u4"): PointField.UINT32,
+                      np.dtype("u1"): PointField.UINT8}
+
+
+def point_fields(dtype: np.dtype) -> list[PointField]:
+    """A PointCloud2's fields for points laid out as ``dtype`` (an array field: its count)."""
+    fields = []
+    for name in dtype.names:
+        field_type, offset = dtype.fields[name][:2]
+        fields.append(PointField(name=name, offset=offset, datatype=_POINT_FIELD_TYPES[field_type.base],
+                                 count=int(np.prod(field_type.shape, dtype=int))))
+    return fields
+
+
+def point_cloud(robot: str, dtype: np.dtype, width: int = 0) -> PointCloud2:
+    """A PointCloud2 in ``robot``'s base_link for ``width`` points laid out as ``dtype``."""
+    msg = PointCloud2()
+    msg.header.frame_id = base_link(robot)
+    msg.height = 1
+    msg.width = width
+    msg.fields = point_fields(dtype)
+    msg.is_bigendian = False
+    msg.point_step = dtype.itemsize
+    msg.row_step = dtype.itemsize * width
+    msg.is_dense = True
+    return msg
+
+
+BLOB_FIELDS = point_fields(BLOB_DTYPE)
 
 
 def topic_name(robot: str, topic: Topic) -> str:
@@ -252,14 +275,7 @@ def fill_light(msg: LaserScan, stamp: Time, readings: np.ndarray) -> None:
 
 
 def blob_cloud(robot: str) -> PointCloud2:
-    msg = PointCloud2()
-    msg.header.frame_id = base_link(robot)
-    msg.height = 1
-    msg.fields = BLOB_FIELDS
-    msg.is_bigendian = False
-    msg.point_step = BLOB_DTYPE.itemsize
-    msg.is_dense = True
-    return msg
+    return point_cloud(robot, BLOB_DTYPE)
 
 
 def fill_blobs(msg: PointCloud2, stamp: Time, points: np.ndarray) -> None:
@@ -303,25 +319,10 @@ def twist_stamped(stamp: Time, linear: float, angular: float) -> TwistStamped:
 
 # Ground sensors: one point per sensor. The positions are fixed; only the intensities change.
 GROUND_DTYPE = np.dtype([("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("intensity", "<f4")])
-GROUND_FIELDS = [
-    PointField(name="x", offset=0, datatype=PointField.FLOAT32, count=1),
-    PointField(name="y", offset=4, datatype=PointField.FLOAT32, count=1),
-    PointField(name="z", offset=8, datatype=PointField.FLOAT32, count=1),
-    PointField(name="intensity", offset=12, datatype=PointField.FLOAT32, count=1),
-]
 
 
 def ground_cloud(robot: str, n_sensors: int) -> PointCloud2:
-    msg = PointCloud2()
-    msg.header.frame_id = base_link(robot)
-    msg.height = 1
-    msg.width = n_sensors
-    msg.fields = GROUND_FIELDS
-    msg.is_bigendian = False
-    msg.point_step = GROUND_DTYPE.itemsize
-    msg.row_step = GROUND_DTYPE.itemsize * n_sensors
-    msg.is_dense = True
-    return msg
+    return point_cloud(robot, GROUND_DTYPE, n_sensors)
 
 
 def ground_points(offsets_m: np.ndarray, readings: np.ndarray) -> np.ndarray:
@@ -366,18 +367,7 @@ def rab_dtype(payload_bytes: int) -> np.dtype:
 
 
 def rab_cloud(robot: str, payload_bytes: int) -> PointCloud2:
-    dtype = rab_dtype(payload_bytes)
-    msg = PointCloud2()
-    msg.header.frame_id = base_link(robot)
-    msg.height = 1
-    msg.fields = [PointField(name=name, offset=dtype.fields[name][1], datatype=PointField.FLOAT32, count=1)
-                  for name in ("x", "y", "z", "range", "bearing", "elevation")] + [
-        PointField(name="payload", offset=dtype.fields["payload"][1], datatype=PointField.UINT8,
-                   count=payload_bytes)]
-    msg.is_bigendian = False
-    msg.point_step = dtype.itemsize
-    msg.is_dense = True
-    return msg
+    return point_cloud(robot, rab_dtype(payload_bytes))
 
 
 def rab_points(ranges: np.ndarray, bearings: np.ndarray, elevations: np.ndarray,

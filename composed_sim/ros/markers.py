@@ -42,6 +42,7 @@ from std_msgs.msg import ColorRGBA
 from visualization_msgs.msg import Marker, MarkerArray
 
 from composed_sim.core.geometry import StaticScene
+from composed_sim.core.poses import checked_poses
 from composed_sim.world.robot_models import display_colors
 from composed_sim.ros.contract import SWARM_MARKERS_TOPIC
 from composed_sim.ros.contract import WORLD_FRAME as FRAME_ID
@@ -182,12 +183,7 @@ class _Geometry:
 
 def _geometry(names, positions, headings, led_colors, radius, height) -> _Geometry:
     n = len(names)
-    p = np.asarray(positions, dtype=float)
-    h = np.asarray(headings, dtype=float)
-    if p.shape != (n, 2):
-        raise ValueError(f"positions must be [{n}, 2] for {n} names, got shape {p.shape}")
-    if h.shape != (n,):
-        raise ValueError(f"headings must be [{n}], got shape {h.shape}")
+    p, h = checked_poses(n, positions, headings)
     radius = np.broadcast_to(np.asarray(radius, dtype=float), (n,))
     if not np.all(radius > 0):
         raise ValueError(f"radius must be > 0 m (got {radius.min()})")

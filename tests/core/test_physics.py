@@ -12,7 +12,7 @@ import sys
 import numpy as np
 import pytest
 
-from composed_sim.core.physics import PhysicsWorld, wrap_angle
+from composed_sim.core.physics import PhysicsWorld
 from composed_sim.world.robot_models import FOOTBOT
 from composed_sim.world.schema import World
 
@@ -61,12 +61,6 @@ def test_initial_poses_round_trip_and_wrap():
     np.testing.assert_allclose(h, [0.25, 4.0 - 2 * math.pi], atol=1e-12)
     v, w = pw.velocities()
     assert v.shape == (2, 2) and w.shape == (2,) and not v.any() and not w.any()
-
-
-def test_wrap_angle_half_open_interval():
-    a = np.array([math.pi, -math.pi, 3 * math.pi, 0.0, -0.5, 7.0])
-    np.testing.assert_allclose(wrap_angle(a), [math.pi, math.pi, math.pi, 0.0, -0.5, 7.0 - 2 * math.pi],
-                               atol=1e-12)
 
 
 def test_straight_line():

@@ -1,22 +1,11 @@
 """The simulator node's answer window: a tick closes once every robot still expected has answered."""
 import math
 
-import pytest
 from geometry_msgs.msg import TwistStamped
 
 from composed_sim.core.simulation import Simulation
 from composed_sim.ros import contract as c
 from composed_sim.world.loader import world_from_dict
-
-
-@pytest.fixture
-def ros_context(domain_id):
-    import rclpy
-    from rclpy.context import Context
-    context = Context()
-    rclpy.init(context=context, domain_id=domain_id)
-    yield context
-    rclpy.shutdown(context=context)
 
 
 def test_a_robot_failed_by_its_answer_does_not_close_the_tick_for_the_others(ros_context):

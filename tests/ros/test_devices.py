@@ -150,16 +150,6 @@ def take(sub):
     return taken[0]
 
 
-@pytest.fixture
-def ros_context(domain_id):
-    import rclpy
-    from rclpy.context import Context
-    ctx = Context()
-    rclpy.init(context=ctx, domain_id=domain_id)
-    yield ctx
-    rclpy.shutdown(context=ctx)
-
-
 def test_a_node_serving_some_rows_of_a_mixed_swarm_publishes_each_robot_its_own_readings(ros_context):
     """As a multi-process domain does: rows from three groups; each topic carries that robot's row
     of its group's arrays, and a robot has no topic of a device it does not run."""

@@ -2,42 +2,31 @@
 ordinary wait set still serving what direct takes cannot (timers)."""
 import time
 
-import pytest
-import rclpy
-from rclpy.context import Context
 from rclpy.node import Node
 from std_msgs.msg import Int32
 
 from composed_sim.ros.lockstep_executor import LockstepExecutor
 
 
-@pytest.fixture
-def context(domain_id):
-    ctx = Context()
-    rclpy.init(context=ctx, domain_id=domain_id)
-    yield ctx
-    rclpy.shutdown(context=ctx)
-
-
 def quiet_node(name, ctx):
     return Node(name, context=ctx, start_parameter_services=False, enable_rosout=False)
 
 
-def test_callbacks_run_in_node_order_and_answers_are_taken_in_the_same_pass(context):
-    executor = LockstepExecutor(context=context)
+def test_callbacks_run_in_node_order_and_answers_are_taken_in_the_same_pass(ros_context):
+    executor = LockstepExecutor(context=ros_context)
     seen = []
-    source = quiet_node("source", context)
+    source = quiet_node("source", ros_context)
     pub = source.create_publisher(Int32, "/tick", 10)
     workers = []
     for k in (2, 0, 1):                          # added in this order, not by name
-        node = quiet_node(f"worker{k}", context)
+        node = quiet_node(f"worker{k}", ros_context)
         answer = node.create_publisher(Int32, f"/answer{k}", 10)
         node.create_subscription(Int32, "/tick",
                                  lambda msg, k=k, answer=answer: (seen.append(("work", k)),
                                                                   answer.publish(Int32(data=k))), 10)
         workers.append(node)
         executor.add_node(node)
-    collector = quiet_node("collector", context)
+    collector = quiet_node("collector", ros_context)
     for k in range(3):
         collector.create_subscription(Int32, f"/answer{k}", lambda msg: seen.append(("answer", msg.data)), 10)
     executor.add_node(collector)
@@ -56,9 +45,9 @@ def test_callbacks_run_in_node_order_and_answers_are_taken_in_the_same_pass(cont
     executor.shutdown()
 
 
-def test_timers_still_fire_through_the_wait_set(context):
-    executor = LockstepExecutor(context=context)
-    node = quiet_node("timed", context)
+def test_timers_still_fire_through_the_wait_set(ros_context):
+    executor = LockstepExecutor(context=ros_context)
+    node = quiet_node("timed", ros_context)
     fired = []
     node.create_timer(0.01, lambda: fired.append(1))
     executor.add_node(node)
