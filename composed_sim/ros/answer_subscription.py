@@ -17,7 +17,8 @@ from __future__ import annotations
 
 import ctypes
 import threading
-from typing import Callable, Optional
+import time
+from typing import Callable, Optional, Sequence
 
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
@@ -25,7 +26,12 @@ from rclpy.qos import QoSProfile
 from rclpy.type_support import check_is_valid_msg_type
 from rclpy.waitable import NumberOfEntities, Waitable
 
+from composed_sim.ros import contract as c
+
 _GID_BYTES = 16                      # RMW_GID_STORAGE_SIZE
+# How long noting the controllers waits for the ROS graph to list a matched controller's cmd_vel
+# publisher (the graph and the match are updated by the same discovery, a moment apart at most).
+NOTE_WAIT_S = 2.0
 _RET_OK, _RET_TAKE_FAILED = 0, 401   # RCL_RET_OK, RCL_RET_SUBSCRIPTION_TAKE_FAILED (nothing to take)
 
 
@@ -153,3 +159,56 @@ class AnswerSubscription(Waitable):
 
     async def execute(self, taken: None) -> None:
         pass
+
+
+class ControllerPublishers:
+    """Per robot, the GIDs of its controller's cmd_vel publishers: those the ROS graph lists on the
+    robot's topic when the first tick opens (the run owns its domain by then:
+    hosts/domain_claim.py). Answers from any other publisher are not the controller's."""
+
+    def __init__(self, node: Node, subscriptions: Sequence[Optional[AnswerSubscription]],
+                 answer_types: Sequence[Optional[type]]):
+        self._node = node
+        self._subscriptions = subscriptions     # the node's lists, filled as answer types become known
+        self._answer_types = answer_types
+        self._gids: Optional[list[Optional[frozenset[bytes]]]] = None
+        self._names: dict[bytes, str] = {}
+
+    @property
+    def noted(self) -> bool:
+        return self._gids is not None
+
+    def note(self) -> None:
+        gids: list[Optional[frozenset[bytes]]] = [None] * len(self._subscriptions)
+        deadline = time.monotonic() + NOTE_WAIT_S
+        while True:
+            for i, sub in enumerate(self._subscriptions):
+                if gids[i] is None and sub is not None:
+                    type_name = c.type_name(self._answer_types[i])
+                    gids[i] = frozenset(_gid(info) for info in self._node.get_publishers_info_by_topic(sub.topic_name)
+                                        if info.topic_type == type_name) or None
+            if all(g is not None or s is None for g, s in zip(gids, self._subscriptions)) or time.monotonic() > deadline:
+                break
+            time.sleep(0.01)
+        # A robot whose publisher the graph never listed (a controller without one fails on its
+        # own) stays un-noted: its answers are not checked.
+        self._gids = gids
+
+    def accepts(self, i: int, gid: bytes) -> bool:
+        """May this publisher answer for robot i? (Anyone, until the controllers are noted.)"""
+        gids = None if self._gids is None else self._gids[i]
+        return gids is None or gid in gids
+
+    def describe(self, i: int, gid: bytes) -> str:
+        """A publisher on robot i's cmd_vel: its node and GID, for a violation."""
+        if gid not in self._names:
+            nodes = [f"{info.node_namespace.rstrip('/')}/{info.node_name}"
+                     for info in self._node.get_publishers_info_by_topic(self._subscriptions[i].topic_name)
+                     if _gid(info) == gid]
+            self._names[gid] = f"node {nodes[0]} (publisher GID {gid_text(gid)})" if nodes \
+                else f"a publisher no longer in the ROS graph (GID {gid_text(gid)})"
+        return self._names[gid]
+
+
+def _gid(info) -> bytes:
+    return bytes(info.endpoint_gid)[:_GID_BYTES]

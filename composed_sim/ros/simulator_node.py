@@ -23,7 +23,7 @@ from composed_sim.world.schema import Lockstep
 if TYPE_CHECKING:   # only a type here: a controller process must not import the physics
     from composed_sim.core.simulation import SensorFrame
 from composed_sim.ros import cdr, contract as c, decoding
-from composed_sim.ros.answer_subscription import AnswerSubscription, gid_text
+from composed_sim.ros.answer_subscription import AnswerSubscription, ControllerPublishers
 from composed_sim.ros.device_publishing import DevicePublishing, GroupPlan, csr_take
 from composed_sim.ros.frames import RobotFrames
 from composed_sim.ros.robot_settings import quiet_node_options
@@ -41,9 +41,6 @@ class AnswerTypeError(Exception):
 
 LATE_LEDS = "leds answering an earlier tick arrived after that tick closed: applied one tick late"
 LATE_RAB = "rab_tx answering an earlier tick arrived after that tick closed: applied one tick late"
-# How long the first tick waits for the ROS graph to list a matched controller's cmd_vel publisher
-# (the graph and the match are updated by the same discovery, a moment apart at most).
-PIN_WAIT_S = 2.0
 
 
 class SimulatorNode(DevicePublishing, Node):
@@ -106,13 +103,10 @@ class SimulatorNode(DevicePublishing, Node):
         self._frames = RobotFrames(self, names, models, self._devices, global_tf)
         self._led_subs, self._rab_subs = [], [None] * n
         self._cmd_subs: list[Optional[AnswerSubscription]] = [None] * n   # per robot, once its answer type is known
-        # Per robot, the GIDs of its controller's cmd_vel publishers: those on the topic when the
-        # first tick opens (a run owns its domain by then: hosts/domain_claim.py). None until then.
-        self._owners: Optional[list[Optional[frozenset[bytes]]]] = None
-        self._foreign_noted: set[tuple[int, bytes]] = set()   # (robot, GID) recorded this tick
-        self._foreign_names: dict[bytes, str] = {}
         self._answer_types: list[Optional[type]] = [c.CMD_VEL.msg_type] * n if answer_types is None \
             else list(answer_types)
+        self._controllers = ControllerPublishers(self, self._cmd_subs, self._answer_types)
+        self._foreign_noted: set[tuple[int, bytes]] = set()   # (robot, GID) recorded this tick
         self._every = None if answers_every_ticks is None or all(k == 1 for k in answers_every_ticks) \
             else np.asarray(answers_every_ticks)
         for i, (name, model) in enumerate(zip(names, models)):
@@ -196,44 +190,18 @@ class SimulatorNode(DevicePublishing, Node):
         found = [*self.publishers, *(s for s in self._cmd_subs if s is not None), *self._inbox.subscriptions]
         return {e.topic_name: e for e in found if e.topic_name != c.CLOCK_TOPIC}
 
-    def _pin_answer_publishers(self) -> None:
-        """Note each robot's controller: the cmd_vel publishers the ROS graph lists for it now."""
-        owners: list[Optional[frozenset[bytes]]] = [None] * len(self._names)
-        deadline = time.monotonic() + PIN_WAIT_S
-        while True:
-            for i in [i for i, o in enumerate(owners) if o is None and self._cmd_subs[i] is not None]:
-                found = frozenset(bytes(info.endpoint_gid)[:16] for info in self.get_publishers_info_by_topic(
-                    self._cmd_subs[i].topic_name) if info.topic_type == c.type_name(self._answer_types[i]))
-                owners[i] = found or None
-            if all(o is not None or s is None for o, s in zip(owners, self._cmd_subs)) or time.monotonic() > deadline:
-                break
-            time.sleep(0.01)
-        # A robot whose publisher the graph never listed (a controller without one fails on
-        # its own) stays unpinned: its answers are not checked.
-        self._owners = owners
-
     def _from_controller(self, i: int, gid: bytes) -> bool:
         """Is this answer from robot i's controller? One from any other publisher is rejected and
         recorded once per tick and publisher; it does not count against the robot's
         max_violations (its controller did nothing wrong)."""
-        owners = None if self._owners is None else self._owners[i]
-        if owners is None or gid in owners:
+        if self._controllers.accepts(i, gid):
             return True
         with self._lock:
             if (i, gid) not in self._foreign_noted:
                 self._foreign_noted.add((i, gid))
-                self._record(self._current_tick, i, f"cmd_vel from {self._publisher_name(i, gid)}, which is not "
-                             f"{self._names[i]}'s controller: rejected", counts=False)
+                self._record(self._current_tick, i, f"cmd_vel from {self._controllers.describe(i, gid)}, which is "
+                             f"not {self._names[i]}'s controller: rejected", counts=False)
         return False
-
-    def _publisher_name(self, i: int, gid: bytes) -> str:
-        if gid not in self._foreign_names:
-            nodes = [f"{info.node_namespace.rstrip('/')}/{info.node_name}"
-                     for info in self.get_publishers_info_by_topic(self._cmd_subs[i].topic_name)
-                     if bytes(info.endpoint_gid)[:16] == gid]
-            self._foreign_names[gid] = f"node {nodes[0]} (publisher GID {gid_text(gid)})" if nodes \
-                else f"a publisher no longer in the ROS graph (GID {gid_text(gid)})"
-        return self._foreign_names[gid]
 
     def _publisher(self, robot: str, topic: c.Topic):
         return self.create_publisher(topic.msg_type, c.topic_name(robot, topic), c.QOS,
@@ -315,8 +283,8 @@ class SimulatorNode(DevicePublishing, Node):
     def publish_tick(self, frame: SensorFrame) -> None:
         """Publish /clock and every robot's sensors for ``frame.tick``; open the answer window."""
         stamp = c.stamp_of(frame.tick, self._tick_ns)
-        if self._owners is None:
-            self._pin_answer_publishers()
+        if not self._controllers.noted:
+            self._controllers.note()
         with self._lock:
             self._foreign_noted.clear()
             # Robots answering every k-th tick are settled, keeping their last command, in between.
