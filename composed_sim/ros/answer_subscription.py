@@ -97,6 +97,7 @@ class AnswerSubscription(Waitable):
             raise MemoryError(f"no buffer for {self.topic_name}'s messages")
         self._info = _MessageInfo()
         self._args = (self._pointer, ctypes.byref(self._message), ctypes.byref(self._info), None)
+        self._gid_at = ctypes.addressof(self._info) + _MessageInfo.publisher_gid.offset + _Gid.data.offset
         self._lock = threading.Lock()          # a take against the buffer's release
         self._wait_set_index: Optional[int] = None
         node.add_waitable(self)
@@ -106,7 +107,7 @@ class AnswerSubscription(Waitable):
 
     def take(self) -> Optional[tuple[bytes, bytes]]:
         """The next message's bytes and its publisher's GID; None when there is none."""
-        with self._lock, self.handle:
+        with self._lock:     # the handle too is destroyed only under it (``destroy``)
             if self._args is None:
                 return None
             ret = _take(*self._args)
@@ -116,8 +117,8 @@ class AnswerSubscription(Waitable):
                 reason = _rcutils.rcutils_get_error_string().text.decode(errors="replace")
                 _rcutils.rcutils_reset_error()
                 raise RuntimeError(f"taking a message of {self.topic_name} failed: {reason} (rcl {ret})")
-            return (ctypes.string_at(self._message.buffer, self._message.buffer_length),
-                    bytes(self._info.publisher_gid.data))
+            message = self._message
+            return ctypes.string_at(message.buffer, message.buffer_length), ctypes.string_at(self._gid_at, _GID_BYTES)
 
     def dispatch_ready(self) -> int:
         """Take one message, if any, and run the callback on it (the lockstep executor's walk)."""
@@ -132,7 +133,7 @@ class AnswerSubscription(Waitable):
         with self._lock:
             self._args = None
             _rcutils.rcutils_uint8_array_fini(ctypes.byref(self._message))
-        self.handle.destroy_when_not_in_use()
+            self.handle.destroy_when_not_in_use()
 
     # --- the Waitable interface, for executors that wait on a wait set ------------------------
 
