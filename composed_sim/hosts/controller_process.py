@@ -25,6 +25,7 @@ from composed_sim.hosts.processes import die_with_parent
 
 READY_TIMEOUT_S = 120.0
 EXIT_SETUP = 3          # the controller could not be built; the reason is on stderr
+CLEANUP_LIMIT_S = 5         # s from the end of the work to a forced exit (SIGALRM)
 
 
 def parse(argv: list[str] | None) -> argparse.Namespace:
@@ -101,6 +102,10 @@ def main(argv: list[str] | None = None) -> int:
                 pass
         return 0
     finally:
+        # A bound on the clean-up: a DDS call that waits on a peer that died with the simulator
+        # (its shared-memory port, say) must not keep this process alive. SIGALRM has no handler
+        # here, so the kernel ends the process even while a C call holds the interpreter.
+        signal.alarm(CLEANUP_LIMIT_S)
         if executor is not None:
             executor.shutdown(timeout_sec=1.0)
         if spinner is not None:
