@@ -36,10 +36,11 @@ def measure(robots: int, ticks: int, *, blobs: int = 50, domain_id: int = 0,
 
     from composed_sim.world.robot_models import FOOTBOT
     from composed_sim.ros import contract as c
+    from composed_sim.ros.devices import camera, light as light_ring
     from composed_sim.ros.robot_settings import quiet_node_options
 
-    light = c.light_encoder(FOOTBOT, "bot0").encode(1, 0, np.zeros(len(FOOTBOT.light.angles_rad)))
-    blob_cloud = c.blobs_encoder("bot0").encode(1, 0, bytes(c.BLOB_DTYPE.itemsize * blobs), blobs)
+    light = light_ring.encoder(FOOTBOT, "bot0").encode(1, 0, np.zeros(len(FOOTBOT.light.angles_rad)))
+    blob_cloud = camera.encoder("bot0").encode(1, 0, bytes(camera.BLOB_DTYPE.itemsize * blobs), blobs)
     answer = c.answer_encoder().encode(1, 0, 0.1, 0.2)
     contexts, exchange = [], []
     try:

@@ -28,12 +28,12 @@ from composed_sim.core.odometry import (Odometry, PoseReadings, WheelActuator, W
 from composed_sim.core.physics import PhysicsWorld
 from composed_sim.core.placement import place_robots
 from composed_sim.core.range_and_bearing import RangeAndBearingReadings, range_and_bearing
-from composed_sim.world.robot_models import (CAMERA, GROUND, LIDAR, LIGHT, PROXIMITY, RANGE_AND_BEARING,
-                                            RobotModel, get_model)
+from composed_sim.world.robot_models import (CAMERA, DIFFERENTIAL_STEERING, GROUND, LIDAR, LIGHT, POSITIONING,
+                                            PROXIMITY, RANGE_AND_BEARING, RobotModel, get_model)
 from composed_sim.core.seeding import STREAM_PLACEMENT, device_rng, stream
 from composed_sim.core.sensors import (BlobReadings, blob_camera, led_world_positions, light_ring,
                                        proximity_ring)
-from composed_sim.world.schema import Box, World
+from composed_sim.world.schema import SWITCHED_DEVICES, Box, World
 
 
 @dataclass
@@ -187,9 +187,9 @@ class Simulation:
         # [n, L, 3]; a model with fewer LEDs has black (never seen) padding at the end.
         self.led_colors = np.zeros((self.n, n_leds, 3), dtype=np.uint8)   # all LEDs start off
 
+        # One noise generator per device (and the wheels' actuator), seeded by its name.
         self._rngs = {name: device_rng(world.seed, name) for name in
-                      (PROXIMITY, LIGHT, CAMERA, GROUND, LIDAR, RANGE_AND_BEARING, "wheels",
-                       "differential_steering", "positioning")}
+                      (*SWITCHED_DEVICES, "wheels", DIFFERENTIAL_STEERING, POSITIONING)}
         wheels = [world.robots[g].devices.wheels for g in world.group_of_robot()]
         noise = WheelNoise(*(np.array([getattr(w, f) for w in wheels], dtype=np.float64).reshape(self.n)
                              for f in ("bias_mean_mps", "bias_std_mps", "factor_mean", "factor_std")))
@@ -281,7 +281,7 @@ class Simulation:
         self._wheels = differential_steering(*self._applied, self.world.tick_s, self.wheel_separation_m,
                                              velocity_noise_mps=self._wheel_sensor_noise[0],
                                              distance_noise_m=self._wheel_sensor_noise[1],
-                                             rng=self._rngs["differential_steering"])
+                                             rng=self._rngs[DIFFERENTIAL_STEERING])
         self.odometry.update(self._wheels)
         self.times.physics_s += time.perf_counter() - t0
         return self.sense(media=True)
@@ -340,7 +340,7 @@ class Simulation:
                                        noise_std_m=cfg(LIDAR).noise_std_m, rng=self._rngs[LIDAR], tree=tree)
             groups.append(out)
         pose = positioning(p, h, position_noise_m=self._pose_noise[0], yaw_noise_rad=self._pose_noise[1],
-                           rng=self._rngs["positioning"])
+                           rng=self._rngs[POSITIONING])
         frame = SensorFrame(self.tick, groups, pose, self._wheels, self.odometry.pose.copy(),
                             self.odometry.twist(self._wheels), self._rab)
         self.times.sensing_s += time.perf_counter() - t0

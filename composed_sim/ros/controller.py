@@ -15,9 +15,10 @@ from rclpy.parameter import Parameter
 
 from composed_sim.world.robot_models import RobotModel, get_model
 from composed_sim.core.seeding import robot_rng
-from composed_sim.ros import cdr, contract as c, decoding
-
-_TAKEN_AS_BYTES = ("proximity", "light", "blobs")   # the sensors with decoders of their bytes
+from composed_sim.ros import cdr, contract as c
+from composed_sim.ros.devices import BY_SENSOR_TOPIC, range_and_bearing
+from composed_sim.ros.devices.camera import Blobs
+from composed_sim.ros.devices.range_and_bearing import RabMessages
 
 # Parameters every hosted controller is given (a plain Node may ignore them).
 PARAM_ROBOT_MODEL = "robot_model"
@@ -34,10 +35,10 @@ class Tick:
     proximity: Optional[np.ndarray] = None            # [k] readings in [0, 1]
     proximity_distances: Optional[np.ndarray] = None  # [k] m from the rim, inf = nothing
     light: Optional[np.ndarray] = None                # [k] readings in [0, 1]
-    blobs: Optional[decoding.Blobs] = None
+    blobs: Optional[Blobs] = None
     ground: Optional[np.ndarray] = None               # [s] floor grey levels in [0, 1]
     scan: Optional[np.ndarray] = None                 # [r] LiDAR ranges, m from the mount (±inf: REP-117)
-    rab: Optional[decoding.RabMessages] = None               # range-and-bearing messages heard this tick
+    rab: Optional[RabMessages] = None                 # range-and-bearing messages heard this tick
     pose: Optional[np.ndarray] = None                 # [3] x, y (m), yaw (rad) in the world frame
     odom: Optional[np.ndarray] = None                 # [3] x, y, yaw in the robot's odom frame
     odom_twist: Optional[np.ndarray] = None           # [2] linear m/s, angular rad/s
@@ -70,20 +71,21 @@ class SwarmController(Node):
         self._leds_dirty = False
         self._pending: dict[str, object] = {}
         self._pending_key = -1
-        # The flocking set of sensors is taken, and answers are published, as serialized bytes
-        # decoded straight into arrays (cdr.py): the same messages, without building Python
-        # message objects. The other devices' messages arrive as objects.
+        self._init_devices()
+        # Each sensor is read by its device (ros/devices/); the flocking set is taken as serialized
+        # bytes, and answers are published as bytes (cdr.py): the same messages, without building
+        # Python message objects.
+        self._readers = {name: BY_SENSOR_TOPIC[name].reader(self.model) for name in self.sensors}
+        self._bytes_sensors = frozenset(name for name in self.sensors if BY_SENSOR_TOPIC[name].taken_as_bytes)
         for name in self.sensors:
             topic = c.TOPICS[name]
             self.create_subscription(topic.msg_type, topic.name, lambda data, name=name: self._on_sensor(name, data),
-                                     c.QOS, raw=name in _TAKEN_AS_BYTES, event_callbacks=c.SUBSCRIPTION_EVENTS)
+                                     c.QOS, raw=name in self._bytes_sensors, event_callbacks=c.SUBSCRIPTION_EVENTS)
         self._cmd_pub = self.create_publisher(c.CMD_VEL.msg_type, c.CMD_VEL.name, c.QOS,
                                               event_callbacks=c.PUBLISHER_EVENTS)
         self._answer_encoder = c.answer_encoder()
-        self._blobs_decoder = cdr.CloudDecoder()
         self._led_pub = self.create_publisher(c.LEDS.msg_type, c.LEDS.name, c.QOS,
                                               event_callbacks=c.PUBLISHER_EVENTS)
-        self._init_devices()
 
     # --- for subclasses ---------------------------------------------------------------------
 
@@ -101,7 +103,7 @@ class SwarmController(Node):
     # --- the tick exchange ------------------------------------------------------------------
 
     def _on_sensor(self, name: str, data) -> None:
-        key = cdr.stamp_ns(data) if name in _TAKEN_AS_BYTES else c.stamp_key(data.header.stamp)
+        key = cdr.stamp_ns(data) if name in self._bytes_sensors else c.stamp_key(data.header.stamp)
         if key != self._pending_key:     # a new tick: whatever was left of an older one is stale
             self._pending.clear()
             self._pending_key = key
@@ -113,14 +115,8 @@ class SwarmController(Node):
         msgs, self._pending = self._pending, {}
         sec, nanosec = divmod(self._pending_key, 1_000_000_000)
         tick = Tick(stamp=Time(sec=sec, nanosec=nanosec), time_s=sec + nanosec * 1e-9)
-        if "proximity" in msgs:
-            tick.proximity_distances, tick.proximity = decoding.decode_proximity_cdr(msgs["proximity"])
-        if "light" in msgs:
-            tick.light = decoding.decode_light_cdr(msgs["light"])
-        if "blobs" in msgs:
-            tick.blobs = decoding.decode_blobs_cdr(msgs["blobs"], self._blobs_decoder)
-        if self._device_sensors:
-            self._decode_devices(msgs, tick)
+        for name, data in msgs.items():
+            self._readers[name](data, tick)
         linear, angular = self.on_tick(tick)
         if self._leds_dirty:   # before the answer, so the change lands on the same tick
             self._led_pub.publish(c.led_message(self._leds))
@@ -130,7 +126,7 @@ class SwarmController(Node):
             self._rab_msg = None
         self._cmd_pub.publish(self._answer_encoder.encode(sec, nanosec, float(linear), float(angular)))
 
-    # --- devices beyond the flocking set (ground, LiDAR, range and bearing, pose, odometry, wheels) ---
+    # --- the robot's devices -----------------------------------------------------------------
 
     def _init_devices(self) -> None:
         """Check the declared sensors against the robot's topics; the range-and-bearing sender."""
@@ -151,8 +147,6 @@ class SwarmController(Node):
         self._rab_msg = None
         #: [r] LiDAR ray angles in the scanner's frame (None without a LiDAR).
         self.scan_angles = self.model.lidar.angles_array() if self.model.lidar is not None else None
-        self._device_sensors = tuple(s for s in self.sensors if s in _DEVICE_DECODERS)
-        self._wheel_travel = np.zeros(2)
 
     def send_rab(self, data) -> None:
         """Broadcast ``data`` (bytes or uint8 values, at most rab_payload_bytes; zero-padded) with
@@ -166,29 +160,4 @@ class SwarmController(Node):
                              f"(range_and_bearing.payload_bytes), got {payload.tolist()}")
         padded = np.zeros(self.rab_payload_bytes, dtype=np.uint8)
         padded[:payload.size] = payload
-        self._rab_msg = c.rab_payload_message(padded)
-
-    def _decode_devices(self, msgs: dict, tick: Tick) -> None:
-        for name in self._device_sensors:
-            msg = msgs.get(name)
-            if msg is not None:
-                _DEVICE_DECODERS[name](self, msg, tick)
-
-    def _decode_wheels(self, msg, tick: Tick) -> None:
-        tick.wheel_speeds, travel = decoding.decode_wheels(msg, self.model.wheel_radius_m)
-        tick.wheel_distances = travel - self._wheel_travel
-        self._wheel_travel = travel
-
-
-def _set_odom(node: SwarmController, msg, tick: Tick) -> None:
-    tick.odom, tick.odom_twist = decoding.decode_odometry(msg)
-
-
-_DEVICE_DECODERS = {
-    c.GROUND_SENSORS.name: lambda node, msg, tick: setattr(tick, "ground", decoding.decode_ground(msg)),
-    c.SCAN.name: lambda node, msg, tick: setattr(tick, "scan", decoding.decode_scan(msg)),
-    c.RAB_RX.name: lambda node, msg, tick: setattr(tick, "rab", decoding.decode_rab(msg)),
-    c.POSE.name: lambda node, msg, tick: setattr(tick, "pose", decoding.decode_pose(msg)),
-    c.ODOM.name: _set_odom,
-    c.WHEELS.name: SwarmController._decode_wheels,
-}
+        self._rab_msg = range_and_bearing.payload_message(padded)

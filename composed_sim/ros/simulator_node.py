@@ -17,15 +17,15 @@ from rclpy.serialization import serialize_message
 from rclpy.time import Time as RosTime
 from rosgraph_msgs.msg import Clock
 
-from composed_sim.world.robot_models import CAMERA, LIGHT, PROXIMITY, RANGE_AND_BEARING, RobotModel
+from composed_sim.world.robot_models import RANGE_AND_BEARING, RobotModel
 from composed_sim.core.violations import FAILED, Violation
 from composed_sim.world.schema import Lockstep
 if TYPE_CHECKING:   # only a type here: a controller process must not import the physics
     from composed_sim.core.simulation import SensorFrame
 from composed_sim.ros import cdr, contract as c, decoding
 from composed_sim.ros.answer_subscription import AnswerSubscription, ControllerPublishers
-from composed_sim.ros.device_publishing import DevicePublishing, GroupPlan, csr_take
-from composed_sim.ros.frames import RobotFrames
+from composed_sim.ros.devices import DEVICES, range_and_bearing
+from composed_sim.ros.devices.device import DevicePublisher, GroupPlan, NodeRobots, Outgoing
 from composed_sim.ros.robot_settings import quiet_node_options
 
 
@@ -43,7 +43,7 @@ LATE_LEDS = "leds answering an earlier tick arrived after that tick closed: appl
 LATE_RAB = "rab_tx answering an earlier tick arrived after that tick closed: applied one tick late"
 
 
-class SimulatorNode(DevicePublishing, Node):
+class SimulatorNode(Node):
     """Sensor publishers and command subscriptions for a set of robots, in one node.
 
     One node serves every robot in composed mode; in multi-process mode there is one per ROS
@@ -94,13 +94,10 @@ class SimulatorNode(DevicePublishing, Node):
         if len(self._devices) != n:
             raise ValueError(f"{n} robots but devices for {len(self._devices)}")
         self._rab_payload_bytes = rab_payload_bytes
-        # Per robot; None where the robot does not run the device. The flocking set's messages go
-        # out as serialized bytes, and answers come in as bytes (cdr.py: a quarter of the cost).
-        self._proximity_pubs, self._light_pubs, self._blob_pubs = [None] * n, [None] * n, [None] * n
-        self._proximity_enc, self._light_enc, self._blob_enc = [None] * n, [None] * n, [None] * n
-        self._device_pubs: dict[str, list] = {t.name: [None] * n for t in c.SENSOR_TOPICS + (c.TF,)}
-        self._device_msgs: dict[str, list] = {t.name: [None] * n for t in c.SENSOR_TOPICS + (c.TF,)}
-        self._frames = RobotFrames(self, names, models, self._devices, global_tf)
+        # One publisher set per device that any of these robots runs (ros/devices/).
+        robots = NodeRobots(names, models, self._devices, tick_ns, rab_payload_bytes, global_tf)
+        self._device_publishers: list[DevicePublisher] = [d.publisher(self, robots) for d in DEVICES
+                                                   if robots.running(d.name)]
         self._led_subs, self._rab_subs = [], [None] * n
         self._cmd_subs: list[Optional[AnswerSubscription]] = [None] * n   # per robot, once its answer type is known
         self._answer_types: list[Optional[type]] = [c.CMD_VEL.msg_type] * n if answer_types is None \
@@ -109,36 +106,19 @@ class SimulatorNode(DevicePublishing, Node):
         self._foreign_noted: set[tuple[int, bytes]] = set()   # (robot, GID) recorded this tick
         self._every = None if answers_every_ticks is None or all(k == 1 for k in answers_every_ticks) \
             else np.asarray(answers_every_ticks)
-        for i, (name, model) in enumerate(zip(names, models)):
-            has = self._devices[i]
-            if PROXIMITY in has:
-                self._proximity_pubs[i] = self._publisher(name, c.PROXIMITY)
-                self._proximity_enc[i] = c.proximity_encoder(model, name)
-            if LIGHT in has:
-                self._light_pubs[i] = self._publisher(name, c.LIGHT)
-                self._light_enc[i] = c.light_encoder(model, name)
-            if CAMERA in has:
-                self._blob_pubs[i] = self._publisher(name, c.BLOBS)
-                self._blob_enc[i] = c.blobs_encoder(name)
-            self._create_device_publishers(i, name, model, has)
+        for i, name in enumerate(names):
             if self._answer_types[i] is not None:
                 self._subscribe_answers(i, self._answer_types[i])
             self._led_subs.append(self._inbox.create_subscription(
                 c.LEDS.msg_type, c.topic_name(name, c.LEDS), lambda msg: None, c.QOS,
                 event_callbacks=c.SUBSCRIPTION_EVENTS))
-            if RANGE_AND_BEARING in has:
+            if RANGE_AND_BEARING in self._devices[i]:
                 self._rab_subs[i] = self._inbox.create_subscription(
                     c.RAB_TX.msg_type, c.topic_name(name, c.RAB_TX), lambda msg: None, c.QOS,
                     event_callbacks=c.SUBSCRIPTION_EVENTS)
-        self._pubs = {**self._device_pubs, c.PROXIMITY.name: self._proximity_pubs, c.LIGHT.name: self._light_pubs,
-                      c.BLOBS.name: self._blob_pubs}                           # sensor topic → [n]
-        self._read = {name: [False] * n for name in self._pubs}                # … → [n] has a reader
         # Every sensor publisher of each robot (a robot is connected once any has a subscriber).
-        self._sensor_pubs = [[p for p in (self._proximity_pubs[i], self._light_pubs[i], self._blob_pubs[i],
-                                          *(pubs[i] for pubs in self._device_pubs.values())) if p is not None]
-                             for i in range(n)]
+        self._sensor_pubs = [[p.pubs[i] for p in self._device_publishers if p.pubs[i] is not None] for i in range(n)]
         self._plans: Optional[list[GroupPlan]] = None   # built from the first frame's groups
-        self._wheel_angles = np.zeros((n, 2))            # [n, 2] rad since the start, for WHEELS
 
         # Answers to the current tick, written by callbacks (any thread), read by the host.
         self.linear = np.zeros(n)       # [n] m/s
@@ -203,7 +183,8 @@ class SimulatorNode(DevicePublishing, Node):
                              f"not {self._names[i]}'s controller: rejected", counts=False)
         return False
 
-    def _publisher(self, robot: str, topic: c.Topic):
+    def create_robot_publisher(self, robot: str, topic: c.Topic):
+        """The publisher of ``robot``'s ``topic``, for its device (ros/devices/)."""
         return self.create_publisher(topic.msg_type, c.topic_name(robot, topic), c.QOS,
                                      event_callbacks=c.PUBLISHER_EVENTS)
 
@@ -221,9 +202,14 @@ class SimulatorNode(DevicePublishing, Node):
         self._tapped = {topic.name: [tap.wants(c.topic_name(name, topic)) for name in self._names]
                         for topic in c.TOPICS.values()}
 
-    def _tap_message(self, topic: c.Topic, i: int, data, stamp_ns: int, msg_type: Optional[type] = None) -> None:
-        """``data``: the message's bytes, or the message; ``msg_type``: when not the topic's."""
-        if self._tap is not None and self._tapped[topic.name][i]:
+    def taps(self, topic: c.Topic, i: int) -> bool:
+        """Is robot i's ``topic`` recorded?"""
+        return self._tap is not None and self._tapped[topic.name][i]
+
+    def tap_message(self, topic: c.Topic, i: int, data, stamp_ns: int, msg_type: Optional[type] = None) -> None:
+        """Hand robot i's message on ``topic`` to the tap if it wants it. ``data``: the message's
+        bytes, or the message; ``msg_type``: when not the topic's."""
+        if self.taps(topic, i):
             if not isinstance(data, bytes):
                 data = serialize_message(data)
             with self._tap_lock:   # answers may arrive on executor worker threads
@@ -308,40 +294,13 @@ class SimulatorNode(DevicePublishing, Node):
         now = RosTime.from_msg(stamp)
         for clock in self._driven_clocks:
             clock.set_ros_time_override(now)
-        stamp_ns = self._current_key
-        stamp_cdr = cdr.stamp_bytes(stamp.sec, stamp.nanosec)
-        failed = self.failed.tolist()
+        out = Outgoing(stamp, self._current_key, cdr.stamp_bytes(stamp.sec, stamp.nanosec), self.failed.tolist())
         for plan in self._plans if self._plans is not None else self._make_plans(frame):
-            group = frame.groups[plan.group]
-            # This node's rows of each array once per tick as bytes; a robot's part is a slice.
-            if group.proximity is not None:
-                distances, d_width = _rows_f4(group.proximity_distances[plan.within])
-                proximity, p_width = _rows_f4(group.proximity[plan.within])
-            if group.light is not None:
-                light, l_width = _rows_f4(group.light[plan.within])
-            if group.blobs is not None:
-                points, offsets = _blob_rows(group.blobs, plan.within)
-            if group.proximity is not None or group.light is not None or group.blobs is not None:
-                for k, i in enumerate(plan.local.tolist()):
-                    if failed[i]:
-                        continue
-                    if group.proximity is not None and self._wanted(c.PROXIMITY, i):
-                        data = self._proximity_enc[i].encode_bytes(
-                            stamp_cdr, distances[k * d_width:(k + 1) * d_width], proximity[k * p_width:(k + 1) * p_width])
-                        self._proximity_pubs[i].publish(data)
-                        self._tap_message(c.PROXIMITY, i, data, stamp_ns)
-                    if group.light is not None and self._wanted(c.LIGHT, i):
-                        data = self._light_enc[i].encode_bytes(stamp_cdr, b"", light[k * l_width:(k + 1) * l_width])
-                        self._light_pubs[i].publish(data)
-                        self._tap_message(c.LIGHT, i, data, stamp_ns)
-                    if group.blobs is not None and self._wanted(c.BLOBS, i):
-                        first, end = offsets[k], offsets[k + 1]
-                        data = self._blob_enc[i].encode(stamp.sec, stamp.nanosec, points[first:end],
-                                                        (end - first) // _BLOB_BYTES)
-                        self._blob_pubs[i].publish(data)
-                        self._tap_message(c.BLOBS, i, data, stamp_ns)
-            self._publish_devices(plan, frame, stamp, stamp_ns)
-        self._frames.publish(stamp)
+            for publisher in self._device_publishers:
+                if publisher.device in plan.devices:
+                    publisher.publish(plan, frame, out)
+        for publisher in self._device_publishers:
+            publisher.finish_tick(out)
 
     def publish_clock(self, tick: int) -> None:
         """/clock alone, for the state after the last tick: its sensors are never published (no
@@ -350,17 +309,6 @@ class SimulatorNode(DevicePublishing, Node):
             self._clock_msg.clock = c.stamp_of(tick, self._tick_ns)
             self._clock_pub.publish(self._clock_msg)
 
-    def _wanted(self, topic: c.Topic, i: int) -> bool:
-        """Publish robot i's message on ``topic`` this tick? Every tick once a subscriber has
-        matched (a subscriber that comes later gets every tick from its match on, as with any
-        volatile topic); until then each tick asks DDS, a call instead of a message nobody
-        reads. A recorded topic is always published."""
-        read = self._read[topic.name]
-        if not read[i]:
-            read[i] = self._pubs[topic.name][i].get_subscription_count() > 0 or (
-                self._tap is not None and self._tapped[topic.name][i])
-        return read[i]
-
     def _make_plans(self, frame: SensorFrame) -> list[GroupPlan]:
         """Which of this node's robots are in which group of the frame (fixed for a run)."""
         self._plans = []
@@ -368,8 +316,8 @@ class SimulatorNode(DevicePublishing, Node):
             local = np.flatnonzero((self.rows >= g.robots.start) & (self.rows < g.robots.stop))
             if len(local):
                 within = self.rows[local] - g.robots.start
-                self._plans.append(GroupPlan(gi, list(zip(local.tolist(), within.tolist())), self.rows[local],
-                                              local, within, self._devices[local[0]]))
+                self._plans.append(GroupPlan(gi, self._models[local[0]], self.rows[local], local, within,
+                                             self._devices[local[0]]))
         return self._plans
 
     def unmatched_robots(self) -> list[str]:
@@ -423,7 +371,7 @@ class SimulatorNode(DevicePublishing, Node):
             return
         if self.answered[i]:
             return  # a second answer to the same tick, or one already rejected: the first counts
-        self._tap_message(c.CMD_VEL, i, data, key, self._answer_types[i])
+        self.tap_message(c.CMD_VEL, i, data, key, self._answer_types[i])
         if not (math.isfinite(linear) and math.isfinite(angular)):
             self.rejected[i] = True
             self._record(self._current_tick, i, f"non-finite velocity command rejected "
@@ -479,7 +427,7 @@ class SimulatorNode(DevicePublishing, Node):
         """Drain the rab_tx inbox like the LEDs': the latest valid payload per simulation row that
         sent any, to be set before the next step (so it is heard one tick later, as in ARGoS)."""
         return self._drain(self._rab_subs, c.RAB_TX, LATE_RAB,
-                           lambda i, msg: decoding.decode_rab_payload(msg, self._rab_payload_bytes))
+                           lambda i, msg: range_and_bearing.decode_payload(msg, self._rab_payload_bytes))
 
     def _drain(self, subs: list, topic: c.Topic, late: str, decode: Callable) -> dict[int, np.ndarray]:
         out = {}
@@ -490,7 +438,7 @@ class SimulatorNode(DevicePublishing, Node):
                 msg, info = taken
                 if self.failed[i]:
                     continue
-                self._tap_message(topic, i, msg, self._tick_key)
+                self.tap_message(topic, i, msg, self._tick_key)
                 with self._lock:
                     if self._opened_ns is not None and info["source_timestamp"] < self._opened_ns:
                         self._record(self._current_tick, i, late)
@@ -515,20 +463,3 @@ class SimulatorNode(DevicePublishing, Node):
                 sub.destroy(self)
         self._inbox.destroy_node()
         super().destroy_node()
-
-
-_BLOB_BYTES = c.BLOB_DTYPE.itemsize
-
-
-def _blob_rows(blobs, within: np.ndarray) -> tuple[bytes, list[int]]:
-    """The blob points of the group's robots ``within`` [k] as bytes, and where each robot's
-    start in them ([k+1] byte offsets)."""
-    take, local = csr_take(blobs.offsets, within)
-    points = c.blob_points(blobs.angles[take], blobs.distances[take], blobs.colors[take])
-    return points.tobytes(), (local * _BLOB_BYTES).tolist()
-
-
-def _rows_f4(values: np.ndarray) -> tuple[bytes, int]:
-    """[k, m] → (the rows as consecutive little-endian float32 bytes, bytes per row)."""
-    values = np.ascontiguousarray(values, dtype="<f4")
-    return values.tobytes(), 4 * values.shape[1]

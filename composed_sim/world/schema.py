@@ -13,13 +13,14 @@ from __future__ import annotations
 
 import math
 import re
-from typing import Annotated, Any, Literal, Optional, Union
+from typing import Annotated, Any, Literal, Optional, Union, get_args
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 from pydantic_core import PydanticCustomError
 
 from composed_sim.entry_points import installed
-from composed_sim.world.robot_models import MODELS, RobotModel
+from composed_sim.world.robot_models import (CAMERA, DIFFERENTIAL_STEERING, GROUND, LIDAR, LIGHT, MODELS, ODOMETRY,
+                                            POSITIONING, PROXIMITY, RANGE_AND_BEARING, TF, RobotModel)
 
 Vec2 = tuple[float, float]
 PositiveFloat = Annotated[float, Field(gt=0)]
@@ -260,11 +261,11 @@ class PositioningConfig(DeviceSwitch):
 
 
 # The devices that can be switched, by the name robot models and sensor frames use.
-SWITCHED_DEVICES = ("proximity", "light", "camera", "ground", "range_and_bearing", "lidar")
+SWITCHED_DEVICES = (PROXIMITY, LIGHT, CAMERA, GROUND, RANGE_AND_BEARING, LIDAR)
 # Every robot computes these (cheap, vectorised); their ROS topics exist only where the world
 # file switches them on, as ARGoS lists a controller's sensors: publishing three more messages
 # per robot and tick that no controller reads would cost every swarm, the paper's included.
-TOPIC_SWITCHED_DEVICES = ("positioning", "odometry", "differential_steering", "tf")
+TOPIC_SWITCHED_DEVICES = (POSITIONING, ODOMETRY, DIFFERENTIAL_STEERING, TF)
 
 
 class Devices(Strict):
@@ -301,12 +302,12 @@ class Devices(Strict):
     def config(self, name: str):
         """The device's settings: the world file's, else the defaults."""
         given = getattr(self, name)
-        if given is not None:
-            return given
-        return {"proximity": ProximityConfig, "light": LightConfig, "camera": BlobCameraConfig,
-                "ground": GroundConfig, "range_and_bearing": RangeAndBearingConfig,
-                "lidar": LidarConfig, "positioning": PositioningConfig, "odometry": DeviceSwitch,
-                "differential_steering": DeviceSwitch, "tf": TfConfig}[name]()
+        return given if given is not None else _DEVICE_CONFIGS[name]()
+
+
+# Each device's settings class, as its field of ``Devices`` declares it (Optional[ThatClass]).
+_DEVICE_CONFIGS = {name: get_args(field.annotation)[0] for name, field in Devices.model_fields.items()
+                   if get_args(field.annotation)}
 
 
 ParamValue = Union[float, int, str, bool, list[float]]

@@ -8,6 +8,7 @@ from sensor_msgs.msg import LaserScan, PointCloud2, PointField
 
 from composed_sim.world.robot_models import get_model
 from composed_sim.ros import cdr, contract as c, decoding
+from composed_sim.ros.devices import camera, light, proximity
 
 FOOTBOT = get_model("foot-bot")
 NAMES = ["b", "bot7", "bot42", "bot123", "bot1234", "a_long_robot_name_99"]   # every CDR padding case
@@ -26,21 +27,21 @@ def test_sensor_bytes_are_the_contract_messages(name):
     distances, readings = rng.random(k), rng.random(k)
     distances[3] = np.inf
 
-    expected = c.ring_scan(FOOTBOT.proximity.angles_rad, name, FOOTBOT.proximity.range_m)
-    c.fill_proximity(expected, stamp, distances, readings)
-    data = c.proximity_encoder(FOOTBOT, name).encode(stamp.sec, stamp.nanosec, readings, distances)
+    expected = proximity.message(FOOTBOT, name)
+    proximity.fill(expected, stamp, distances, readings)
+    data = proximity.encoder(FOOTBOT, name).encode(stamp.sec, stamp.nanosec, readings, distances)
     assert deserialize_message(data, LaserScan) == received(expected)
 
-    light = c.ring_scan(FOOTBOT.light.angles_rad, name, 0.0)
-    c.fill_light(light, stamp, readings)
-    assert deserialize_message(c.light_encoder(FOOTBOT, name).encode(stamp.sec, stamp.nanosec, readings),
-                               LaserScan) == received(light)
+    scan = light.message(FOOTBOT, name)
+    light.fill(scan, stamp, readings)
+    assert deserialize_message(light.encoder(FOOTBOT, name).encode(stamp.sec, stamp.nanosec, readings),
+                               LaserScan) == received(scan)
 
-    encoder, cloud = c.blobs_encoder(name), c.blob_cloud(name)
+    encoder, cloud = camera.encoder(name), camera.message(name)
     for m in (0, 1, 2, 3, 9):       # the same encoder, blob counts changing tick to tick
-        points = c.blob_points(rng.uniform(-3, 3, m), rng.uniform(0.1, 2, m),
+        points = camera.points_of(rng.uniform(-3, 3, m), rng.uniform(0.1, 2, m),
                                rng.integers(0, 256, (m, 3)).astype(np.uint8))
-        c.fill_blobs(cloud, stamp, points)
+        camera.fill(cloud, stamp, points)
         assert deserialize_message(encoder.encode(stamp.sec, stamp.nanosec, points.tobytes(), m),
                                    PointCloud2) == received(cloud)
 
@@ -51,16 +52,16 @@ def test_decoding_bytes_equals_decoding_messages(name):
     messages serialized by rclpy (e.g. from another publisher)."""
     stamp = c.stamp_of(77, 100_000_000)
     k = len(FOOTBOT.proximity.angles_rad)
-    scan = c.ring_scan(FOOTBOT.proximity.angles_rad, name, FOOTBOT.proximity.range_m)
-    c.fill_proximity(scan, stamp, rng.random(k), rng.random(k))
-    for got, want in zip(decoding.decode_proximity_cdr(serialize_message(scan)), decoding.decode_proximity(scan)):
+    scan = proximity.message(FOOTBOT, name)
+    proximity.fill(scan, stamp, rng.random(k), rng.random(k))
+    for got, want in zip(proximity.decode_cdr(serialize_message(scan)), proximity.decode(scan)):
         assert np.array_equal(got, want)
-    assert np.array_equal(decoding.decode_light_cdr(serialize_message(scan)), decoding.decode_light(scan))
+    assert np.array_equal(light.decode_cdr(serialize_message(scan)), light.decode(scan))
 
-    cloud = c.blob_cloud(name)
-    c.fill_blobs(cloud, stamp, c.blob_points(rng.uniform(-3, 3, 5), rng.uniform(0.1, 2, 5),
+    cloud = camera.message(name)
+    camera.fill(cloud, stamp, camera.points_of(rng.uniform(-3, 3, 5), rng.uniform(0.1, 2, 5),
                                              rng.integers(0, 256, (5, 3)).astype(np.uint8)))
-    got, want = decoding.decode_blobs_cdr(serialize_message(cloud)), decoding.decode_blobs(cloud)
+    got, want = camera.decode_cdr(serialize_message(cloud)), camera.decode(cloud)
     for field in ("angles", "distances", "colors"):
         assert np.array_equal(getattr(got, field), getattr(want, field))
     red = tuple(int(v) for v in want.colors[2])
@@ -69,9 +70,9 @@ def test_decoding_bytes_equals_decoding_messages(name):
 
 def test_a_cloud_with_other_fields_is_refused():
     cloud = PointCloud2()
-    cloud.fields = c.BLOB_FIELDS[:2]
+    cloud.fields = camera.BLOB_FIELDS[:2]
     with pytest.raises(ValueError, match="not a blob cloud"):
-        decoding.decode_blobs_cdr(serialize_message(cloud))
+        camera.decode_cdr(serialize_message(cloud))
 
 
 def test_answers_round_trip():
@@ -87,18 +88,18 @@ def test_one_decoder_follows_a_stream_whose_cloud_layout_changes():
     (another frame_id length, other field offsets): each cloud decodes as its message says."""
     decoder = cdr.CloudDecoder()
     reordered = [PointField(name=f.name, offset=o, datatype=f.datatype, count=1)
-                 for f, o in zip(c.BLOB_FIELDS, (4, 8, 12, 0))]       # rgb first in each point
-    for name, fields, m in (("b", c.BLOB_FIELDS, 3), ("b", c.BLOB_FIELDS, 0), ("a_long_robot_name_99", c.BLOB_FIELDS, 4),
-                            ("a_long_robot_name_99", reordered, 2), ("b", c.BLOB_FIELDS, 5)):
-        cloud = c.blob_cloud(name)
-        points = c.blob_points(rng.uniform(-3, 3, m), rng.uniform(0.1, 2, m),
+                 for f, o in zip(camera.BLOB_FIELDS, (4, 8, 12, 0))]       # rgb first in each point
+    for name, fields, m in (("b", camera.BLOB_FIELDS, 3), ("b", camera.BLOB_FIELDS, 0), ("a_long_robot_name_99", camera.BLOB_FIELDS, 4),
+                            ("a_long_robot_name_99", reordered, 2), ("b", camera.BLOB_FIELDS, 5)):
+        cloud = camera.message(name)
+        points = camera.points_of(rng.uniform(-3, 3, m), rng.uniform(0.1, 2, m),
                                rng.integers(0, 256, (m, 3)).astype(np.uint8))
-        c.fill_blobs(cloud, c.stamp_of(1, 100_000_000), points)
+        camera.fill(cloud, c.stamp_of(1, 100_000_000), points)
         if fields is reordered:
             cloud.fields = reordered
             data = points.view(np.uint8).reshape(m, 16)
             cloud.data = np.concatenate([data[:, 12:], data[:, :12]], axis=1).tobytes()
-        got, want = decoding.decode_blobs_cdr(serialize_message(cloud), decoder), decoding.decode_blobs(cloud)
+        got, want = camera.decode_cdr(serialize_message(cloud), decoder), camera.decode(cloud)
         assert len(got) == m
         for field in ("angles", "distances", "colors", "rgb"):
             assert np.array_equal(getattr(got, field), getattr(want, field)), (name, m, field)

@@ -7,6 +7,7 @@ import pytest
 
 from composed_sim.world.robot_models import FOOTBOT
 from composed_sim.ros import contract as c, decoding
+from composed_sim.ros.devices import camera, light, proximity
 
 DOC = Path(__file__).resolve().parents[2] / "docs" / "contract.md"
 
@@ -38,33 +39,33 @@ def test_proximity_and_light_round_trip():
     rng = np.random.default_rng(0)
     dist = np.where(rng.random(k) < 0.5, np.inf, rng.random(k) * 0.1)
     read = rng.random(k)
-    msg = c.ring_scan(FOOTBOT.proximity.angles_rad, "bot3", FOOTBOT.proximity.range_m)
-    c.fill_proximity(msg, c.stamp_of(1, 10), dist, read)
+    msg = proximity.message(FOOTBOT, "bot3")
+    proximity.fill(msg, c.stamp_of(1, 10), dist, read)
     assert msg.header.frame_id == "bot3/base_link"
-    d2, r2 = decoding.decode_proximity(msg)
+    d2, r2 = proximity.decode(msg)
     np.testing.assert_allclose(d2, dist.astype(np.float32))
     np.testing.assert_allclose(r2, read.astype(np.float32))
     np.testing.assert_allclose(decoding.ring_angles(msg, k), FOOTBOT.proximity.angles_rad, atol=1e-6)
-    light = c.ring_scan(FOOTBOT.light.angles_rad, "bot3", 0.0)
-    c.fill_light(light, c.stamp_of(1, 10), read)
-    np.testing.assert_allclose(decoding.decode_light(light), read.astype(np.float32))
+    scan = light.message(FOOTBOT, "bot3")
+    light.fill(scan, c.stamp_of(1, 10), read)
+    np.testing.assert_allclose(light.decode(scan), read.astype(np.float32))
 
 
 def test_blobs_round_trip_bearing_distance_colour():
     angles = np.array([0.0, 1.0, -2.5, 3.0])
     dists = np.array([0.2, 1.0, 1.5, 0.75])
     colors = np.array([[255, 0, 0], [0, 255, 0], [0, 0, 255], [10, 20, 30]], dtype=np.uint8)
-    msg = c.blob_cloud("bot0")
-    c.fill_blobs(msg, c.stamp_of(2, 10), c.blob_points(angles, dists, colors))
+    msg = camera.message("bot0")
+    camera.fill(msg, c.stamp_of(2, 10), camera.points_of(angles, dists, colors))
     assert msg.width == 4 and msg.row_step == 4 * msg.point_step
-    blobs = decoding.decode_blobs(msg)
+    blobs = camera.decode(msg)
     np.testing.assert_allclose(blobs.angles, angles, atol=1e-6)
     np.testing.assert_allclose(blobs.distances, dists, atol=1e-6)
     np.testing.assert_array_equal(blobs.colors, colors)
     red = blobs.of_color((255, 0, 0))
     assert len(red) == 1 and red.distances[0] == pytest.approx(0.2, abs=1e-6)
-    c.fill_blobs(msg, c.stamp_of(3, 10), c.blob_points(angles[:0], dists[:0], colors[:0]))
-    assert len(decoding.decode_blobs(msg)) == 0
+    camera.fill(msg, c.stamp_of(3, 10), camera.points_of(angles[:0], dists[:0], colors[:0]))
+    assert len(camera.decode(msg)) == 0
 
 
 def test_leds_round_trip_and_wrong_size_is_rejected():

@@ -6,7 +6,9 @@ import numpy as np
 import pytest
 
 from composed_sim.world.robot_models import FOOTBOT, TURTLEBOT3_BURGER
-from composed_sim.ros import contract as c, decoding
+from composed_sim.ros import contract as c
+from composed_sim.ros.devices import (differential_steering, ground, lidar, odometry, positioning, proximity,
+                                      range_and_bearing)
 from composed_sim.world.schema import World
 
 
@@ -16,26 +18,26 @@ STAMP = c.stamp_of(7, 100_000_000)
 def test_ground_round_trip_keeps_sensor_positions_and_readings():
     offsets = np.asarray(FOOTBOT.ground.offsets_m)
     readings = np.array([[0.0, 0.25, 0.5, 1.0], [1.0, 1.0, 0.0, 0.0]])
-    points = c.ground_points(offsets, readings)
-    msg = c.ground_cloud("bot1", len(offsets))
-    c.fill_ground(msg, STAMP, points[1])
+    points = ground.points_of(offsets, readings)
+    msg = ground.message("bot1", len(offsets))
+    ground.fill(msg, STAMP, points[1])
     assert (msg.width, msg.point_step, msg.header.frame_id) == (4, 16, "bot1/base_link")
-    np.testing.assert_array_equal(decoding.decode_ground(msg), readings[1])
-    cloud = np.frombuffer(msg.data, dtype=c.GROUND_DTYPE)
+    np.testing.assert_array_equal(ground.decode(msg), readings[1])
+    cloud = np.frombuffer(msg.data, dtype=ground.GROUND_DTYPE)
     np.testing.assert_allclose(np.column_stack([cloud["x"], cloud["y"]]), offsets, atol=1e-7)
 
 
 def test_scan_round_trip_keeps_rep117_infinities_and_ray_angles():
-    lidar = TURTLEBOT3_BURGER.lidar
-    ranges = np.linspace(0.2, 3.0, lidar.n_rays)
+    layout = TURTLEBOT3_BURGER.lidar
+    ranges = np.linspace(0.2, 3.0, layout.n_rays)
     ranges[[0, 5]] = np.inf
     ranges[7] = -np.inf
-    msg = c.lidar_scan_message(lidar, "tb0", 0.1)
-    c.fill_scan(msg, STAMP, ranges)
+    msg = lidar.message(layout, "tb0", 0.1)
+    lidar.fill(msg, STAMP, ranges)
     assert msg.header.frame_id == "tb0/base_scan" and (msg.range_min, msg.range_max) == (0.12, 3.5)
-    np.testing.assert_allclose(decoding.decode_scan(msg), ranges.astype(np.float32))
-    np.testing.assert_allclose(decoding.scan_angles(msg), lidar.angles_array(), atol=1e-6)
-    assert decoding.scan_angles(msg)[90] == pytest.approx(math.pi / 2, abs=1e-6)
+    np.testing.assert_allclose(lidar.decode(msg), ranges.astype(np.float32))
+    np.testing.assert_allclose(lidar.angles(msg), layout.angles_array(), atol=1e-6)
+    assert lidar.angles(msg)[90] == pytest.approx(math.pi / 2, abs=1e-6)
 
 
 def test_rab_round_trip_range_bearing_elevation_and_payload_bytes():
@@ -43,48 +45,48 @@ def test_rab_round_trip_range_bearing_elevation_and_payload_bytes():
     m, b = 5, 10
     ranges, bearings, elevations = rng.uniform(0.1, 3, m), rng.uniform(-3, 3, m), rng.uniform(-0.2, 0.2, m)
     payloads = rng.integers(0, 256, (m, b), dtype=np.uint8)
-    points = c.rab_points(ranges, bearings, elevations, payloads)
-    msg = c.rab_cloud("bot0", b)
-    c.fill_rab(msg, STAMP, points[1:4])
+    points = range_and_bearing.points_of(ranges, bearings, elevations, payloads)
+    msg = range_and_bearing.message("bot0", b)
+    range_and_bearing.fill(msg, STAMP, points[1:4])
     assert msg.point_step == 24 + b and msg.width == 3
-    got = decoding.decode_rab(msg)
+    got = range_and_bearing.decode(msg)
     assert len(got) == 3
     np.testing.assert_allclose(got.ranges, ranges[1:4], rtol=1e-6)
     np.testing.assert_allclose(got.bearings, bearings[1:4], rtol=1e-6)
     np.testing.assert_allclose(got.elevations, elevations[1:4], rtol=1e-6)
     np.testing.assert_array_equal(got.payloads, payloads[1:4])
-    xyz = np.frombuffer(msg.data, dtype=c.rab_dtype(b))
+    xyz = np.frombuffer(msg.data, dtype=range_and_bearing.point_dtype(b))
     np.testing.assert_allclose(np.hypot(np.hypot(xyz["x"], xyz["y"]), xyz["z"]), ranges[1:4], rtol=1e-5)
     np.testing.assert_allclose(np.arctan2(xyz["y"], xyz["x"]), bearings[1:4], atol=1e-5)
-    c.fill_rab(msg, STAMP, points[:0])
-    assert len(decoding.decode_rab(msg)) == 0
+    range_and_bearing.fill(msg, STAMP, points[:0])
+    assert len(range_and_bearing.decode(msg)) == 0
 
 
 def test_rab_tx_round_trip_and_wrong_size_names_the_setting():
-    msg = c.rab_payload_message(bytes(range(10)))
-    np.testing.assert_array_equal(decoding.decode_rab_payload(msg, 10), np.arange(10))
+    msg = range_and_bearing.payload_message(bytes(range(10)))
+    np.testing.assert_array_equal(range_and_bearing.decode_payload(msg, 10), np.arange(10))
     with pytest.raises(ValueError, match=r"has 3 bytes, expected 10 \(range_and_bearing.payload_bytes"):
-        decoding.decode_rab_payload(c.rab_payload_message([1, 2, 3]), 10)
+        range_and_bearing.decode_payload(range_and_bearing.payload_message([1, 2, 3]), 10)
 
 
 def test_pose_odometry_and_wheels_round_trip():
-    pose = c.pose_stamped("bot2")
+    pose = positioning.message()
     qz, qw = c.half_yaw(np.array([2.5]))
-    c.fill_pose(pose, STAMP, 1.5, -2.0, float(qz[0]), float(qw[0]))
+    positioning.fill(pose, STAMP, 1.5, -2.0, float(qz[0]), float(qw[0]))
     assert pose.header.frame_id == "world"
-    np.testing.assert_allclose(decoding.decode_pose(pose), [1.5, -2.0, 2.5])
-    odom = c.odometry_message("bot2")
+    np.testing.assert_allclose(positioning.decode(pose), [1.5, -2.0, 2.5])
+    odom = odometry.message("bot2")
     qz, qw = c.half_yaw(np.array([-3.0]))
-    c.fill_odometry(odom, STAMP, 0.3, 0.4, float(qz[0]), float(qw[0]), 0.05, -0.2)
+    odometry.fill(odom, STAMP, 0.3, 0.4, float(qz[0]), float(qw[0]), 0.05, -0.2)
     assert (odom.header.frame_id, odom.child_frame_id) == ("bot2/odom", "bot2/base_link")
-    p, t = decoding.decode_odometry(odom)
+    p, t = odometry.decode(odom)
     np.testing.assert_allclose(p, [0.3, 0.4, -3.0])
     np.testing.assert_allclose(t, [0.05, -0.2])
-    wheels = c.joint_state("bot2")
+    wheels = differential_steering.message("bot2")
     r = FOOTBOT.wheel_radius_m
-    c.fill_wheels(wheels, STAMP, np.array([1.0, 2.0]) / r, np.array([0.05, 0.1]) / r)
+    differential_steering.fill(wheels, STAMP, np.array([1.0, 2.0]) / r, np.array([0.05, 0.1]) / r)
     assert list(wheels.name) == ["wheel_left_joint", "wheel_right_joint"]
-    speeds, travel = decoding.decode_wheels(wheels, r)
+    speeds, travel = differential_steering.decode(wheels, r)
     np.testing.assert_allclose(speeds, [0.05, 0.1])
     np.testing.assert_allclose(travel, [1.0, 2.0])
 
@@ -185,22 +187,22 @@ def test_a_node_serving_some_rows_of_a_mixed_swarm_publishes_each_robot_its_own_
                               ("ep2", "pose"), ("tb1", "scan"), ("tb1", "wheels")}
         node.publish_tick(frame)
         fb, ep, tb = frame.groups
-        np.testing.assert_allclose(decoding.decode_ground(take(subs["bot1", "ground"])), fb.ground[1], atol=1e-6)
-        np.testing.assert_allclose(decoding.decode_proximity(take(subs["bot1", "proximity"]))[1], fb.proximity[1], atol=1e-6)
-        odom, twist = decoding.decode_odometry(take(subs["bot1", "odom"]))
+        np.testing.assert_allclose(ground.decode(take(subs["bot1", "ground"])), fb.ground[1], atol=1e-6)
+        np.testing.assert_allclose(proximity.decode(take(subs["bot1", "proximity"]))[1], fb.proximity[1], atol=1e-6)
+        odom, twist = odometry.decode(take(subs["bot1", "odom"]))
         np.testing.assert_allclose(odom, frame.odometry[1], atol=1e-12)
         np.testing.assert_allclose(twist, frame.odometry_twist[1], atol=1e-12)
         for robot, row in (("ep1", 4), ("ep2", 5)):
-            np.testing.assert_allclose(decoding.decode_ground(take(subs[robot, "ground"])), ep.ground[row - 3], atol=1e-6)
-            np.testing.assert_allclose(decoding.decode_pose(take(subs[robot, "pose"])),
+            np.testing.assert_allclose(ground.decode(take(subs[robot, "ground"])), ep.ground[row - 3], atol=1e-6)
+            np.testing.assert_allclose(positioning.decode(take(subs[robot, "pose"])),
                                        [*frame.pose.positions[row, :2], frame.pose.yaws[row]], atol=1e-9)
-            heard = decoding.decode_rab(take(subs[robot, "rab_rx"]))
+            heard = range_and_bearing.decode(take(subs[robot, "rab_rx"]))
             senders = frame.range_and_bearing.of(row)[0]
             # Global medium: the other e-pucks, payload = the sender's index set before the step.
             assert sorted(senders.tolist()) == [3, 4, 5][:row - 3] + [3, 4, 5][row - 2:]
             assert sorted(heard.payloads[:, 0].tolist()) == sorted(senders.tolist())
-        np.testing.assert_allclose(decoding.decode_scan(take(subs["tb1", "scan"])), tb.lidar[1], rtol=1e-6)
-        speeds, travel = decoding.decode_wheels(take(subs["tb1", "wheels"]), TURTLEBOT3_BURGER.wheel_radius_m)
+        np.testing.assert_allclose(lidar.decode(take(subs["tb1", "scan"])), tb.lidar[1], rtol=1e-6)
+        speeds, travel = differential_steering.decode(take(subs["tb1", "wheels"]), TURTLEBOT3_BURGER.wheel_radius_m)
         np.testing.assert_allclose(speeds, [0.05, 0.07])
         np.testing.assert_allclose(travel, frame.wheels.distances_m[7])
     finally:
@@ -217,9 +219,9 @@ def test_a_rab_payload_of_the_wrong_size_is_a_violation_naming_the_setting(ros_c
     try:
         good = sender.create_publisher(c.RAB_TX.msg_type, "/bot0/rab_tx", c.QOS)
         bad = sender.create_publisher(c.RAB_TX.msg_type, "/bot1/rab_tx", c.QOS)
-        good.publish(c.rab_payload_message(b"\x01\x02\x03\x04"))
-        good.publish(c.rab_payload_message(b"\x05\x06\x07\x08"))          # the latest counts
-        bad.publish(c.rab_payload_message(b"\x01\x02\x03"))
+        good.publish(range_and_bearing.payload_message(b"\x01\x02\x03\x04"))
+        good.publish(range_and_bearing.payload_message(b"\x05\x06\x07\x08"))          # the latest counts
+        bad.publish(range_and_bearing.payload_message(b"\x01\x02\x03"))
         payloads = node.take_rab_payloads()
         assert list(payloads) == [0] and payloads[0].tolist() == [5, 6, 7, 8]
         assert [(v.robot, v.reason) for v in node.violations] == [
@@ -250,20 +252,20 @@ def test_a_sensor_topic_goes_out_from_the_tick_after_its_first_subscriber(ros_co
     sim = Simulation(world)
     node = SimulatorNode(sim.names, sim.models, context=ros_context, tick_ns=world.tick_ns)
     listener = Node("listener", context=ros_context)
-    light = listener.create_subscription(c.LIGHT.msg_type, c.topic_name("bot1", c.LIGHT), lambda m: None, c.QOS)
+    light_sub = listener.create_subscription(c.LIGHT.msg_type, c.topic_name("bot1", c.LIGHT), lambda m: None, c.QOS)
     frame = sim.sense()
     node.publish_tick(frame)                                   # tick 0: bot1's light is read, its proximity not
-    assert take(light).header.stamp == c.stamp_of(0, world.tick_ns)
-    proximity = listener.create_subscription(c.PROXIMITY.msg_type, c.topic_name("bot1", c.PROXIMITY),
-                                             lambda m: None, c.QOS)
+    assert take(light_sub).header.stamp == c.stamp_of(0, world.tick_ns)
+    proximity_sub = listener.create_subscription(c.PROXIMITY.msg_type, c.topic_name("bot1", c.PROXIMITY),
+                                                 lambda m: None, c.QOS)
     for tick in (1, 2, 3):
         frame = sim.step()
         node.publish_tick(frame)
-        for sub, sequence in ((light, tick + 1), (proximity, tick)):
+        for sub, sequence in ((light_sub, tick + 1), (proximity_sub, tick)):
             msg, info = sub.handle.take_message(sub.msg_type, sub.raw)
             assert c.stamp_key(msg.header.stamp) == tick * world.tick_ns
             assert info["publication_sequence_number"] == sequence, (sub.topic_name, tick)
-    np.testing.assert_allclose(decoding.decode_proximity(msg)[1], frame.groups[0].proximity[1], atol=1e-6)
+    np.testing.assert_allclose(proximity.decode(msg)[1], frame.groups[0].proximity[1], atol=1e-6)
     node.destroy_node()
     listener.destroy_node()
 
@@ -271,7 +273,7 @@ def test_a_sensor_topic_goes_out_from_the_tick_after_its_first_subscriber(ros_co
 def test_a_node_converts_exactly_its_robots_entries_of_csr_readings():
     """Blobs and range-and-bearing messages are CSR by robot; a node takes its robots' entries,
     as a slice for contiguous rows (a shard) and gathered otherwise (explicit domains)."""
-    from composed_sim.ros.device_publishing import csr_take
+    from composed_sim.ros.devices.device import csr_take
     counts = np.array([2, 0, 3, 1, 4, 0, 2])
     offsets = np.concatenate([[0], np.cumsum(counts)])
     entries = np.arange(offsets[-1]) * 10

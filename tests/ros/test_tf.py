@@ -2,7 +2,6 @@
 listener in another process as tf2_msgs/msg/TFMessage, and consistent with the trajectories."""
 import math
 import time
-from pathlib import Path
 
 import pytest
 from rosbags.typesys import Stores, get_typestore

@@ -1,0 +1,181 @@
+"""A device on the ROS side: its topics, how a simulator node publishes its readings each tick, and
+how a controller reads them back into arrays. Each module of this package is one device.
+
+A device's readings come from the core (``SensorFrame``: ``frame.groups[g].<device>`` for the
+devices with a layout, the frame's own arrays for the rest); its module turns them into its topic's
+messages for the robots of one simulator node, and back into arrays for a ``SwarmController``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, Callable, ClassVar, Optional, Protocol, Sequence, Union
+
+import numpy as np
+from builtin_interfaces.msg import Time
+
+from composed_sim.ros.topic import Topic
+from composed_sim.world.robot_models import RobotModel
+if TYPE_CHECKING:
+    from composed_sim.core.simulation import SensorFrame
+
+
+@dataclass(frozen=True)
+class NodeRobots:
+    """The robots one simulator node serves, as its device publishers need them."""
+    names: Sequence[str]
+    models: Sequence[RobotModel]
+    devices: Sequence[frozenset[str]]        # per robot: the devices whose topics it has
+    tick_ns: int
+    rab_payload_bytes: int                   # the world's range_and_bearing.payload_bytes
+    global_tf: Optional[Sequence[bool]]      # per robot running tf: on /tf instead of /<r>/tf (None: own)
+
+    def running(self, device: str) -> list[int]:
+        """The indices of the robots that have ``device``'s topics."""
+        return [i for i, has in enumerate(self.devices) if device in has]
+
+
+@dataclass
+class GroupPlan:
+    """A node's robots of one robot group, for publishing from ``frame.groups[group]``."""
+    group: int
+    model: RobotModel              # the group's model
+    rows: np.ndarray               # [k] their simulation rows
+    local: np.ndarray              # [k] their indices among the node's robots
+    within: np.ndarray             # [k] their rows in the group's arrays
+    devices: frozenset[str]        # what the group runs (the same for all its robots)
+
+
+@dataclass(frozen=True)
+class Outgoing:
+    """One tick as every device publisher of a node sends it."""
+    stamp: Time
+    stamp_ns: int
+    stamp_cdr: bytes               # the stamp's 8 CDR bytes (cdr.stamp_bytes)
+    failed: list[bool]             # per robot of the node: stopped for good, published no more
+
+
+class PublishingNode(Protocol):
+    """What a device publisher uses of its simulator node."""
+    def create_robot_publisher(self, robot: str, topic: Topic) -> Any: ...
+    def taps(self, topic: Topic, i: int) -> bool: ...
+    def tap_message(self, topic: Topic, i: int, data, stamp_ns: int) -> None: ...
+
+
+class DevicePublisher:
+    """A node's publishers of one device's sensor topic, one per robot that runs the device, and
+    the message (or bytes encoder) each reuses. A subclass names its ``topic``, makes a robot's
+    ``template`` and ``publish``es a tick for a group's robots."""
+    topic: ClassVar[Topic]
+    device: ClassVar[str]
+
+    def __init__(self, node: PublishingNode, robots: NodeRobots):
+        self.node = node
+        n = len(robots.names)
+        self.pubs: list = [None] * n
+        self.msgs: list = [None] * n
+        self._read = [False] * n
+        for i in robots.running(self.device):
+            self.pubs[i] = node.create_robot_publisher(robots.names[i], self.topic)
+            self.msgs[i] = self.template(robots, i)
+
+    def template(self, robots: NodeRobots, i: int):
+        """Robot i's reused message, or the encoder of its bytes."""
+        raise NotImplementedError
+
+    def publish(self, plan: GroupPlan, frame: SensorFrame, out: Outgoing) -> None:
+        raise NotImplementedError
+
+    def finish_tick(self, out: Outgoing) -> None:
+        """After every group of a tick (tf's one /tf message of the node)."""
+
+    def wanted(self, i: int, out: Outgoing) -> bool:
+        """Publish robot i's message this tick? Never once it failed. Every tick once a subscriber
+        has matched (a subscriber that comes later gets every tick from its match on, as with any
+        volatile topic); until then each tick asks DDS, a call instead of a message nobody reads.
+        A recorded topic is always published."""
+        if out.failed[i]:
+            return False
+        if not self._read[i]:
+            self._read[i] = self.pubs[i].get_subscription_count() > 0 or self.node.taps(self.topic, i)
+        return self._read[i]
+
+    def send(self, i: int, msg, out: Outgoing) -> None:
+        """Publish robot i's message (or its bytes); the caller asked ``wanted`` first."""
+        self.pubs[i].publish(msg)
+        self.node.tap_message(self.topic, i, msg, out.stamp_ns)
+
+    def send_scans(self, plan: GroupPlan, out: Outgoing, ranges: Optional[np.ndarray],
+                   intensities: np.ndarray) -> None:
+        """Each wanted robot's LaserScan as bytes (its ``msgs`` entry is a ``cdr.ScanEncoder``) from
+        its row of ``ranges`` (None: a scan without ranges) and of ``intensities`` ([k, m] each):
+        the rows become float32 bytes once per tick, and a robot's part is a slice of them."""
+        ranges_f4, r_width = rows_f4(ranges) if ranges is not None else (b"", 0)
+        intensities_f4, i_width = rows_f4(intensities)
+        for k, i in enumerate(plan.local.tolist()):
+            if self.wanted(i, out):
+                self.send(i, self.msgs[i].encode_bytes(out.stamp_cdr, ranges_f4[k * r_width:(k + 1) * r_width],
+                                                       intensities_f4[k * i_width:(k + 1) * i_width]), out)
+
+    def fill_and_send(self, plan: GroupPlan, out: Outgoing, fill: Callable, *columns: Sequence) -> None:
+        """Each wanted robot of the plan (k-th): ``fill(its reused message, stamp, column[k] …)``,
+        then publish it. A column holds one value per robot of the plan."""
+        for k, i in enumerate(plan.local.tolist()):
+            if self.wanted(i, out):
+                fill(self.msgs[i], out.stamp, *[column[k] for column in columns])
+                self.send(i, self.msgs[i], out)
+
+
+# How a controller reads a device's sensor topic: made once per controller (from its robot's
+# model), then called with each tick's message (bytes when ``taken_as_bytes``) and the Tick to fill.
+Reader = Callable[[Any, Any], None]
+
+
+def reads_into(fields: Union[str, tuple[str, ...]], decode: Callable) -> Callable[[RobotModel], Reader]:
+    """The reader of a message that ``decode`` turns into the Tick's ``fields`` (one, or a tuple
+    that ``decode`` returns in that order), whatever the robot's model."""
+    def reader(model: RobotModel) -> Reader:
+        if isinstance(fields, str):
+            return lambda data, tick: setattr(tick, fields, decode(data))
+
+        def read(data, tick) -> None:
+            for field, value in zip(fields, decode(data)):
+                setattr(tick, field, value)
+        return read
+    return reader
+
+
+@dataclass(frozen=True)
+class Device:
+    name: str                                          # the world file's name (world/robot_models.py)
+    topics: tuple[Topic, ...]                          # every contract topic it gives a robot
+    publisher: type[DevicePublisher]                   # the simulator's side of its topics
+    reader: Optional[Callable[[RobotModel], Reader]]   # the controller's side of its sensor topic
+    # The sensor topic is taken as serialized bytes and decoded straight into arrays (cdr.py):
+    # the same messages without Python message objects, for the devices every tick of a
+    # flocking swarm reads. The others arrive as message objects.
+    taken_as_bytes: bool = False
+
+    @property
+    def sensor_topic(self) -> Optional[Topic]:
+        return self.topics[0] if self.topics[0].direction == "sensor" else None
+
+
+def rows_f4(values: np.ndarray) -> tuple[bytes, int]:
+    """[k, m] → (the rows as consecutive little-endian float32 bytes, bytes per row)."""
+    values = np.ascontiguousarray(values, dtype="<f4")
+    return values.tobytes(), 4 * values.shape[1]
+
+
+def csr_take(offsets: np.ndarray, rows: np.ndarray):
+    """The entries of CSR rows ``rows`` [k] (ascending) of entry arrays with row offsets
+    ``offsets``: (what to take from the entry arrays, [k+1] offsets into what is taken).
+
+    A simulator node serves a block or a domain of the swarm: converting every robot's entries
+    (blobs, range-and-bearing messages) in every node would cost (number of nodes) × the work."""
+    starts, ends = offsets[rows], offsets[rows + 1]
+    counts = ends - starts
+    local = np.zeros(len(rows) + 1, dtype=np.int64)
+    np.cumsum(counts, out=local[1:])
+    if len(rows) and rows[-1] - rows[0] + 1 == len(rows):     # contiguous rows: a slice
+        return slice(int(starts[0]), int(ends[-1])), local
+    return np.arange(local[-1]) + np.repeat(starts - local[:-1], counts), local

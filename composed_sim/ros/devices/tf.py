@@ -1,0 +1,131 @@
+"""tf for the robots that switch it on (``devices: {tf: {}}``): REP-105 frames per robot.
+
+Each tick, per robot: ``world → <r>/odom`` and ``<r>/odom → <r>/base_link``. The second is the
+odometry reading (it drifts with the wheels' noise, as a real robot's does); the first is what it
+takes for ``world → base_link`` to be the positioning reading (the ground truth unless the world
+adds positioning noise), as a perfect localiser would publish it. Once, transient local: the fixed
+sensor mounts, ``<r>/base_link → <r>/base_scan`` for a LiDAR. Every other sensor's readings are in
+``base_link`` itself.
+
+Per robot on ``/<r>/tf`` and ``/<r>/tf_static``, the namespaced convention of multi-robot Nav2:
+a robot's own listeners receive its frames only. Or (``tf: {topics: global}``) on ``/tf`` and
+``/tf_static``, what RViz and Foxglove read by default: one message per simulator node and tick
+with all its robots' frames; every listener then receives every robot's (docs/devices.md).
+"""
+from __future__ import annotations
+
+import numpy as np
+from geometry_msgs.msg import TransformStamped
+
+from composed_sim.ros import cdr
+from composed_sim.ros.devices.device import Device, DevicePublisher, NodeRobots
+from composed_sim.ros.global_topics import WORLD_FRAME
+from composed_sim.ros.raw_types import raw_message_type
+from composed_sim.ros.topic import PUBLISHER_EVENTS, QOS, STATIC_QOS, Topic, base_link, base_scan, half_yaw, \
+    odom_frame, topic_name
+from composed_sim.world.robot_models import TF, RobotModel
+
+# tf's message type has no Python package among the ROS wheels: it travels as bytes
+# (ros/raw_types.py), with the type's real name and hash, so any tf listener matches it.
+TF_MESSAGE = raw_message_type("tf2_msgs/msg/TFMessage",
+                              "RIHS01_e369d0f05a23ae52508854b66f6aa0437f3449d652e8cbf22d5abe85d020f087",
+                              TransformStamped)
+TOPIC = Topic("tf", TF_MESSAGE, "frames",
+              "the robot's moving frames, each tick: world → <r>/odom (so that world → base_link is the "
+              "positioning reading) and <r>/odom → <r>/base_link (the odometry reading)")
+STATIC_TOPIC = Topic("tf_static", TF_MESSAGE, "frames",
+                     "the robot's fixed sensor mounts (<r>/base_link → <r>/base_scan), once, transient local")
+GLOBAL_TF, GLOBAL_TF_STATIC = "/tf", "/tf_static"
+
+
+def frame_pairs(robot: str) -> list[tuple[str, str]]:
+    """The (parent, child) frames published each tick for ``robot``."""
+    return [(WORLD_FRAME, odom_frame(robot)), (odom_frame(robot), base_link(robot))]
+
+
+def moving_frames(frame, rows: np.ndarray) -> np.ndarray:
+    """[k, 2, 7] per robot of ``rows``: the (x, y, z, qx, qy, qz, qw) of world → odom and of
+    odom → base_link, from a SensorFrame's positioning and odometry readings."""
+    x, y = frame.pose.positions[rows, 0], frame.pose.positions[rows, 1]
+    yaw = frame.pose.yaws[rows]
+    ox, oy, oyaw = frame.odometry[rows, 0], frame.odometry[rows, 1], frame.odometry[rows, 2]
+    # world → odom = (world → base_link) · (odom → base_link)⁻¹
+    drift = yaw - oyaw
+    cos, sin = np.cos(drift), np.sin(drift)
+    out = np.zeros((len(rows), 2, 7))
+    out[:, 0, 0] = x - (cos * ox - sin * oy)
+    out[:, 0, 1] = y - (sin * ox + cos * oy)
+    out[:, 0, 5], out[:, 0, 6] = half_yaw(drift)
+    out[:, 1, 0], out[:, 1, 1] = ox, oy
+    out[:, 1, 5], out[:, 1, 6] = half_yaw(oyaw)
+    return out
+
+
+def static_frames(robot: str, model: RobotModel) -> list[tuple[tuple[str, str], tuple[float, ...]]]:
+    """The fixed mounts of ``robot``'s sensors that have a frame of their own."""
+    if model.lidar is None:
+        return []
+    x, y, z = model.lidar.mount_m
+    return [((base_link(robot), base_scan(robot)), (x, y, z, 0.0, 0.0, 0.0, 1.0))]
+
+
+class Publisher(DevicePublisher):
+    """The tf of one simulator node: each robot's frames on its own /<r>/tf, or gathered into one
+    /tf message per tick for the robots on the global topics; the static mounts once, before the
+    first tick (kept by the transient-local publishers for listeners that come later)."""
+    topic, device = TOPIC, TF
+
+    def __init__(self, node, robots: NodeRobots):
+        n = len(robots.names)
+        self.node, self.pubs, self.msgs, self._read = node, [None] * n, [None] * n, [False] * n
+        running = set(robots.running(TF))
+        on_global = [i in running and robots.global_tf is not None and bool(robots.global_tf[i]) for i in range(n)]
+        self._names = robots.names
+        self._gathered: dict[int, np.ndarray] = {}
+        self._encoders: dict[tuple[int, ...], cdr.TransformsEncoder] = {}
+        self._tf_pub = node.create_publisher(TF_MESSAGE, GLOBAL_TF, QOS, event_callbacks=PUBLISHER_EVENTS) \
+            if any(on_global) else None
+        self._static = []       # (publisher, mounts) per message
+        for i in sorted(running):
+            if not on_global[i]:
+                self.pubs[i] = node.create_robot_publisher(robots.names[i], TOPIC)
+                self.msgs[i] = cdr.TransformsEncoder(frame_pairs(robots.names[i]))
+                if mounts := static_frames(robots.names[i], robots.models[i]):
+                    pub = node.create_publisher(TF_MESSAGE, topic_name(robots.names[i], STATIC_TOPIC), STATIC_QOS,
+                                                event_callbacks=PUBLISHER_EVENTS)
+                    self._static.append((pub, mounts))
+        mounts = [m for i in range(n) if on_global[i] for m in static_frames(robots.names[i], robots.models[i])]
+        if mounts:
+            pub = node.create_publisher(TF_MESSAGE, GLOBAL_TF_STATIC, STATIC_QOS, event_callbacks=PUBLISHER_EVENTS)
+            self._static.append((pub, mounts))
+
+    def publish(self, plan, frame, out):
+        poses = moving_frames(frame, plan.rows)                      # [k, 2, 7]
+        for k, i in enumerate(plan.local.tolist()):
+            if out.failed[i]:
+                continue
+            if self.pubs[i] is None:
+                self._gathered[i] = poses[k]
+            elif self.wanted(i, out):
+                self.send(i, self.msgs[i].encode(out.stamp.sec, out.stamp.nanosec, poses[k]), out)
+
+    def finish_tick(self, out) -> None:
+        stamp = out.stamp
+        for pub, mounts in self._static:
+            encoder = cdr.TransformsEncoder([pair for pair, _ in mounts])
+            pub.publish(encoder.encode(stamp.sec, stamp.nanosec, [pose for _, pose in mounts]))
+        self._static = []
+        if not self._gathered:
+            return
+        robots = tuple(self._gathered)
+        if self._tf_pub.get_subscription_count() > 0:
+            encoder = self._encoders.get(robots)
+            if encoder is None:
+                encoder = self._encoders[robots] = cdr.TransformsEncoder(
+                    [pair for i in robots for pair in frame_pairs(self._names[i])])
+            self._tf_pub.publish(encoder.encode(stamp.sec, stamp.nanosec,
+                                                np.concatenate([self._gathered[i] for i in robots])))
+        self._gathered = {}
+
+
+DEVICE = Device(TF, (TOPIC, STATIC_TOPIC), Publisher, reader=None)
