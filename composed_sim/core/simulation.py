@@ -52,6 +52,10 @@ class GroupReadings:
     lidar: Optional[np.ndarray] = None              # [g, r] ranges, m (REP-117: ±inf out of range)
 
 
+# GroupReadings' arrays with one row per robot (blobs are CSR: cut by csr_rows).
+_ROW_ARRAYS = tuple(f.name for f in fields(GroupReadings) if f.name not in ("model", "robots", "blobs"))
+
+
 @dataclass
 class SensorFrame:
     """Every robot's sensor readings at the end of one tick."""
@@ -92,7 +96,7 @@ class SensorFrame:
             hi = max(lo, min(g.robots.stop, stop))
             within = slice(lo - g.robots.start, hi - g.robots.start)
             cut = GroupReadings(g.model, slice(max(lo - start, 0), max(hi - start, 0)))
-            for f in ("proximity_distances", "proximity", "light", "ground", "lidar"):
+            for f in _ROW_ARRAYS:
                 value = getattr(g, f)
                 setattr(cut, f, None if value is None else value[within])
             cut.blobs = None if g.blobs is None else csr_rows(g.blobs, within.start, within.stop)

@@ -23,6 +23,8 @@ def _ring_angles(first_deg: float, step_deg: float, count: int) -> tuple[float, 
 # Device names as the world file and the sensor frames spell them.
 PROXIMITY, LIGHT, CAMERA, GROUND = "proximity", "light", "camera", "ground"
 RANGE_AND_BEARING, LIDAR = "range_and_bearing", "lidar"
+# The devices with a layout: a model fits them or not, and a world file switches them.
+WITH_LAYOUT = (PROXIMITY, LIGHT, CAMERA, GROUND, RANGE_AND_BEARING, LIDAR)
 # Every model has these: they need no layout (the wheels are the drive itself).
 DIFFERENTIAL_STEERING, POSITIONING, ODOMETRY = "differential_steering", "positioning", "odometry"
 ALWAYS_ON = (DIFFERENTIAL_STEERING, POSITIONING, ODOMETRY)
@@ -120,8 +122,7 @@ class RobotModel:
     @property
     def devices(self) -> tuple[str, ...]:
         """Names of the devices this model carries (the always-on ones included)."""
-        fitted = [name for name in (PROXIMITY, LIGHT, CAMERA, GROUND, RANGE_AND_BEARING, LIDAR)
-                  if getattr(self, name) is not None]
+        fitted = [name for name in WITH_LAYOUT if getattr(self, name) is not None]
         return tuple(fitted) + ALWAYS_ON
 
     @property

@@ -19,8 +19,8 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 from pydantic_core import PydanticCustomError
 
 from composed_sim.entry_points import installed
-from composed_sim.world.robot_models import (CAMERA, DIFFERENTIAL_STEERING, GROUND, LIDAR, LIGHT, MODELS, ODOMETRY,
-                                            POSITIONING, PROXIMITY, RANGE_AND_BEARING, TF, RobotModel)
+from composed_sim.world.robot_models import (DIFFERENTIAL_STEERING, MODELS, ODOMETRY, POSITIONING, TF, WITH_LAYOUT,
+                                            RobotModel)
 
 Vec2 = tuple[float, float]
 PositiveFloat = Annotated[float, Field(gt=0)]
@@ -261,7 +261,7 @@ class PositioningConfig(DeviceSwitch):
 
 
 # The devices that can be switched, by the name robot models and sensor frames use.
-SWITCHED_DEVICES = (PROXIMITY, LIGHT, CAMERA, GROUND, RANGE_AND_BEARING, LIDAR)
+SWITCHED_DEVICES = WITH_LAYOUT
 # Every robot computes these (cheap, vectorised); their ROS topics exist only where the world
 # file switches them on, as ARGoS lists a controller's sensors: publishing three more messages
 # per robot and tick that no controller reads would cost every swarm, the paper's included.

@@ -57,6 +57,7 @@ class Outgoing:
 class PublishingNode(Protocol):
     """What a device publisher uses of its simulator node."""
     def create_robot_publisher(self, robot: str, topic: Topic) -> Any: ...
+    def create_publisher(self, msg_type: type, topic: str, qos, **kwargs) -> Any: ...
     def taps(self, topic: Topic, i: int) -> bool: ...
     def tap_message(self, topic: Topic, i: int, data, stamp_ns: int) -> None: ...
 
@@ -74,9 +75,13 @@ class DevicePublisher:
         self.pubs: list = [None] * n
         self.msgs: list = [None] * n
         self._read = [False] * n
-        for i in robots.running(self.device):
+        for i in self.own_topics(robots):
             self.pubs[i] = node.create_robot_publisher(robots.names[i], self.topic)
             self.msgs[i] = self.template(robots, i)
+
+    def own_topics(self, robots: NodeRobots) -> list[int]:
+        """The robots with a topic of their own for the device: all that run it."""
+        return robots.running(self.device)
 
     def template(self, robots: NodeRobots, i: int):
         """Robot i's reused message, or the encoder of its bytes."""

@@ -76,28 +76,30 @@ class Publisher(DevicePublisher):
     topic, device = TOPIC, TF
 
     def __init__(self, node, robots: NodeRobots):
-        n = len(robots.names)
-        self.node, self.pubs, self.msgs, self._read = node, [None] * n, [None] * n, [False] * n
-        running = set(robots.running(TF))
-        on_global = [i in running and robots.global_tf is not None and bool(robots.global_tf[i]) for i in range(n)]
+        super().__init__(node, robots)          # the robots with their own /<r>/tf
+        on_global = [i for i in robots.running(TF) if self.pubs[i] is None]
         self._names = robots.names
         self._gathered: dict[int, np.ndarray] = {}
         self._encoders: dict[tuple[int, ...], cdr.TransformsEncoder] = {}
         self._tf_pub = node.create_publisher(TF_MESSAGE, GLOBAL_TF, QOS, event_callbacks=PUBLISHER_EVENTS) \
-            if any(on_global) else None
+            if on_global else None
         self._static = []       # (publisher, mounts) per message
-        for i in sorted(running):
-            if not on_global[i]:
-                self.pubs[i] = node.create_robot_publisher(robots.names[i], TOPIC)
-                self.msgs[i] = cdr.TransformsEncoder(frame_pairs(robots.names[i]))
-                if mounts := static_frames(robots.names[i], robots.models[i]):
-                    pub = node.create_publisher(TF_MESSAGE, topic_name(robots.names[i], STATIC_TOPIC), STATIC_QOS,
-                                                event_callbacks=PUBLISHER_EVENTS)
-                    self._static.append((pub, mounts))
-        mounts = [m for i in range(n) if on_global[i] for m in static_frames(robots.names[i], robots.models[i])]
+        for i in self.own_topics(robots):
+            if mounts := static_frames(robots.names[i], robots.models[i]):
+                pub = node.create_publisher(TF_MESSAGE, topic_name(robots.names[i], STATIC_TOPIC), STATIC_QOS,
+                                            event_callbacks=PUBLISHER_EVENTS)
+                self._static.append((pub, mounts))
+        mounts = [m for i in on_global for m in static_frames(robots.names[i], robots.models[i])]
         if mounts:
             pub = node.create_publisher(TF_MESSAGE, GLOBAL_TF_STATIC, STATIC_QOS, event_callbacks=PUBLISHER_EVENTS)
             self._static.append((pub, mounts))
+
+    def own_topics(self, robots: NodeRobots) -> list[int]:
+        """Those not on the global /tf."""
+        return [i for i in robots.running(TF) if robots.global_tf is None or not robots.global_tf[i]]
+
+    def template(self, robots, i):
+        return cdr.TransformsEncoder(frame_pairs(robots.names[i]))
 
     def publish(self, plan, frame, out):
         poses = moving_frames(frame, plan.rows)                      # [k, 2, 7]
