@@ -3,7 +3,6 @@ through a real run, placement without overlaps (1000 robots), and what the user 
 import json
 import subprocess
 import sys
-from itertools import combinations
 from pathlib import Path
 
 import numpy as np

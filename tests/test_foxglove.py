@@ -114,7 +114,7 @@ def test_a_port_in_use_is_one_line_naming_it(tmp_path):
                 "--no-progress", "--foxglove", str(port))
     assert r.returncode == 2
     errors = [line for line in r.stderr.splitlines() if "error" in line]
-    assert len(errors) == 1 and f"port {port}" in errors[0] and f"pid " in errors[0], r.stderr
+    assert len(errors) == 1 and f"port {port}" in errors[0] and "pid " in errors[0], r.stderr
 
 
 def test_markers_size_each_robot_by_its_own_model():
