@@ -133,20 +133,3 @@ def body_points(positions: np.ndarray, headings: np.ndarray, offsets: np.ndarray
     c, s = np.cos(headings)[:, None], np.sin(headings)[:, None]
     ox, oy = offsets[None, :, 0], offsets[None, :, 1]
     return np.stack([positions[:, 0:1] + c * ox - s * oy, positions[:, 1:2] + s * ox + c * oy], axis=-1)
-
-
-def ground_sensors(positions: np.ndarray, headings: np.ndarray, offsets: np.ndarray, floor: Floor, *,
-                   noise: float = 0.0, rng: Optional[np.random.Generator] = None) -> np.ndarray:
-    """Motor ground sensors of every robot: positions [n, 2], headings [n], offsets [s, 2]
-    body frame → readings [n, s] in [0, 1] (grey under each sensor, + uniform(-noise, noise),
-    clamped)."""
-    if not noise >= 0.0:
-        raise ValueError(f"noise must be >= 0, got {noise}")
-    if noise > 0.0 and rng is None:
-        raise ValueError(f"noise={noise} needs a random generator (rng=)")
-    positions = np.asarray(positions, dtype=np.float64).reshape(-1, 2)
-    offsets = np.asarray(offsets, dtype=np.float64).reshape(-1, 2)
-    readings = floor.grey(body_points(positions, np.asarray(headings, dtype=np.float64), offsets))
-    if noise > 0.0:
-        readings = readings + rng.uniform(-noise, noise, readings.shape)
-    return np.clip(readings, 0.0, 1.0)

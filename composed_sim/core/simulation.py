@@ -20,19 +20,19 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from composed_sim.core import world_edits
-from composed_sim.core.floor import Floor, ground_sensors
+from composed_sim.core.devices import GROUP_READERS
+from composed_sim.core.devices.camera import BlobReadings, led_world_positions
+from composed_sim.core.devices.sensing import Sensing
+from composed_sim.core.floor import Floor
 from composed_sim.core.geometry import StaticScene, box_corners
-from composed_sim.core.lidar import lidar_scan
 from composed_sim.core.odometry import (Odometry, PoseReadings, WheelActuator, WheelNoise, WheelReadings,
                                         differential_steering, positioning)
 from composed_sim.core.physics import PhysicsWorld
 from composed_sim.core.placement import place_robots
 from composed_sim.core.range_and_bearing import RangeAndBearingReadings, range_and_bearing
-from composed_sim.world.robot_models import (CAMERA, DIFFERENTIAL_STEERING, GROUND, LIDAR, LIGHT, POSITIONING,
-                                            PROXIMITY, RANGE_AND_BEARING, RobotModel, get_model)
+from composed_sim.world.robot_models import (DIFFERENTIAL_STEERING, GROUND, POSITIONING, RANGE_AND_BEARING,
+                                            RobotModel, get_model)
 from composed_sim.core.seeding import STREAM_PLACEMENT, device_rng, stream
-from composed_sim.core.sensors import (BlobReadings, blob_camera, led_world_positions, light_ring,
-                                       proximity_ring)
 from composed_sim.world.schema import SWITCHED_DEVICES, Box, World
 
 
@@ -316,32 +316,15 @@ class Simulation:
                 check_occlusions=self.world.range_and_bearing.check_occlusions,
                 drop_probability=self._rab_drop, noise_std_m=self._rab_noise,
                 rng=self._rngs[RANGE_AND_BEARING], tree=tree)
-        led_world = None
+        sensing = Sensing(p, h, self.radii, self.heights, scene, tree, self._rngs, self.world.lights, self.floor,
+                          self.camera_heights, self.half_windows, self.led_colors, self._led_world,
+                          one_group=len(self.groups) == 1)
         groups = []
         for g in self.groups:
-            whole = len(self.groups) == 1
-            observers = None if whole else g.ids
             out = GroupReadings(g.model.name, g.robots)
-            cfg = g.settings.config
-            if PROXIMITY in g.running:
-                out.proximity_distances, out.proximity = proximity_ring(
-                    p, h, self.radii, self.heights, g.model.proximity, scene, noise=cfg(PROXIMITY).noise,
-                    rng=self._rngs[PROXIMITY], tree=tree, observers=observers)
-            if LIGHT in g.running:
-                out.light = light_ring(p, h, self.radii, self.heights, g.model.light, self.world.lights, scene,
-                                       noise=cfg(LIGHT).noise, rng=self._rngs[LIGHT], tree=tree,
-                                       observers=observers)
-            if CAMERA in g.running:
-                led_world = self._led_world() if led_world is None else led_world
-                out.blobs = blob_camera(p, h, self.radii, self.heights, self.camera_heights, self.half_windows,
-                                        led_world, self.led_colors, scene, noise_std=cfg(CAMERA).noise_std,
-                                        rng=self._rngs[CAMERA], tree=tree, observers=observers)
-            if GROUND in g.running:
-                out.ground = ground_sensors(p[g.robots], h[g.robots], np.asarray(g.model.ground.offsets_m),
-                                            self.floor, noise=cfg(GROUND).noise, rng=self._rngs[GROUND])
-            if LIDAR in g.running:
-                out.lidar = lidar_scan(p, h, self.radii, self.heights, g.ids, g.model.lidar, scene,
-                                       noise_std_m=cfg(LIDAR).noise_std_m, rng=self._rngs[LIDAR], tree=tree)
+            for device in g.running:           # core/devices/: each reads the group into its fields
+                if device in GROUP_READERS:
+                    GROUP_READERS[device](sensing, g, out)
             groups.append(out)
         pose = positioning(p, h, position_noise_m=self._pose_noise[0], yaw_noise_rad=self._pose_noise[1],
                            rng=self._rngs[POSITIONING])

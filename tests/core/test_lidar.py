@@ -9,7 +9,7 @@ import pytest
 from reference_geometry import ref_span_box, ref_span_circle
 
 from composed_sim.core.geometry import StaticScene
-from composed_sim.core.lidar import lidar_scan
+from composed_sim.core.devices.lidar import lidar_scan
 from composed_sim.world.robot_models import FOOTBOT, TURTLEBOT3_BURGER, Lidar
 
 TB = TURTLEBOT3_BURGER

@@ -8,8 +8,9 @@ import pytest
 
 from composed_sim.core.geometry import StaticScene
 from composed_sim.world.robot_models import EPUCK, FOOTBOT, THYMIO2
-from composed_sim.core.sensors import (blob_camera, epuck_proximity_reading, led_world_positions, light_ring,
-                                       proximity_ring)
+from composed_sim.core.devices.camera import blob_camera, led_world_positions
+from composed_sim.core.devices.light import light_ring
+from composed_sim.core.devices.proximity import epuck_proximity_reading, proximity_ring
 from composed_sim.world.schema import Box, Light, World
 
 

@@ -13,9 +13,9 @@ from scipy.spatial import cKDTree
 
 from composed_sim.core.geometry import StaticScene
 from composed_sim.world.robot_models import FOOTBOT, FOOTBOT_BEACON_LED_INDEX
-from composed_sim.core.sensors import (BlobReadings, blob_camera,
-                                       footbot_proximity_reading, led_world_positions, light_ring,
-                                       proximity_ring)
+from composed_sim.core.devices.camera import BlobReadings, blob_camera, led_world_positions
+from composed_sim.core.devices.light import light_ring
+from composed_sim.core.devices.proximity import footbot_proximity_reading, proximity_ring
 from composed_sim.world.schema import Arena, Box, Cylinder, Light, World
 
 R, H = FOOTBOT.body_radius_m, FOOTBOT.body_height_m
@@ -546,19 +546,19 @@ def test_shapes_are_checked_and_empty_inputs_work():
 
 
 def test_core_imports_neither_rclpy_nor_matplotlib():
-    code = ("import sys, composed_sim.core.sensors, composed_sim.core.geometry; "
+    code = ("import sys, composed_sim.core.simulation; "
             "print([m for m in ('rclpy', 'matplotlib') if m in sys.modules])")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"
 
 
 def test_camera_chunks_give_the_same_blobs(monkeypatch):
-    import composed_sim.core.sensors as sensors
+    import composed_sim.core.devices.camera as camera
     world, pos, hd, radii, heights, cam_h, half_w, colors = random_world(9)
     scene = StaticScene.from_world(world)
     args = (pos, hd, radii, heights, cam_h, half_w, led_world_positions(pos, hd, LEDS), colors, scene)
     whole = blob_camera(*args)
-    monkeypatch.setattr(sensors, "_BLOB_CHUNK", 50)
+    monkeypatch.setattr(camera, "_BLOB_CHUNK", 50)
     parts = blob_camera(*args)
     for name in ("offsets", "angles", "distances", "colors"):
         np.testing.assert_array_equal(getattr(parts, name), getattr(whole, name))

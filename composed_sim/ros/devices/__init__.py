@@ -1,8 +1,8 @@
 """The devices on the ROS side, one module each: topics, publishing, decoding (device.py says how).
+Their readings come from the module of the same name in ``core/devices/`` (or, for the devices
+every robot has, from ``core/odometry.py`` and ``core/range_and_bearing.py``).
 
-To add a device: its layout in ``world/robot_models.py`` and its settings in the schema's
-``Devices``, its batched reading in ``core/`` (``Simulation.sense``), and here one module with a
-``DEVICE``, listed below (docs/architecture.md, "Where to add").
+To add a device: docs/architecture.md, "Where to add".
 """
 from composed_sim.ros.devices import (camera, differential_steering, ground, lidar, light, odometry, positioning,
                                       proximity, range_and_bearing, tf)

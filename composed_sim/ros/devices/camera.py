@@ -1,4 +1,4 @@
-"""Camera: the omnidirectional coloured-blob camera (readings: core/sensors.blob_camera).
+"""Camera: the omnidirectional coloured-blob camera (readings: core/devices/camera.py).
 
 ``/<r>/blobs``, sensor_msgs/PointCloud2 in base_link: one point per blob, x/y of the seen LED (m;
 z = 0, the camera is planar), rgb = 0x00RRGGBB (uint32). Published and taken as bytes; a

@@ -1,4 +1,4 @@
-"""Ground: the motor ground sensors under the body (readings: core/floor.ground_sensors).
+"""Ground: the motor ground sensors under the body (readings: core/devices/ground.py).
 
 ``/<r>/ground``, sensor_msgs/PointCloud2 in base_link: one point per sensor, x/y its position in
 base_link (m, z = 0), intensity = the floor's grey level under it in [0, 1] (float32).

@@ -1,4 +1,4 @@
-"""LiDAR: a planar scanning range finder (readings: core/lidar.lidar_scan).
+"""LiDAR: a planar scanning range finder (readings: core/devices/lidar.py).
 
 ``/<r>/scan``, sensor_msgs/LaserScan in frame ``<r>/base_scan`` (the model's mount, on
 /<r>/tf_static with tf): ranges in m, REP-117 (+inf: nothing within range_max, -inf: closer than

@@ -1,4 +1,4 @@
-"""Light: the light ring (readings: core/sensors.light_ring).
+"""Light: the light ring (readings: core/devices/light.py).
 
 ``/<r>/light``, sensor_msgs/LaserScan in base_link: intensities = the reading in [0, 1] per sensor
 at the ring's angles; ranges empty. Published and taken as bytes.

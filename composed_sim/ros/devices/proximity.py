@@ -1,4 +1,4 @@
-"""Proximity: the IR ring (readings: core/sensors.proximity_ring).
+"""Proximity: the IR ring (readings: core/devices/proximity.py).
 
 ``/<r>/proximity``, sensor_msgs/LaserScan in base_link: one ray per sensor at the ring's angles;
 ranges = the nearest hit's distance from the rim (m, +inf: nothing within range), intensities =

@@ -18,9 +18,10 @@ from typing import Optional
 import numpy as np
 from scipy.spatial import cKDTree
 
+from composed_sim.core.devices.sensing import Sensing
 from composed_sim.core.geometry import StaticScene
-from composed_sim.world.robot_models import Lidar
 from composed_sim.core.sensors import _both_ways, _ranges
+from composed_sim.world.robot_models import LIDAR, Lidar
 
 # (pair, ray) candidates per chunk of the robot part: ~10 float64 temporaries each.
 _LIDAR_CHUNK = 1 << 20
@@ -118,3 +119,8 @@ def _robot_hits(dist, positions, radii, heights, observers, origins, h, rel, lid
                                                np.inf))
         np.minimum.at(flat_out, cell, hit)
         start = stop
+
+
+def read(s: Sensing, group, out) -> None:
+    out.lidar = lidar_scan(s.positions, s.headings, s.radii, s.heights, group.ids, group.model.lidar, s.scene,
+                           noise_std_m=group.settings.config(LIDAR).noise_std_m, rng=s.rngs[LIDAR], tree=s.tree)

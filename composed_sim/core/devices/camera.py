@@ -1,0 +1,180 @@
+"""Camera: the omnidirectional coloured-blob camera, ARGoS's
+``colored_blob_omnidirectional_camera_rotzonly_sensor.cpp`` (docs/architecture.md, "Blob camera and
+LEDs"), over all robots at once.
+
+Its layout: ``world/robot_models.BlobCamera`` and the LEDs; its settings: the schema's
+``BlobCameraConfig`` and ``CameraConfig``; its topic: ``ros/devices/camera.py``.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Optional
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from composed_sim.core.devices.sensing import Sensing
+from composed_sim.core.geometry import StaticScene
+from composed_sim.core.poses import wrap_angle
+from composed_sim.core.sensors import (_both_ways, _check_noise, _observer_rows, _pair_order, _ranges, _robots,
+                                       blocked_by_robots)
+from composed_sim.world.robot_models import CAMERA
+
+# Camera work per chunk, in (observer, lit LED) candidates; ~15 float64 temporaries each, so
+# about 150 MB of them, plus the occlusion walk's samples.
+_BLOB_CHUNK = 1 << 20
+
+
+@dataclass
+class BlobReadings:
+    """Every robot's blobs, CSR by robot: robot i's are rows offsets[i]:offsets[i+1]."""
+    offsets: np.ndarray    # [n+1] int64
+    angles: np.ndarray     # [m] bearing relative to the observer's heading, (-pi, pi]
+    distances: np.ndarray  # [m] planar, m, from the observer's centre to the LED
+    colors: np.ndarray     # [m, 3] uint8 RGB
+
+    def of(self, i: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(angles [b], distances [b], colors [b, 3]) of robot i's blobs."""
+        s = slice(self.offsets[i], self.offsets[i + 1])
+        return self.angles[s], self.distances[s], self.colors[s]
+
+    @classmethod
+    def empty(cls, n: int) -> "BlobReadings":
+        return cls(offsets=np.zeros(n + 1, dtype=np.int64), angles=np.zeros(0), distances=np.zeros(0),
+                   colors=np.zeros((0, 3), dtype=np.uint8))
+
+
+def led_world_positions(positions: np.ndarray, headings: np.ndarray, led_body: np.ndarray) -> np.ndarray:
+    """positions [n, 2], headings [n], led_body [L, 3] body-frame → [n, L, 3] world-frame LEDs."""
+    positions = np.asarray(positions, dtype=np.float64)
+    headings = np.asarray(headings, dtype=np.float64)
+    led_body = np.asarray(led_body, dtype=np.float64).reshape(-1, 3)
+    c, s = np.cos(headings)[:, None], np.sin(headings)[:, None]
+    bx, by = led_body[None, :, 0], led_body[None, :, 1]
+    return np.stack([positions[:, 0:1] + c * bx - s * by,
+                     positions[:, 1:2] + s * bx + c * by,
+                     np.broadcast_to(led_body[:, 2], (len(positions), len(led_body)))], axis=-1)
+
+
+def blob_camera(positions, headings, radii, heights, camera_heights, half_windows, led_world,
+                led_colors, scene: StaticScene, *, noise_std: float = 0.0,
+                rng: Optional[np.random.Generator] = None, tree: Optional[cKDTree] = None,
+                observers=None) -> BlobReadings:
+    """The omnidirectional camera's blobs for every robot (or, CSR over ``observers`` [m], for
+    those robots only: every robot's LEDs are still seen).
+
+    positions [n, 2], headings [n], radii [n], heights [n], camera_heights [n] m,
+    half_windows [n] m (= height · tan(aperture)), led_world [n, L, 3] world-frame LED
+    positions, led_colors [n, L, 3] uint8. LED l of robot j is a blob of robot i when it is
+    lit (not black), j != i, |dx| and |dy| (world axes) are both below half_windows[i], it is
+    lower than the camera, and the segment camera(i) → LED is not blocked by a robot other
+    than i (the LED's owner included, as in ARGoS) nor by a static body. Blobs of a robot are ordered by owner, then LED index.
+    Noise (ARGoS): the planar camera→LED vector gets |v| · N(0, noise_std) added in a uniform
+    direction.
+    """
+    positions, headings, radii, heights = _robots(positions, headings, radii, heights)
+    n = len(positions)
+    camera_heights = np.asarray(camera_heights, dtype=np.float64)
+    half_windows = np.asarray(half_windows, dtype=np.float64)
+    led_world = np.asarray(led_world, dtype=np.float64)
+    led_colors = np.asarray(led_colors)
+    for name, a in (("camera_heights", camera_heights), ("half_windows", half_windows)):
+        if a.shape != (n,):
+            raise ValueError(f"{name} must have shape ({n},), got {a.shape}")
+    if led_world.ndim != 3 or led_world.shape[::2] != (n, 3):
+        raise ValueError(f"led_world must have shape ({n}, L, 3), got {led_world.shape}")
+    if led_colors.shape != led_world.shape:
+        raise ValueError(f"led_colors must have shape {led_world.shape}, got {led_colors.shape}")
+    _check_noise("noise_std", noise_std, rng)
+
+    # Most LEDs are off: the work below follows the lit ones only.
+    n_leds = led_world.shape[1]
+    rgb = led_colors.astype(np.uint8, copy=False)
+    own, led = np.nonzero(rgb[..., 0] | rgb[..., 1] | rgb[..., 2])   # sorted by owner, then LED
+    if n < 2 or len(own) == 0:
+        return BlobReadings.empty(n if observers is None else len(observers))
+    n_lit = np.bincount(own, minlength=n)
+    first_lit = np.cumsum(n_lit) - n_lit
+    flat = led_world.reshape(-1, 3)                             # [n * L, 3]
+    # Observer/owner pairs whose centres are close enough for a lit LED to be in the window.
+    reach = np.abs(flat.take(own * n_leds + led, axis=0)[:, :2] - positions.take(own, axis=0)).max()
+    tree = cKDTree(positions) if tree is None else tree
+    obs, owner = _both_ways(tree.query_pairs(half_windows.max() + reach, p=np.inf, output_type="ndarray"))
+    if len(own) < n:
+        keep = np.flatnonzero(n_lit[owner] > 0)
+        obs, owner = obs[keep], owner[keep]
+    observers, row_of = _observer_rows(observers, n)
+    if observers is not None:
+        keep = np.flatnonzero(row_of[obs] >= 0)
+        obs, owner = obs[keep], owner[keep]
+    n_out = n if observers is None else len(observers)
+    if len(obs) == 0:
+        return BlobReadings.empty(n_out)
+    order = _pair_order(obs, owner, n)                # the output order: observer, owner, LED
+    obs, owner = obs[order], owner[order]
+    # Chunks of about _BLOB_CHUNK (observer, LED) candidates: with every LED lit, 10^4 robots
+    # give ~10^7 candidates, and their temporaries would need gigabytes at once.
+    ends = np.cumsum(n_lit[owner])                    # candidates up to each pair, inclusive
+    parts, start, done = [], 0, 0
+    while start < len(obs):
+        stop = max(start + 1, int(np.searchsorted(ends, done + _BLOB_CHUNK, "right")))
+        parts.append(_visible_leds(obs[start:stop], owner[start:stop], n_lit, first_lit, led, flat, positions,
+                                   radii, heights, camera_heights, half_windows, scene, tree))
+        start, done = stop, ends[stop - 1]
+    i, f, rx, ry = parts[0] if len(parts) == 1 else (np.concatenate(x) for x in zip(*parts))
+
+    if noise_std > 0.0:
+        length = np.sqrt(rx * rx + ry * ry) * rng.normal(0.0, noise_std, len(rx))
+        direction = rng.uniform(0.0, 2.0 * math.pi, len(rx))
+        rx, ry = rx + length * np.cos(direction), ry + length * np.sin(direction)
+    counts = np.bincount(i, minlength=n)
+    offsets = np.zeros(n_out + 1, dtype=np.int64)
+    # Blobs are ordered by observer, so an observer subset's rows are already contiguous.
+    np.cumsum(counts if observers is None else counts[observers], out=offsets[1:])
+    return BlobReadings(offsets=offsets,
+                        angles=wrap_angle(np.arctan2(ry, rx) - headings[i]),
+                        distances=np.sqrt(rx * rx + ry * ry),
+                        colors=rgb.reshape(-1, 3).take(f, axis=0))
+
+
+def _visible_leds(obs, owner, n_lit, first_lit, led, flat, positions, radii, heights, camera_heights,
+                  half_windows, scene, tree):
+    """The lit LEDs of `owner` [p] that `obs` [p] sees → (observer, flat LED index, dx, dy) [m] each.
+
+    n_lit [n], first_lit [n]: each robot's count of lit LEDs and where they start in `led` [l];
+    flat [n * L, 3] the LED positions, robot-major.
+    """
+    n_leds = len(flat) // len(positions)
+    if n_lit.max() == 1:                                # e.g. flocking: only the beacon is lit
+        i, j = obs, owner
+        f = j * n_leds + led[first_lit[j]]              # flat LED index
+    else:
+        rows, within = _ranges(n_lit[owner])
+        i, j = obs[rows], owner[rows]
+        f = j * n_leds + led[first_lit[j] + within]
+    # One 1-D array per coordinate: fancy indexing [m, 2]/[m, 3] arrays is far slower.
+    tx, ty, tz = flat[:, 0].take(f), flat[:, 1].take(f), flat[:, 2].take(f)
+    rx, ry = tx - positions[:, 0].take(i), ty - positions[:, 1].take(i)
+    hw, cz = half_windows[i], camera_heights[i]
+    shown = (np.abs(rx) < hw) & (np.abs(ry) < hw) & (tz < cz)
+    # Occlusion: static bodies anywhere; robots only where the segment dips below the tallest
+    # robot (never for the beacon, which is taller than every foot-bot).
+    test = np.flatnonzero(shown if scene.n_bodies else shown & (np.minimum(tz, cz) < heights.max()))
+    if len(test):
+        led_p = np.stack([tx[test], ty[test], tz[test]], axis=1)
+        cam_p = np.stack([tx[test] - rx[test], ty[test] - ry[test], cz[test]], axis=1)
+        # Walk from the LED end: a ring LED is hidden, if at all, near its robot.
+        # As in ARGoS, only the observer's own body is ignored: a robot's body hides its own
+        # far-side ring LEDs (they sit 5 mm outside its rim).
+        hidden = scene.blocks(cam_p, led_p) | blocked_by_robots(led_p, cam_p, i[test], np.full(len(test), -1),
+                                                                positions, radii, heights, tree)
+        shown[test[hidden]] = False
+    shown = np.flatnonzero(shown)
+    return i[shown], f[shown], rx[shown], ry[shown]
+
+
+def read(s: Sensing, group, out) -> None:
+    out.blobs = blob_camera(s.positions, s.headings, s.radii, s.heights, s.camera_heights, s.half_windows,
+                            s.led_world, s.led_colors, s.scene, noise_std=group.settings.config(CAMERA).noise_std,
+                            rng=s.rngs[CAMERA], tree=s.tree, observers=s.observers(group))

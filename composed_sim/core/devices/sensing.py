@@ -1,0 +1,44 @@
+"""One tick's sensing as every device reads it, and what the devices share.
+
+The batch axis is the robots: every device reads all robots' bodies at once (positions, headings,
+radii, heights), the static scene with the movable objects where they are now, and one
+neighbour index of the robot centres per tick.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+from typing import Any, Callable, Optional, Sequence
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from composed_sim.core.floor import Floor
+from composed_sim.core.geometry import StaticScene
+
+
+@dataclass
+class Sensing:
+    positions: np.ndarray              # [n, 2] m
+    headings: np.ndarray               # [n] rad
+    radii: np.ndarray                  # [n] m
+    heights: np.ndarray                # [n] m
+    scene: StaticScene
+    tree: cKDTree
+    rngs: dict[str, np.random.Generator]    # one noise generator per device (core/seeding.device_rng)
+    lights: Sequence[Any]              # the world's lights (position, height_m, intensity)
+    floor: Optional[Floor]             # None unless some group runs the ground sensors
+    camera_heights: np.ndarray         # [n] m
+    half_windows: np.ndarray           # [n] m, the camera's square window half-side
+    led_colors: np.ndarray             # [n, L, 3] uint8
+    led_world_of: Callable[[], np.ndarray]   # → [n, L, 3] world-frame LED positions
+    one_group: bool                    # the world has one robot group
+
+    def observers(self, group) -> Optional[np.ndarray]:
+        """A group's robots as a device's observers (None: every robot, in a one-group world)."""
+        return None if self.one_group else group.ids
+
+    @cached_property
+    def led_world(self) -> np.ndarray:
+        """[n, L, 3] world-frame LED positions, computed once per tick for every camera."""
+        return self.led_world_of()
