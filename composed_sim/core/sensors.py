@@ -2,9 +2,10 @@
 per-robot arrays, noise, candidate pairs, and occlusion by robots.
 
 Occlusion follows ARGoS 3's ``dynamics2d_engine.cpp`` (see docs/architecture.md): bodies are
-footprints extruded from the floor to their height. ARGoS tests only the point where a ray first meets a footprint; here any point
-of the crossing below the height blocks, which differs only for a descending ray that enters
-through a body's top (camera → a low LED). Units are SI; ARGoS's camera cm are metres here.
+footprints extruded from the floor to their height. ARGoS tests only the point where a ray first
+meets a footprint; here any point of the crossing below the height blocks, which differs only for
+a descending ray that enters through a body's top (camera → a low LED). Units are SI; ARGoS's
+camera cm are metres here.
 
 Robot–robot work is done on candidate pairs from a ``scipy.spatial.cKDTree`` of the robot
 centres (pass ``tree=`` to share one tree between the sensors of a tick), so the cost follows

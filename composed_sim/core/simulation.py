@@ -22,7 +22,7 @@ from scipy.spatial import cKDTree
 from composed_sim.core import world_edits
 from composed_sim.core.devices import GROUP_READERS
 from composed_sim.core.devices.camera import BlobReadings, led_world_positions
-from composed_sim.core.devices.sensing import Sensing
+from composed_sim.core.devices.sensing import SensedGroup, Sensing
 from composed_sim.core.floor import Floor
 from composed_sim.core.geometry import StaticScene, box_corners
 from composed_sim.core.odometry import (Odometry, PoseReadings, WheelActuator, WheelNoise, WheelReadings,
@@ -136,20 +136,6 @@ class PhaseTimes:
     sensing_s: float = 0.0
 
 
-@dataclass(frozen=True)
-class _Group:
-    """A robot group as the simulation uses it."""
-    index: int
-    model: RobotModel
-    robots: slice
-    running: tuple[str, ...]            # switched devices that run
-    settings: object                    # schema Devices
-
-    @property
-    def ids(self) -> np.ndarray:
-        return np.arange(self.robots.start, self.robots.stop)
-
-
 class Simulation:
     def __init__(self, world: World, *, base_dir: str = "."):
         self.world = world
@@ -158,11 +144,12 @@ class Simulation:
         self.models: list[RobotModel] = [get_model(world.robots[g].model) for g in world.group_of_robot()]
         # The one model of a homogeneous world (hosts written for one model read it).
         self.model = self.models[0] if self.models else get_model("foot-bot")
-        self.groups: list[_Group] = []
+        self.groups: list[SensedGroup] = []
         start = 0
         for gi, g in enumerate(world.robots):
             model = get_model(g.model)
-            self.groups.append(_Group(gi, model, slice(start, start + g.count), g.devices.running(model), g.devices))
+            self.groups.append(SensedGroup(gi, model, slice(start, start + g.count), g.devices.running(model),
+                                           g.devices))
             start += g.count
         self.tick = 0
         self.times = PhaseTimes()

@@ -14,7 +14,7 @@ from typing import Optional
 import numpy as np
 from scipy.spatial import cKDTree
 
-from composed_sim.core.devices.sensing import Sensing
+from composed_sim.core.devices.sensing import SensedGroup, Sensing
 from composed_sim.core.geometry import StaticScene
 from composed_sim.core.poses import wrap_angle
 from composed_sim.core.sensors import (_both_ways, _check_noise, _observer_rows, _pair_order, _ranges, _robots,
@@ -174,7 +174,7 @@ def _visible_leds(obs, owner, n_lit, first_lit, led, flat, positions, radii, hei
     return i[shown], f[shown], rx[shown], ry[shown]
 
 
-def read(s: Sensing, group, out) -> None:
+def read(s: Sensing, group: SensedGroup, out) -> None:
     out.blobs = blob_camera(s.positions, s.headings, s.radii, s.heights, s.camera_heights, s.half_windows,
                             s.led_world, s.led_colors, s.scene, noise_std=group.settings.config(CAMERA).noise_std,
                             rng=s.rngs[CAMERA], tree=s.tree, observers=s.observers(group))

@@ -10,7 +10,7 @@ from typing import Optional
 
 import numpy as np
 
-from composed_sim.core.devices.sensing import Sensing
+from composed_sim.core.devices.sensing import SensedGroup, Sensing
 from composed_sim.core.floor import Floor, body_points
 from composed_sim.core.sensors import _check_noise, _uniform_noise
 from composed_sim.world.robot_models import GROUND
@@ -28,7 +28,7 @@ def ground_sensors(positions: np.ndarray, headings: np.ndarray, offsets: np.ndar
     return _uniform_noise(readings, noise, rng)
 
 
-def read(s: Sensing, group, out) -> None:
+def read(s: Sensing, group: SensedGroup, out) -> None:
     out.ground = ground_sensors(s.positions[group.robots], s.headings[group.robots],
                                 np.asarray(group.model.ground.offsets_m), s.floor,
                                 noise=group.settings.config(GROUND).noise, rng=s.rngs[GROUND])

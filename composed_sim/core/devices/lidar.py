@@ -18,7 +18,7 @@ from typing import Optional
 import numpy as np
 from scipy.spatial import cKDTree
 
-from composed_sim.core.devices.sensing import Sensing
+from composed_sim.core.devices.sensing import SensedGroup, Sensing
 from composed_sim.core.geometry import StaticScene
 from composed_sim.core.sensors import _both_ways, _ranges
 from composed_sim.world.robot_models import LIDAR, Lidar
@@ -121,6 +121,6 @@ def _robot_hits(dist, positions, radii, heights, observers, origins, h, rel, lid
         start = stop
 
 
-def read(s: Sensing, group, out) -> None:
+def read(s: Sensing, group: SensedGroup, out) -> None:
     out.lidar = lidar_scan(s.positions, s.headings, s.radii, s.heights, group.ids, group.model.lidar, s.scene,
                            noise_std_m=group.settings.config(LIDAR).noise_std_m, rng=s.rngs[LIDAR], tree=s.tree)

@@ -12,7 +12,7 @@ from typing import Optional, Sequence
 import numpy as np
 from scipy.spatial import cKDTree
 
-from composed_sim.core.devices.sensing import Sensing
+from composed_sim.core.devices.sensing import SensedGroup, Sensing
 from composed_sim.core.geometry import StaticScene
 from composed_sim.core.poses import wrap_angle
 from composed_sim.core.sensors import _check_noise, _observer_rows, _robots, _uniform_noise, blocked_by_robots
@@ -72,7 +72,7 @@ def light_ring(positions, headings, radii, heights, ring: LightRing, lights: Seq
 
 
 
-def read(s: Sensing, group, out) -> None:
+def read(s: Sensing, group: SensedGroup, out) -> None:
     out.light = light_ring(s.positions, s.headings, s.radii, s.heights, group.model.light, s.lights, s.scene,
                            noise=group.settings.config(LIGHT).noise, rng=s.rngs[LIGHT], tree=s.tree,
                            observers=s.observers(group))

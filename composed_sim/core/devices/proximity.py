@@ -11,7 +11,7 @@ from typing import Optional
 import numpy as np
 from scipy.spatial import cKDTree
 
-from composed_sim.core.devices.sensing import Sensing
+from composed_sim.core.devices.sensing import SensedGroup, Sensing
 from composed_sim.core.geometry import StaticScene, ray_circle_distance
 from composed_sim.core.sensors import _both_ways, _check_noise, _observer_rows, _robots, _uniform_noise
 from composed_sim.world.robot_models import PROXIMITY, ProximityRing
@@ -104,7 +104,7 @@ def proximity_ring(positions, headings, radii, heights, ring: ProximityRing, sce
 
 
 
-def read(s: Sensing, group, out) -> None:
+def read(s: Sensing, group: SensedGroup, out) -> None:
     """The group's readings into ``out`` (its GroupReadings)."""
     out.proximity_distances, out.proximity = proximity_ring(
         s.positions, s.headings, s.radii, s.heights, group.model.proximity, s.scene,

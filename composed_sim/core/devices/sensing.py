@@ -15,6 +15,21 @@ from scipy.spatial import cKDTree
 
 from composed_sim.core.floor import Floor
 from composed_sim.core.geometry import StaticScene
+from composed_sim.world.robot_models import RobotModel
+
+
+@dataclass(frozen=True)
+class SensedGroup:
+    """A robot group of the world file as the simulation and its devices use it."""
+    index: int
+    model: RobotModel
+    robots: slice                       # its robots: a contiguous index range
+    running: tuple[str, ...]            # its switched devices that run
+    settings: Any                       # the schema's Devices: each device's settings (``config(name)``)
+
+    @property
+    def ids(self) -> np.ndarray:
+        return np.arange(self.robots.start, self.robots.stop)
 
 
 @dataclass
@@ -34,7 +49,7 @@ class Sensing:
     led_world_of: Callable[[], np.ndarray]   # → [n, L, 3] world-frame LED positions
     one_group: bool                    # the world has one robot group
 
-    def observers(self, group) -> Optional[np.ndarray]:
+    def observers(self, group: SensedGroup) -> Optional[np.ndarray]:
         """A group's robots as a device's observers (None: every robot, in a one-group world)."""
         return None if self.one_group else group.ids
 
