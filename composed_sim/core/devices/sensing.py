@@ -1,4 +1,4 @@
-"""One tick's sensing as every device reads it, and what the devices share.
+"""What a device's ``read`` gets: one tick's ``Sensing`` and the ``SensedGroup`` to read.
 
 The batch axis is the robots: every device reads all robots' bodies at once (positions, headings,
 radii, heights), the static scene with the movable objects where they are now, and one
@@ -34,6 +34,7 @@ class SensedGroup:
 
 @dataclass
 class Sensing:
+    """One tick's state as the devices read it (built by ``Simulation.sense``)."""
     positions: np.ndarray              # [n, 2] m
     headings: np.ndarray               # [n] rad
     radii: np.ndarray                  # [n] m
