@@ -97,7 +97,7 @@ class SimulatorNode(Node):
         # One publisher set per device that any of these robots runs (ros/devices/).
         robots = NodeRobots(names, models, self._devices, tick_ns, rab_payload_bytes, global_tf)
         self._device_publishers: list[DevicePublisher] = [d.publisher(self, robots) for d in DEVICES
-                                                   if robots.running(d.name)]
+                                                          if robots.running(d.name)]
         self._led_subs, self._rab_subs = [], [None] * n
         self._cmd_subs: list[Optional[AnswerSubscription]] = [None] * n   # per robot, once its answer type is known
         self._answer_types: list[Optional[type]] = [c.CMD_VEL.msg_type] * n if answer_types is None \
