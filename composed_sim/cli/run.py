@@ -71,10 +71,11 @@ def cmd_run(args) -> int:
             else [domain_id]
         given = domain_given or (args.mode == "multi-process" and used[0] != domain_id)
         about = run_identity(world.name)
+        shards_first = args.external_controllers    # distributed: its shards may be up already
         if given:
-            claim = claim_domains(used, about, given=True)
+            claim = claim_domains(used, about, given=True, controllers_expected=shards_first)
         else:
-            claim, domain_id = claim_free_domain(len(used), about)
+            claim, domain_id = claim_free_domain(len(used), about, controllers_expected=shards_first)
             host = make_host(domain_id)
             used = [domain_id + i for i in range(len(used))]
             print(f"composed-sim: ROS domain {domain_id}{f'..{used[-1]}' if len(used) > 1 else ''} (free, "

@@ -6,8 +6,9 @@
 It builds the very same plugin Node as the composed host (``create_controller``), in the robot's
 namespace, on the given domain, with ``use_sim_time`` so it follows the simulator's /clock like
 any ROS node. With ``--report-fd`` it reports its start-up on that pipe: ``created`` once its node
-exists, ``ready <topics>`` once its contract endpoints are matched with the simulator's (so the
-host can start tick 0 knowing no message will be lost), then closes it. It exits
+exists, ``ready <topics> gid:<hex>…`` once its contract endpoints are matched with the simulator's
+(so the host can start tick 0 knowing no message will be lost; the GIDs are its cmd_vel
+publishers', the only ones the simulator takes this robot's answers from), then closes it. It exits
 cleanly (node destroyed, context shut down, code 0) on SIGTERM (and on SIGINT when run by hand),
 and with its parent: ``PR_SET_PDEATHSIG`` turns the parent's death, even by SIGKILL, into a
 SIGTERM here.
@@ -21,7 +22,7 @@ import sys
 import threading
 import time
 
-from composed_sim.hosts.processes import die_with_parent
+from composed_sim.hosts.processes import GID_PREFIX, die_with_parent
 
 READY_TIMEOUT_S = 120.0
 EXIT_SETUP = 3          # the controller could not be built; the reason is on stderr
@@ -44,15 +45,15 @@ def parse(argv: list[str] | None) -> argparse.Namespace:
 def main(argv: list[str] | None = None) -> int:
     args = parse(argv)
     die_with_parent(args.parent_pid)
-    stop = threading.Event()
+    stop = StopRequest()
     # SIGTERM (the host's cleanup, or PDEATHSIG) stops us cleanly; Python runs the handler in the
     # main thread. SIGINT too when run by hand. Under a host (--parent-pid) SIGINT is ignored: a
     # Ctrl-C is for the simulator, which stops at a tick boundary and then stops us. We are in a
     # process group of our own, but a terminal's SIGINT can still hit us between fork and
     # setpgid; the host spawns us with SIGINT blocked, so such a signal waits, pending, until
     # here, where ignoring it discards it.
-    signal.signal(signal.SIGTERM, lambda *_: stop.set())
-    signal.signal(signal.SIGINT, signal.SIG_IGN if args.parent_pid is not None else lambda *_: stop.set())
+    signal.signal(signal.SIGTERM, stop.request)
+    signal.signal(signal.SIGINT, signal.SIG_IGN if args.parent_pid is not None else stop.request)
     signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
 
     import rclpy
@@ -60,6 +61,7 @@ def main(argv: list[str] | None = None) -> int:
 
     from composed_sim import plugins
     from composed_sim.hosts.controllers import create_controller, make_executor
+    from composed_sim.ros.answer_subscription import cmd_vel_gids
     from composed_sim.world.loader import load_world
 
     world = load_world(args.world)
@@ -87,7 +89,8 @@ def main(argv: list[str] | None = None) -> int:
                     if not wait_until_matched(node, args.robot, stop):
                         return 0 if stop.is_set() else 1
                     topics = sorted({e.topic_name for e in contract_endpoints(node, args.robot)})
-                    report.write(" ".join(["ready"] + topics) + "\n")
+                    gids = [GID_PREFIX + gid.hex() for gid in cmd_vel_gids(node, args.robot)]
+                    report.write(" ".join(["ready"] + topics + gids) + "\n")
             except BrokenPipeError:     # the host gave up on the start-up and is stopping us
                 return 0
         if args.executor in ("events", "lockstep"):
@@ -98,8 +101,8 @@ def main(argv: list[str] | None = None) -> int:
         else:
             spinner = threading.Thread(target=spin, args=(executor,), daemon=True)
             spinner.start()
-            while not stop.wait(1.0):   # a timed wait: signal handlers run between the waits
-                pass
+            while not stop.is_set():
+                time.sleep(0.1)     # signal handlers run during the sleep, which then goes on
         return 0
     finally:
         # A bound on the clean-up: a DDS call that waits on a peer that died with the simulator
@@ -114,6 +117,23 @@ def main(argv: list[str] | None = None) -> int:
             node.destroy_node()
         if context.ok():
             rclpy.shutdown(context=context)
+
+
+class StopRequest:
+    """Set by a signal handler, read by the main loop. A plain attribute, not a
+    ``threading.Event``: ``Event.set`` takes a lock, and a handler can run again while an earlier
+    run of it holds that lock, which deadlocks the process. That happens when the parent is
+    killed: each of its exiting threads re-parents us and sends PDEATHSIG again, so several
+    SIGTERMs arrive at once. A controller once hung for good that way."""
+
+    def __init__(self) -> None:
+        self._requested = False
+
+    def request(self, signum=None, frame=None) -> None:
+        self._requested = True
+
+    def is_set(self) -> bool:
+        return self._requested
 
 
 def spin(executor) -> None:
@@ -132,7 +152,7 @@ def contract_endpoints(node, robot: str) -> list:
     return [e for e in list(node.publishers) + list(node.subscriptions) if e.topic_name in topics]
 
 
-def wait_until_matched(node, robot: str, stop: threading.Event) -> bool:
+def wait_until_matched(node, robot: str, stop: StopRequest) -> bool:
     """Wait until each contract endpoint of ours is matched with the simulator's (a publisher
     has a matched subscription, a subscription a matched publisher); the host then checks its
     side of the same topics. Without this a tick-0 sensor, an answer or the first LED message

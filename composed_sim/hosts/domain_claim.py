@@ -6,9 +6,12 @@ tick 0 a run claims its domain twice over:
 - on this machine, with a lock file per domain (``flock``: race-free between runs started
   together, released by the kernel when the process ends, however it ends), which also names the
   holder (pid, host, world) for the error message;
-- in the ROS graph, for simulators the lock cannot see (another machine, an older build): a short
-  probe looks for another ``/clock`` publisher or another simulator's sensor publishers on robot
-  topics. Watchers (``ros2 topic echo``, a recorder) only subscribe and are fine, on any topic.
+- in the ROS graph, for what the lock cannot see (another machine, an older build, a controller
+  process left over from a killed run): a short probe looks for another ``/clock`` publisher, a
+  simulator's sensor publishers on robot topics, and a controller's publishers on robot actuator
+  topics (``/bot0/cmd_vel``). The simulator would take such a controller for its robot's own when
+  the first tick opens. In distributed mode the shards may start before their simulator, so there
+  only simulators count. Watchers (``ros2 topic echo``, a recorder) only subscribe and are fine.
 
 With a domain given (``--domain-id`` or ``ROS_DOMAIN_ID``) a taken domain is an error; without,
 the run takes the first free domain from 0 up.
@@ -28,7 +31,9 @@ LOCK_DIR = Path(tempfile.gettempdir()) / "composed_sim_domains"
 # Domains an automatic choice may take: 0..101 never reach Linux's ephemeral ports (32768 on),
 # well inside the highest domain (world.schema.MAX_DOMAIN).
 AUTO_DOMAINS = range(0, 102)
-PROBE_S = 0.3              # how long the graph probe listens: discovery on one host takes ~0.1 s
+PROBE_S = 0.3              # how long the graph probe listens: discovery on one host takes ~0.2 s, at times seconds
+NAME_WAITS = 20            # × 50 ms at most, for the names of nodes whose endpoints were seen
+NAME_UNKNOWN = "_NODE_NAME_UNKNOWN_"     # the graph's name for a node not known yet
 
 
 class DomainTaken(Exception):
@@ -84,9 +89,10 @@ def describe(holder: dict) -> str:
         (f", world {holder['world']!r}" if holder.get("world") else "")
 
 
-def foreign_simulators(domain: int, probe_s: float = PROBE_S) -> list[str]:
-    """Nodes of other simulators seen in ``domain``'s ROS graph within ``probe_s`` (a throwaway
-    participant of ours, made and gone here)."""
+def foreign_nodes(domain: int, probe_s: float = PROBE_S, *, controllers_expected: bool = False) -> list[str]:
+    """What another run left in ``domain``'s ROS graph, seen within ``probe_s`` (by a throwaway
+    participant of ours, made and gone here): each node publishing ``/clock``, a robot's sensor
+    topic or, unless ``controllers_expected``, a robot's actuator topic, as "node (topic)"."""
     import rclpy
     from rclpy.context import Context
     from rclpy.node import Node
@@ -96,47 +102,56 @@ def foreign_simulators(domain: int, probe_s: float = PROBE_S) -> list[str]:
     from composed_sim.ros.robot_settings import quiet_node_options
 
     ignore_participants_of_this_process()     # before this process's first participant (profile loaded once)
+    names = {t.name for t in c.SENSOR_TOPICS + (() if controllers_expected else c.ACTUATOR_TOPICS)}
     context = Context()
     rclpy.init(context=context, domain_id=domain)
     try:
         node = Node("composed_sim_domain_probe", context=context, **quiet_node_options())
         time.sleep(probe_s)
-        sensors = {t.name for t in c.SENSOR_TOPICS}
-        found = set()
-        for topic, _ in node.get_topic_names_and_types():
-            if topic == c.CLOCK_TOPIC or topic.rsplit("/", 1)[-1] in sensors:
-                found.update(f"{e.node_namespace.rstrip('/')}/{e.node_name}"
-                             for e in node.get_publishers_info_by_topic(topic))
+        for _ in range(NAME_WAITS):    # a node's name arrives a moment after its endpoints
+            found = {}
+            for topic, _ in node.get_topic_names_and_types():
+                namespace, name = topic.rsplit("/", 1)
+                if topic == c.CLOCK_TOPIC or (namespace and name in names):      # a robot topic: /bot0/cmd_vel
+                    for e in node.get_publishers_info_by_topic(topic):
+                        found.setdefault(f"{e.node_namespace.rstrip('/')}/{e.node_name}", topic)
+            if not any(NAME_UNKNOWN in n for n in found):
+                break
+            time.sleep(0.05)
         node.destroy_node()
-        return sorted(found)
+        return sorted(f"{n} ({topic})" for n, topic in found.items())
     finally:
         context.shutdown()
 
 
-def claim_domains(domains: list[int], about: dict, *, given: bool, probe: bool = True) -> DomainClaim:
-    """Claim ``domains`` (a run's, given by the user when ``given``), or raise DomainTaken."""
+def claim_domains(domains: list[int], about: dict, *, given: bool, probe: bool = True,
+                  controllers_expected: bool = False) -> DomainClaim:
+    """Claim ``domains`` (a run's, given by the user when ``given``), or raise DomainTaken.
+    ``controllers_expected``: the run's controllers may be in the graph already (distributed mode)."""
     claim = DomainClaim()
     for d in domains:
         holder = claim.take(d, about)
         if holder is None and probe:
-            others = foreign_simulators(d)
+            others = foreign_nodes(d, controllers_expected=controllers_expected)
             if others:
                 holder = {"nodes": others}
         if holder is not None:
             claim.release()
-            who = (f"the simulator node{'s' if len(holder['nodes']) > 1 else ''} {', '.join(holder['nodes'][:3])} "
-                   f"(seen in the ROS graph)" if "nodes" in holder else f"another composed-sim run ({describe(holder)})")
+            who = (f"the node{'s' if len(holder['nodes']) > 1 else ''} {', '.join(holder['nodes'][:3])}, seen in "
+                   f"the ROS graph" if "nodes" in holder else f"another composed-sim run ({describe(holder)})")
             raise DomainTaken(f"ROS domain {d} is in use by {who}; give this run another domain "
                               f"(--domain-id N or ROS_DOMAIN_ID=N), or leave both unset to pick a free one"
                               if given else f"ROS domain {d} is in use by {who}")
     return claim
 
 
-def claim_free_domain(width: int, about: dict, *, probe: bool = True) -> tuple[DomainClaim, int]:
+def claim_free_domain(width: int, about: dict, *, probe: bool = True,
+                      controllers_expected: bool = False) -> tuple[DomainClaim, int]:
     """The first block of ``width`` consecutive free domains from 0 up: (claim, first domain)."""
     for first in range(AUTO_DOMAINS.start, AUTO_DOMAINS.stop - width + 1):
         try:
-            return claim_domains(list(range(first, first + width)), about, given=False, probe=probe), first
+            return claim_domains(list(range(first, first + width)), about, given=False, probe=probe,
+                                 controllers_expected=controllers_expected), first
         except DomainTaken:
             continue
     raise DomainTaken(f"no {width} free consecutive ROS domain{'s' if width > 1 else ''} in "

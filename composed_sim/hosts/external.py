@@ -125,6 +125,7 @@ class ExternalControllersHost(ControllersElsewhere):
                                               for t in info.topics.get(i, []) if t in c.TOPICS)}
             missing = [i for i in range(self.sim.n) if i not in host_of]
             if not missing and not unmatched_sim_side:
+                self.sim_node.note_controllers({names[i]: info.gids.get(i, []) for i, info in host_of.items()})
                 return
             if time.monotonic() > deadline:
                 raise HostError(self._discovery_error(missing, sorted(unmatched_sim_side - set(missing))))

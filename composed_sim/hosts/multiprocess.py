@@ -37,7 +37,7 @@ from composed_sim.core.simulation import Simulation
 from composed_sim.hosts.host import ControllersElsewhere, SetupInfo
 from composed_sim.hosts.controllers import HostError, check_executor, matched, spin_until_shutdown
 from composed_sim.hosts.domains import DomainError, assign_domains
-from composed_sim.hosts.processes import InterruptWatch, exit_reason, last_words, reap, signal_group
+from composed_sim.hosts.processes import GID_PREFIX, InterruptWatch, exit_reason, last_words, reap, signal_group
 from composed_sim.hosts.lockstep import NodesExchange
 from composed_sim.ros import contract as c
 from composed_sim.ros.lockstep_executor import LockstepExecutor
@@ -65,18 +65,20 @@ class ControllerProcess:
     spawned: float = field(default_factory=time.perf_counter)
     created: bool = False                # its node exists: the CPU-heavy part of start-up is done
     topics: Optional[list[str]] = None   # its contract topics, once matched on its side
+    gids: list[bytes] = field(default_factory=list)    # its cmd_vel publishers' (cmd_vel_gids)
     startup_s: Optional[float] = None    # spawn → matched on both sides
     _buffer: bytes = b""
 
     def read_pipe(self) -> bool:
-        """Read what the child reported ("created", then "ready <topics>"); False at EOF."""
+        """Read what the child reported ("created", then "ready <topics> gid:<hex>…"); False at EOF."""
         chunk = os.read(self.pipe, 65536)
         self._buffer += chunk
         *lines, self._buffer = self._buffer.split(b"\n")
         for words in (line.decode().split() for line in lines):
             self.created = True
             if words and words[0] == "ready":
-                self.topics = words[1:]
+                self.topics = [w for w in words[1:] if not w.startswith(GID_PREFIX)]
+                self.gids = [bytes.fromhex(w[len(GID_PREFIX):]) for w in words[1:] if w.startswith(GID_PREFIX)]
         return chunk != b""
 
     def close_pipe(self) -> None:
@@ -210,6 +212,8 @@ class MultiProcessHost(ControllersElsewhere):
                     raise HostError(f"controllers of {', '.join(missing)} were not matched with the simulator "
                                     f"within {STALL_TIMEOUT_S:.0f} s (each must publish {c.CMD_VEL.name} and "
                                     f"subscribe to a sensor); {len(waiting)} more not started")
+        for node in self._nodes.values():
+            node.note_controllers({p.robot: p.gids for p in self.processes})
 
     def _detect_answer_types(self, endpoints: dict) -> None:
         """Subscribe to each robot's cmd_vel with the type its controller publishes (the graph says)."""

@@ -31,6 +31,7 @@ from composed_sim.hosts.controllers import (HostError, answer_type, check_execut
                                              spin_until_shutdown)
 from composed_sim.hosts.lockstep import NodesExchange
 from composed_sim.ros import contract as c
+from composed_sim.ros.answer_subscription import cmd_vel_gids
 from composed_sim.ros.participants import ignore_participants_of_this_process
 from composed_sim.ros.robot_settings import robot_settings
 from composed_sim.ros.simulator_node import AnswerTypeError, SimulatorNode
@@ -122,6 +123,9 @@ class ParticipantGroups:
         for node in (*self.controllers, *self.simulator_nodes):
             self.executor.add_node(node)
         self._wait_for_discovery()
+        gids = {names[i]: cmd_vel_gids(node, names[i]) for i, node in zip(range(self.start, self.stop), self.controllers)}
+        for sim_node in self.simulator_nodes:
+            sim_node.note_controllers(gids)
 
     @property
     def nodes(self) -> int:

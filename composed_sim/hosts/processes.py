@@ -13,6 +13,7 @@ import threading
 import time
 
 PR_SET_PDEATHSIG = 1
+GID_PREFIX = "gid:"     # a word of a controller process's "ready" report: one cmd_vel publisher's GID, in hex
 
 
 def die_with_parent(parent_pid: int | None, sig: int = signal.SIGTERM) -> None:

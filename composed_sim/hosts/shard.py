@@ -36,6 +36,7 @@ from composed_sim.hosts.controllers import (HostError, check_executor, create_co
 from composed_sim.hosts.robot_ranges import format_ranges
 from composed_sim.hosts.shard_announce import ShardAnnouncer, ShardInfo, world_fingerprint
 from composed_sim.ros import contract as c
+from composed_sim.ros.answer_subscription import cmd_vel_gids
 from composed_sim.world.schema import World
 
 LIVENESS_PERIOD_S = 0.2      # how often a serving shard looks whether its simulator is still there
@@ -131,8 +132,9 @@ class ShardHost:
         for i, e in endpoints:
             if e.topic_name != c.CLOCK_TOPIC:
                 topics.setdefault(i, set()).add(e.topic_name.rsplit("/", 1)[1])
+        gids = {i: cmd_vel_gids(node, names[i]) for i, node in zip(self.robots, self.controllers)}
         self.announcer.announce(ShardInfo(self.shard_id, self.robots, world_fingerprint(self.world),
-                                          {i: sorted(t) for i, t in topics.items()}))
+                                          {i: sorted(t) for i, t in topics.items()}, gids))
         return True
 
     # --- serving ----------------------------------------------------------------------------

@@ -2,8 +2,8 @@
 
 A shard (``composed-sim host``) publishes, once its controllers' contract endpoints are matched
 with the simulator's, a ``std_msgs/String`` on ``/composed_sim/shards`` holding JSON: who it is,
-which robots it hosts, which contract topics each of them uses and a fingerprint of the world it
-was built from. The topic is transient-local, so a simulator that starts after the shards still
+which robots it hosts, which contract topics each of them uses, the GIDs of each one's cmd_vel
+publishers and a fingerprint of the world it was built from. The topic is transient-local, so a simulator that starts after the shards still
 gets every announcement. This is host plumbing next to the topic contract, not part of it:
 controllers never see it.
 
@@ -49,6 +49,7 @@ class ShardInfo:
     robots: list[int]                   # robot indices it hosts
     world: str                          # world_fingerprint of its world
     topics: dict[int, list[str]] = field(default_factory=dict)   # robot → contract topics it uses
+    gids: dict[int, list[bytes]] = field(default_factory=dict)    # robot → its cmd_vel publishers' GIDs
 
     def encode(self) -> String:
         by_topics: dict[str, list[int]] = {}
@@ -56,14 +57,16 @@ class ShardInfo:
             by_topics.setdefault(",".join(sorted(names)), []).append(robot)
         return String(data=json.dumps({
             "shard": self.shard, "robots": format_ranges(self.robots), "world": self.world,
-            "topics": {names: format_ranges(robots) for names, robots in by_topics.items()}}))
+            "topics": {names: format_ranges(robots) for names, robots in by_topics.items()},
+            "cmd_vel_gids": {str(robot): [gid.hex() for gid in gids] for robot, gids in self.gids.items()}}))
 
     @classmethod
     def decode(cls, msg: String, n_robots: int) -> "ShardInfo":
         d = json.loads(msg.data)
         topics = {robot: names.split(",") if names else []
                   for names, ranges in d["topics"].items() for robot in parse_ranges(ranges, n_robots)}
-        return cls(d["shard"], parse_ranges(d["robots"], n_robots), d["world"], topics)
+        gids = {int(robot): [bytes.fromhex(g) for g in hexes] for robot, hexes in d["cmd_vel_gids"].items()}
+        return cls(d["shard"], parse_ranges(d["robots"], n_robots), d["world"], topics, gids)
 
 
 class ShardAnnouncer:

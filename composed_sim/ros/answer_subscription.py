@@ -29,6 +29,7 @@ from rclpy.waitable import NumberOfEntities, Waitable
 from composed_sim.ros import contract as c
 
 _GID_BYTES = 16                      # RMW_GID_STORAGE_SIZE
+_NAME_UNKNOWN = "_NODE_NAME_UNKNOWN_"  # the graph's node name for an endpoint whose node is not known yet
 # How long noting the controllers waits for the ROS graph to list a matched controller's cmd_vel
 # publisher (the graph and the match are updated by the same discovery, a moment apart at most).
 NOTE_WAIT_S = 2.0
@@ -62,6 +63,11 @@ _rcutils = ctypes.CDLL("librcutils.so")
 _take = _rcl.rcl_take_serialized_message
 _take.argtypes = [ctypes.c_void_p, ctypes.POINTER(_Bytes), ctypes.POINTER(_MessageInfo), ctypes.c_void_p]
 _take.restype = ctypes.c_int
+_rcl.rcl_publisher_get_rmw_handle.argtypes = [ctypes.c_void_p]
+_rcl.rcl_publisher_get_rmw_handle.restype = ctypes.c_void_p
+# An rmw function, found through librcl's handle: dlsym searches a library's dependencies too.
+_rcl.rmw_get_gid_for_publisher.argtypes = [ctypes.c_void_p, ctypes.POINTER(_Gid)]
+_rcl.rmw_get_gid_for_publisher.restype = ctypes.c_int
 _rcutils.rcutils_get_default_allocator.restype = _Allocator
 _rcutils.rcutils_uint8_array_init.argtypes = [ctypes.POINTER(_Bytes), ctypes.c_size_t, ctypes.POINTER(_Allocator)]
 _rcutils.rcutils_uint8_array_fini.argtypes = [ctypes.POINTER(_Bytes)]
@@ -72,6 +78,29 @@ class _ErrorString(ctypes.Structure):        # rcutils_error_string_t, returned 
 
 
 _rcutils.rcutils_get_error_string.restype = _ErrorString
+
+
+def _error_text() -> str:
+    """rcutils' error message of the last failed call, which it then forgets."""
+    reason = _rcutils.rcutils_get_error_string().text.decode(errors="replace")
+    _rcutils.rcutils_reset_error()
+    return reason
+
+
+def cmd_vel_gids(node: Node, robot: str) -> list[bytes]:
+    """The GIDs of ``node``'s publishers on ``robot``'s cmd_vel: what its host tells the simulator
+    (``SimulatorNode.note_controllers``), from the publishers themselves, not the ROS graph."""
+    topic = c.topic_name(robot, c.CMD_VEL)
+    gids = []
+    for publisher in node.publishers:
+        if publisher.topic_name == topic:
+            gid = _Gid()
+            with publisher.handle:
+                rmw_publisher = _rcl.rcl_publisher_get_rmw_handle(publisher.handle.pointer)
+                if _rcl.rmw_get_gid_for_publisher(rmw_publisher, ctypes.byref(gid)) != _RET_OK:
+                    raise RuntimeError(f"rmw_get_gid_for_publisher failed on {topic}: {_error_text()}")
+            gids.append(bytes(gid.data))
+    return gids
 
 
 def gid_text(gid: bytes) -> str:
@@ -114,9 +143,7 @@ class AnswerSubscription(Waitable):
             if ret == _RET_TAKE_FAILED:
                 return None
             if ret != _RET_OK:
-                reason = _rcutils.rcutils_get_error_string().text.decode(errors="replace")
-                _rcutils.rcutils_reset_error()
-                raise RuntimeError(f"taking a message of {self.topic_name} failed: {reason} (rcl {ret})")
+                raise RuntimeError(f"taking a message of {self.topic_name} failed: {_error_text()} (rcl {ret})")
             message = self._message
             return ctypes.string_at(message.buffer, message.buffer_length), ctypes.string_at(self._gid_at, _GID_BYTES)
 
@@ -163,9 +190,11 @@ class AnswerSubscription(Waitable):
 
 
 class ControllerPublishers:
-    """Per robot, the GIDs of its controller's cmd_vel publishers: those the ROS graph lists on the
-    robot's topic when the first tick opens (the run owns its domain by then:
-    hosts/domain_claim.py). Answers from any other publisher are not the controller's."""
+    """Per robot, the GIDs of its controller's cmd_vel publishers; answers from any other
+    publisher are not the controller's. Every host tells them (``set``), from the publishers
+    themselves (``cmd_vel_gids``). A simulator node used without a host notes, when the first
+    tick opens, those the ROS graph lists on the robot's topic (``note``), which takes a publisher
+    already in the domain then, a controller left over from another run say, for the controller."""
 
     def __init__(self, node: Node, subscriptions: Sequence[Optional[AnswerSubscription]],
                  answer_types: Sequence[Optional[type]]):
@@ -195,6 +224,10 @@ class ControllerPublishers:
         # own) stays un-noted: its answers are not checked.
         self._gids = gids
 
+    def set(self, gids: Sequence[Optional[frozenset[bytes]]]) -> None:
+        """Per robot, its controller's GIDs (None: not known, its answers are not checked)."""
+        self._gids = list(gids)
+
     def accepts(self, i: int, gid: bytes) -> bool:
         """May this publisher answer for robot i? (Anyone, until the controllers are noted.)"""
         gids = None if self._gids is None else self._gids[i]
@@ -202,13 +235,17 @@ class ControllerPublishers:
 
     def describe(self, i: int, gid: bytes) -> str:
         """A publisher on robot i's cmd_vel: its node and GID, for a violation."""
-        if gid not in self._names:
-            nodes = [f"{info.node_namespace.rstrip('/')}/{info.node_name}"
-                     for info in self._node.get_publishers_info_by_topic(self._subscriptions[i].topic_name)
-                     if _gid(info) == gid]
-            self._names[gid] = f"node {nodes[0]} (publisher GID {gid_text(gid)})" if nodes \
-                else f"a publisher no longer in the ROS graph (GID {gid_text(gid)})"
-        return self._names[gid]
+        if gid in self._names:
+            return self._names[gid]
+        infos = [info for info in self._node.get_publishers_info_by_topic(self._subscriptions[i].topic_name)
+                 if _gid(info) == gid]
+        if not infos:
+            return f"a publisher no longer in the ROS graph (GID {gid_text(gid)})"
+        if infos[0].node_name == _NAME_UNKNOWN:     # its node's name arrives a moment after the endpoint
+            return f"a node not yet named in the ROS graph (publisher GID {gid_text(gid)})"
+        name = f"node {infos[0].node_namespace.rstrip('/')}/{infos[0].node_name} (publisher GID {gid_text(gid)})"
+        self._names[gid] = name
+        return name
 
 
 def _gid(info) -> bytes:

@@ -8,7 +8,7 @@ from __future__ import annotations
 import math
 import threading
 import time
-from typing import TYPE_CHECKING, Callable, Collection, Optional, Protocol, Sequence
+from typing import TYPE_CHECKING, Callable, Collection, Mapping, Optional, Protocol, Sequence
 
 import numpy as np
 from rclpy.context import Context
@@ -159,6 +159,11 @@ class SimulatorNode(Node):
                                       f"topic contract accepts {' or '.join(accepted)}")
             if found:
                 self._subscribe_answers(i, accepted[sorted(found)[0]])
+
+    def note_controllers(self, gids: Mapping[str, Collection[bytes]]) -> None:
+        """The GIDs of each robot's controller's cmd_vel publishers (``cmd_vel_gids``), from the
+        host before tick 0: the only publishers whose answers move the robot (docs/faults.md)."""
+        self._controllers.set([frozenset(gids[name]) if gids.get(name) else None for name in self._names])
 
     def answer_subscription(self, robot: str) -> Optional[AnswerSubscription]:
         """``robot``'s cmd_vel subscription (None until its answer type is known)."""

@@ -8,7 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
-from composed_sim.hosts.domain_claim import DomainClaim, claim_free_domain, run_identity
+from composed_sim.hosts.domain_claim import (DomainClaim, DomainTaken, claim_domains, claim_free_domain, foreign_nodes,
+                                             run_identity)
 
 ROOT = Path(__file__).resolve().parents[2]
 FLOCKING = ROOT / "worlds" / "flocking.yaml"
@@ -52,6 +53,51 @@ def test_two_runs_in_the_same_given_domain_the_second_refuses(tmp_path, domain_i
     finally:
         a.kill()
         a.wait()
+
+
+# Another simulator as the ROS graph shows it: a /clock publisher.
+OTHER_SIMULATOR = """
+import sys, time, rclpy
+from rclpy.context import Context
+from rclpy.node import Node
+from rosgraph_msgs.msg import Clock
+context = Context(); rclpy.init(context=context, domain_id=int(sys.argv[1]))
+node = Node("other_simulator", context=context)
+node.create_publisher(Clock, "/clock", 10)
+while True:
+    time.sleep(1)
+"""
+
+
+def test_the_graph_probe_finds_other_simulators_and_left_over_controllers(domain_id):
+    # A controller process whose run was killed still publishes bot0's cmd_vel: the simulator
+    # of a new run would get its answers. Discovery takes 0.2 s here, at times seconds, so the
+    # probe is polled until it has seen both nodes.
+    left = subprocess.Popen([sys.executable, "-m", "composed_sim.hosts.controller_process", "--world", str(FLOCKING),
+                             "--robot", "bot0", "--domain", str(domain_id)], cwd=ROOT)
+    other = subprocess.Popen([sys.executable, "-c", OTHER_SIMULATOR, str(domain_id)], cwd=ROOT)
+    both = ["/bot0/flocking (/bot0/cmd_vel)", "/other_simulator (/clock)"]
+    try:
+        deadline = time.monotonic() + 60
+        while (seen := foreign_nodes(domain_id)) != both:
+            assert time.monotonic() < deadline and left.poll() is None and other.poll() is None, seen
+        # Distributed mode: the run's own shards may be up before the simulator; only simulators count.
+        while (seen := foreign_nodes(domain_id, controllers_expected=True)) != both[1:]:
+            assert time.monotonic() < deadline and "/bot0/flocking (/bot0/cmd_vel)" not in seen, seen
+        refusal = (f"ROS domain {domain_id} is in use by the nodes {', '.join(both)}, seen in the ROS graph; give "
+                   f"this run another domain (--domain-id N or ROS_DOMAIN_ID=N), or leave both unset to pick a free one")
+        message = None
+        while message != refusal:
+            assert time.monotonic() < deadline, message
+            try:
+                claim_domains([domain_id], run_identity("b"), given=True).release()
+            except DomainTaken as e:
+                message = str(e)
+    finally:
+        other.kill()
+        left.terminate()
+        assert left.wait(timeout=30) == 0
+        other.wait()
 
 
 def test_two_runs_started_together_without_a_domain_each_fly_as_alone(tmp_path):

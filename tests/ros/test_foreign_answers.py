@@ -20,7 +20,7 @@ TICK_NS = 100_000_000      # flocking.yaml: 10 ticks per second
 # stamped for the next tick. It arrives while the run is paced between two ticks, so it waits
 # in the subscription's queue ahead of the controller's own answer to that next tick: taken
 # without a check, it would be that tick's answer. It says "intruded" once 20 of its answers
-# went to a matched subscription.
+# went to a matched subscription. With "early" its publisher is there before the run starts.
 INTRUDER = textwrap.dedent("""
     import sys, rclpy
     from rclpy.context import Context
@@ -29,10 +29,12 @@ INTRUDER = textwrap.dedent("""
     from geometry_msgs.msg import TwistStamped
     from rosgraph_msgs.msg import Clock
     from composed_sim.ros import contract as c
-    domain, tick_ns = int(sys.argv[1]), int(sys.argv[2])
+    domain, tick_ns, early = int(sys.argv[1]), int(sys.argv[2]), sys.argv[3:] == ["early"]
     context = Context(); rclpy.init(context=context, domain_id=domain)
     node = Node("intruder", context=context)
     publisher, sent = [], []
+    if early:       # on the topic before the run starts
+        publisher.append(node.create_publisher(TwistStamped, "/bot0/cmd_vel", c.QOS))
     def on_clock(m):
         if not publisher:
             publisher.append(node.create_publisher(TwistStamped, "/bot0/cmd_vel", c.QOS))
@@ -89,3 +91,39 @@ def test_a_foreign_cmd_vel_is_rejected_and_names_its_node(tmp_path, domain_id, m
     assert intruded["failed_robots"] == []
     with np.load(tmp_path / "intruded" / "trajectories.npz") as a, np.load(tmp_path / "alone" / "trajectories.npz") as b:
         assert np.array_equal(a["positions"], b["positions"]) and np.array_equal(a["headings"], b["headings"])
+
+
+@pytest.mark.parametrize("mode", ["composed", "multi-process"])
+def test_a_publisher_on_the_topic_before_the_run_starts_is_not_taken_for_the_controller(domain_id, mp_domain, mode):
+    # What the domain claim's graph probe may miss (discovery can take longer than the probe): the
+    # intruder is in the domain first. The simulator takes its robots' answers only from the
+    # publishers their hosts name, never from what the ROS graph lists at tick 0.
+    from composed_sim.hosts.composed import ComposedHost
+    from composed_sim.hosts.domain_claim import foreign_nodes
+    from composed_sim.hosts.multiprocess import MultiProcessHost
+    from composed_sim.pacing import Pacer
+    from composed_sim.world.loader import load_world
+
+    world = load_world(FLOCKING, robots=4, seed=3, ticks=60)
+    domain = domain_id if mode == "composed" else mp_domain
+    host = (lambda: ComposedHost(world, domain_id=domain)) if mode == "composed" else \
+        (lambda: MultiProcessHost(world, domain_id=domain))
+    intruder = subprocess.Popen([sys.executable, "-c", INTRUDER, str(domain), str(TICK_NS), "early"], cwd=ROOT,
+                                stdout=subprocess.DEVNULL)
+    try:
+        while "/intruder (/bot0/cmd_vel)" not in foreign_nodes(domain):
+            assert intruder.poll() is None
+        with host() as h:
+            intruded = h.run(observers=[Pacer(4, world.tick_s)])   # paced: its answers arrive between ticks
+    finally:
+        intruder.kill()
+        intruder.wait()
+    with host() as h:
+        alone = h.run()
+    assert alone.violations == []
+    assert len(intruded.violations) >= 10 and {v.robot for v in intruded.violations} == {"bot0"}
+    # Named once the graph knows its node (that comes a moment after its endpoint).
+    assert all(v.reason.endswith("which is not bot0's controller: rejected") for v in intruded.violations)
+    assert any(v.reason.startswith("cmd_vel from node /intruder (publisher GID ") for v in intruded.violations)
+    np.testing.assert_array_equal(intruded.trajectories.positions, alone.trajectories.positions)
+    np.testing.assert_array_equal(intruded.trajectories.headings, alone.trajectories.headings)
