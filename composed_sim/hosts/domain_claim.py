@@ -33,7 +33,6 @@ LOCK_DIR = Path(tempfile.gettempdir()) / "composed_sim_domains"
 AUTO_DOMAINS = range(0, 102)
 PROBE_S = 0.3              # how long the graph probe listens: discovery on one host takes ~0.2 s, at times seconds
 NAME_WAITS = 20            # × 50 ms at most, for the names of nodes whose endpoints were seen
-NAME_UNKNOWN = "_NODE_NAME_UNKNOWN_"     # the graph's name for a node not known yet
 
 
 class DomainTaken(Exception):
@@ -98,6 +97,7 @@ def foreign_nodes(domain: int, probe_s: float = PROBE_S, *, controllers_expected
     from rclpy.node import Node
 
     from composed_sim.ros import contract as c
+    from composed_sim.ros.answer_subscription import NODE_NAME_UNKNOWN
     from composed_sim.ros.participants import ignore_participants_of_this_process
     from composed_sim.ros.robot_settings import quiet_node_options
 
@@ -115,7 +115,7 @@ def foreign_nodes(domain: int, probe_s: float = PROBE_S, *, controllers_expected
                 if topic == c.CLOCK_TOPIC or (namespace and name in names):      # a robot topic: /bot0/cmd_vel
                     for e in node.get_publishers_info_by_topic(topic):
                         found.setdefault(f"{e.node_namespace.rstrip('/')}/{e.node_name}", topic)
-            if not any(NAME_UNKNOWN in n for n in found):
+            if not any(NODE_NAME_UNKNOWN in n for n in found):
                 break
             time.sleep(0.05)
         node.destroy_node()

@@ -29,7 +29,7 @@ from rclpy.waitable import NumberOfEntities, Waitable
 from composed_sim.ros import contract as c
 
 _GID_BYTES = 16                      # RMW_GID_STORAGE_SIZE
-_NAME_UNKNOWN = "_NODE_NAME_UNKNOWN_"  # the graph's node name for an endpoint whose node is not known yet
+NODE_NAME_UNKNOWN = "_NODE_NAME_UNKNOWN_"  # the graph's node name for an endpoint whose node is not known yet
 # How long noting the controllers waits for the ROS graph to list a matched controller's cmd_vel
 # publisher (the graph and the match are updated by the same discovery, a moment apart at most).
 NOTE_WAIT_S = 2.0
@@ -241,7 +241,7 @@ class ControllerPublishers:
                  if _gid(info) == gid]
         if not infos:
             return f"a publisher no longer in the ROS graph (GID {gid_text(gid)})"
-        if infos[0].node_name == _NAME_UNKNOWN:     # its node's name arrives a moment after the endpoint
+        if infos[0].node_name == NODE_NAME_UNKNOWN:     # its node's name arrives a moment after the endpoint
             return f"a node not yet named in the ROS graph (publisher GID {gid_text(gid)})"
         name = f"node {infos[0].node_namespace.rstrip('/')}/{infos[0].node_name} (publisher GID {gid_text(gid)})"
         self._names[gid] = name
