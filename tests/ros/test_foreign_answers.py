@@ -6,6 +6,7 @@ import signal
 import subprocess
 import sys
 import textwrap
+import threading
 from pathlib import Path
 
 import numpy as np
@@ -104,22 +105,28 @@ def test_a_publisher_on_the_topic_before_the_run_starts_is_not_taken_for_the_con
     from composed_sim.pacing import Pacer
     from composed_sim.world.loader import load_world
 
-    world = load_world(FLOCKING, robots=4, seed=3, ticks=60)
+    world = load_world(FLOCKING, robots=4, seed=3)
     domain = domain_id if mode == "composed" else mp_domain
     host = (lambda: ComposedHost(world, domain_id=domain)) if mode == "composed" else \
         (lambda: MultiProcessHost(world, domain_id=domain))
     intruder = subprocess.Popen([sys.executable, "-c", INTRUDER, str(domain), str(TICK_NS), "early"], cwd=ROOT,
-                                stdout=subprocess.DEVNULL)
+                                stdout=subprocess.PIPE, text=True)
+    # The run goes on until the intruder has done its part: its discovery of the run's /clock can
+    # take seconds (docs/faults.md), longer than any fixed length of run would be sure to last.
+    intruded_said = threading.Event()
+    threading.Thread(target=lambda: intruder.stdout.readline() == "intruded\n" and intruded_said.set(),
+                     daemon=True).start()
     try:
         while "/intruder (/bot0/cmd_vel)" not in foreign_nodes(domain):
             assert intruder.poll() is None
-        with host() as h:
-            intruded = h.run(observers=[Pacer(4, world.tick_s)])   # paced: its answers arrive between ticks
+        with host() as h:       # paced: its answers arrive between ticks; 1200 ticks at 4× = 30 s at most
+            intruded = h.run(1200, should_stop=intruded_said.is_set, observers=[Pacer(4, world.tick_s)])
     finally:
         intruder.kill()
         intruder.wait()
+    assert intruded_said.is_set(), "the intruder never reached the run's subscription"
     with host() as h:
-        alone = h.run()
+        alone = h.run(intruded.trajectories.ticks_done)
     assert alone.violations == []
     assert len(intruded.violations) >= 10 and {v.robot for v in intruded.violations} == {"bot0"}
     # Named once the graph knows its node (that comes a moment after its endpoint).
