@@ -5,10 +5,12 @@
 
 It builds the very same plugin Node as the composed host (``create_controller``), in the robot's
 namespace, on the given domain, with ``use_sim_time`` so it follows the simulator's /clock like
-any ROS node. With ``--report-fd`` it reports its start-up on that pipe: ``created`` once its node
-exists, ``ready <topics> gid:<hex>…`` once its contract endpoints are matched with the simulator's
-(so the host can start tick 0 knowing no message will be lost; the GIDs are its cmd_vel
-publishers', the only ones the simulator takes this robot's answers from), then closes it. It exits
+any ROS node. With ``--report-fd`` it reports its start-up on that pipe: ``created type:<type>`` once
+its node exists (the type of its cmd_vel publisher, which the simulator subscribes with: not read
+from the ROS graph, where a stray publisher could pass for it), ``ready <topics> gid:<hex>…`` once
+its contract endpoints are matched with the simulator's (so the host can start tick 0 knowing no
+message will be lost; the GIDs are its cmd_vel publishers', the only ones the simulator takes this
+robot's answers from), then closes it. It exits
 cleanly (node destroyed, context shut down, code 0) on SIGTERM (and on SIGINT when run by hand),
 and with its parent: ``PR_SET_PDEATHSIG`` turns the parent's death, even by SIGKILL, into a
 SIGTERM here.
@@ -22,7 +24,7 @@ import sys
 import threading
 import time
 
-from composed_sim.hosts.processes import GID_PREFIX, die_with_parent
+from composed_sim.hosts.processes import GID_PREFIX, TYPE_PREFIX, die_with_parent
 
 READY_TIMEOUT_S = 120.0
 EXIT_SETUP = 3          # the controller could not be built; the reason is on stderr
@@ -38,7 +40,7 @@ def parse(argv: list[str] | None) -> argparse.Namespace:
     p.add_argument("--executor", default="lockstep")
     p.add_argument("--parent-pid", type=int, default=None)
     p.add_argument("--report-fd", type=int, default=None,
-                   help="pipe for start-up reports: 'created', then 'ready <topics>'")
+                   help="pipe for start-up reports: 'created type:<type>', then 'ready <topics> gid:<hex>…'")
     return p.parse_args(argv)
 
 
@@ -60,7 +62,8 @@ def main(argv: list[str] | None = None) -> int:
     from rclpy.context import Context
 
     from composed_sim import plugins
-    from composed_sim.hosts.controllers import create_controller, make_executor
+    from composed_sim.hosts.controllers import create_controller, make_executor, published_answer_type
+    from composed_sim.ros import contract as c
     from composed_sim.ros.answer_subscription import cmd_vel_gids
     from composed_sim.world.loader import load_world
 
@@ -85,7 +88,8 @@ def main(argv: list[str] | None = None) -> int:
         if args.report_fd is not None:
             try:
                 with os.fdopen(args.report_fd, "w", buffering=1) as report:
-                    report.write("created\n")
+                    answer_type = published_answer_type(node, args.robot)   # None: its publisher comes later
+                    report.write("created" + (f" {TYPE_PREFIX}{c.type_name(answer_type)}" if answer_type else "") + "\n")
                     if not wait_until_matched(node, args.robot, stop):
                         return 0 if stop.is_set() else 1
                     topics = sorted({e.topic_name for e in contract_endpoints(node, args.robot)})

@@ -25,7 +25,7 @@ import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Optional
+from typing import Iterable, Optional
 
 import numpy as np
 import rclpy
@@ -37,7 +37,7 @@ from composed_sim.core.simulation import Simulation
 from composed_sim.hosts.host import ControllersElsewhere, SetupInfo
 from composed_sim.hosts.controllers import HostError, check_executor, matched, spin_until_shutdown
 from composed_sim.hosts.domains import DomainError, assign_domains
-from composed_sim.hosts.processes import GID_PREFIX, InterruptWatch, exit_reason, last_words, reap, signal_group
+from composed_sim.hosts.processes import GID_PREFIX, TYPE_PREFIX, InterruptWatch, exit_reason, last_words, reap, signal_group
 from composed_sim.hosts.lockstep import NodesExchange
 from composed_sim.ros import contract as c
 from composed_sim.ros.lockstep_executor import LockstepExecutor
@@ -64,18 +64,22 @@ class ControllerProcess:
     pipe: Optional[int]                # read end of its start-up pipe, until EOF
     spawned: float = field(default_factory=time.perf_counter)
     created: bool = False                # its node exists: the CPU-heavy part of start-up is done
+    answer_type: Optional[str] = None    # its cmd_vel publisher's type, as "created" reported it
     topics: Optional[list[str]] = None   # its contract topics, once matched on its side
     gids: list[bytes] = field(default_factory=list)    # its cmd_vel publishers' (cmd_vel_gids)
     startup_s: Optional[float] = None    # spawn → matched on both sides
     _buffer: bytes = b""
 
     def read_pipe(self) -> bool:
-        """Read what the child reported ("created", then "ready <topics> gid:<hex>…"); False at EOF."""
+        """Read what the child reported ("created type:<type>", then "ready <topics> gid:<hex>…");
+        False at EOF."""
         chunk = os.read(self.pipe, 65536)
         self._buffer += chunk
         *lines, self._buffer = self._buffer.split(b"\n")
         for words in (line.decode().split() for line in lines):
             self.created = True
+            if words and words[0] == "created":
+                self.answer_type = next((w[len(TYPE_PREFIX):] for w in words if w.startswith(TYPE_PREFIX)), None)
             if words and words[0] == "ready":
                 self.topics = [w for w in words[1:] if not w.startswith(GID_PREFIX)]
                 self.gids = [bytes.fromhex(w[len(GID_PREFIX):]) for w in words[1:] if w.startswith(GID_PREFIX)]
@@ -199,9 +203,10 @@ class MultiProcessHost(ControllersElsewhere):
                         p.close_pipe()
                         if p.topics is None:
                             self._failed_start(p)
-                if time.monotonic() >= next_detection:     # a graph query per robot not known yet
+                detect = time.monotonic() >= next_detection     # a graph query per robot not known yet
+                if detect:
                     next_detection = time.monotonic() + DETECT_PERIOD_S
-                    self._detect_answer_types(endpoints)
+                self._subscribe_answers(unmatched.values(), endpoints, detect)
                 for robot, p in list(unmatched.items()):
                     if p.topics is not None and self._nodes[p.domain].answer_subscription(robot) is not None and all(matched(endpoints[p.domain].get(t)) for t in p.topics):
                         p.startup_s = time.perf_counter() - p.spawned
@@ -215,15 +220,23 @@ class MultiProcessHost(ControllersElsewhere):
         for node in self._nodes.values():
             node.note_controllers({p.robot: p.gids for p in self.processes})
 
-    def _detect_answer_types(self, endpoints: dict) -> None:
-        """Subscribe to each robot's cmd_vel with the type its controller publishes (the graph says)."""
-        for d, node in self._nodes.items():
+    def _subscribe_answers(self, children: Iterable[ControllerProcess], endpoints: dict, detect: bool) -> None:
+        """Subscribe to each created child's robot's cmd_vel with the type the child reported; with
+        ``detect``, with the type the ROS graph lists for the children that reported none (their
+        publisher came later). Never before the child is created: until then, what the graph lists
+        on the topic is not this run's controller."""
+        for p in children:
+            node = self._nodes[p.domain]
+            if not p.created or node.answer_subscription(p.robot) is not None:
+                continue
             try:
-                node.detect_answer_types()
+                if p.answer_type is not None:
+                    node.take_answers_as(p.robot, p.answer_type)
+                elif detect:
+                    node.detect_answer_types([p.robot])
             except AnswerTypeError as e:
                 raise HostError(str(e)) from None
-            for robot in node.robots:
-                endpoints[d][c.topic_name(robot, c.CMD_VEL)] = node.answer_subscription(robot)
+            endpoints[p.domain][c.topic_name(p.robot, c.CMD_VEL)] = node.answer_subscription(p.robot)
 
     def _failed_start(self, p: ControllerProcess) -> None:
         try:

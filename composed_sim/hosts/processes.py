@@ -13,7 +13,9 @@ import threading
 import time
 
 PR_SET_PDEATHSIG = 1
-GID_PREFIX = "gid:"     # a word of a controller process's "ready" report: one cmd_vel publisher's GID, in hex
+# Words of a controller process's start-up reports (hosts/controller_process.py):
+TYPE_PREFIX = "type:"   # of "created": the type its cmd_vel publisher has (geometry_msgs/msg/Twist)
+GID_PREFIX = "gid:"     # of "ready": one cmd_vel publisher's GID, in hex
 
 
 def die_with_parent(parent_pid: int | None, sig: int = signal.SIGTERM) -> None:

@@ -39,6 +39,9 @@ class AnswerTypeError(Exception):
     """A controller publishes a type on cmd_vel that the topic contract does not accept."""
 
 
+ACCEPTED_ANSWERS: dict[str, type] = {c.type_name(t): t for t in c.ANSWER_TYPES.values()}
+
+
 LATE_LEDS = "leds answering an earlier tick arrived after that tick closed: applied one tick late"
 LATE_RAB = "rab_tx answering an earlier tick arrived after that tick closed: applied one tick late"
 
@@ -146,19 +149,31 @@ class SimulatorNode(Node):
         self._cmd_subs[i] = AnswerSubscription(self, msg_type, c.topic_name(self._names[i], c.CMD_VEL), c.QOS,
                                                lambda data, gid, i=i: on_answer(i, data, gid))
 
-    def detect_answer_types(self) -> None:
-        """Subscribe to the cmd_vel of each robot whose answer type is not known yet, with the type
-        its controller's publisher has in the ROS graph (multi-process and distributed mode). A type
-        the contract does not accept raises ``AnswerTypeError``."""
-        accepted = {c.type_name(t): t for t in c.ANSWER_TYPES.values()}
+    def detect_answer_types(self, robots: Optional[Collection[str]] = None) -> None:
+        """Subscribe to the cmd_vel of each robot (of ``robots``, or all) whose answer type is not
+        known yet, with the type its controller's publisher has in the ROS graph (distributed
+        mode, and a controller process whose cmd_vel publisher came after its start-up report). A
+        type the contract does not accept raises ``AnswerTypeError``."""
         for i in [i for i, t in enumerate(self._answer_types) if t is None]:
+            if robots is not None and self._names[i] not in robots:
+                continue
             topic = c.topic_name(self._names[i], c.CMD_VEL)
-            found = {info.topic_type for info in self.get_publishers_info_by_topic(topic)}
-            if wrong := sorted(found - accepted.keys()):
-                raise AnswerTypeError(f"the controller of {self._names[i]} publishes {wrong[0]} on {topic}; the "
-                                      f"topic contract accepts {' or '.join(accepted)}")
-            if found:
-                self._subscribe_answers(i, accepted[sorted(found)[0]])
+            if found := sorted({info.topic_type for info in self.get_publishers_info_by_topic(topic)}):
+                wrong = [name for name in found if name not in ACCEPTED_ANSWERS]
+                self.take_answers_as(self._names[i], (wrong or found)[0])
+
+    def take_answers_as(self, robot: str, type_name: str) -> None:
+        """Subscribe to ``robot``'s cmd_vel with ``type_name`` (``geometry_msgs/msg/Twist``), what
+        its controller publishes, unless its answer type is known already. A type the contract
+        does not accept raises ``AnswerTypeError``."""
+        i = self._index[robot]
+        if self._answer_types[i] is not None:
+            return
+        if type_name not in ACCEPTED_ANSWERS:
+            raise AnswerTypeError(f"the controller of {robot} publishes {type_name} on "
+                                  f"{c.topic_name(robot, c.CMD_VEL)}; the topic contract accepts "
+                                  f"{' or '.join(ACCEPTED_ANSWERS)}")
+        self._subscribe_answers(i, ACCEPTED_ANSWERS[type_name])
 
     def note_controllers(self, gids: Mapping[str, Collection[bytes]]) -> None:
         """The GIDs of each robot's controller's cmd_vel publishers (``cmd_vel_gids``), from the

@@ -134,3 +134,41 @@ def test_a_publisher_on_the_topic_before_the_run_starts_is_not_taken_for_the_con
     assert any(v.reason.startswith("cmd_vel from node /intruder (publisher GID ") for v in intruded.violations)
     np.testing.assert_array_equal(intruded.trajectories.positions, alone.trajectories.positions)
     np.testing.assert_array_equal(intruded.trajectories.headings, alone.trajectories.headings)
+
+
+# A publisher of Twist on /bot0/cmd_vel, left in the domain by something else, that never publishes.
+STRAY_OF_THE_OTHER_TYPE = textwrap.dedent("""
+    import sys, rclpy
+    from rclpy.context import Context
+    from rclpy.node import Node
+    from geometry_msgs.msg import Twist
+    from composed_sim.ros import contract as c
+    context = Context(); rclpy.init(context=context, domain_id=int(sys.argv[1]))
+    node = Node("stray", context=context)
+    node.create_publisher(Twist, "/bot0/cmd_vel", c.QOS)
+    rclpy.spin(node, executor=rclpy.executors.SingleThreadedExecutor(context=context))
+""")
+
+
+def test_a_multi_process_run_takes_each_answer_type_from_its_controller_not_from_the_graph(mp_domain):
+    # The flocking controller publishes TwistStamped. Had the simulator subscribed to bot0's
+    # cmd_vel with a type the ROS graph lists there, the stray's Twist would do: the controller
+    # would never be matched, and the start-up would stall for a minute, then fail.
+    from composed_sim.hosts.domain_claim import foreign_nodes
+    from composed_sim.hosts.multiprocess import MultiProcessHost
+    from composed_sim.world.loader import load_world
+
+    world = load_world(FLOCKING, robots=3, seed=3, ticks=30)
+    stray = subprocess.Popen([sys.executable, "-c", STRAY_OF_THE_OTHER_TYPE, str(mp_domain)], cwd=ROOT)
+    try:
+        while "/stray (/bot0/cmd_vel)" not in foreign_nodes(mp_domain):
+            assert stray.poll() is None
+        with MultiProcessHost(world, domain_id=mp_domain) as h:
+            beside_the_stray = h.run()
+    finally:
+        stray.kill()
+        stray.wait()
+    with MultiProcessHost(world, domain_id=mp_domain) as h:
+        alone = h.run()
+    assert beside_the_stray.violations == [] and beside_the_stray.trajectories.ticks_done == 30
+    np.testing.assert_array_equal(beside_the_stray.trajectories.positions, alone.trajectories.positions)
