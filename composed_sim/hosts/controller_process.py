@@ -10,10 +10,9 @@ its node exists (the type of its cmd_vel publisher, which the simulator subscrib
 from the ROS graph, where a stray publisher could pass for it), ``ready <topics> gid:<hex>…`` once
 its contract endpoints are matched with the simulator's (so the host can start tick 0 knowing no
 message will be lost; the GIDs are its cmd_vel publishers', the only ones the simulator takes this
-robot's answers from), then closes it. It exits
-cleanly (node destroyed, context shut down, code 0) on SIGTERM (and on SIGINT when run by hand),
-and with its parent: ``PR_SET_PDEATHSIG`` turns the parent's death, even by SIGKILL, into a
-SIGTERM here.
+robot's answers from), then closes it. It exits cleanly (node destroyed, context shut down, code
+0) on SIGTERM (and on SIGINT when run by hand), and with its parent: ``PR_SET_PDEATHSIG`` turns the
+parent's death, even by SIGKILL, into a SIGTERM here.
 """
 from __future__ import annotations
 
