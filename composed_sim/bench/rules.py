@@ -8,13 +8,11 @@ import statistics
 from pathlib import Path
 from typing import Iterable, Optional
 
+from composed_sim.hosts.choices import EXECUTORS, MODES     # also the report's order of them
 from composed_sim.world.schema import MAX_DOMAIN, ROBOTS_PER_DOMAIN
 
 
 PAPER_SIZES = (3, 5, 10, 20, 40, 80, 160, 320, 640, 1280)
-# Display order of modes and executors; the choices themselves are the hosts' (hosts.composed).
-MODES = ("composed", "multi-process")
-EXECUTORS = ("lockstep", "events", "single-threaded", "multi-threaded")
 
 # The paper's CSV columns, in its order, filled with our measurements (see the module docstring).
 # ArgosCPU/ArgosMem: the run's root process (the simulator); Ros2CPU/Ros2Mem: every other process

@@ -142,8 +142,6 @@ class Simulation:
         self.names: list[str] = world.robot_names()
         self.n = len(self.names)
         self.models: list[RobotModel] = [get_model(world.robots[g].model) for g in world.group_of_robot()]
-        # The one model of a homogeneous world (hosts written for one model read it).
-        self.model = self.models[0] if self.models else get_model("foot-bot")
         self.groups: list[SensedGroup] = []
         start = 0
         for gi, g in enumerate(world.robots):
@@ -173,8 +171,9 @@ class Simulation:
         kinds = {m.name for m in self.models}
         self._one_model = len(kinds) <= 1
         self.led_counts = per_robot(lambda m: m.n_leds, np.intp)         # [n]
-        self.led_body = self.model.led_positions_array()                 # [L, 3] of self.model
-        n_leds = int(self.led_counts.max()) if self.n else self.model.n_leds
+        first = self.models[0] if self.models else get_model("foot-bot")
+        self.led_body = first.led_positions_array()     # [L, 3], every robot's in a one-model world
+        n_leds = int(self.led_counts.max()) if self.n else first.n_leds
         # [n, L, 3]; a model with fewer LEDs has black (never seen) padding at the end.
         self.led_colors = np.zeros((self.n, n_leds, 3), dtype=np.uint8)   # all LEDs start off
 
