@@ -368,11 +368,9 @@ def _draw_scene(ax, world: World, k: float) -> None:
 
 
 def _box_corners(box) -> np.ndarray:
-    """[4, 2] corners of a (yawed) box in world coordinates."""
-    c, s = math.cos(box.yaw_rad), math.sin(box.yaw_rad)
-    hx, hy = box.size[0] / 2, box.size[1] / 2
-    local = np.array([[-hx, -hy], [hx, -hy], [hx, hy], [-hx, hy]])
-    return local @ np.array([[c, s], [-s, c]]) + np.asarray(box.position)
+    """[4, 2] corners of a (yawed) box of the world file, in world coordinates."""
+    from composed_sim.core.geometry import box_corners
+    return box_corners(box.position, box.size, box.yaw_rad)
 
 
 # --- encoding ------------------------------------------------------------------------

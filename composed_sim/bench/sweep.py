@@ -230,7 +230,8 @@ def resolve_world(given: Optional[Path]) -> Path:
         if not given.is_file():
             raise UserError(f"--world {given}: no such file")
         return given.resolve()
-    candidates = [CHECKOUT / "worlds" / "flocking.yaml", Path.cwd() / "worlds" / "flocking.yaml"]
+    from composed_sim.world.loader import SHIPPED_WORLDS
+    candidates = [SHIPPED_WORLDS / "flocking.yaml", Path.cwd() / "worlds" / "flocking.yaml"]
     for c in candidates:
         if c.is_file():
             return c

@@ -139,8 +139,8 @@ def _load_results_or_recording(source: Path):
 
 def shipped_worlds() -> list[Path]:
     """worlds/*.yaml and *.argos next to the package (a source checkout or an editable install)."""
-    here = Path(__file__).resolve().parents[2] / "worlds"
-    return sorted(p for p in here.glob("*") if p.suffix in (".yaml", ".argos")) if here.is_dir() else []
+    from composed_sim.world.loader import SHIPPED_WORLDS
+    return sorted(p for p in SHIPPED_WORLDS.glob("*") if p.suffix in (".yaml", ".argos")) if SHIPPED_WORLDS.is_dir() else []
 
 
 def cmd_worlds() -> int:

@@ -11,6 +11,7 @@ import numbers
 import os
 import reprlib
 import types
+from pathlib import Path
 from typing import Annotated, Any, Optional, Union, get_args, get_origin
 
 import yaml
@@ -22,6 +23,8 @@ FieldPath = tuple[Union[str, int], ...]      # a field path, e.g. ("robots", 0, 
 
 # Largest values of the command-line overrides, given as exclusive upper bounds.
 _SEED_LIMIT = 2**32
+# The world files shipped with the package: worlds/ of a source checkout (or an editable install).
+SHIPPED_WORLDS = Path(__file__).resolve().parents[2] / "worlds"
 
 
 class WorldFileError(Exception):
