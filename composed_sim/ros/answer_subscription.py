@@ -240,7 +240,7 @@ class ControllerPublishers:
         infos = [info for info in self._node.get_publishers_info_by_topic(self._subscriptions[i].topic_name)
                  if _gid(info) == gid]
         if not infos:
-            return f"a publisher no longer in the ROS graph (GID {gid_text(gid)})"
+            return f"a publisher the ROS graph does not list (publisher GID {gid_text(gid)})"
         if infos[0].node_name == NODE_NAME_UNKNOWN:     # its node's name arrives a moment after the endpoint
             return f"a node not yet named in the ROS graph (publisher GID {gid_text(gid)})"
         name = f"node {infos[0].node_namespace.rstrip('/')}/{infos[0].node_name} (publisher GID {gid_text(gid)})"
