@@ -18,6 +18,7 @@ def cmd_run(args) -> int:
     from composed_sim.hosts.composed import ComposedHost
     from composed_sim.hosts.controllers import HostError
     from composed_sim.hosts.domain_claim import DomainTaken, claim_domains, claim_free_domain, run_identity
+    from composed_sim.hosts.lockstep import AnotherSimulator
     from composed_sim.hosts.workers import WorkerHost, auto_workers, usable_cores
     from composed_sim.results import summarize, write_results
 
@@ -135,7 +136,7 @@ def cmd_run(args) -> int:
                     os._exit(code)
         except (plugins.PluginError, PlacementError) as e:
             raise UserError(located(args.world, e)) from None
-        except HostError as e:
+        except (HostError, AnotherSimulator) as e:
             raise UserError(str(e)) from None
     claim.release()
     print_summary(args, world, summary)

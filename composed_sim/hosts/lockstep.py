@@ -92,6 +92,12 @@ class Exchange(Protocol):
                    commands: tuple[np.ndarray, np.ndarray]) -> None: ...
     def take_led_commands(self) -> dict[int, np.ndarray]: ...
     def take_rab_payloads(self) -> dict[int, np.ndarray]: ...
+    def another_simulator(self) -> Optional[str]:
+        """Another simulator in one of the run's ROS domains (``SimulatorNode.another_simulator``)."""
+
+
+class AnotherSimulator(Exception):
+    """Another simulator publishes /clock in one of the run's ROS domains: the run stops."""
 
 
 class NodesExchange:
@@ -127,6 +133,9 @@ class NodesExchange:
     def publish_clock(self, tick: int) -> None:
         for node in self.nodes:
             node.publish_clock(tick)
+
+    def another_simulator(self) -> Optional[str]:
+        return next((other for node in self.nodes if (other := node.another_simulator()) is not None), None)
 
     def wait_for_answers(self, timeout_s: float) -> bool:
         """Until every node's robots answered (their callbacks run elsewhere: executor threads,
@@ -202,6 +211,11 @@ def run_lockstep(sim: Simulation, exchange: Exchange, wait_for_answers: Callable
             t0 = time.perf_counter()
             exchange.publish_tick(frame)
             wait_for_answers(lockstep.watchdog_s)
+            if (other := exchange.another_simulator()) is not None:
+                raise AnotherSimulator(
+                    f"another simulator joined the run's ROS domain at tick {sim.tick}: {other} publishes "
+                    f"/clock there too, so this run's robots hear its topics and the run stopped; give each "
+                    f"run its own domain (leave --domain-id and ROS_DOMAIN_ID unset to pick a free one)")
             commands = (np.empty(sim.n), np.empty(sim.n))
             exchange.close_tick(lockstep.fallback, previous, commands)
             for robot, colors in exchange.take_led_commands().items():

@@ -28,6 +28,7 @@ import resource
 import signal
 import sys
 from dataclasses import dataclass, field
+from typing import Optional
 
 from composed_sim.hosts.processes import die_with_parent
 
@@ -56,6 +57,7 @@ class TickAnswers:
     violations: list = field(default_factory=list)     # new ones since the last tick: (tick, robot, reason)
     tapped: list = field(default_factory=list)         # (topic, type, bytes, stamp ns)
     peak_rss_kb: int = 0                               # the worker's own peak resident memory so far
+    another_simulator: Optional[str] = None            # NodesExchange.another_simulator, this tick
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -120,6 +122,7 @@ def main(argv: list[str] | None = None) -> int:
                 if tap is not None:
                     answers.tapped = tap.drain()
                 answers.peak_rss_kb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+                answers.another_simulator = exchange.another_simulator()
                 conn.send(("answers", answers))
             elif message[0] == "clock":
                 exchange.publish_clock(message[1])

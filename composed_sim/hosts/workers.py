@@ -125,6 +125,12 @@ class WorkersExchange:
                 except OSError:
                     self._lost(w)
 
+    def another_simulator(self) -> Optional[str]:
+        """What a worker's simulator node found with this tick's answers (each worker sees its own
+        /clock publisher only: the workers' participants ignore one another)."""
+        return next((w.answers.another_simulator for w in self.workers
+                     if w.dead is None and w.answers is not None and w.answers.another_simulator), None)
+
     def wait_for_answers(self, timeout_s: float) -> bool:
         """Until every live worker sent its answers. Each worker applies the watchdog itself; one
         that is not back well after it (or whose socket closed: it died) is given up."""

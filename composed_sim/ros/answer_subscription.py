@@ -22,6 +22,7 @@ from typing import Callable, Optional, Sequence
 
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
+from rclpy.publisher import Publisher
 from rclpy.qos import QoSProfile
 from rclpy.type_support import check_is_valid_msg_type
 from rclpy.waitable import NumberOfEntities, Waitable
@@ -91,16 +92,17 @@ def cmd_vel_gids(node: Node, robot: str) -> list[bytes]:
     """The GIDs of ``node``'s publishers on ``robot``'s cmd_vel: what its host tells the simulator
     (``SimulatorNode.note_controllers``), from the publishers themselves, not the ROS graph."""
     topic = c.topic_name(robot, c.CMD_VEL)
-    gids = []
-    for publisher in node.publishers:
-        if publisher.topic_name == topic:
-            gid = _Gid()
-            with publisher.handle:
-                rmw_publisher = _rcl.rcl_publisher_get_rmw_handle(publisher.handle.pointer)
-                if _rcl.rmw_get_gid_for_publisher(rmw_publisher, ctypes.byref(gid)) != _RET_OK:
-                    raise RuntimeError(f"rmw_get_gid_for_publisher failed on {topic}: {_error_text()}")
-            gids.append(bytes(gid.data))
-    return gids
+    return [publisher_gid(publisher) for publisher in node.publishers if publisher.topic_name == topic]
+
+
+def publisher_gid(publisher: Publisher) -> bytes:
+    """A publisher's GID, as the ROS graph and each message's info give it."""
+    gid = _Gid()
+    with publisher.handle:
+        rmw_publisher = _rcl.rcl_publisher_get_rmw_handle(publisher.handle.pointer)
+        if _rcl.rmw_get_gid_for_publisher(rmw_publisher, ctypes.byref(gid)) != _RET_OK:
+            raise RuntimeError(f"rmw_get_gid_for_publisher failed on {publisher.topic_name}: {_error_text()}")
+    return bytes(gid.data)
 
 
 def gid_text(gid: bytes) -> str:
@@ -215,7 +217,7 @@ class ControllerPublishers:
             for i, sub in enumerate(self._subscriptions):
                 if gids[i] is None and sub is not None:
                     type_name = c.type_name(self._answer_types[i])
-                    gids[i] = frozenset(_gid(info) for info in self._node.get_publishers_info_by_topic(sub.topic_name)
+                    gids[i] = frozenset(graph_gid(info) for info in self._node.get_publishers_info_by_topic(sub.topic_name)
                                         if info.topic_type == type_name) or None
             if all(g is not None or s is None for g, s in zip(gids, self._subscriptions)) or time.monotonic() > deadline:
                 break
@@ -238,7 +240,7 @@ class ControllerPublishers:
         if gid in self._names:
             return self._names[gid]
         infos = [info for info in self._node.get_publishers_info_by_topic(self._subscriptions[i].topic_name)
-                 if _gid(info) == gid]
+                 if graph_gid(info) == gid]
         if not infos:
             return f"a publisher the ROS graph does not list (publisher GID {gid_text(gid)})"
         if infos[0].node_name == NODE_NAME_UNKNOWN:     # its node's name arrives a moment after the endpoint
@@ -248,5 +250,6 @@ class ControllerPublishers:
         return name
 
 
-def _gid(info) -> bytes:
+def graph_gid(info) -> bytes:
+    """The GID of an endpoint the ROS graph lists (a ``TopicEndpointInfo``)."""
     return bytes(info.endpoint_gid)[:_GID_BYTES]

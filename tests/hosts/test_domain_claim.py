@@ -7,6 +7,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from composed_sim.hosts.domain_claim import (DomainClaim, DomainTaken, claim_domains, claim_free_domain, foreign_nodes,
                                              run_identity)
@@ -67,6 +68,53 @@ node.create_publisher(Clock, "/clock", 10)
 while True:
     time.sleep(1)
 """
+
+
+# Another simulator that joins the domain once the run is under way (the run's first /clock came).
+JOINING_SIMULATOR = """
+import sys, rclpy
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rosgraph_msgs.msg import Clock
+context = Context(); rclpy.init(context=context, domain_id=int(sys.argv[1]))
+node = Node("joining_simulator", context=context)
+joined = []
+def on_clock(msg):
+    if not joined:
+        joined.append(node.create_publisher(Clock, "/clock", 10))
+        print("joined", flush=True)
+node.create_subscription(Clock, "/clock", on_clock, 10)
+executor = SingleThreadedExecutor(context=context); executor.add_node(node)
+while True:
+    executor.spin_once(timeout_sec=0.1)
+"""
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_a_simulator_joining_the_domain_during_the_run_stops_it_and_keeps_what_was_simulated(tmp_path, domain_id,
+                                                                                            workers):
+    # What the claim before tick 0 cannot see: another simulator in the domain later, or one its
+    # probe missed. Its sensors would reach this run's controllers: the run stops, says why, and
+    # writes its results so far. With workers, a worker's node finds it.
+    run = start(tmp_path / "run", "--ticks", "100000", "--rate", "4", "--domain-id", domain_id, "--workers", workers)
+    other = subprocess.Popen([sys.executable, "-c", JOINING_SIMULATOR, str(domain_id)], cwd=ROOT,
+                             stdout=subprocess.PIPE, text=True)
+    try:
+        assert other.stdout.readline() == "joined\n"
+        _, err = run.communicate(timeout=60)
+    finally:
+        for p in (run, other):
+            p.kill()
+            p.wait()
+    assert run.returncode == 2, err
+    assert ("composed-sim: error: another simulator joined the run's ROS domain at tick " in err
+            and ": node /joining_simulator (publisher GID " in err
+            and "publishes /clock there too, so this run's robots hear its topics and the run stopped" in err), err
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert summary["interrupted"] and summary["ticks"] >= 1 and summary["workers"] == workers
+    with np.load(tmp_path / "run" / "trajectories.npz") as saved:
+        assert saved["positions"].shape == (summary["ticks"] + 1, 20, 2)
 
 
 def test_the_graph_probe_finds_other_simulators_and_left_over_controllers(domain_id):

@@ -32,6 +32,9 @@ class FakeExchange:
     def publish_clock(self, tick: int) -> None:
         self.calls.append(("clock", tick))
 
+    def another_simulator(self):
+        return None
+
     def wait(self, timeout_s: float) -> bool:
         self.calls.append(("wait", self.tick))
         return True
