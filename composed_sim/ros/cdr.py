@@ -206,6 +206,82 @@ def decode_unstamped_twist(data) -> tuple[float, float]:
 
 
 _POSE = struct.Struct("<7d")
+_TWO_F64 = struct.Struct("<dd")
+
+
+class FixedEncoder:
+    """A message whose size never changes (its strings and sequence lengths are the template's):
+    the template's bytes, with the stamp and the float64 fields at ``f64_at`` written in per
+    message. ``pose_f64_at`` and the like say where a message type's fields are."""
+
+    def __init__(self, template, f64_at) -> None:
+        self._buffer = bytearray(serialize_message(template))
+        self._f64_at = tuple(f64_at(self._buffer))
+
+    def encode(self, stamp: bytes, *values: float) -> bytes:
+        """``stamp``: ``stamp_bytes``; ``values``: one per offset of ``f64_at``, in its order."""
+        buffer = self._buffer
+        buffer[HEADER:HEADER + 8] = stamp
+        for at, value in zip(self._f64_at, values):
+            _F64.pack_into(buffer, at, value)
+        return bytes(buffer)
+
+
+def pose_f64_at(data) -> tuple[int, int, int, int]:
+    """PoseStamped: where position.x, position.y, orientation.z and orientation.w are."""
+    pose = align(after_header(data), 8)                   # position x y z, orientation x y z w
+    return pose, pose + 8, pose + 40, pose + 48
+
+
+def after_string(data, pos: int) -> int:
+    """Position just after a string that starts at ``pos`` (or at the next multiple of 4)."""
+    pos = align(pos, 4)
+    (length,) = _U32.unpack_from(data, pos)
+    return pos + 4 + length
+
+
+def odometry_f64_at(data) -> tuple[int, ...]:
+    """Odometry: where pose.position.x, .y, pose.orientation.z, .w, twist.linear.x and
+    twist.angular.z are (after the header and child_frame_id; each of the pose and the twist is
+    followed by its 36-entry covariance)."""
+    pose = align(after_string(data, after_header(data)), 8)
+    twist = pose + (7 + 36) * 8
+    return pose, pose + 8, pose + 40, pose + 48, twist, twist + 40
+
+
+def decode_odometry(data) -> tuple[float, ...]:
+    """Odometry bytes → (x, y, qz, qw, linear.x, angular.z)."""
+    at = odometry_f64_at(data)
+    return tuple(_F64.unpack_from(data, pos)[0] for pos in at)
+
+
+def joint_state_f64_at(data) -> tuple[list[int], list[int]]:
+    """JointState: where each joint's position and velocity are (after the names)."""
+    pos = align(after_header(data), 4)
+    (n,) = _U32.unpack_from(data, pos)
+    pos += 4
+    for _ in range(n):
+        pos = after_string(data, pos)
+    arrays = []
+    for _ in range(2):                                    # position, velocity (then effort)
+        pos = align(pos, 4)
+        (count,) = _U32.unpack_from(data, pos)
+        start = align(pos + 4, 8)                         # Fast CDR aligns an empty sequence's too
+        arrays.append([start + 8 * k for k in range(count)])
+        pos = start + 8 * count
+    return arrays[0], arrays[1]
+
+
+def decode_joint_state(data) -> tuple[np.ndarray, np.ndarray]:
+    """JointState bytes → (positions [j], velocities [j]) as float64."""
+    positions, velocities = joint_state_f64_at(data)
+    return tuple(np.array([_F64.unpack_from(data, pos)[0] for pos in at]) for at in (positions, velocities))
+
+
+def decode_pose(data) -> tuple[float, float, float, float]:
+    """PoseStamped bytes → (x, y, qz, qw)."""
+    x, y, _, _, _, qz, qw = _POSE.unpack_from(data, align(after_header(data), 8))
+    return x, y, qz, qw
 
 
 class TransformsEncoder:

@@ -72,15 +72,13 @@ class SwarmController(Node):
         self._pending: dict[str, object] = {}
         self._pending_key = -1
         self._init_devices()
-        # Each sensor is read by its device (ros/devices/); the flocking set is taken as serialized
-        # bytes, and answers are published as bytes (cdr.py): the same messages, without building
-        # Python message objects.
+        # Each sensor is read by its device (ros/devices/), from the serialized bytes, and answers
+        # are published as bytes (cdr.py): the same messages, without building Python message objects.
         self._readers = {name: BY_SENSOR_TOPIC[name].reader(self.model) for name in self.sensors}
-        self._bytes_sensors = frozenset(name for name in self.sensors if BY_SENSOR_TOPIC[name].taken_as_bytes)
         for name in self.sensors:
             topic = c.TOPICS[name]
             self.create_subscription(topic.msg_type, topic.name, lambda data, name=name: self._on_sensor(name, data),
-                                     c.QOS, raw=name in self._bytes_sensors, event_callbacks=c.SUBSCRIPTION_EVENTS)
+                                     c.QOS, raw=True, event_callbacks=c.SUBSCRIPTION_EVENTS)
         self._cmd_pub = self.create_publisher(c.CMD_VEL.msg_type, c.CMD_VEL.name, c.QOS,
                                               event_callbacks=c.PUBLISHER_EVENTS)
         self._answer_encoder = c.answer_encoder()
@@ -103,7 +101,7 @@ class SwarmController(Node):
     # --- the tick exchange ------------------------------------------------------------------
 
     def _on_sensor(self, name: str, data) -> None:
-        key = cdr.stamp_ns(data) if name in self._bytes_sensors else c.stamp_key(data.header.stamp)
+        key = cdr.stamp_ns(data)
         if key != self._pending_key:     # a new tick: whatever was left of an older one is stale
             self._pending.clear()
             self._pending_key = key

@@ -2,15 +2,18 @@
 class put on the wire exactly the messages of the contract, and read what any node publishes."""
 import numpy as np
 import pytest
-from geometry_msgs.msg import TwistStamped
+from geometry_msgs.msg import PoseStamped, TwistStamped
+from nav_msgs.msg import Odometry
 from rclpy.serialization import deserialize_message, serialize_message
-from sensor_msgs.msg import LaserScan, PointCloud2, PointField
+from sensor_msgs.msg import JointState, LaserScan, PointCloud2, PointField
 
 from composed_sim.world.robot_models import get_model
 from composed_sim.ros import cdr, contract as c, decoding
-from composed_sim.ros.devices import camera, light, proximity
+from composed_sim.ros.devices import (camera, differential_steering, ground, lidar, light, odometry, positioning,
+                                      proximity, range_and_bearing)
 
 FOOTBOT = get_model("foot-bot")
+BURGER = get_model("turtlebot3-burger")
 NAMES = ["b", "bot7", "bot42", "bot123", "bot1234", "a_long_robot_name_99"]   # every CDR padding case
 rng = np.random.default_rng(0)
 
@@ -37,6 +40,44 @@ def test_sensor_bytes_are_the_contract_messages(name):
     assert deserialize_message(light.encoder(FOOTBOT, name).encode(stamp.sec, stamp.nanosec, readings),
                                LaserScan) == received(scan)
 
+    ranges = rng.uniform(0.1, 3.5, BURGER.lidar.n_rays)
+    ranges[[4, 9]] = np.inf, -np.inf
+    scan = lidar.message(BURGER.lidar, name, 0.1)
+    lidar.fill(scan, stamp, ranges)
+    assert deserialize_message(lidar.encoder(BURGER.lidar, name, 0.1).encode_bytes(
+        cdr.stamp_bytes(stamp.sec, stamp.nanosec), ranges.astype("<f4").tobytes(), b""), LaserScan) == received(scan)
+
+    stamp_cdr = cdr.stamp_bytes(stamp.sec, stamp.nanosec)
+    pose = positioning.message()
+    x, y, qz, qw = rng.uniform(-5, 5, 4)
+    positioning.fill(pose, stamp, x, y, qz, qw)
+    assert deserialize_message(positioning.encoder().encode(stamp_cdr, x, y, qz, qw), PoseStamped) == pose
+
+    odom = odometry.message(name)
+    values = rng.uniform(-5, 5, 6)
+    odometry.fill(odom, stamp, *values)
+    assert deserialize_message(odometry.encoder(name).encode(stamp_cdr, *values), Odometry) == odom
+
+    wheels = differential_steering.message(name)
+    angles, speeds = rng.uniform(-50, 50, 2), rng.uniform(-9, 9, 2)
+    differential_steering.fill(wheels, stamp, angles, speeds)
+    assert deserialize_message(differential_steering.encoder(name).encode(stamp_cdr, *angles, *speeds),
+                               JointState) == wheels
+
+    offsets = np.array(FOOTBOT.ground.offsets_m)
+    cloud = ground.message(name, len(offsets))
+    points = ground.points_of(offsets, rng.random(len(offsets)))
+    ground.fill(cloud, stamp, points)
+    assert deserialize_message(ground.encoder(name, len(offsets)).encode(stamp.sec, stamp.nanosec, points.tobytes(),
+                                                                         len(points)), PointCloud2) == cloud
+
+    encoder, cloud = range_and_bearing.encoder(name, 4), range_and_bearing.message(name, 4)
+    for m in (0, 1, 3):           # the same encoder, message counts changing tick to tick
+        points = range_and_bearing.points_of(rng.uniform(0.1, 3, m), rng.uniform(-3, 3, m), rng.uniform(-1, 1, m),
+                                             rng.integers(0, 256, (m, 4)))
+        range_and_bearing.fill(cloud, stamp, points)
+        assert deserialize_message(encoder.encode(stamp.sec, stamp.nanosec, points.tobytes(), m), PointCloud2) == cloud
+
     encoder, cloud = camera.encoder(name), camera.message(name)
     for m in (0, 1, 2, 3, 9):       # the same encoder, blob counts changing tick to tick
         points = camera.points_of(rng.uniform(-3, 3, m), rng.uniform(0.1, 2, m),
@@ -57,6 +98,32 @@ def test_decoding_bytes_equals_decoding_messages(name):
     for got, want in zip(proximity.decode_cdr(serialize_message(scan)), proximity.decode(scan)):
         assert np.array_equal(got, want)
     assert np.array_equal(light.decode_cdr(serialize_message(scan)), light.decode(scan))
+
+    scan = lidar.message(BURGER.lidar, name, 0.1)
+    lidar.fill(scan, stamp, rng.uniform(0.1, 3.5, BURGER.lidar.n_rays))
+    assert np.array_equal(lidar.decode_cdr(serialize_message(scan)), lidar.decode(scan))
+    pose = positioning.message()
+    positioning.fill(pose, stamp, *rng.uniform(-5, 5, 4))
+    assert np.array_equal(positioning.decode_cdr(serialize_message(pose)), positioning.decode(pose))
+    odom = odometry.message(name)
+    odometry.fill(odom, stamp, *rng.uniform(-5, 5, 6))
+    for got, want in zip(odometry.decode_cdr(serialize_message(odom)), odometry.decode(odom)):
+        assert np.array_equal(got, want)
+    wheels = differential_steering.message(name)
+    differential_steering.fill(wheels, stamp, rng.uniform(-50, 50, 2), rng.uniform(-9, 9, 2))
+    for got, want in zip(differential_steering.decode_cdr(serialize_message(wheels), 0.033),
+                         differential_steering.decode(wheels, 0.033)):
+        assert np.array_equal(got, want)
+    offsets = np.array(FOOTBOT.ground.offsets_m)
+    cloud = ground.message(name, len(offsets))
+    ground.fill(cloud, stamp, ground.points_of(offsets, rng.random(len(offsets))))
+    assert np.array_equal(ground.decode_cdr(serialize_message(cloud)), ground.decode(cloud))
+    cloud = range_and_bearing.message(name, 3)
+    range_and_bearing.fill(cloud, stamp, range_and_bearing.points_of(rng.uniform(0.1, 3, 5), rng.uniform(-3, 3, 5),
+                                                                     rng.uniform(-1, 1, 5), rng.integers(0, 256, (5, 3))))
+    got, want = range_and_bearing.decode_cdr(serialize_message(cloud)), range_and_bearing.decode(cloud)
+    for field in ("ranges", "bearings", "elevations", "payloads"):
+        assert np.array_equal(getattr(got, field), getattr(want, field))
 
     cloud = camera.message(name)
     camera.fill(cloud, stamp, camera.points_of(rng.uniform(-3, 3, 5), rng.uniform(0.1, 2, 5),

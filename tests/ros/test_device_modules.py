@@ -66,7 +66,7 @@ def test_a_device_topic_round_trips_from_the_frame_to_the_controllers_tick(devic
         topic = device.sensor_topic
         got = []
         sub = listener.create_subscription(topic.msg_type, c.topic_name(sim.names[ROBOT], topic), got.append,
-                                           c.QOS, raw=device.taken_as_bytes)
+                                           c.QOS, raw=True)
         node.publish_tick(frame)
         taken = sub.handle.take_message(sub.msg_type, sub.raw)
         assert taken is not None, f"{device.name}: nothing on {c.topic_name(sim.names[ROBOT], topic)}"

@@ -23,7 +23,6 @@ TOPIC = Topic("blobs", PointCloud2, "sensor",
 # One point per blob. float32 coordinates are ample for a camera with cm-level range.
 BLOB_DTYPE = np.dtype([("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("rgb", "<u4")])
 BLOB_FIELDS = point_fields(BLOB_DTYPE)
-_BLOB_BYTES = BLOB_DTYPE.itemsize
 
 
 def message(robot: str) -> PointCloud2:
@@ -57,13 +56,8 @@ class Publisher(DevicePublisher):
     def publish(self, plan, frame, out):
         blobs = frame.groups[plan.group].blobs
         take, local = csr_take(blobs.offsets, plan.within)
-        points = points_of(blobs.angles[take], blobs.distances[take], blobs.colors[take]).tobytes()
-        offsets = (local * _BLOB_BYTES).tolist()       # where each robot's points start in them
-        sec, nanosec = out.stamp.sec, out.stamp.nanosec
-        for k, i in enumerate(plan.local.tolist()):
-            if self.wanted(i, out):
-                first, end = offsets[k], offsets[k + 1]
-                self.send(i, self.msgs[i].encode(sec, nanosec, points[first:end], (end - first) // _BLOB_BYTES), out)
+        self.send_clouds(plan, out, points_of(blobs.angles[take], blobs.distances[take], blobs.colors[take]),
+                         local.tolist())
 
 
 # --- the controller's side -----------------------------------------------------------------------
@@ -152,4 +146,4 @@ def reader(model: RobotModel):
     return lambda data, tick: setattr(tick, "blobs", decode_cdr(data, decoder))
 
 
-DEVICE = Device(CAMERA, (TOPIC,), Publisher, reader, taken_as_bytes=True)
+DEVICE = Device(CAMERA, (TOPIC,), Publisher, reader)

@@ -64,8 +64,9 @@ class PublishingNode(Protocol):
 
 class DevicePublisher:
     """A node's publishers of one device's sensor topic, one per robot that runs the device, and
-    the message (or bytes encoder) each reuses. A subclass names its ``topic``, makes a robot's
-    ``template`` and ``publish``es a tick for a group's robots."""
+    the encoder of each one's messages: every message goes out as its serialized bytes (cdr.py).
+    A subclass names its ``topic``, makes a robot's encoder (``template``) and ``publish``es a
+    tick for a group's robots."""
     topic: ClassVar[Topic]
     device: ClassVar[str]
 
@@ -73,18 +74,18 @@ class DevicePublisher:
         self.node = node
         n = len(robots.names)
         self.pubs: list = [None] * n
-        self.msgs: list = [None] * n
+        self.encoders: list = [None] * n
         self._read = [False] * n
         for i in self.own_topics(robots):
             self.pubs[i] = node.create_robot_publisher(robots.names[i], self.topic)
-            self.msgs[i] = self.template(robots, i)
+            self.encoders[i] = self.template(robots, i)
 
     def own_topics(self, robots: NodeRobots) -> list[int]:
         """The robots with a topic of their own for the device: all that run it."""
         return robots.running(self.device)
 
     def template(self, robots: NodeRobots, i: int):
-        """Robot i's reused message, or the encoder of its bytes."""
+        """The encoder of robot i's messages (``cdr``), which keeps what never changes."""
         raise NotImplementedError
 
     def publish(self, plan: GroupPlan, frame: SensorFrame, out: Outgoing) -> None:
@@ -105,33 +106,43 @@ class DevicePublisher:
         return self._read[i]
 
     def send(self, i: int, msg, out: Outgoing) -> None:
-        """Publish robot i's message (or its bytes); the caller asked ``wanted`` first."""
+        """Publish robot i's message bytes; the caller asked ``wanted`` first."""
         self.pubs[i].publish(msg)
         self.node.tap_message(self.topic, i, msg, out.stamp_ns)
 
     def send_scans(self, plan: GroupPlan, out: Outgoing, ranges: Optional[np.ndarray],
                    intensities: np.ndarray) -> None:
-        """Each wanted robot's LaserScan as bytes (its ``msgs`` entry is a ``cdr.ScanEncoder``) from
+        """Each wanted robot's LaserScan as bytes (its encoder a ``cdr.ScanEncoder``) from
         its row of ``ranges`` (None: a scan without ranges) and of ``intensities`` ([k, m] each):
         the rows become float32 bytes once per tick, and a robot's part is a slice of them."""
         ranges_f4, r_width = rows_f4(ranges) if ranges is not None else (b"", 0)
         intensities_f4, i_width = rows_f4(intensities)
         for k, i in enumerate(plan.local.tolist()):
             if self.wanted(i, out):
-                self.send(i, self.msgs[i].encode_bytes(out.stamp_cdr, ranges_f4[k * r_width:(k + 1) * r_width],
+                self.send(i, self.encoders[i].encode_bytes(out.stamp_cdr, ranges_f4[k * r_width:(k + 1) * r_width],
                                                        intensities_f4[k * i_width:(k + 1) * i_width]), out)
 
-    def fill_and_send(self, plan: GroupPlan, out: Outgoing, fill: Callable, *columns: Sequence) -> None:
-        """Each wanted robot of the plan (k-th): ``fill(its reused message, stamp, column[k] …)``,
-        then publish it. A column holds one value per robot of the plan."""
+    def send_clouds(self, plan: GroupPlan, out: Outgoing, points: np.ndarray, offsets: Sequence[int]) -> None:
+        """Each wanted robot's PointCloud2 as bytes (its encoder a ``cdr.CloudEncoder``):
+        the k-th robot's points are ``points[offsets[k]:offsets[k + 1]]`` (a structured array laid
+        out as the cloud's fields), turned into bytes once per tick and sliced per robot."""
+        data, step = points.tobytes(), points.dtype.itemsize
+        sec, nanosec = out.stamp.sec, out.stamp.nanosec
         for k, i in enumerate(plan.local.tolist()):
             if self.wanted(i, out):
-                fill(self.msgs[i], out.stamp, *[column[k] for column in columns])
-                self.send(i, self.msgs[i], out)
+                first, end = offsets[k], offsets[k + 1]
+                self.send(i, self.encoders[i].encode(sec, nanosec, data[first * step:end * step], end - first), out)
+
+    def encode_and_send(self, plan: GroupPlan, out: Outgoing, *columns: Sequence) -> None:
+        """Each wanted robot of the plan (k-th): its encoder's bytes (``cdr.FixedEncoder``) of the
+        stamp and ``column[k]`` …, published. A column holds one value per robot of the plan."""
+        for k, i in enumerate(plan.local.tolist()):
+            if self.wanted(i, out):
+                self.send(i, self.encoders[i].encode(out.stamp_cdr, *[column[k] for column in columns]), out)
 
 
 # How a controller reads a device's sensor topic: made once per controller (from its robot's
-# model), then called with each tick's message (bytes when ``taken_as_bytes``) and the Tick to fill.
+# model), then called with each tick's message as serialized bytes and the Tick to fill.
 Reader = Callable[[Any, Any], None]
 
 
@@ -154,11 +165,9 @@ class Device:
     name: str                                          # the world file's name (world/robot_models.py)
     topics: tuple[Topic, ...]                          # every contract topic it gives a robot
     publisher: type[DevicePublisher]                   # the simulator's side of its topics
-    reader: Optional[Callable[[RobotModel], Reader]]   # the controller's side of its sensor topic
-    # The sensor topic is taken as serialized bytes and decoded straight into arrays (cdr.py):
-    # the same messages without Python message objects, for the devices every tick of a
-    # flocking swarm reads. The others arrive as message objects.
-    taken_as_bytes: bool = False
+    # The controller's side of its sensor topic, taken as serialized bytes and decoded straight
+    # into arrays (cdr.py): the same messages without Python message objects.
+    reader: Optional[Callable[[RobotModel], Reader]]
 
     @property
     def sensor_topic(self) -> Optional[Topic]:

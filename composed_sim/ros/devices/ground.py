@@ -1,7 +1,8 @@
 """Ground: the motor ground sensors under the body (readings: core/devices/ground.py).
 
 ``/<r>/ground``, sensor_msgs/PointCloud2 in base_link: one point per sensor, x/y its position in
-base_link (m, z = 0), intensity = the floor's grey level under it in [0, 1] (float32).
+base_link (m, z = 0), intensity = the floor's grey level under it in [0, 1] (float32). Published
+and taken as bytes.
 """
 from __future__ import annotations
 
@@ -9,8 +10,9 @@ import numpy as np
 from builtin_interfaces.msg import Time
 from sensor_msgs.msg import PointCloud2
 
+from composed_sim.ros import cdr
 from composed_sim.ros.devices.device import Device, DevicePublisher, reads_into
-from composed_sim.ros.topic import Topic, point_cloud
+from composed_sim.ros.topic import Topic, point_cloud, point_fields
 from composed_sim.world.robot_models import GROUND
 
 TOPIC = Topic("ground", PointCloud2, "sensor",
@@ -23,6 +25,10 @@ GROUND_DTYPE = np.dtype([("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("intensity",
 
 def message(robot: str, n_sensors: int) -> PointCloud2:
     return point_cloud(robot, GROUND_DTYPE, n_sensors)
+
+
+def encoder(robot: str, n_sensors: int) -> cdr.CloudEncoder:
+    return cdr.CloudEncoder(message(robot, n_sensors))
 
 
 def points_of(offsets_m: np.ndarray, readings: np.ndarray) -> np.ndarray:
@@ -46,15 +52,27 @@ def decode(msg: PointCloud2) -> np.ndarray:
     return np.frombuffer(msg.data, dtype=GROUND_DTYPE, count=msg.width)["intensity"].astype(float)
 
 
+def decode_cdr(data: bytes) -> np.ndarray:
+    width, fields, point_step, points = cdr.decode_cloud(data)
+    if fields != _FIELDS or point_step != GROUND_DTYPE.itemsize:
+        raise ValueError(f"not a ground-sensor cloud: fields {[name for name, _, _ in fields]} "
+                         f"(need x, y, z, intensity float32)")
+    return np.frombuffer(points, dtype=GROUND_DTYPE, count=width)["intensity"].astype(float)
+
+
+_FIELDS = tuple((f.name, f.offset, f.datatype) for f in point_fields(GROUND_DTYPE))
+
+
 class Publisher(DevicePublisher):
     topic, device = TOPIC, GROUND
 
     def template(self, robots, i):
-        return message(robots.names[i], len(robots.models[i].ground.offsets_m))
+        return encoder(robots.names[i], len(robots.models[i].ground.offsets_m))
 
     def publish(self, plan, frame, out):
         points = points_of(plan.model.ground.offsets_m, frame.groups[plan.group].ground[plan.within])  # [k, s]
-        self.fill_and_send(plan, out, fill, points)
+        k, s = points.shape
+        self.send_clouds(plan, out, points.reshape(-1), range(0, (k + 1) * s, s))
 
 
-DEVICE = Device(GROUND, (TOPIC,), Publisher, reads_into("ground", decode))
+DEVICE = Device(GROUND, (TOPIC,), Publisher, reads_into("ground", decode_cdr))

@@ -51,4 +51,4 @@ class Publisher(DevicePublisher):
         self.send_scans(plan, out, None, frame.groups[plan.group].light[plan.within])
 
 
-DEVICE = Device(LIGHT, (TOPIC,), Publisher, reads_into("light", decode_cdr), taken_as_bytes=True)
+DEVICE = Device(LIGHT, (TOPIC,), Publisher, reads_into("light", decode_cdr))

@@ -1,6 +1,7 @@
 """Positioning: the ground-truth pose (readings: core/odometry.positioning).
 
 ``/<r>/pose``, geometry_msgs/PoseStamped in frame "world" (the robot is the topic's namespace).
+Published and taken as bytes.
 """
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ import numpy as np
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import PoseStamped
 
+from composed_sim.ros import cdr
 from composed_sim.ros.devices.device import Device, DevicePublisher, reads_into
 from composed_sim.ros.global_topics import WORLD_FRAME
 from composed_sim.ros.topic import Topic
@@ -35,21 +37,31 @@ def yaw_of(qz: float, qw: float) -> float:
     return 2.0 * np.arctan2(qz, qw)
 
 
+def encoder() -> cdr.FixedEncoder:
+    """Its ``encode(stamp, x, y, qz, qw)``, the arguments of ``fill``."""
+    return cdr.FixedEncoder(message(), cdr.pose_f64_at)
+
+
 def decode(msg: PoseStamped) -> np.ndarray:
     """→ [3] x, y (m), yaw (rad) in the world frame."""
     p, q = msg.pose.position, msg.pose.orientation
     return np.array([p.x, p.y, yaw_of(q.z, q.w)])
 
 
+def decode_cdr(data: bytes) -> np.ndarray:
+    x, y, qz, qw = cdr.decode_pose(data)
+    return np.array([x, y, yaw_of(qz, qw)])
+
+
 class Publisher(DevicePublisher):
     topic, device = TOPIC, POSITIONING
 
     def template(self, robots, i):
-        return message()
+        return encoder()
 
     def publish(self, plan, frame, out):
         xy, q = frame.pose.positions[plan.rows, :2], frame.pose.quaternions[plan.rows]     # q: (x, y, z, w)
-        self.fill_and_send(plan, out, fill, *(column.tolist() for column in (xy[:, 0], xy[:, 1], q[:, 2], q[:, 3])))
+        self.encode_and_send(plan, out, *(column.tolist() for column in (xy[:, 0], xy[:, 1], q[:, 2], q[:, 3])))
 
 
-DEVICE = Device(POSITIONING, (TOPIC,), Publisher, reads_into("pose", decode))
+DEVICE = Device(POSITIONING, (TOPIC,), Publisher, reads_into("pose", decode_cdr))

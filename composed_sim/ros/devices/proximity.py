@@ -61,5 +61,4 @@ class Publisher(DevicePublisher):
         self.send_scans(plan, out, group.proximity_distances[plan.within], group.proximity[plan.within])
 
 
-DEVICE = Device(PROXIMITY, (TOPIC,), Publisher, reads_into(("proximity_distances", "proximity"), decode_cdr),
-                taken_as_bytes=True)
+DEVICE = Device(PROXIMITY, (TOPIC,), Publisher, reads_into(("proximity_distances", "proximity"), decode_cdr))

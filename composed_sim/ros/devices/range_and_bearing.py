@@ -2,7 +2,7 @@
 
 ``/<r>/rab_rx``, sensor_msgs/PointCloud2 in base_link: the messages heard this tick, one point per
 sender: x/y/z of its emitter (m), range (m), bearing (horizontal, rad), elevation (vertical bearing,
-rad), float32; payload = its bytes (uint8, count = payload_bytes).
+rad), float32; payload = its bytes (uint8, count = payload_bytes). Published and taken as bytes.
 ``/<r>/rab_tx``, std_msgs/UInt8MultiArray from the controller: exactly payload_bytes bytes,
 broadcast from the next tick on (heard one tick later), kept until changed. The simulator node
 drains it with the LEDs at the act phase.
@@ -15,8 +15,9 @@ import numpy as np
 from sensor_msgs.msg import PointCloud2
 from std_msgs.msg import MultiArrayDimension, UInt8MultiArray
 
+from composed_sim.ros import cdr
 from composed_sim.ros.devices.device import Device, DevicePublisher, csr_take, reads_into
-from composed_sim.ros.topic import Topic, fill_points, point_cloud
+from composed_sim.ros.topic import Topic, fill_points, point_cloud, point_fields
 from composed_sim.world.robot_models import RANGE_AND_BEARING
 
 RX = Topic("rab_rx", PointCloud2, "sensor",
@@ -36,6 +37,10 @@ def point_dtype(payload_bytes: int) -> np.dtype:
 
 def message(robot: str, payload_bytes: int) -> PointCloud2:
     return point_cloud(robot, point_dtype(payload_bytes))
+
+
+def encoder(robot: str, payload_bytes: int) -> cdr.CloudEncoder:
+    return cdr.CloudEncoder(message(robot, payload_bytes))
 
 
 def points_of(ranges: np.ndarray, bearings: np.ndarray, elevations: np.ndarray,
@@ -79,6 +84,20 @@ def decode(msg: PointCloud2) -> RabMessages:
                        points["elevation"].astype(float), points["payload"].copy())
 
 
+def decode_cdr(data: bytes) -> RabMessages:
+    width, fields, point_step, points = cdr.decode_cloud(data)
+    dtype = point_dtype(point_step - _HEAD_BYTES)
+    if point_step < _HEAD_BYTES or fields != tuple((f.name, f.offset, f.datatype) for f in point_fields(dtype)):
+        raise ValueError(f"not a rab_rx cloud: fields {[name for name, _, _ in fields]} (need x, y, z, range, "
+                         f"bearing, elevation float32 and payload uint8)")
+    points = np.frombuffer(points, dtype=dtype, count=width)
+    return RabMessages(points["range"].astype(float), points["bearing"].astype(float),
+                       points["elevation"].astype(float), points["payload"].copy())
+
+
+_HEAD_BYTES = point_dtype(0).itemsize      # a point's bytes before its payload
+
+
 def payload_message(data) -> UInt8MultiArray:
     """A payload (bytes or [B] uint8) as the rab_tx message."""
     payload = np.frombuffer(bytes(data), dtype=np.uint8) if isinstance(data, (bytes, bytearray)) \
@@ -102,15 +121,14 @@ class Publisher(DevicePublisher):
     topic, device = RX, RANGE_AND_BEARING
 
     def template(self, robots, i):
-        return message(robots.names[i], robots.rab_payload_bytes)
+        return encoder(robots.names[i], robots.rab_payload_bytes)
 
     def publish(self, plan, frame, out):
         rab = frame.range_and_bearing
         take, offsets = csr_take(rab.offsets, plan.rows)
         points = points_of(rab.ranges[take], rab.horizontal_bearings[take], rab.vertical_bearings[take],
                            rab.payloads[take])
-        offsets = offsets.tolist()
-        self.fill_and_send(plan, out, fill, [points[offsets[k]:offsets[k + 1]] for k in range(len(plan.local))])
+        self.send_clouds(plan, out, points, offsets.tolist())
 
 
-DEVICE = Device(RANGE_AND_BEARING, (RX, TX), Publisher, reads_into("rab", decode))
+DEVICE = Device(RANGE_AND_BEARING, (RX, TX), Publisher, reads_into("rab", decode_cdr))

@@ -109,7 +109,7 @@ class Publisher(DevicePublisher):
             if self.pubs[i] is None:
                 self._gathered[i] = poses[k]
             elif self.wanted(i, out):
-                self.send(i, self.msgs[i].encode(out.stamp.sec, out.stamp.nanosec, poses[k]), out)
+                self.send(i, self.encoders[i].encode(out.stamp.sec, out.stamp.nanosec, poses[k]), out)
 
     def finish_tick(self, out) -> None:
         stamp = out.stamp
