@@ -206,7 +206,6 @@ def decode_unstamped_twist(data) -> tuple[float, float]:
 
 
 _POSE = struct.Struct("<7d")
-_TWO_F64 = struct.Struct("<dd")
 
 
 class FixedEncoder:

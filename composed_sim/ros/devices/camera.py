@@ -12,9 +12,9 @@ import numpy as np
 from sensor_msgs.msg import PointCloud2, PointField
 
 from composed_sim.ros import cdr
-from composed_sim.ros.devices.device import Device, DevicePublisher, csr_take
+from composed_sim.ros.devices.device import Device, DevicePublisher, csr_take, reads_cloud_into
 from composed_sim.ros.topic import Topic, fill_points, point_cloud, point_fields
-from composed_sim.world.robot_models import CAMERA, RobotModel
+from composed_sim.world.robot_models import CAMERA
 
 TOPIC = Topic("blobs", PointCloud2, "sensor",
               "coloured-blob omnidirectional camera: one point per blob, x/y of the LED in "
@@ -141,9 +141,4 @@ def _cloud_dtype(fields: tuple, point_step: int) -> np.dtype:
     return dtype
 
 
-def reader(model: RobotModel):
-    decoder = cdr.CloudDecoder()      # this controller's stream: its layout parsed once
-    return lambda data, tick: setattr(tick, "blobs", decode_cdr(data, decoder))
-
-
-DEVICE = Device(CAMERA, (TOPIC,), Publisher, reader)
+DEVICE = Device(CAMERA, (TOPIC,), Publisher, reads_cloud_into("blobs", decode_cdr))

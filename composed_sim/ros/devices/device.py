@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING, Any, Callable, ClassVar, Optional, Protocol, S
 import numpy as np
 from builtin_interfaces.msg import Time
 
+from composed_sim.ros import cdr
 from composed_sim.ros.topic import Topic
 from composed_sim.world.robot_models import RobotModel
 if TYPE_CHECKING:
@@ -157,6 +158,15 @@ def reads_into(fields: Union[str, tuple[str, ...]], decode: Callable) -> Callabl
             for field, value in zip(fields, decode(data)):
                 setattr(tick, field, value)
         return read
+    return reader
+
+
+def reads_cloud_into(field: str, decode: Callable) -> Callable[[RobotModel], Reader]:
+    """The reader of a PointCloud2 that ``decode(data, decoder)`` turns into the Tick's ``field``,
+    with a ``cdr.CloudDecoder`` per controller: its stream's layout is parsed once."""
+    def reader(model: RobotModel) -> Reader:
+        decoder = cdr.CloudDecoder()
+        return lambda data, tick: setattr(tick, field, decode(data, decoder))
     return reader
 
 

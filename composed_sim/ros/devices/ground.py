@@ -6,12 +6,14 @@ and taken as bytes.
 """
 from __future__ import annotations
 
+from typing import Optional
+
 import numpy as np
 from builtin_interfaces.msg import Time
 from sensor_msgs.msg import PointCloud2
 
 from composed_sim.ros import cdr
-from composed_sim.ros.devices.device import Device, DevicePublisher, reads_into
+from composed_sim.ros.devices.device import Device, DevicePublisher, reads_cloud_into
 from composed_sim.ros.topic import Topic, point_cloud, point_fields
 from composed_sim.world.robot_models import GROUND
 
@@ -52,8 +54,9 @@ def decode(msg: PointCloud2) -> np.ndarray:
     return np.frombuffer(msg.data, dtype=GROUND_DTYPE, count=msg.width)["intensity"].astype(float)
 
 
-def decode_cdr(data: bytes) -> np.ndarray:
-    width, fields, point_step, points = cdr.decode_cloud(data)
+def decode_cdr(data: bytes, decoder: Optional[cdr.CloudDecoder] = None) -> np.ndarray:
+    """``decoder``: one per stream of clouds (a subscription), so their layout is parsed once."""
+    width, fields, point_step, points = (decoder or cdr.CloudDecoder()).decode(data)
     if fields != _FIELDS or point_step != GROUND_DTYPE.itemsize:
         raise ValueError(f"not a ground-sensor cloud: fields {[name for name, _, _ in fields]} "
                          f"(need x, y, z, intensity float32)")
@@ -75,4 +78,4 @@ class Publisher(DevicePublisher):
         self.send_clouds(plan, out, points.reshape(-1), range(0, (k + 1) * s, s))
 
 
-DEVICE = Device(GROUND, (TOPIC,), Publisher, reads_into("ground", decode_cdr))
+DEVICE = Device(GROUND, (TOPIC,), Publisher, reads_cloud_into("ground", decode_cdr))

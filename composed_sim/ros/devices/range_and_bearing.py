@@ -9,14 +9,16 @@ drains it with the LEDs at the act phase.
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
+from typing import Optional
 
 import numpy as np
 from sensor_msgs.msg import PointCloud2
 from std_msgs.msg import MultiArrayDimension, UInt8MultiArray
 
 from composed_sim.ros import cdr
-from composed_sim.ros.devices.device import Device, DevicePublisher, csr_take, reads_into
+from composed_sim.ros.devices.device import Device, DevicePublisher, csr_take, reads_cloud_into
 from composed_sim.ros.topic import Topic, fill_points, point_cloud, point_fields
 from composed_sim.world.robot_models import RANGE_AND_BEARING
 
@@ -84,18 +86,25 @@ def decode(msg: PointCloud2) -> RabMessages:
                        points["elevation"].astype(float), points["payload"].copy())
 
 
-def decode_cdr(data: bytes) -> RabMessages:
-    width, fields, point_step, points = cdr.decode_cloud(data)
-    dtype = point_dtype(point_step - _HEAD_BYTES)
-    if point_step < _HEAD_BYTES or fields != tuple((f.name, f.offset, f.datatype) for f in point_fields(dtype)):
+def decode_cdr(data: bytes, decoder: Optional[cdr.CloudDecoder] = None) -> RabMessages:
+    """``decoder``: one per stream of clouds (a subscription), so their layout is parsed once."""
+    width, fields, point_step, points = (decoder or cdr.CloudDecoder()).decode(data)
+    payload_bytes = point_step - _HEAD_BYTES
+    if payload_bytes < 0 or fields != _cloud_fields(payload_bytes):
         raise ValueError(f"not a rab_rx cloud: fields {[name for name, _, _ in fields]} (need x, y, z, range, "
                          f"bearing, elevation float32 and payload uint8)")
-    points = np.frombuffer(points, dtype=dtype, count=width)
+    points = np.frombuffer(points, dtype=point_dtype(payload_bytes), count=width)
     return RabMessages(points["range"].astype(float), points["bearing"].astype(float),
                        points["elevation"].astype(float), points["payload"].copy())
 
 
 _HEAD_BYTES = point_dtype(0).itemsize      # a point's bytes before its payload
+
+
+@functools.lru_cache(maxsize=None)
+def _cloud_fields(payload_bytes: int) -> tuple:
+    """A rab_rx cloud's (name, offset, datatype) per field, as ``cdr.CloudDecoder`` gives them."""
+    return tuple((f.name, f.offset, f.datatype) for f in point_fields(point_dtype(payload_bytes)))
 
 
 def payload_message(data) -> UInt8MultiArray:
@@ -131,4 +140,4 @@ class Publisher(DevicePublisher):
         self.send_clouds(plan, out, points, offsets.tolist())
 
 
-DEVICE = Device(RANGE_AND_BEARING, (RX, TX), Publisher, reads_into("rab", decode_cdr))
+DEVICE = Device(RANGE_AND_BEARING, (RX, TX), Publisher, reads_cloud_into("rab", decode_cdr))
