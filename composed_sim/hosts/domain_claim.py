@@ -97,7 +97,7 @@ def foreign_nodes(domain: int, probe_s: float = PROBE_S, *, controllers_expected
     from rclpy.node import Node
 
     from composed_sim.ros import contract as c
-    from composed_sim.ros.answer_subscription import NODE_NAME_UNKNOWN
+    from composed_sim.ros.answer_subscription import NODE_NAME_UNKNOWN, node_path
     from composed_sim.ros.participants import ignore_participants_of_this_process
     from composed_sim.ros.robot_settings import quiet_node_options
 
@@ -114,7 +114,7 @@ def foreign_nodes(domain: int, probe_s: float = PROBE_S, *, controllers_expected
                 namespace, name = topic.rsplit("/", 1)
                 if topic == c.CLOCK_TOPIC or (namespace and name in names):      # a robot topic: /bot0/cmd_vel
                     for e in node.get_publishers_info_by_topic(topic):
-                        found.setdefault(f"{e.node_namespace.rstrip('/')}/{e.node_name}", topic)
+                        found.setdefault(node_path(e), topic)
             if not any(NODE_NAME_UNKNOWN in n for n in found):
                 break
             time.sleep(0.05)

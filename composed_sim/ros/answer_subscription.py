@@ -243,13 +243,25 @@ class ControllerPublishers:
                  if graph_gid(info) == gid]
         if not infos:
             return f"a publisher the ROS graph does not list (publisher GID {gid_text(gid)})"
-        if infos[0].node_name == NODE_NAME_UNKNOWN:     # its node's name arrives a moment after the endpoint
-            return f"a node not yet named in the ROS graph (publisher GID {gid_text(gid)})"
-        name = f"node {infos[0].node_namespace.rstrip('/')}/{infos[0].node_name} (publisher GID {gid_text(gid)})"
-        self._names[gid] = name
-        return name
+        text = publisher_text(infos[0])
+        if infos[0].node_name != NODE_NAME_UNKNOWN:     # named for good: kept
+            self._names[gid] = text
+        return text
 
 
 def graph_gid(info) -> bytes:
     """The GID of an endpoint the ROS graph lists (a ``TopicEndpointInfo``)."""
     return bytes(info.endpoint_gid)[:_GID_BYTES]
+
+
+def node_path(info) -> str:
+    """The node of an endpoint the ROS graph lists, as ``/namespace/name``."""
+    return f"{info.node_namespace.rstrip('/')}/{info.node_name}"
+
+
+def publisher_text(info) -> str:
+    """A publisher the ROS graph lists, for a message: its node and GID. Its node's name arrives
+    a moment after the endpoint; until then the GID alone names it."""
+    if info.node_name == NODE_NAME_UNKNOWN:
+        return f"a node not yet named in the ROS graph (publisher GID {gid_text(graph_gid(info))})"
+    return f"node {node_path(info)} (publisher GID {gid_text(graph_gid(info))})"

@@ -23,8 +23,8 @@ from composed_sim.world.schema import Lockstep
 if TYPE_CHECKING:   # only a type here: a controller process must not import the physics
     from composed_sim.core.simulation import SensorFrame
 from composed_sim.ros import cdr, contract as c, decoding
-from composed_sim.ros.answer_subscription import (AnswerSubscription, ControllerPublishers, gid_text, graph_gid,
-                                                 publisher_gid)
+from composed_sim.ros.answer_subscription import (NODE_NAME_UNKNOWN, AnswerSubscription, ControllerPublishers, graph_gid,
+                                                 publisher_gid, publisher_text)
 from composed_sim.ros.devices import DEVICES, range_and_bearing
 from composed_sim.ros.devices.device import DevicePublisher, GroupPlan, NodeRobots, Outgoing
 from composed_sim.ros.robot_settings import quiet_node_options
@@ -97,6 +97,7 @@ class SimulatorNode(Node):
         self._clock_msg = Clock()
         self._clock_gid = publisher_gid(self._clock_pub) if publish_clock else None
         self._next_clock_watch = 0.0
+        self._other_seen_at: dict[bytes, float] = {}     # another /clock publisher's GID → first seen, not named
         self._driven_clocks = []
         self._tap: Optional[MessageTap] = None
 
@@ -187,7 +188,8 @@ class SimulatorNode(Node):
         """Another publisher of /clock in this node's domain, as ``node /x (publisher GID …)``, or
         None: a simulator that joined the domain after the run claimed it, or that the claim's
         probe missed (docs/faults.md). Its sensors reach this run's controllers, so the run is no
-        longer its own. Asks the ROS graph at most once per CLOCK_WATCH_S; a node that does not
+        longer its own. Asks the ROS graph at most once per CLOCK_WATCH_S (and, for up to a second,
+        every 50 ms while the graph has not named the other's node yet); a node that does not
         publish /clock (the others of its process and domain ignore one another) never finds one."""
         now = time.monotonic()
         if self._clock_gid is None or now < self._next_clock_watch:
@@ -195,10 +197,14 @@ class SimulatorNode(Node):
         self._next_clock_watch = now + CLOCK_WATCH_S
         if self.count_publishers(c.CLOCK_TOPIC) <= 1:
             return None
-        for info in self.get_publishers_info_by_topic(c.CLOCK_TOPIC):
-            if (gid := graph_gid(info)) != self._clock_gid:
-                return f"node {info.node_namespace.rstrip('/')}/{info.node_name} (publisher GID {gid_text(gid)})"
-        return None
+        other = next((info for info in self.get_publishers_info_by_topic(c.CLOCK_TOPIC)
+                      if graph_gid(info) != self._clock_gid), None)
+        if other is None:
+            return None
+        if other.node_name == NODE_NAME_UNKNOWN and now < self._other_seen_at.setdefault(graph_gid(other), now) + 1.0:
+            self._next_clock_watch = now + 0.05     # its node's name comes a moment after the endpoint
+            return None
+        return publisher_text(other)
 
     def note_controllers(self, gids: Mapping[str, Collection[bytes]]) -> None:
         """The GIDs of each robot's controller's cmd_vel publishers (``cmd_vel_gids``), from the
