@@ -36,10 +36,10 @@ def measure(robots: int, ticks: int, *, blobs: int = 50, domain_id: int = 0,
 
     from composed_sim.world.robot_models import FOOTBOT
     from composed_sim.ros import contract as c
-    from composed_sim.ros.devices import camera, light as light_ring
+    from composed_sim.devices import camera, light as light_ring
     from composed_sim.ros.robot_settings import quiet_node_options
 
-    light = light_ring.encoder(FOOTBOT, "bot0").encode(1, 0, np.zeros(len(FOOTBOT.light.angles_rad)))
+    light = light_ring.encoder(FOOTBOT.light, "bot0").encode(1, 0, np.zeros(len(FOOTBOT.light.angles_rad)))
     blob_cloud = camera.encoder("bot0").encode(1, 0, bytes(camera.BLOB_DTYPE.itemsize * blobs), blobs)
     answer = c.answer_encoder().encode(1, 0, 0.1, 0.2)
     contexts, exchange = [], []
@@ -83,13 +83,13 @@ def _endpoints(sim, controller, robot: str) -> tuple:
     cmd_vel publisher; the simulator's cmd_vel subscription) of one robot, as the hosts make them."""
     from composed_sim.ros import contract as c
     topic = {t.name: c.topic_name(robot, t) for t in (c.PROXIMITY, c.LIGHT, c.BLOBS, c.CMD_VEL)}
-    return (sim.create_publisher(c.PROXIMITY.msg_type, topic["proximity"], c.QOS),
-            sim.create_publisher(c.LIGHT.msg_type, topic["light"], c.QOS),
-            sim.create_publisher(c.BLOBS.msg_type, topic["blobs"], c.QOS),
-            controller.create_subscription(c.LIGHT.msg_type, topic["light"], _ignore, c.QOS, raw=True),
-            controller.create_subscription(c.BLOBS.msg_type, topic["blobs"], _ignore, c.QOS, raw=True),
-            controller.create_publisher(c.CMD_VEL.msg_type, topic["cmd_vel"], c.QOS),
-            sim.create_subscription(c.CMD_VEL.msg_type, topic["cmd_vel"], _ignore, c.QOS, raw=True))
+    return (sim.create_publisher(c.msg_type(c.PROXIMITY), topic["proximity"], c.QOS),
+            sim.create_publisher(c.msg_type(c.LIGHT), topic["light"], c.QOS),
+            sim.create_publisher(c.msg_type(c.BLOBS), topic["blobs"], c.QOS),
+            controller.create_subscription(c.msg_type(c.LIGHT), topic["light"], _ignore, c.QOS, raw=True),
+            controller.create_subscription(c.msg_type(c.BLOBS), topic["blobs"], _ignore, c.QOS, raw=True),
+            controller.create_publisher(c.msg_type(c.CMD_VEL), topic["cmd_vel"], c.QOS),
+            sim.create_subscription(c.msg_type(c.CMD_VEL), topic["cmd_vel"], _ignore, c.QOS, raw=True))
 
 
 def _ignore(_msg) -> None:

@@ -54,7 +54,7 @@ from typing import TYPE_CHECKING, Any, Iterable, Optional
 
 import numpy as np
 
-from composed_sim.core.poses import checked_poses
+from composed_sim.devices.common.poses import checked_poses
 from composed_sim.world.robot_models import display_colors
 from composed_sim.ros.global_topics import CLOCK_TOPIC, SWARM_STATE_TOPIC
 from composed_sim.ros.global_topics import WORLD_FRAME as FRAME_ID

@@ -369,7 +369,7 @@ def _draw_scene(ax, world: World, k: float) -> None:
 
 def _box_corners(box) -> np.ndarray:
     """[4, 2] corners of a (yawed) box of the world file, in world coordinates."""
-    from composed_sim.core.geometry import box_corners
+    from composed_sim.devices.common.geometry import box_corners
     return box_corners(box.position, box.size, box.yaw_rad)
 
 

@@ -1,6 +1,6 @@
 """Foraging (ARGoS's foraging example): find food on the floor, carry it to the nest under the light.
 
-The ground sensors tell where the robot stands (composed_sim.core.floor.ground_zone): on a black
+The ground sensors tell where the robot stands (composed_sim.devices.common.floor.ground_zone): on a black
 food spot a robot that carries nothing picks the item up; in the grey nest a carrying robot drops
 it. The robot never hears of the loop functions that keep the score and put the food back
 elsewhere: it infers what it carries from its own ground readings, as they do. Without food it
@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-from composed_sim.core.floor import FOOD, NEST, ground_zone
+from composed_sim.devices.common.floor import FOOD, NEST, ground_zone
 from composed_sim.plugins import ArgosPort
 from composed_sim.ros.contract import twist_of_wheels
 from composed_sim.ros.controller import SwarmController, Tick

@@ -7,7 +7,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-from composed_sim.core.floor import Floor
+from composed_sim.devices.common.floor import Floor
 from composed_sim.loop_functions import LoopFunctions
 
 

@@ -3,14 +3,14 @@ nothing and whose ground sensors read a spot picks it up, and the spot moves to 
 place; a carrying robot whose sensors read the grey nest delivers it and scores.
 
 Carrying is decided from the same readings the controllers get (``sim.frame``, with the same rule,
-composed_sim.core.floor.ground_zone), so the score and the robots agree without the controllers
+composed_sim.devices.common.floor.ground_zone), so the score and the robots agree without the controllers
 knowing of these loop functions.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from composed_sim.core.floor import FOOD, NEST, ground_zone
+from composed_sim.devices.common.floor import FOOD, NEST, ground_zone
 from composed_sim.core.seeding import stream
 from composed_sim.loop_functions import LoopFunctions
 from composed_sim.world.schema import FloorCircle

@@ -1,4 +1,4 @@
-"""The layers are checked, not hoped for: world < core < ros < hosts < tools (docs/architecture.md)."""
+"""The layers are checked, not hoped for: devices < world < core < ros < hosts < tools (docs/architecture.md)."""
 import subprocess
 import sys
 from pathlib import Path

@@ -20,7 +20,7 @@ from typing import Optional
 
 import numpy as np
 
-from composed_sim.core.poses import wrap_angle
+from composed_sim.devices.common.poses import wrap_angle
 
 
 @dataclass(frozen=True)

@@ -23,7 +23,7 @@ import pymunk.batch
 # property setters (0.55 vs 1.66 ms per tick at 1280 robots).
 from pymunk._chipmunk_cffi import lib as _cp
 
-from composed_sim.core.poses import wrap_angle
+from composed_sim.devices.common.poses import wrap_angle
 from composed_sim.world.robot_models import RobotModel
 from composed_sim.world.schema import Box, Cylinder, World
 

@@ -13,7 +13,7 @@ import math
 import numpy as np
 from scipy.spatial import cKDTree
 
-from composed_sim.core.poses import wrap_angle
+from composed_sim.devices.common.poses import wrap_angle
 from composed_sim.world.robot_models import get_model
 from composed_sim.world.schema import Box, Cylinder, Placement, RobotGroup, World
 

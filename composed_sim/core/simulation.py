@@ -20,40 +20,42 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from composed_sim.core import world_edits
-from composed_sim.core.devices import GROUP_READERS
-from composed_sim.core.devices.camera import BlobReadings, led_world_positions
-from composed_sim.core.devices.sensing import SensedGroup, Sensing
-from composed_sim.core.floor import Floor
-from composed_sim.core.geometry import StaticScene, box_corners
 from composed_sim.core.odometry import (Odometry, PoseReadings, WheelActuator, WheelNoise, WheelReadings,
                                         differential_steering, positioning)
 from composed_sim.core.physics import PhysicsWorld
 from composed_sim.core.placement import place_robots
-from composed_sim.core.range_and_bearing import RangeAndBearingReadings, range_and_bearing
+from composed_sim.core.scene import static_scene
+from composed_sim.devices import DEVICES, GROUP_READERS
+from composed_sim.devices.camera import BlobReadings, led_world_positions
+from composed_sim.devices.common.floor import Floor
+from composed_sim.devices.common.geometry import StaticScene, box_corners
+from composed_sim.devices.common.sensing import SensedGroup, Sensing
+from composed_sim.devices.range_and_bearing import RangeAndBearingReadings, range_and_bearing
 from composed_sim.world.robot_models import (DIFFERENTIAL_STEERING, GROUND, POSITIONING, RANGE_AND_BEARING,
                                             RobotModel, get_model)
 from composed_sim.core.seeding import STREAM_PLACEMENT, device_rng, stream
 from composed_sim.world.schema import SWITCHED_DEVICES, Box, World
 
 
-@dataclass
 class GroupReadings:
     """The readings of one robot group of the world file (one model); rows follow ``robots``.
 
-    A device the group does not run is None.
+    One attribute per reading of each device with a per-group ``read`` (its ``readings`` and
+    ``csr_readings``, in its module of ``devices/``, which says their shapes): the foot-bot's
+    ``proximity_distances`` and ``proximity`` [g, k], ``light`` [g, k], ``blobs`` (CSR over the
+    group's robots), ``ground`` [g, s], ``lidar`` [g, r]. A device the group does not run: None.
     """
-    model: str
-    robots: slice                                   # the group's robots: a contiguous index range
-    proximity_distances: Optional[np.ndarray] = None   # [g, k] m from the ray origin, inf = no hit
-    proximity: Optional[np.ndarray] = None          # [g, k] readings in [0, 1]
-    light: Optional[np.ndarray] = None              # [g, k] readings in [0, 1]
-    blobs: Optional[BlobReadings] = None            # CSR over the group's robots
-    ground: Optional[np.ndarray] = None             # [g, s] grey levels in [0, 1]
-    lidar: Optional[np.ndarray] = None              # [g, r] ranges, m (REP-117: ±inf out of range)
+
+    def __init__(self, model: str, robots: slice):
+        self.model = model
+        self.robots = robots                        # the group's robots: a contiguous index range
+        for name in _ROW_ARRAYS + _CSR:
+            setattr(self, name, None)
 
 
-# GroupReadings' arrays with one row per robot (blobs are CSR: cut by csr_rows).
-_ROW_ARRAYS = tuple(f.name for f in fields(GroupReadings) if f.name not in ("model", "robots", "blobs"))
+# GroupReadings' arrays with one row per robot, and its CSR readings (cut by csr_rows).
+_ROW_ARRAYS = tuple(name for d in DEVICES for name in d.readings)
+_CSR = tuple(name for d in DEVICES for name in d.csr_readings)
 
 
 @dataclass
@@ -99,7 +101,9 @@ class SensorFrame:
             for f in _ROW_ARRAYS:
                 value = getattr(g, f)
                 setattr(cut, f, None if value is None else value[within])
-            cut.blobs = None if g.blobs is None else csr_rows(g.blobs, within.start, within.stop)
+            for f in _CSR:
+                value = getattr(g, f)
+                setattr(cut, f, None if value is None else csr_rows(value, within.start, within.stop))
             groups.append(cut)
         block = slice(start, stop)
         return SensorFrame(self.tick, groups,
@@ -155,7 +159,7 @@ class Simulation:
         positions, headings = place_robots(world, stream(world.seed, STREAM_PLACEMENT))
         self.initial_positions, self.initial_headings = positions, headings
         self.physics = PhysicsWorld(world, self.models, positions, headings)
-        self.scene = StaticScene.from_world(world)
+        self.scene = static_scene(world)
         self.floor = (Floor.from_world(world.floor, arena_size=world.arena.size, base_dir=base_dir)
                       if any(GROUND in g.running for g in self.groups) else None)
 
@@ -308,7 +312,7 @@ class Simulation:
         groups = []
         for g in self.groups:
             out = GroupReadings(g.model.name, g.robots)
-            for device in g.running:           # core/devices/: each reads the group into its fields
+            for device in g.running:           # devices/: each reads the group into its fields
                 if device in GROUP_READERS:
                     GROUP_READERS[device](sensing, g, out)
             groups.append(out)

@@ -12,7 +12,7 @@ from __future__ import annotations
 import dataclasses
 from typing import Optional
 
-from composed_sim.core.floor import Floor
+from composed_sim.devices.common.floor import Floor
 from composed_sim.world.schema import Box, Cylinder, FloorCircle, FloorRectangle
 
 

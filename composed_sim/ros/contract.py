@@ -47,16 +47,16 @@ from rosgraph_msgs.msg import Clock
 from std_msgs.msg import MultiArrayDimension, UInt8MultiArray
 
 from composed_sim.world.robot_models import RobotModel
-from composed_sim.ros import cdr
-from composed_sim.ros.devices import DEVICES, camera, differential_steering, ground, lidar, light, odometry, \
+from composed_sim.devices.common import cdr
+from composed_sim.devices import DEVICES, camera, differential_steering, ground, lidar, light, odometry, \
     positioning, proximity, range_and_bearing, tf
 from composed_sim.ros.global_topics import CLOCK_TOPIC, SWARM_MARKERS_TOPIC, SWARM_STATE_TOPIC, WORLD_FRAME  # noqa: F401 (part of the contract)
 from composed_sim.ros.topic import (PUBLISHER_EVENTS, QOS, STATIC_QOS, SUBSCRIPTION_EVENTS, Topic,  # noqa: F401 (the contract's parts)
-                                    base_link, base_scan, half_yaw, odom_frame, stamp_key, stamp_of, topic_name,
-                                    type_name)
+                                    base_link, base_scan, half_yaw, msg_type, odom_frame, qos, stamp_key, stamp_of,
+                                    topic_name, type_name)
 
 # Every robot's actuators, whatever devices it runs.
-CMD_VEL = Topic("cmd_vel", TwistStamped, "actuator",
+CMD_VEL = Topic("cmd_vel", "geometry_msgs/msg/TwistStamped", "actuator",
                 "differential drive: linear.x m/s, angular.z rad/s; header.stamp must equal the "
                 "answered sensor tick's stamp (this message is the controller's answer to a tick); "
                 "or geometry_msgs/Twist, unstamped, which answers the tick whose sensors it follows")
@@ -64,15 +64,16 @@ CMD_VEL = Topic("cmd_vel", TwistStamped, "actuator",
 # controller's publisher says which): the stamped answer of this contract, or the unstamped
 # Twist that most ROS nodes publish and the ROS 2-ARGoS bridge took.
 ANSWER_TYPES: dict[str, type] = {"stamped": TwistStamped, "unstamped": Twist}
-LEDS = Topic("leds", UInt8MultiArray, "actuator",
+LEDS = Topic("leds", "std_msgs/msg/UInt8MultiArray", "actuator",
              "LED colours: data = [n_leds × 3] RGB bytes, ring LEDs first, beacon last; "
              "kept until changed")
 
-# The devices' topics (each defined in its module of ros/devices/), by the names the code uses.
+# The devices' topics (each defined in its module of devices/), by the names the code uses.
 PROXIMITY, LIGHT, BLOBS, GROUND_SENSORS, SCAN = proximity.TOPIC, light.TOPIC, camera.TOPIC, ground.TOPIC, lidar.TOPIC
 RAB_RX, RAB_TX = range_and_bearing.RX, range_and_bearing.TX
 POSE, ODOM, WHEELS = positioning.TOPIC, odometry.TOPIC, differential_steering.TOPIC
-TF, TF_STATIC, TF_MESSAGE = tf.TOPIC, tf.STATIC_TOPIC, tf.TF_MESSAGE
+TF, TF_STATIC = tf.TOPIC, tf.STATIC_TOPIC
+TF_MESSAGE = msg_type(TF)
 
 SENSOR_TOPICS: tuple[Topic, ...] = tuple(t for d in DEVICES for t in d.topics if t.direction == "sensor")
 ACTUATOR_TOPICS: tuple[Topic, ...] = (CMD_VEL, LEDS) + tuple(t for d in DEVICES for t in d.topics
@@ -92,9 +93,10 @@ def robot_topics(running) -> tuple[Topic, ...]:
 CLOCK_TYPE = Clock
 
 
-def publisher_problem(robot: str, topic: str, msg_type: type, robots: Container[str],
+def publisher_problem(robot: str, topic: str, published: type, robots: Container[str],
                       answer_type: Optional[type] = None) -> Optional[str]:
-    """Why ``robot``'s controller may not publish ``msg_type`` on the resolved ``topic``, or None.
+    """Why ``robot``'s controller may not publish ``published`` (a message type) on the resolved
+    ``topic``, or None.
     ``answer_type``: the cmd_vel type the robot's answers already have, if known.
 
     A controller publishes its own actuator topics only, with their contract types: another
@@ -111,14 +113,14 @@ def publisher_problem(robot: str, topic: str, msg_type: type, robots: Container[
     if contract.direction == "frames":
         return None                        # a controller may add frames (a localiser's map → odom)
     if contract is CMD_VEL:
-        if answer_type is not None and msg_type is not answer_type and msg_type in ANSWER_TYPES.values():
-            return f"{topic} carries {type_name(answer_type)} (this robot's answers), not {type_name(msg_type)}"
-        if msg_type not in ANSWER_TYPES.values():
+        if answer_type is not None and published is not answer_type and published in ANSWER_TYPES.values():
+            return f"{topic} carries {type_name(answer_type)} (this robot's answers), not {type_name(published)}"
+        if published not in ANSWER_TYPES.values():
             return (f"{topic} carries {' or '.join(type_name(t) for t in ANSWER_TYPES.values())} (the topic "
-                    f"contract), not {type_name(msg_type)}")
+                    f"contract), not {type_name(published)}")
         return None
-    if msg_type is not contract.msg_type:
-        return f"{topic} carries {type_name(contract.msg_type)} (the topic contract), not {type_name(msg_type)}"
+    if published is not msg_type(contract):
+        return f"{topic} carries {contract.type_name} (the topic contract), not {type_name(published)}"
     return None
 
 
@@ -136,6 +138,16 @@ def led_message(colors: np.ndarray) -> UInt8MultiArray:
     return msg
 
 
+def payload_message(data) -> UInt8MultiArray:
+    """A range-and-bearing payload (bytes or [B] uint8) as the rab_tx message."""
+    payload = np.frombuffer(bytes(data), dtype=np.uint8) if isinstance(data, (bytes, bytearray)) \
+        else np.asarray(data, dtype=np.uint8).reshape(-1)
+    msg = UInt8MultiArray()
+    msg.layout.dim = [MultiArrayDimension(label="byte", size=payload.size, stride=payload.size)]
+    msg.data = payload.tobytes()
+    return msg
+
+
 def twist_stamped(stamp: Time, linear: float, angular: float) -> TwistStamped:
     msg = TwistStamped()
     msg.header.stamp = stamp
@@ -145,7 +157,7 @@ def twist_stamped(stamp: Time, linear: float, angular: float) -> TwistStamped:
 
 
 def answer_encoder() -> cdr.TwistEncoder:
-    return cdr.TwistEncoder(TwistStamped())
+    return cdr.TwistEncoder()
 
 
 def wheel_speeds(linear: float, angular: float, model: RobotModel) -> tuple[float, float]:

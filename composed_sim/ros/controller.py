@@ -5,9 +5,6 @@ answers each tick with a ``cmd_vel`` stamped like the sensors it answers works t
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Optional
-
 import numpy as np
 from builtin_interfaces.msg import Time
 from rclpy.node import Node
@@ -15,10 +12,9 @@ from rclpy.parameter import Parameter
 
 from composed_sim.world.robot_models import RobotModel, get_model
 from composed_sim.core.seeding import robot_rng
-from composed_sim.ros import cdr, contract as c
-from composed_sim.ros.devices import BY_SENSOR_TOPIC, range_and_bearing
-from composed_sim.ros.devices.camera import Blobs
-from composed_sim.ros.devices.range_and_bearing import RabMessages
+from composed_sim.devices.common import cdr
+from composed_sim.ros import contract as c
+from composed_sim.devices import BY_SENSOR_TOPIC, DEVICES
 
 # Parameters every hosted controller is given (a plain Node may ignore them).
 PARAM_ROBOT_MODEL = "robot_model"
@@ -27,23 +23,24 @@ PARAM_SENSOR_TOPICS = "sensor_topics"          # the robot's sensor topics (its 
 PARAM_RAB_PAYLOAD_BYTES = "rab_payload_bytes"  # its range-and-bearing payload size; 0: no such device
 
 
-@dataclass
 class Tick:
-    """One tick's sensor readings for one robot, decoded into arrays (only the subscribed ones)."""
-    stamp: Time
-    time_s: float
-    proximity: Optional[np.ndarray] = None            # [k] readings in [0, 1]
-    proximity_distances: Optional[np.ndarray] = None  # [k] m from the rim, inf = nothing
-    light: Optional[np.ndarray] = None                # [k] readings in [0, 1]
-    blobs: Optional[Blobs] = None
-    ground: Optional[np.ndarray] = None               # [s] floor grey levels in [0, 1]
-    scan: Optional[np.ndarray] = None                 # [r] LiDAR ranges, m from the mount (±inf: REP-117)
-    rab: Optional[RabMessages] = None                 # range-and-bearing messages heard this tick
-    pose: Optional[np.ndarray] = None                 # [3] x, y (m), yaw (rad) in the world frame
-    odom: Optional[np.ndarray] = None                 # [3] x, y, yaw in the robot's odom frame
-    odom_twist: Optional[np.ndarray] = None           # [2] linear m/s, angular rad/s
-    wheel_speeds: Optional[np.ndarray] = None         # [2] left, right m/s
-    wheel_distances: Optional[np.ndarray] = None      # [2] left, right m covered in the last tick
+    """One tick's sensor readings for one robot, decoded into arrays (only the subscribed ones; the
+    others are None). Besides ``stamp`` and ``time_s``, one attribute per reading of each device
+    (its ``tick_fields``; its module in ``devices/`` says what each holds): ``proximity`` [k] in
+    [0, 1] and ``proximity_distances`` [k] m from the rim; ``light`` [k]; ``blobs`` (a ``Blobs``);
+    ``ground`` [s] grey levels; ``scan`` [r] LiDAR ranges (m, ±inf: REP-117); ``rab`` (a
+    ``RabMessages``); ``pose`` [3] x, y, yaw in the world frame; ``odom`` [3] in the odom frame and
+    ``odom_twist`` [2] (m/s, rad/s); ``wheel_speeds`` [2] and ``wheel_distances`` [2] (left, right;
+    m/s and m covered in the last tick)."""
+
+    def __init__(self, stamp: Time, time_s: float):
+        self.stamp = stamp
+        self.time_s = time_s
+        for name in _TICK_FIELDS:
+            setattr(self, name, None)
+
+
+_TICK_FIELDS = tuple(name for d in DEVICES for name in d.tick_fields)
 
 
 class SwarmController(Node):
@@ -72,17 +69,17 @@ class SwarmController(Node):
         self._pending: dict[str, object] = {}
         self._pending_key = -1
         self._init_devices()
-        # Each sensor is read by its device (ros/devices/), from the serialized bytes, and answers
+        # Each sensor is read by its device (devices/), from the serialized bytes, and answers
         # are published as bytes (cdr.py): the same messages, without building Python message objects.
         self._readers = {name: BY_SENSOR_TOPIC[name].reader(self.model) for name in self.sensors}
         for name in self.sensors:
             topic = c.TOPICS[name]
-            self.create_subscription(topic.msg_type, topic.name, lambda data, name=name: self._on_sensor(name, data),
+            self.create_subscription(c.msg_type(topic), topic.name, lambda data, name=name: self._on_sensor(name, data),
                                      c.QOS, raw=True, event_callbacks=c.SUBSCRIPTION_EVENTS)
-        self._cmd_pub = self.create_publisher(c.CMD_VEL.msg_type, c.CMD_VEL.name, c.QOS,
+        self._cmd_pub = self.create_publisher(c.msg_type(c.CMD_VEL), c.CMD_VEL.name, c.QOS,
                                               event_callbacks=c.PUBLISHER_EVENTS)
         self._answer_encoder = c.answer_encoder()
-        self._led_pub = self.create_publisher(c.LEDS.msg_type, c.LEDS.name, c.QOS,
+        self._led_pub = self.create_publisher(c.msg_type(c.LEDS), c.LEDS.name, c.QOS,
                                               event_callbacks=c.PUBLISHER_EVENTS)
 
     # --- for subclasses ---------------------------------------------------------------------
@@ -140,7 +137,7 @@ class SwarmController(Node):
             raise ValueError(f"{type(self).__name__}.sensors: {', '.join(map(repr, unknown))} is no sensor "
                              f"topic; known: {', '.join(t.name for t in c.SENSOR_TOPICS)}")
         self.rab_payload_bytes: int = self.declare_parameter(PARAM_RAB_PAYLOAD_BYTES, 0).value
-        self._rab_pub = (self.create_publisher(c.RAB_TX.msg_type, c.RAB_TX.name, c.QOS, event_callbacks=c.PUBLISHER_EVENTS)
+        self._rab_pub = (self.create_publisher(c.msg_type(c.RAB_TX), c.RAB_TX.name, c.QOS, event_callbacks=c.PUBLISHER_EVENTS)
                          if self.rab_payload_bytes > 0 else None)
         self._rab_msg = None
         #: [r] LiDAR ray angles in the scanner's frame (None without a LiDAR).
@@ -158,4 +155,4 @@ class SwarmController(Node):
                              f"(range_and_bearing.payload_bytes), got {payload.tolist()}")
         padded = np.zeros(self.rab_payload_bytes, dtype=np.uint8)
         padded[:payload.size] = payload
-        self._rab_msg = range_and_bearing.payload_message(padded)
+        self._rab_msg = c.payload_message(padded)

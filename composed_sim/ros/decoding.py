@@ -3,10 +3,9 @@ them); each device's sensor messages are decoded by its module in ``devices/``."
 from __future__ import annotations
 
 import numpy as np
-from sensor_msgs.msg import LaserScan
 from std_msgs.msg import UInt8MultiArray
 
-from composed_sim.ros import cdr
+from composed_sim.devices.common import cdr
 
 
 def decode_answer_cdr(data: bytes) -> tuple[int, float, float]:
@@ -27,6 +26,10 @@ def decode_leds(msg: UInt8MultiArray, n_leds: int) -> np.ndarray:
     return data.reshape(n_leds, 3)
 
 
-def ring_angles(msg: LaserScan, count: int) -> np.ndarray:
-    """[count] sensor angles of a ring scan."""
-    return msg.angle_min + msg.angle_increment * np.arange(count)
+def decode_payload(msg: UInt8MultiArray, payload_bytes: int) -> np.ndarray:
+    """A rab_tx message → [B] uint8; ValueError when it does not carry exactly payload_bytes bytes."""
+    data = np.frombuffer(msg.data, dtype=np.uint8)
+    if data.size != payload_bytes:
+        raise ValueError(f"rab_tx message has {data.size} bytes, expected {payload_bytes} "
+                         f"(range_and_bearing.payload_bytes of the world file)")
+    return data

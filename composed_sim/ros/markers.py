@@ -41,8 +41,8 @@ from geometry_msgs.msg import Point, Pose
 from std_msgs.msg import ColorRGBA
 from visualization_msgs.msg import Marker, MarkerArray
 
-from composed_sim.core.geometry import StaticScene
-from composed_sim.core.poses import checked_poses
+from composed_sim.core.scene import static_scene
+from composed_sim.devices.common.poses import checked_poses
 from composed_sim.world.robot_models import display_colors
 from composed_sim.ros.contract import SWARM_MARKERS_TOPIC
 from composed_sim.ros.contract import WORLD_FRAME as FRAME_ID
@@ -87,7 +87,7 @@ def world_shapes(world: "World") -> list[Shape]:
         else:
             add(Marker.CUBE, (*shape.position, floor_z / 2, shape.yaw_rad), (*shape.size, floor_z), rgba)
     grey = (0.55, 0.55, 0.55, 1.0)
-    scene = StaticScene.from_world(world)
+    scene = static_scene(world)
     for corners, height in zip(scene.box_corners, scene.box_heights):
         centre = corners.mean(axis=0)
         along, across = corners[1] - corners[0], corners[3] - corners[0]

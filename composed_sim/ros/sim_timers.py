@@ -29,7 +29,7 @@ from rclpy.node import Node
 from rclpy.subscription import Subscription
 from rclpy.time import Time
 
-from composed_sim.ros import cdr
+from composed_sim.devices.common import cdr
 
 
 class SimTimers:

@@ -22,11 +22,12 @@ from composed_sim.core.violations import FAILED, Violation
 from composed_sim.world.schema import Lockstep
 if TYPE_CHECKING:   # only a type here: a controller process must not import the physics
     from composed_sim.core.simulation import SensorFrame
-from composed_sim.ros import cdr, contract as c, decoding
+from composed_sim.devices.common import cdr
+from composed_sim.ros import contract as c, decoding
 from composed_sim.ros.answer_subscription import (NODE_NAME_UNKNOWN, AnswerSubscription, ControllerPublishers, graph_gid,
                                                  publisher_gid, publisher_text)
-from composed_sim.ros.devices import DEVICES, range_and_bearing
-from composed_sim.ros.devices.device import DevicePublisher, GroupPlan, NodeRobots, Outgoing
+from composed_sim.devices import DEVICES
+from composed_sim.devices.common.device import DevicePublisher, GroupPlan, NodeRobots, Outgoing
 from composed_sim.ros.robot_settings import quiet_node_options
 
 
@@ -106,13 +107,13 @@ class SimulatorNode(Node):
         if len(self._devices) != n:
             raise ValueError(f"{n} robots but devices for {len(self._devices)}")
         self._rab_payload_bytes = rab_payload_bytes
-        # One publisher set per device that any of these robots runs (ros/devices/).
+        # One publisher set per device that any of these robots runs (devices/).
         robots = NodeRobots(names, models, self._devices, tick_ns, rab_payload_bytes, global_tf)
         self._device_publishers: list[DevicePublisher] = [d.publisher(self, robots) for d in DEVICES
                                                           if robots.running(d.name)]
         self._led_subs, self._rab_subs = [], [None] * n
         self._cmd_subs: list[Optional[AnswerSubscription]] = [None] * n   # per robot, once its answer type is known
-        self._answer_types: list[Optional[type]] = [c.CMD_VEL.msg_type] * n if answer_types is None \
+        self._answer_types: list[Optional[type]] = [c.msg_type(c.CMD_VEL)] * n if answer_types is None \
             else list(answer_types)
         self._controllers = ControllerPublishers(self, self._cmd_subs, self._answer_types)
         self._foreign_noted: set[tuple[int, bytes]] = set()   # (robot, GID) recorded this tick
@@ -122,11 +123,11 @@ class SimulatorNode(Node):
             if self._answer_types[i] is not None:
                 self._subscribe_answers(i, self._answer_types[i])
             self._led_subs.append(self._inbox.create_subscription(
-                c.LEDS.msg_type, c.topic_name(name, c.LEDS), lambda msg: None, c.QOS,
+                c.msg_type(c.LEDS), c.topic_name(name, c.LEDS), lambda msg: None, c.QOS,
                 event_callbacks=c.SUBSCRIPTION_EVENTS))
             if RANGE_AND_BEARING in self._devices[i]:
                 self._rab_subs[i] = self._inbox.create_subscription(
-                    c.RAB_TX.msg_type, c.topic_name(name, c.RAB_TX), lambda msg: None, c.QOS,
+                    c.msg_type(c.RAB_TX), c.topic_name(name, c.RAB_TX), lambda msg: None, c.QOS,
                     event_callbacks=c.SUBSCRIPTION_EVENTS)
         # Every sensor publisher of each robot (a robot is connected once any has a subscriber).
         self._sensor_pubs = [[p.pubs[i] for p in self._device_publishers if p.pubs[i] is not None] for i in range(n)]
@@ -153,7 +154,7 @@ class SimulatorNode(Node):
         self.violations: list[Violation] = []
 
     def _subscribe_answers(self, i: int, msg_type: type) -> None:
-        on_answer = self._on_cmd_vel if msg_type is c.CMD_VEL.msg_type else self._on_unstamped_cmd_vel
+        on_answer = self._on_cmd_vel if msg_type is c.msg_type(c.CMD_VEL) else self._on_unstamped_cmd_vel
         self._answer_types[i] = msg_type
         self._cmd_subs[i] = AnswerSubscription(self, msg_type, c.topic_name(self._names[i], c.CMD_VEL), c.QOS,
                                                lambda data, gid, i=i: on_answer(i, data, gid))
@@ -235,9 +236,12 @@ class SimulatorNode(Node):
         return False
 
     def create_robot_publisher(self, robot: str, topic: c.Topic):
-        """The publisher of ``robot``'s ``topic``, for its device (ros/devices/)."""
-        return self.create_publisher(topic.msg_type, c.topic_name(robot, topic), c.QOS,
-                                     event_callbacks=c.PUBLISHER_EVENTS)
+        """The publisher of ``robot``'s ``topic``, for its device (devices/)."""
+        return self.create_topic_publisher(c.topic_name(robot, topic), topic)
+
+    def create_topic_publisher(self, name: str, topic: c.Topic):
+        """A publisher of ``topic``'s type and QoS on ``name``, for a device (devices/)."""
+        return self.create_publisher(c.msg_type(topic), name, c.qos(topic), event_callbacks=c.PUBLISHER_EVENTS)
 
     def drive_clock_of(self, node: Node) -> None:
         """Set a node's clock to sim time at each tick directly: a hosted node then sees sim time
@@ -264,7 +268,7 @@ class SimulatorNode(Node):
             if not isinstance(data, bytes):
                 data = serialize_message(data)
             with self._tap_lock:   # answers may arrive on executor worker threads
-                self._tap.write_serialized(c.topic_name(self._names[i], topic), c.type_name(msg_type or topic.msg_type),
+                self._tap.write_serialized(c.topic_name(self._names[i], topic), c.type_name(msg_type or c.msg_type(topic)),
                                            data, stamp_ns)
 
     @property
@@ -345,7 +349,7 @@ class SimulatorNode(Node):
         now = RosTime.from_msg(stamp)
         for clock in self._driven_clocks:
             clock.set_ros_time_override(now)
-        out = Outgoing(stamp, self._current_key, cdr.stamp_bytes(stamp.sec, stamp.nanosec), self.failed.tolist())
+        out = Outgoing(stamp.sec, stamp.nanosec, self._current_key, cdr.stamp_bytes(stamp.sec, stamp.nanosec), self.failed.tolist())
         for plan in self._plans if self._plans is not None else self._make_plans(frame):
             for publisher in self._device_publishers:
                 if publisher.device in plan.devices:
@@ -478,7 +482,7 @@ class SimulatorNode(Node):
         """Drain the rab_tx inbox like the LEDs': the latest valid payload per simulation row that
         sent any, to be set before the next step (so it is heard one tick later, as in ARGoS)."""
         return self._drain(self._rab_subs, c.RAB_TX, LATE_RAB,
-                           lambda i, msg: range_and_bearing.decode_payload(msg, self._rab_payload_bytes))
+                           lambda i, msg: decoding.decode_payload(msg, self._rab_payload_bytes))
 
     def _drain(self, subs: list, topic: c.Topic, late: str, decode: Callable) -> dict[int, np.ndarray]:
         out = {}

@@ -11,84 +11,31 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Literal, Optional
+from typing import Any, Mapping
 
 import numpy as np
+
+from composed_sim.devices import ALWAYS_ON, BY_NAME, WITH_LAYOUT, camera, differential_steering, ground, lidar, light, \
+    odometry, positioning, proximity, range_and_bearing, tf
+from composed_sim.devices.camera import BlobCamera
+from composed_sim.devices.ground import GroundSensors
+from composed_sim.devices.lidar import Lidar
+from composed_sim.devices.light import LightRing
+from composed_sim.devices.proximity import ProximityRing
+from composed_sim.devices.range_and_bearing import RangeAndBearingDevice
 
 
 def _ring_angles(first_deg: float, step_deg: float, count: int) -> tuple[float, ...]:
     return tuple(math.radians(first_deg + step_deg * i) for i in range(count))
 
 
-# Device names as the world file and the sensor frames spell them.
-PROXIMITY, LIGHT, CAMERA, GROUND = "proximity", "light", "camera", "ground"
-RANGE_AND_BEARING, LIDAR = "range_and_bearing", "lidar"
-# The devices with a layout: a model fits them or not, and a world file switches them.
-WITH_LAYOUT = (PROXIMITY, LIGHT, CAMERA, GROUND, RANGE_AND_BEARING, LIDAR)
-# Every model has these: they need no layout (the wheels are the drive itself).
-DIFFERENTIAL_STEERING, POSITIONING, ODOMETRY = "differential_steering", "positioning", "odometry"
-ALWAYS_ON = (DIFFERENTIAL_STEERING, POSITIONING, ODOMETRY)
+# The devices' names, as world files and sensor frames spell them (each defined in its module).
+PROXIMITY, LIGHT, CAMERA, GROUND = proximity.NAME, light.NAME, camera.NAME, ground.NAME
+RANGE_AND_BEARING, LIDAR = range_and_bearing.NAME, lidar.NAME
+DIFFERENTIAL_STEERING, POSITIONING, ODOMETRY = differential_steering.NAME, positioning.NAME, odometry.NAME
 # Not a device of the robot: its frames (world → odom → base_link → sensor mounts) as tf, made
 # from the positioning and odometry readings every model has.
-TF = "tf"
-
-# How a proximity ray's distance becomes a reading; one calibration per robot family.
-ProximityCalibration = Literal["foot-bot", "e-puck", "exponential", "kheperaiv"]
-
-
-@dataclass(frozen=True)
-class ProximityRing:
-    """IR rays cast outward from the body: radially from the rim, or from given body-frame points."""
-    angles_rad: tuple[float, ...]   # [k] ray directions, CCW from the front
-    range_m: float                   # ray length measured from the ray's origin
-    elevation_m: float               # height of the rays: lower bodies are not seen
-    # [k] (x, y) body-frame ray origins; None: on the rim, at the ray's own angle.
-    origins_m: Optional[tuple[tuple[float, float], ...]] = None
-    calibration: ProximityCalibration = "foot-bot"
-
-
-@dataclass(frozen=True)
-class LightRing:
-    angles_rad: tuple[float, ...]   # [k] CCW from the front
-
-
-@dataclass(frozen=True)
-class BlobCamera:
-    """Omnidirectional coloured-blob camera looking down a mirror above the body."""
-    height_m: float
-    aperture_rad: float   # the square window's half-side is height * tan(aperture)
-
-
-@dataclass(frozen=True)
-class GroundSensors:
-    """Downward sensors reading the floor's grey level under body-frame points."""
-    offsets_m: tuple[tuple[float, float], ...]   # [s] (x, y) body frame
-
-
-@dataclass(frozen=True)
-class RangeAndBearingDevice:
-    """Range-and-bearing emitter/receiver pair on the robot's vertical axis."""
-    elevation_m: float      # above the robot's origin (floor level)
-    range_m: float          # default emission range; a world file may change it per group
-
-
-@dataclass(frozen=True)
-class Lidar:
-    """A planar scanning range finder: ``n_rays`` evenly spaced from ``angle_min_rad``."""
-    n_rays: int
-    angle_min_rad: float
-    angle_max_rad: float        # the last ray's angle (angle_min + (n_rays - 1) * increment)
-    min_range_m: float
-    max_range_m: float
-    mount_m: tuple[float, float, float]   # (x, y, z) of the scan centre in the body frame
-
-    @property
-    def angle_increment_rad(self) -> float:
-        return (self.angle_max_rad - self.angle_min_rad) / max(1, self.n_rays - 1)
-
-    def angles_array(self) -> np.ndarray:
-        """[r] ray angles in the body frame."""
-        return self.angle_min_rad + self.angle_increment_rad * np.arange(self.n_rays)
+TF = tf.NAME
 
 
 @dataclass(frozen=True)
@@ -103,27 +50,38 @@ class RobotModel:
     max_force_n: float             # pivot joint cap: how hard the drive can push
     max_torque_nm: float           # gear joint cap
     friction: float
-    proximity: Optional[ProximityRing] = None
-    light: Optional[LightRing] = None
-    camera: Optional[BlobCamera] = None
-    ground: Optional[GroundSensors] = None
-    range_and_bearing: Optional[RangeAndBearingDevice] = None
-    lidar: Optional[Lidar] = None
+    # The devices with a layout that it carries: device name → its layout (the class its module
+    # declares), read as ``model.<device>`` (None: not fitted).
+    layouts: Mapping[str, Any] = field(default_factory=dict, hash=False)
     # [n_leds, 3] body-frame (x, y, z) positions; ring LEDs first, beacon last.
     led_positions_m: tuple[tuple[float, float, float], ...] = field(default=())
     # Devices a group of this model runs when its world file says nothing about them.
     default_devices: frozenset[str] = frozenset()
 
     def __post_init__(self):
+        for name, layout in self.layouts.items():
+            if name not in WITH_LAYOUT or not isinstance(layout, BY_NAME[name].layout):
+                raise ValueError(f"{self.name}: {name} is not a device with a layout, or {layout!r} is not its layout")
         missing = sorted(d for d in self.default_devices if d not in self.devices)
         if missing:
             raise ValueError(f"{self.name}: default devices {missing} are not fitted")
 
+    @classmethod
+    def of(cls, **fields) -> "RobotModel":
+        """A model whose device layouts are given as keywords (``proximity=ProximityRing(…)``)."""
+        layouts = {name: fields.pop(name) for name in WITH_LAYOUT if name in fields}
+        return cls(**fields, layouts=layouts)
+
+    def __getattr__(self, name: str):
+        """``model.lidar``: the layout of a device with one, None when the model does not carry it."""
+        if name in WITH_LAYOUT:
+            return self.__dict__.get("layouts", {}).get(name)
+        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+
     @property
     def devices(self) -> tuple[str, ...]:
         """Names of the devices this model carries (the always-on ones included)."""
-        fitted = [name for name in WITH_LAYOUT if getattr(self, name) is not None]
-        return tuple(fitted) + ALWAYS_ON
+        return tuple(name for name in WITH_LAYOUT if name in self.layouts) + ALWAYS_ON
 
     @property
     def n_leds(self) -> int:
@@ -142,7 +100,7 @@ def _led_ring(radius_m: float, first_deg: float, count: int, height_m: float):
 # --- foot-bot (ARGoS 3, plugins/robots/foot-bot/simulator) ---------------------------
 FOOTBOT_BEACON_LED_INDEX = 12
 
-FOOTBOT = RobotModel(
+FOOTBOT = RobotModel.of(
     name="foot-bot",
     body_radius_m=0.085036758,          # footbot_entity.cpp BODY_RADIUS
     body_height_m=0.146899733,          # BODY_HEIGHT
@@ -170,7 +128,7 @@ FOOTBOT = RobotModel(
 
 # --- e-puck (ARGoS 3 core, plugins/robots/e-puck/simulator) --------------------------
 # Not in docs/architecture.md; numbers from ARGoS's own e-puck, as the reference's other robots.
-EPUCK = RobotModel(
+EPUCK = RobotModel.of(
     name="e-puck",
     body_radius_m=0.035,                # epuck_entity.cpp BODY_RADIUS (manufacturer: 70 mm diameter)
     body_height_m=0.086,                # epuck_entity.cpp BODY_HEIGHT
@@ -195,7 +153,7 @@ EPUCK = RobotModel(
 )
 
 # --- TurtleBot 3 burger (docs/architecture.md "TurtleBot 3 burger") ---------------------
-TURTLEBOT3_BURGER = RobotModel(
+TURTLEBOT3_BURGER = RobotModel.of(
     name="turtlebot3-burger",
     body_radius_m=0.08,                 # docs/architecture.md: base radius 0.08 m
     body_height_m=0.192,                # docs/architecture.md: height 0.192 m
@@ -223,7 +181,7 @@ TURTLEBOT3_BURGER = RobotModel(
 _THYMIO_IR = (((0.062, 0.0485), 0.69813), ((0.075, 0.0255), 0.34906), ((0.0795, 0.0), 0.0),
               ((0.075, -0.0255), -0.34906), ((0.062, -0.0485), -0.69813),
               ((-0.0295, 0.0295), math.pi), ((-0.0295, -0.0295), math.pi))
-THYMIO2 = RobotModel(
+THYMIO2 = RobotModel.of(
     name="thymio2",
     body_radius_m=0.056,                # half the manufacturer's 11.2 cm width (Mobsya Thymio II: 11 x 11.2 x 5.3 cm)
     body_height_m=0.053,                # Mobsya: 5.3 cm
@@ -245,7 +203,7 @@ THYMIO2 = RobotModel(
 )
 
 # --- Khepera IV (docs/architecture.md "Khepera IV") -------------------------------------
-KHEPERAIV = RobotModel(
+KHEPERAIV = RobotModel.of(
     name="kheperaiv",
     body_radius_m=0.0704,
     body_height_m=0.0047 + 0.053,       # the base's elevation plus its height: its top

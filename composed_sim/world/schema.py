@@ -13,18 +13,18 @@ from __future__ import annotations
 
 import math
 import re
-from typing import Annotated, Any, Literal, Optional, Union, get_args
+from typing import Annotated, Any, Literal, Optional, Union
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import Field, create_model, field_validator, model_validator
 from pydantic_core import PydanticCustomError
 
+from composed_sim.devices import DEVICES, TOPIC_SWITCHED, WITH_LAYOUT
+from composed_sim.devices.common.settings import NonNegativeFloat, PositiveFloat, Strict
+from composed_sim.devices.differential_steering import WheelsConfig
 from composed_sim.entry_points import installed
-from composed_sim.world.robot_models import (DIFFERENTIAL_STEERING, MODELS, ODOMETRY, POSITIONING, TF, WITH_LAYOUT,
-                                            RobotModel)
+from composed_sim.world.robot_models import MODELS, RobotModel
 
 Vec2 = tuple[float, float]
-PositiveFloat = Annotated[float, Field(gt=0)]
-NonNegativeFloat = Annotated[float, Field(ge=0)]
 RGB = tuple[Annotated[int, Field(ge=0, le=255)], Annotated[int, Field(ge=0, le=255)],
             Annotated[int, Field(ge=0, le=255)]]
 
@@ -44,11 +44,6 @@ def _finite(x: float) -> bool:
         return math.isfinite(x)
     except OverflowError:   # an int too large for a float
         return False
-
-
-class Strict(BaseModel):
-    # NaN or infinity in a position or a size would only surface later as a physics blow-up.
-    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 
 class Arena(Strict):
@@ -204,84 +199,19 @@ class CameraConfig(Strict):
     aperture_deg: Annotated[float, Field(gt=0, lt=90)] = 70.0
 
 
-Probability = Annotated[float, Field(ge=0, le=1)]
-
-
-class DeviceSwitch(Strict):
-    """Present in the world file: the device runs (unless enabled: false)."""
-    enabled: bool = True
-
-
-class ProximityConfig(DeviceSwitch):
-    noise: NonNegativeFloat = 0.0        # uniform(-noise, noise) on each reading
-
-
-class LightConfig(DeviceSwitch):
-    noise: NonNegativeFloat = 0.0
-
-
-class BlobCameraConfig(DeviceSwitch):
-    noise_std: NonNegativeFloat = 0.0    # relative planar position noise (ARGoS)
-
-
-class GroundConfig(DeviceSwitch):
-    noise: NonNegativeFloat = 0.0
-
-
-class RangeAndBearingConfig(DeviceSwitch):
-    range_m: Optional[PositiveFloat] = None          # None: the robot model's
-    packet_drop_probability: Probability = 0.0
-    noise_std_m: NonNegativeFloat = 0.0
-
-
-class LidarConfig(DeviceSwitch):
-    noise_std_m: NonNegativeFloat = 0.0
-
-
-class TfConfig(DeviceSwitch):
-    # per_robot: /<robot>/tf and /<robot>/tf_static, the multi-robot (Nav2) way: a robot's
-    # listeners receive its own frames only. global: /tf and /tf_static, what RViz and Foxglove
-    # read by default; every listener then receives every robot's frames (docs/devices.md).
-    topics: Literal["per_robot", "global"] = "per_robot"
-
-
-class WheelsConfig(Strict):
-    """Actuator noise (speed · factor + bias) and differential steering sensor noise."""
-    bias_mean_mps: float = 0.0
-    bias_std_mps: NonNegativeFloat = 0.0
-    factor_mean: float = 1.0
-    factor_std: NonNegativeFloat = 0.0
-    velocity_noise_mps: NonNegativeFloat = 0.0   # sensor: uniform on the reported speeds
-    distance_noise_m: NonNegativeFloat = 0.0     # sensor: uniform on the reported distances
-
-
-class PositioningConfig(DeviceSwitch):
-    position_noise_m: NonNegativeFloat = 0.0     # uniform on x and on y
-    yaw_noise_rad: NonNegativeFloat = 0.0
-
-
 # The devices that can be switched, by the name robot models and sensor frames use.
 SWITCHED_DEVICES = WITH_LAYOUT
 # Every robot computes these (cheap, vectorised); their ROS topics exist only where the world
 # file switches them on, as ARGoS lists a controller's sensors: publishing three more messages
 # per robot and tick that no controller reads would cost every swarm, the paper's included.
-TOPIC_SWITCHED_DEVICES = (POSITIONING, ODOMETRY, DIFFERENTIAL_STEERING, TF)
+TOPIC_SWITCHED_DEVICES = TOPIC_SWITCHED
 
 
-class Devices(Strict):
-    """A group's devices: a switched device left out runs when its model runs it by default."""
-    proximity: Optional[ProximityConfig] = None
-    light: Optional[LightConfig] = None
-    camera: Optional[BlobCameraConfig] = None
-    ground: Optional[GroundConfig] = None
-    range_and_bearing: Optional[RangeAndBearingConfig] = None
-    lidar: Optional[LidarConfig] = None
+class _Devices(Strict):
+    """A group's devices: a switched device left out runs when its model runs it by default; an
+    always-computed one present (and not enabled: false) gives the robot its topics. One field
+    per device (its module's settings class), added below."""
     wheels: WheelsConfig = WheelsConfig()           # the actuator and sensor noise of the wheels
-    # Always computed; present (and not enabled: false): the robot has the device's topic.
-    positioning: Optional[PositioningConfig] = None
-    odometry: Optional[DeviceSwitch] = None
-    differential_steering: Optional[DeviceSwitch] = None
-    tf: Optional[TfConfig] = None
 
     def running(self, model: RobotModel) -> tuple[str, ...]:
         """The switched devices that run on robots of ``model``, in SWITCHED_DEVICES order."""
@@ -302,12 +232,12 @@ class Devices(Strict):
     def config(self, name: str):
         """The device's settings: the world file's, else the defaults."""
         given = getattr(self, name)
-        return given if given is not None else _DEVICE_CONFIGS[name]()
+        return given if given is not None else _SETTINGS[name]()
 
 
-# Each device's settings class, as its field of ``Devices`` declares it (Optional[ThatClass]).
-_DEVICE_CONFIGS = {name: get_args(field.annotation)[0] for name, field in Devices.model_fields.items()
-                   if get_args(field.annotation)}
+_SETTINGS = {d.name: d.settings for d in DEVICES}
+Devices = create_model("Devices", __base__=_Devices, __module__=__name__,
+                       **{name: (Optional[settings], None) for name, settings in _SETTINGS.items()})
 
 
 ParamValue = Union[float, int, str, bool, list[float]]

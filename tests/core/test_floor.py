@@ -7,8 +7,8 @@ import imageio.v3 as iio
 import numpy as np
 import pytest
 
-from composed_sim.core.devices.ground import ground_sensors
-from composed_sim.core.floor import Floor
+from composed_sim.devices.ground import ground_sensors
+from composed_sim.devices.common.floor import Floor
 from composed_sim.world.robot_models import EPUCK, FOOTBOT
 from composed_sim.world.schema import Floor as FloorSection
 

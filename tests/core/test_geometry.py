@@ -7,8 +7,9 @@ import numpy as np
 from reference_geometry import ref_span_box, ref_span_circle
 import pytest
 
-from composed_sim.core import geometry
-from composed_sim.core.geometry import (StaticScene, box_corners, points_in_polygons, ray_circle_distance,
+from composed_sim.devices.common import geometry
+from composed_sim.core.scene import static_scene
+from composed_sim.devices.common.geometry import (StaticScene, box_corners, points_in_polygons, ray_circle_distance,
                                         ray_segment_distance, ray_segments_first_hit,
                                         segments_blocked_by_cylinders, segments_blocked_by_prisms)
 from composed_sim.world.schema import Arena, Box, Cylinder, World
@@ -54,7 +55,7 @@ def test_ray_segment_distance():
 
 
 def test_ray_segments_first_hit_on_the_scene_edges():
-    scene = StaticScene.from_world(World(robots=[], arena=Arena(size=(4, 2), walls=True),
+    scene = static_scene(World(robots=[], arena=Arena(size=(4, 2), walls=True),
                                          obstacles=[Box(position=(1, 0), size=(0.2, 0.2))]))
     o = np.array([[0, 0], [0, 0], [0, 0], [1.5, 0.5]], dtype=float)
     d = np.array([[1, 0], [-1, 0], [0, 1], [0, -1]], dtype=float)
@@ -132,7 +133,7 @@ def test_scene_from_world_with_walls_boxes_and_cylinders():
                                          wall_height_m=0.3),
                   obstacles=[Box(position=(0, 0), size=(0.4, 0.2), height_m=0.2, yaw_rad=0.3),
                              Cylinder(position=(1, 0.5), radius_m=0.1, height_m=0.4)])
-    scene = StaticScene.from_world(world)
+    scene = static_scene(world)
     assert scene.box_corners.shape == (5, 4, 2) and scene.segments.shape == (20, 2, 2)
     np.testing.assert_allclose(scene.box_heights, [0.3] * 4 + [0.2])
     np.testing.assert_allclose(scene.segment_heights, [0.3] * 16 + [0.2] * 4)
@@ -147,11 +148,11 @@ def test_scene_from_world_with_walls_boxes_and_cylinders():
     d = scene.ray_distance(np.array([[1.0, -0.5], [2.95, -0.5]]), np.array([[1.0, 0], [1, 0]]), 5.0)
     np.testing.assert_allclose(d, [1.9, 0.0])
     with pytest.raises(ValueError, match="walls"):
-        StaticScene.from_world(World(robots=[], arena=Arena(walls=True)))
+        static_scene(World(robots=[], arena=Arena(walls=True)))
 
 
 def test_scene_ray_distance_hits_boxes_cylinders_and_respects_height_and_range():
-    scene = StaticScene.from_world(World(robots=[], obstacles=[
+    scene = static_scene(World(robots=[], obstacles=[
         Box(position=(2, 0), size=(1, 1), height_m=0.5),
         Cylinder(position=(0, 2), radius_m=0.5, height_m=0.05)]))
     o = np.zeros((4, 2))
@@ -166,7 +167,7 @@ def test_scene_blocks_and_chunking(monkeypatch):
     world = World(robots=[], arena=Arena(size=(6, 6), walls=True), obstacles=[
         Box(position=(1, 1), size=(0.5, 0.5), height_m=0.3, yaw_rad=0.4),
         Cylinder(position=(-1, 1), radius_m=0.3, height_m=0.3)])
-    scene = StaticScene.from_world(world)
+    scene = static_scene(world)
     rng = np.random.default_rng(3)
     m = 500
     p0 = np.column_stack([rng.uniform(-3.5, 3.5, (m, 2)), rng.uniform(0, 0.6, m)])

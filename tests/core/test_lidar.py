@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 from reference_geometry import ref_span_box, ref_span_circle
 
-from composed_sim.core.geometry import StaticScene
-from composed_sim.core.devices.lidar import lidar_scan
+from composed_sim.core.scene import static_scene
+from composed_sim.devices.common.geometry import StaticScene
+from composed_sim.devices.lidar import lidar_scan
 from composed_sim.world.robot_models import FOOTBOT, TURTLEBOT3_BURGER, Lidar
 
 TB = TURTLEBOT3_BURGER
@@ -28,7 +29,7 @@ def scan(xy, headings, observers=(0,), *, radii=None, heights=None, scene=Static
 
 def box_scene(centre, size, yaw=0.0, height=0.5):
     from composed_sim.world.schema import Box, World
-    return StaticScene.from_world(World(robots=[], obstacles=[Box(position=centre, size=size, yaw_rad=yaw,
+    return static_scene(World(robots=[], obstacles=[Box(position=centre, size=size, yaw_rad=yaw,
                                                                   height_m=height)]))
 
 
@@ -118,7 +119,7 @@ def test_vectorised_scan_matches_the_looped_reference(seed):
     obstacles = [Box(position=(0.5, 0.5), size=(0.8, 0.3), yaw_rad=0.7, height_m=0.5),
                  Cylinder(position=(-1.0, 1.0), radius_m=0.25, height_m=0.3),
                  Cylinder(position=(1.0, -1.5), radius_m=0.25, height_m=0.05)]
-    scene = StaticScene.from_world(World(robots=[], obstacles=obstacles))
+    scene = static_scene(World(robots=[], obstacles=obstacles))
     bodies = [("box", ((0.5, 0.5), (0.8, 0.3), 0.7), 0.5), ("cyl", ((-1.0, 1.0), 0.25), 0.3),
               ("cyl", ((1.0, -1.5), 0.25), 0.05)]
     observers = np.array([0, 3, 7, 11])

@@ -1,10 +1,10 @@
-"""Angles and pose arrays (core/poses.py)."""
+"""Angles and pose arrays (devices/common/poses.py)."""
 import math
 
 import numpy as np
 import pytest
 
-from composed_sim.core.poses import checked_poses, wrap_angle
+from composed_sim.devices.common.poses import checked_poses, wrap_angle
 
 
 def test_wrap_angle_half_open_interval():

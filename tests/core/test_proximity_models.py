@@ -6,16 +6,17 @@ import math
 import numpy as np
 import pytest
 
-from composed_sim.core.geometry import StaticScene
+from composed_sim.core.scene import static_scene
+from composed_sim.devices.common.geometry import StaticScene
 from composed_sim.world.robot_models import EPUCK, FOOTBOT, THYMIO2
-from composed_sim.core.devices.camera import blob_camera, led_world_positions
-from composed_sim.core.devices.light import light_ring
-from composed_sim.core.devices.proximity import epuck_proximity_reading, proximity_ring
+from composed_sim.devices.camera import blob_camera, led_world_positions
+from composed_sim.devices.light import light_ring
+from composed_sim.devices.proximity import epuck_proximity_reading, proximity_ring
 from composed_sim.world.schema import Box, Light, World
 
 
 def wall_at_x(x, height=0.5):
-    return StaticScene.from_world(World(robots=[], obstacles=[Box(position=(x + 0.05, 0.0), size=(0.1, 2.0),
+    return static_scene(World(robots=[], obstacles=[Box(position=(x + 0.05, 0.0), size=(0.1, 2.0),
                                                                   height_m=height)]))
 
 
@@ -70,7 +71,7 @@ def test_sensing_a_subset_gives_those_rows_of_sensing_all(seed):
     h = rng.uniform(-math.pi, math.pi, n)
     radii = np.full(n, FOOTBOT.body_radius_m)
     heights = np.full(n, FOOTBOT.body_height_m)
-    scene = StaticScene.from_world(World(robots=[], obstacles=[Box(position=(0.3, 0.2), size=(0.5, 0.5))]))
+    scene = static_scene(World(robots=[], obstacles=[Box(position=(0.3, 0.2), size=(0.5, 0.5))]))
     subset = np.sort(rng.choice(n, 17, replace=False))
     d_all, r_all = proximity_ring(xy, h, radii, heights, FOOTBOT.proximity, scene)
     d_sub, r_sub = proximity_ring(xy, h, radii, heights, FOOTBOT.proximity, scene, observers=subset)

@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 from reference_geometry import ref_span_box, ref_span_circle
 
-from composed_sim.core.geometry import StaticScene
-from composed_sim.core.range_and_bearing import range_and_bearing
+from composed_sim.core.scene import static_scene
+from composed_sim.devices.common.geometry import StaticScene
+from composed_sim.devices.range_and_bearing import range_and_bearing
 from composed_sim.world.robot_models import EPUCK, FOOTBOT
 from composed_sim.world.schema import Box, Cylinder, World
 
@@ -70,16 +71,16 @@ def test_a_robot_in_between_or_a_tall_obstacle_occludes_a_low_one_does_not():
     assert heard(rab(line, check_occlusions=False), 0) == [1, 2]
     # the middle robot lower than the emitters (0.1 m) does not hide them
     assert heard(rab(line, heights=[H, 0.05, H]), 0) == [1, 2]
-    box = StaticScene.from_world(World(robots=[], obstacles=[Box(position=(0.5, 0.0), size=(0.1, 0.1))]))
+    box = static_scene(World(robots=[], obstacles=[Box(position=(0.5, 0.0), size=(0.1, 0.1))]))
     assert heard(rab([[0, 0], [1, 0]], scene=box), 0) == []
-    low = StaticScene.from_world(World(robots=[], obstacles=[Cylinder(position=(0.5, 0), radius_m=0.1,
+    low = static_scene(World(robots=[], obstacles=[Cylinder(position=(0.5, 0), radius_m=0.1,
                                                                       height_m=0.05)]))
     assert heard(rab([[0, 0], [1, 0]], scene=low), 0) == [1]
 
 
 def test_global_mode_everyone_hears_everyone():
     xy = [[0, 0], [1, 0], [2, 0], [50, 50]]
-    box = StaticScene.from_world(World(robots=[], obstacles=[Box(position=(0.5, 0.0), size=(0.1, 0.1))]))
+    box = static_scene(World(robots=[], obstacles=[Box(position=(0.5, 0.0), size=(0.1, 0.1))]))
     r = rab(xy, mode="global", scene=box, ranges=0.1)
     for i in range(4):
         assert heard(r, i) == [j for j in range(4) if j != i]
@@ -132,7 +133,7 @@ def test_local_mode_matches_the_looped_reference_on_random_worlds(seed):
     heights = rng.choice([H, 0.05, 0.09], n)
     obstacles = [Box(position=(0.0, 0.0), size=(0.6, 0.2), yaw_rad=0.4, height_m=0.5),
                  Cylinder(position=(1.5, -1.0), radius_m=0.3, height_m=0.08)]
-    scene = StaticScene.from_world(World(robots=[], obstacles=obstacles))
+    scene = static_scene(World(robots=[], obstacles=obstacles))
     bodies = [("box", ((0.0, 0.0), (0.6, 0.2), 0.4), 0.5), ("cyl", ((1.5, -1.0), 0.3), 0.08)]
     got = range_and_bearing(xy, rng.uniform(-3, 3, n), radii, heights, np.ones(n, bool), z, ranges,
                             np.zeros((n, 2), np.uint8), scene)

@@ -11,11 +11,12 @@ import pytest
 from reference_geometry import ref_span_box, ref_span_circle
 from scipy.spatial import cKDTree
 
-from composed_sim.core.geometry import StaticScene
+from composed_sim.core.scene import static_scene
+from composed_sim.devices.common.geometry import StaticScene
 from composed_sim.world.robot_models import FOOTBOT, FOOTBOT_BEACON_LED_INDEX
-from composed_sim.core.devices.camera import BlobReadings, blob_camera, led_world_positions
-from composed_sim.core.devices.light import light_ring
-from composed_sim.core.devices.proximity import footbot_proximity_reading, proximity_ring
+from composed_sim.devices.camera import BlobReadings, blob_camera, led_world_positions
+from composed_sim.devices.light import light_ring
+from composed_sim.devices.proximity import footbot_proximity_reading, proximity_ring
 from composed_sim.world.schema import Arena, Box, Cylinder, Light, World
 
 R, H = FOOTBOT.body_radius_m, FOOTBOT.body_height_m
@@ -36,7 +37,7 @@ def robots(xy, headings=None, radii=None, heights=None):
 
 
 def scene_of(*obstacles, arena=Arena()):
-    return StaticScene.from_world(World(robots=[], arena=arena, obstacles=list(obstacles)))
+    return static_scene(World(robots=[], arena=arena, obstacles=list(obstacles)))
 
 
 def reading(d):
@@ -418,7 +419,7 @@ def test_static_body_hides_blobs():
 @pytest.mark.parametrize("seed", range(4))
 def test_vectorised_sensors_match_the_looped_references(seed):
     world, pos, hd, radii, heights, cam_h, half_w, colors = random_world(seed)
-    scene = StaticScene.from_world(world)
+    scene = static_scene(world)
 
     dist, read = proximity_ring(pos, hd, radii, heights, RING, scene)
     ref_d, ref_r = ref_proximity(pos, hd, radii, heights, world)
@@ -553,9 +554,9 @@ def test_core_imports_neither_rclpy_nor_matplotlib():
 
 
 def test_camera_chunks_give_the_same_blobs(monkeypatch):
-    import composed_sim.core.devices.camera as camera
+    import composed_sim.devices.camera as camera
     world, pos, hd, radii, heights, cam_h, half_w, colors = random_world(9)
-    scene = StaticScene.from_world(world)
+    scene = static_scene(world)
     args = (pos, hd, radii, heights, cam_h, half_w, led_world_positions(pos, hd, LEDS), colors, scene)
     whole = blob_camera(*args)
     monkeypatch.setattr(camera, "_BLOB_CHUNK", 50)

@@ -1,4 +1,4 @@
-"""Every device module of ros/devices/, a new one included: a robot running the device gets its
+"""Every device module of devices/, a new one included: a robot running the device gets its
 sensor topic from the simulator node, and the controller's reader of that topic gives back the
 frame's readings of that robot. A new device adds its expected readings to READINGS."""
 import numpy as np
@@ -8,7 +8,7 @@ from rclpy.node import Node
 from composed_sim.core.simulation import Simulation
 from composed_sim.ros import contract as c
 from composed_sim.ros.controller import Tick
-from composed_sim.ros.devices import BY_SENSOR_TOPIC, DEVICES
+from composed_sim.devices import BY_SENSOR_TOPIC, DEVICES
 from composed_sim.ros.robot_settings import robot_devices
 from composed_sim.ros.simulator_node import SimulatorNode
 from composed_sim.world.robot_models import ALWAYS_ON, MODELS
@@ -65,7 +65,7 @@ def test_a_device_topic_round_trips_from_the_frame_to_the_controllers_tick(devic
     try:
         topic = device.sensor_topic
         got = []
-        sub = listener.create_subscription(topic.msg_type, c.topic_name(sim.names[ROBOT], topic), got.append,
+        sub = listener.create_subscription(c.msg_type(topic), c.topic_name(sim.names[ROBOT], topic), got.append,
                                            c.QOS, raw=True)
         node.publish_tick(frame)
         taken = sub.handle.take_message(sub.msg_type, sub.raw)

@@ -4,25 +4,31 @@ import math
 
 import numpy as np
 import pytest
+from geometry_msgs.msg import PoseStamped
+from nav_msgs.msg import Odometry
+from rclpy.serialization import deserialize_message, serialize_message
+from sensor_msgs.msg import JointState, LaserScan, PointCloud2
 
 from composed_sim.world.robot_models import FOOTBOT, TURTLEBOT3_BURGER
-from composed_sim.ros import contract as c
-from composed_sim.ros.devices import (differential_steering, ground, lidar, odometry, positioning, proximity,
-                                      range_and_bearing)
+from composed_sim.devices import (differential_steering, ground, lidar, odometry, positioning, proximity,
+                                  range_and_bearing)
+from composed_sim.devices.common import cdr
+from composed_sim.ros import contract as c, decoding
 from composed_sim.world.schema import World
 
 
 STAMP = c.stamp_of(7, 100_000_000)
+STAMP_CDR = cdr.stamp_bytes(STAMP.sec, STAMP.nanosec)
 
 
 def test_ground_round_trip_keeps_sensor_positions_and_readings():
     offsets = np.asarray(FOOTBOT.ground.offsets_m)
     readings = np.array([[0.0, 0.25, 0.5, 1.0], [1.0, 1.0, 0.0, 0.0]])
     points = ground.points_of(offsets, readings)
-    msg = ground.message("bot1", len(offsets))
-    ground.fill(msg, STAMP, points[1])
+    data = ground.encoder("bot1").encode(STAMP.sec, STAMP.nanosec, points[1].tobytes(), len(points[1]))
+    msg = deserialize_message(data, PointCloud2)
     assert (msg.width, msg.point_step, msg.header.frame_id) == (4, 16, "bot1/base_link")
-    np.testing.assert_array_equal(ground.decode(msg), readings[1])
+    np.testing.assert_array_equal(ground.decode(data), readings[1])
     cloud = np.frombuffer(msg.data, dtype=ground.GROUND_DTYPE)
     np.testing.assert_allclose(np.column_stack([cloud["x"], cloud["y"]]), offsets, atol=1e-7)
 
@@ -32,12 +38,13 @@ def test_scan_round_trip_keeps_rep117_infinities_and_ray_angles():
     ranges = np.linspace(0.2, 3.0, layout.n_rays)
     ranges[[0, 5]] = np.inf
     ranges[7] = -np.inf
-    msg = lidar.message(layout, "tb0", 0.1)
-    lidar.fill(msg, STAMP, ranges)
-    assert msg.header.frame_id == "tb0/base_scan" and (msg.range_min, msg.range_max) == (0.12, 3.5)
-    np.testing.assert_allclose(lidar.decode(msg), ranges.astype(np.float32))
-    np.testing.assert_allclose(lidar.angles(msg), layout.angles_array(), atol=1e-6)
-    assert lidar.angles(msg)[90] == pytest.approx(math.pi / 2, abs=1e-6)
+    data = lidar.encoder(layout, "tb0", 0.1).encode(STAMP.sec, STAMP.nanosec, np.zeros(0), ranges)
+    msg = deserialize_message(data, LaserScan)
+    assert msg.header.frame_id == "tb0/base_scan" and (msg.range_min, msg.range_max) == pytest.approx((0.12, 3.5))
+    np.testing.assert_allclose(lidar.decode(data), ranges.astype(np.float32))
+    angles = msg.angle_min + msg.angle_increment * np.arange(len(msg.ranges))
+    np.testing.assert_allclose(angles, layout.angles_array(), atol=1e-6)
+    assert angles[90] == pytest.approx(math.pi / 2, abs=1e-6)
 
 
 def test_rab_round_trip_range_bearing_elevation_and_payload_bytes():
@@ -46,10 +53,11 @@ def test_rab_round_trip_range_bearing_elevation_and_payload_bytes():
     ranges, bearings, elevations = rng.uniform(0.1, 3, m), rng.uniform(-3, 3, m), rng.uniform(-0.2, 0.2, m)
     payloads = rng.integers(0, 256, (m, b), dtype=np.uint8)
     points = range_and_bearing.points_of(ranges, bearings, elevations, payloads)
-    msg = range_and_bearing.message("bot0", b)
-    range_and_bearing.fill(msg, STAMP, points[1:4])
+    encoder = range_and_bearing.encoder("bot0", b)
+    data = encoder.encode(STAMP.sec, STAMP.nanosec, points[1:4].tobytes(), 3)
+    msg = deserialize_message(data, PointCloud2)
     assert msg.point_step == 24 + b and msg.width == 3
-    got = range_and_bearing.decode(msg)
+    got = range_and_bearing.decode(data)
     assert len(got) == 3
     np.testing.assert_allclose(got.ranges, ranges[1:4], rtol=1e-6)
     np.testing.assert_allclose(got.bearings, bearings[1:4], rtol=1e-6)
@@ -58,35 +66,33 @@ def test_rab_round_trip_range_bearing_elevation_and_payload_bytes():
     xyz = np.frombuffer(msg.data, dtype=range_and_bearing.point_dtype(b))
     np.testing.assert_allclose(np.hypot(np.hypot(xyz["x"], xyz["y"]), xyz["z"]), ranges[1:4], rtol=1e-5)
     np.testing.assert_allclose(np.arctan2(xyz["y"], xyz["x"]), bearings[1:4], atol=1e-5)
-    range_and_bearing.fill(msg, STAMP, points[:0])
-    assert len(range_and_bearing.decode(msg)) == 0
+    assert len(range_and_bearing.decode(encoder.encode(STAMP.sec, STAMP.nanosec, b"", 0))) == 0
 
 
 def test_rab_tx_round_trip_and_wrong_size_names_the_setting():
-    msg = range_and_bearing.payload_message(bytes(range(10)))
-    np.testing.assert_array_equal(range_and_bearing.decode_payload(msg, 10), np.arange(10))
+    msg = c.payload_message(bytes(range(10)))
+    np.testing.assert_array_equal(decoding.decode_payload(msg, 10), np.arange(10))
     with pytest.raises(ValueError, match=r"has 3 bytes, expected 10 \(range_and_bearing.payload_bytes"):
-        range_and_bearing.decode_payload(range_and_bearing.payload_message([1, 2, 3]), 10)
+        decoding.decode_payload(c.payload_message([1, 2, 3]), 10)
 
 
 def test_pose_odometry_and_wheels_round_trip():
-    pose = positioning.message()
     qz, qw = c.half_yaw(np.array([2.5]))
-    positioning.fill(pose, STAMP, 1.5, -2.0, float(qz[0]), float(qw[0]))
-    assert pose.header.frame_id == "world"
-    np.testing.assert_allclose(positioning.decode(pose), [1.5, -2.0, 2.5])
-    odom = odometry.message("bot2")
+    data = positioning.encoder().encode(STAMP_CDR, 1.5, -2.0, float(qz[0]), float(qw[0]))
+    assert deserialize_message(data, PoseStamped).header.frame_id == "world"
+    np.testing.assert_allclose(positioning.decode(data), [1.5, -2.0, 2.5])
     qz, qw = c.half_yaw(np.array([-3.0]))
-    odometry.fill(odom, STAMP, 0.3, 0.4, float(qz[0]), float(qw[0]), 0.05, -0.2)
+    data = odometry.encoder("bot2").encode(STAMP_CDR, 0.3, 0.4, float(qz[0]), float(qw[0]), 0.05, -0.2)
+    odom = deserialize_message(data, Odometry)
     assert (odom.header.frame_id, odom.child_frame_id) == ("bot2/odom", "bot2/base_link")
-    p, t = odometry.decode(odom)
+    p, t = odometry.decode(data)
     np.testing.assert_allclose(p, [0.3, 0.4, -3.0])
     np.testing.assert_allclose(t, [0.05, -0.2])
-    wheels = differential_steering.message("bot2")
     r = FOOTBOT.wheel_radius_m
-    differential_steering.fill(wheels, STAMP, np.array([1.0, 2.0]) / r, np.array([0.05, 0.1]) / r)
-    assert list(wheels.name) == ["wheel_left_joint", "wheel_right_joint"]
-    speeds, travel = differential_steering.decode(wheels, r)
+    data = differential_steering.encoder("bot2").encode(STAMP_CDR, *(np.array([1.0, 2.0]) / r),
+                                                        *(np.array([0.05, 0.1]) / r))
+    assert list(deserialize_message(data, JointState).name) == ["wheel_left_joint", "wheel_right_joint"]
+    speeds, travel = differential_steering.decode(data, r)
     np.testing.assert_allclose(speeds, [0.05, 0.1])
     np.testing.assert_allclose(travel, [1.0, 2.0])
 
@@ -177,7 +183,8 @@ def test_a_node_serving_some_rows_of_a_mixed_swarm_publishes_each_robot_its_own_
     node = SimulatorNode([sim.names[r] for r in rows], [sim.models[r] for r in rows], context=ros_context,
                          tick_ns=world.tick_ns, rows=rows, devices=[devices[r] for r in rows])
     listener = Node("listener", context=ros_context)
-    subs = {(robot, t.name): listener.create_subscription(t.msg_type, c.topic_name(robot, t), lambda m: None, c.QOS)
+    subs = {(robot, t.name): listener.create_subscription(c.msg_type(t), c.topic_name(robot, t), lambda m: None, c.QOS,
+                                                          raw=True)
             for robot in ("bot1", "ep1", "ep2", "tb1") for t in c.SENSOR_TOPICS}
     try:
         published = {(robot, t) for (robot, t), sub in subs.items() if sub.get_publisher_count() > 0}
@@ -217,11 +224,11 @@ def test_a_rab_payload_of_the_wrong_size_is_a_violation_naming_the_setting(ros_c
                          devices=[{"range_and_bearing"}, {"range_and_bearing"}], rab_payload_bytes=4)
     sender = Node("sender", context=ros_context)
     try:
-        good = sender.create_publisher(c.RAB_TX.msg_type, "/bot0/rab_tx", c.QOS)
-        bad = sender.create_publisher(c.RAB_TX.msg_type, "/bot1/rab_tx", c.QOS)
-        good.publish(range_and_bearing.payload_message(b"\x01\x02\x03\x04"))
-        good.publish(range_and_bearing.payload_message(b"\x05\x06\x07\x08"))          # the latest counts
-        bad.publish(range_and_bearing.payload_message(b"\x01\x02\x03"))
+        good = sender.create_publisher(c.msg_type(c.RAB_TX), "/bot0/rab_tx", c.QOS)
+        bad = sender.create_publisher(c.msg_type(c.RAB_TX), "/bot1/rab_tx", c.QOS)
+        good.publish(c.payload_message(b"\x01\x02\x03\x04"))
+        good.publish(c.payload_message(b"\x05\x06\x07\x08"))          # the latest counts
+        bad.publish(c.payload_message(b"\x01\x02\x03"))
         payloads = node.take_rab_payloads()
         assert list(payloads) == [0] and payloads[0].tolist() == [5, 6, 7, 8]
         assert [(v.robot, v.reason) for v in node.violations] == [
@@ -252,11 +259,11 @@ def test_a_sensor_topic_goes_out_from_the_tick_after_its_first_subscriber(ros_co
     sim = Simulation(world)
     node = SimulatorNode(sim.names, sim.models, context=ros_context, tick_ns=world.tick_ns)
     listener = Node("listener", context=ros_context)
-    light_sub = listener.create_subscription(c.LIGHT.msg_type, c.topic_name("bot1", c.LIGHT), lambda m: None, c.QOS)
+    light_sub = listener.create_subscription(c.msg_type(c.LIGHT), c.topic_name("bot1", c.LIGHT), lambda m: None, c.QOS)
     frame = sim.sense()
     node.publish_tick(frame)                                   # tick 0: bot1's light is read, its proximity not
     assert take(light_sub).header.stamp == c.stamp_of(0, world.tick_ns)
-    proximity_sub = listener.create_subscription(c.PROXIMITY.msg_type, c.topic_name("bot1", c.PROXIMITY),
+    proximity_sub = listener.create_subscription(c.msg_type(c.PROXIMITY), c.topic_name("bot1", c.PROXIMITY),
                                                  lambda m: None, c.QOS)
     for tick in (1, 2, 3):
         frame = sim.step()
@@ -265,7 +272,7 @@ def test_a_sensor_topic_goes_out_from_the_tick_after_its_first_subscriber(ros_co
             msg, info = sub.handle.take_message(sub.msg_type, sub.raw)
             assert c.stamp_key(msg.header.stamp) == tick * world.tick_ns
             assert info["publication_sequence_number"] == sequence, (sub.topic_name, tick)
-    np.testing.assert_allclose(proximity.decode(msg)[1], frame.groups[0].proximity[1], atol=1e-6)
+    np.testing.assert_allclose(proximity.decode(serialize_message(msg))[1], frame.groups[0].proximity[1], atol=1e-6)
     node.destroy_node()
     listener.destroy_node()
 
@@ -273,7 +280,7 @@ def test_a_sensor_topic_goes_out_from_the_tick_after_its_first_subscriber(ros_co
 def test_a_node_converts_exactly_its_robots_entries_of_csr_readings():
     """Blobs and range-and-bearing messages are CSR by robot; a node takes its robots' entries,
     as a slice for contiguous rows (a shard) and gathered otherwise (explicit domains)."""
-    from composed_sim.ros.devices.device import csr_take
+    from composed_sim.devices.common.device import csr_take
     counts = np.array([2, 0, 3, 1, 4, 0, 2])
     offsets = np.concatenate([[0], np.cumsum(counts)])
     entries = np.arange(offsets[-1]) * 10

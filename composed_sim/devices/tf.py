@@ -14,27 +14,28 @@ with all its robots' frames; every listener then receives every robot's (docs/de
 """
 from __future__ import annotations
 
-import numpy as np
-from geometry_msgs.msg import TransformStamped
+from typing import Literal
 
-from composed_sim.ros import cdr
-from composed_sim.ros.devices.device import Device, DevicePublisher, NodeRobots
-from composed_sim.ros.global_topics import WORLD_FRAME
-from composed_sim.ros.raw_types import raw_message_type
-from composed_sim.ros.topic import PUBLISHER_EVENTS, QOS, STATIC_QOS, Topic, base_link, base_scan, half_yaw, \
-    odom_frame, topic_name
-from composed_sim.world.robot_models import TF, RobotModel
+import numpy as np
+
+from composed_sim.devices.common import cdr
+from composed_sim.devices.common.device import Device, DevicePublisher, NodeRobots
+from composed_sim.devices.common.settings import DeviceSwitch
+from composed_sim.devices.common.topic import WORLD_FRAME, RawType, Topic, base_link, base_scan, half_yaw, odom_frame, \
+    topic_name
+
+NAME = "tf"
 
 # tf's message type has no Python package among the ROS wheels: it travels as bytes
 # (ros/raw_types.py), with the type's real name and hash, so any tf listener matches it.
-TF_MESSAGE = raw_message_type("tf2_msgs/msg/TFMessage",
-                              "RIHS01_e369d0f05a23ae52508854b66f6aa0437f3449d652e8cbf22d5abe85d020f087",
-                              TransformStamped)
-TOPIC = Topic("tf", TF_MESSAGE, "frames",
+_TF_MESSAGE = RawType("RIHS01_e369d0f05a23ae52508854b66f6aa0437f3449d652e8cbf22d5abe85d020f087",
+                      "geometry_msgs/msg/TransformStamped")
+TOPIC = Topic("tf", "tf2_msgs/msg/TFMessage", "frames",
               "the robot's moving frames, each tick: world → <r>/odom (so that world → base_link is the "
-              "positioning reading) and <r>/odom → <r>/base_link (the odometry reading)")
-STATIC_TOPIC = Topic("tf_static", TF_MESSAGE, "frames",
-                     "the robot's fixed sensor mounts (<r>/base_link → <r>/base_scan), once, transient local")
+              "positioning reading) and <r>/odom → <r>/base_link (the odometry reading)", raw=_TF_MESSAGE)
+STATIC_TOPIC = Topic("tf_static", "tf2_msgs/msg/TFMessage", "frames",
+                     "the robot's fixed sensor mounts (<r>/base_link → <r>/base_scan), once, transient local",
+                     qos="latched", raw=_TF_MESSAGE)
 GLOBAL_TF, GLOBAL_TF_STATIC = "/tf", "/tf_static"
 
 
@@ -61,7 +62,7 @@ def moving_frames(frame, rows: np.ndarray) -> np.ndarray:
     return out
 
 
-def static_frames(robot: str, model: RobotModel) -> list[tuple[tuple[str, str], tuple[float, ...]]]:
+def static_frames(robot: str, model) -> list[tuple[tuple[str, str], tuple[float, ...]]]:
     """The fixed mounts of ``robot``'s sensors that have a frame of their own."""
     if model.lidar is None:
         return []
@@ -73,30 +74,28 @@ class Publisher(DevicePublisher):
     """The tf of one simulator node: each robot's frames on its own /<r>/tf, or gathered into one
     /tf message per tick for the robots on the global topics; the static mounts once, before the
     first tick (kept by the transient-local publishers for listeners that come later)."""
-    topic, device = TOPIC, TF
+    topic, device = TOPIC, NAME
 
     def __init__(self, node, robots: NodeRobots):
         super().__init__(node, robots)          # the robots with their own /<r>/tf
-        on_global = [i for i in robots.running(TF) if self.pubs[i] is None]
+        on_global = [i for i in robots.running(NAME) if self.pubs[i] is None]
         self._names = robots.names
         self._gathered: dict[int, np.ndarray] = {}
         self._encoders: dict[tuple[int, ...], cdr.TransformsEncoder] = {}
-        self._tf_pub = node.create_publisher(TF_MESSAGE, GLOBAL_TF, QOS, event_callbacks=PUBLISHER_EVENTS) \
-            if on_global else None
+        self._tf_pub = node.create_topic_publisher(GLOBAL_TF, TOPIC) if on_global else None
         self._static = []       # (publisher, mounts) per message
         for i in self.own_topics(robots):
             if mounts := static_frames(robots.names[i], robots.models[i]):
-                pub = node.create_publisher(TF_MESSAGE, topic_name(robots.names[i], STATIC_TOPIC), STATIC_QOS,
-                                            event_callbacks=PUBLISHER_EVENTS)
+                pub = node.create_topic_publisher(topic_name(robots.names[i], STATIC_TOPIC), STATIC_TOPIC)
                 self._static.append((pub, mounts))
         mounts = [m for i in on_global for m in static_frames(robots.names[i], robots.models[i])]
         if mounts:
-            pub = node.create_publisher(TF_MESSAGE, GLOBAL_TF_STATIC, STATIC_QOS, event_callbacks=PUBLISHER_EVENTS)
+            pub = node.create_topic_publisher(GLOBAL_TF_STATIC, STATIC_TOPIC)
             self._static.append((pub, mounts))
 
     def own_topics(self, robots: NodeRobots) -> list[int]:
         """Those not on the global /tf."""
-        return [i for i in robots.running(TF) if robots.global_tf is None or not robots.global_tf[i]]
+        return [i for i in robots.running(NAME) if robots.global_tf is None or not robots.global_tf[i]]
 
     def template(self, robots, i):
         return cdr.TransformsEncoder(frame_pairs(robots.names[i]))
@@ -109,13 +108,12 @@ class Publisher(DevicePublisher):
             if self.pubs[i] is None:
                 self._gathered[i] = poses[k]
             elif self.wanted(i, out):
-                self.send(i, self.encoders[i].encode(out.stamp.sec, out.stamp.nanosec, poses[k]), out)
+                self.send(i, self.encoders[i].encode(out.sec, out.nanosec, poses[k]), out)
 
     def finish_tick(self, out) -> None:
-        stamp = out.stamp
         for pub, mounts in self._static:
             encoder = cdr.TransformsEncoder([pair for pair, _ in mounts])
-            pub.publish(encoder.encode(stamp.sec, stamp.nanosec, [pose for _, pose in mounts]))
+            pub.publish(encoder.encode(out.sec, out.nanosec, [pose for _, pose in mounts]))
         self._static = []
         if not self._gathered:
             return
@@ -125,9 +123,16 @@ class Publisher(DevicePublisher):
             if encoder is None:
                 encoder = self._encoders[robots] = cdr.TransformsEncoder(
                     [pair for i in robots for pair in frame_pairs(self._names[i])])
-            self._tf_pub.publish(encoder.encode(stamp.sec, stamp.nanosec,
+            self._tf_pub.publish(encoder.encode(out.sec, out.nanosec,
                                                 np.concatenate([self._gathered[i] for i in robots])))
         self._gathered = {}
 
 
-DEVICE = Device(TF, (TOPIC, STATIC_TOPIC), Publisher, reader=None)
+class TfConfig(DeviceSwitch):
+    # per_robot: /<robot>/tf and /<robot>/tf_static, the multi-robot (Nav2) way: a robot's
+    # listeners receive its own frames only. global: /tf and /tf_static, what RViz and Foxglove
+    # read by default; every listener then receives every robot's frames (docs/devices.md).
+    topics: Literal["per_robot", "global"] = "per_robot"
+
+
+DEVICE = Device(NAME, (TOPIC, STATIC_TOPIC), Publisher, reader=None, settings=TfConfig, on_robot=False)

@@ -15,7 +15,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from composed_sim.world.schema import Box, Cylinder, World
 
 # Dense (path x static body) work is done in chunks of about this many pairs, so that the
 # dozen temporaries of the kernels stay near 100 MB even for 10^4 robots and 10^2 obstacles.
@@ -179,32 +178,6 @@ class StaticScene:
         hi = np.concatenate([self.cyl_centres + self.cyl_radii[:, None], self.box_corners.max(axis=1)])
         object.__setattr__(self, "_lo", lo)
         object.__setattr__(self, "_hi", hi)
-
-    @classmethod
-    def from_world(cls, world: World) -> "StaticScene":
-        boxes: list[np.ndarray] = []
-        heights: list[float] = []
-        arena = world.arena
-        if arena.walls:
-            if arena.size is None:
-                raise ValueError("arena.walls is on but arena.size is None")
-            # The walls the physics has (the schema owns their geometry: inside the arena
-            # rectangle), so the sensors see them where the robots bump into them.
-            for wall in arena.wall_boxes():
-                boxes.append(box_corners(wall.position, wall.size, 0.0))
-                heights.append(wall.height_m)
-        # Movable objects are not static: the simulation adds them at their pose of each tick.
-        fixed = [ob for ob in world.obstacles if not ob.movable]
-        cyls = [ob for ob in fixed if isinstance(ob, Cylinder)]
-        for ob in fixed:
-            if isinstance(ob, Box):
-                boxes.append(box_corners(ob.position, ob.size, ob.yaw_rad))
-                heights.append(ob.height_m)
-        return cls(cyl_centres=np.array([ob.position for ob in cyls], dtype=float).reshape(-1, 2),
-                   cyl_radii=np.array([ob.radius_m for ob in cyls], dtype=float),
-                   cyl_heights=np.array([ob.height_m for ob in cyls], dtype=float),
-                   box_corners=np.array(boxes, dtype=float).reshape(-1, 4, 2),
-                   box_heights=np.array(heights, dtype=float))
 
     def with_bodies(self, cyl_centres: np.ndarray, cyl_radii: np.ndarray, cyl_heights: np.ndarray,
                     box_corners: np.ndarray, box_heights: np.ndarray) -> "StaticScene":

@@ -9,19 +9,53 @@ the mount point, +inf when nothing is within max range, -inf when the hit is clo
 range. Noise: N(0, σ) added to every finite reading, then clamped to [min, max] — the
 reference names LiDAR noise without a model; Gaussian range noise is what the LDS-01's
 datasheet accuracy figures describe.
+
+``/<r>/scan``, sensor_msgs/LaserScan in frame ``<r>/base_scan`` (the model's mount, on
+/<r>/tf_static with tf): ranges in m, REP-117; angle_min/increment give the rays. A controller's
+Tick: ``scan``.
 """
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import Optional
 
 import numpy as np
 from scipy.spatial import cKDTree
 
-from composed_sim.core.devices.sensing import SensedGroup, Sensing
-from composed_sim.core.geometry import StaticScene
-from composed_sim.core.sensors import _both_ways, _ranges
-from composed_sim.world.robot_models import LIDAR, Lidar
+from composed_sim.devices.common import cdr
+from composed_sim.devices.common.device import Device, DevicePublisher, reads_into
+from composed_sim.devices.common.geometry import StaticScene
+from composed_sim.devices.common.sensing import SensedGroup, Sensing
+from composed_sim.devices.common.sensors import _both_ways, _ranges
+from composed_sim.devices.common.settings import DeviceSwitch, NonNegativeFloat
+from composed_sim.devices.common.topic import Topic, base_scan
+
+NAME = "lidar"
+
+
+@dataclass(frozen=True)
+class Lidar:
+    """A planar scanning range finder: ``n_rays`` evenly spaced from ``angle_min_rad``."""
+    n_rays: int
+    angle_min_rad: float
+    angle_max_rad: float        # the last ray's angle (angle_min + (n_rays - 1) * increment)
+    min_range_m: float
+    max_range_m: float
+    mount_m: tuple[float, float, float]   # (x, y, z) of the scan centre in the body frame
+
+    @property
+    def angle_increment_rad(self) -> float:
+        return (self.angle_max_rad - self.angle_min_rad) / max(1, self.n_rays - 1)
+
+    def angles_array(self) -> np.ndarray:
+        """[r] ray angles in the body frame."""
+        return self.angle_min_rad + self.angle_increment_rad * np.arange(self.n_rays)
+
+
+class LidarConfig(DeviceSwitch):
+    noise_std_m: NonNegativeFloat = 0.0
+
 
 # (pair, ray) candidates per chunk of the robot part: ~10 float64 temporaries each.
 _LIDAR_CHUNK = 1 << 20
@@ -123,4 +157,38 @@ def _robot_hits(dist, positions, radii, heights, observers, origins, h, rel, lid
 
 def read(s: Sensing, group: SensedGroup, out) -> None:
     out.lidar = lidar_scan(s.positions, s.headings, s.radii, s.heights, group.ids, group.model.lidar, s.scene,
-                           noise_std_m=group.settings.config(LIDAR).noise_std_m, rng=s.rngs[LIDAR], tree=s.tree)
+                           noise_std_m=group.settings.config(NAME).noise_std_m, rng=s.rngs[NAME], tree=s.tree)
+
+
+# --- its topic ------------------------------------------------------------------------------------
+
+TOPIC = Topic("scan", "sensor_msgs/msg/LaserScan", "sensor",
+              "LiDAR in frame <r>/base_scan (the model's mount): ranges in m, REP-117 (+inf: nothing "
+              "within range_max, -inf: closer than range_min); angle_min/increment give the rays")
+
+
+def encoder(lidar: Lidar, robot: str, scan_time_s: float) -> cdr.ScanEncoder:
+    """A robot's scans (one full scan per tick)."""
+    return cdr.ScanEncoder(cdr.scan_bytes(base_scan(robot), lidar.angle_min_rad, lidar.angle_max_rad,
+                                          lidar.angle_increment_rad, scan_time_s, lidar.min_range_m,
+                                          lidar.max_range_m, lidar.n_rays, 0))
+
+
+def decode(data: bytes) -> np.ndarray:
+    """A scan's bytes → [r] ranges in m from the scanner (±inf per REP-117)."""
+    return cdr.decode_scan(data)[0]
+
+
+class Publisher(DevicePublisher):
+    topic, device = TOPIC, NAME
+
+    def template(self, robots, i):
+        return encoder(robots.models[i].lidar, robots.names[i], robots.tick_ns * 1e-9)
+
+    def publish(self, plan, frame, out):
+        ranges = frame.groups[plan.group].lidar[plan.within]        # [k, r]
+        self.send_scans(plan, out, ranges, ranges[:, :0])
+
+
+DEVICE = Device(NAME, (TOPIC,), Publisher, reads_into("scan", decode), tick_fields=("scan",),
+                settings=LidarConfig, layout=Lidar, read=read, readings=("lidar",))

@@ -13,16 +13,15 @@ from typing import Any, Callable, Optional, Sequence
 import numpy as np
 from scipy.spatial import cKDTree
 
-from composed_sim.core.floor import Floor
-from composed_sim.core.geometry import StaticScene
-from composed_sim.world.robot_models import RobotModel
+from composed_sim.devices.common.floor import Floor
+from composed_sim.devices.common.geometry import StaticScene
 
 
 @dataclass(frozen=True)
 class SensedGroup:
     """A robot group of the world file as the simulation and its devices use it."""
     index: int
-    model: RobotModel
+    model: Any                          # its world/robot_models.RobotModel
     robots: slice                       # its robots: a contiguous index range
     running: tuple[str, ...]            # its switched devices that run
     settings: Any                       # the schema's Devices: each device's settings (``config(name)``)

@@ -5,7 +5,8 @@ subscription is created with ``raw=True``. Both skip the conversion between Pyth
 objects and C structs, which is most of what a message costs in rclpy (measured here: a
 LaserScan published and taken as objects 20 µs, as bytes 5 µs). The bytes are the very CDR
 that rclpy itself would produce: subscribers see ordinary typed messages, and the tests check
-every codec against ``rclpy.serialization`` byte for byte.
+every codec against ``rclpy.serialization`` (tests/ros/test_cdr.py). ROS-free: each message's
+template is written here (``Writer``), field by field in its type's order.
 
 CDR (XCDR1, little endian): a 4-byte encapsulation header, then each primitive aligned to its
 size counted from the end of that header; strings are a uint32 length (with the NUL) and the
@@ -18,7 +19,6 @@ from dataclasses import dataclass
 from typing import Optional
 
 import numpy as np
-from rclpy.serialization import serialize_message
 
 HEADER = 4                 # encapsulation header
 _STAMP = struct.Struct("<iI")
@@ -49,16 +49,120 @@ def stamp_bytes(sec: int, nanosec: int) -> bytes:
     return _STAMP.pack(sec, nanosec)
 
 
+class Writer:
+    """A message's CDR bytes, written field by field (each primitive aligned to its size)."""
+
+    def __init__(self) -> None:
+        self.buffer = bytearray(b"\x00\x01\x00\x00")        # encapsulation: CDR little endian
+
+    def pad(self, size: int) -> "Writer":
+        self.buffer.extend(bytes(-(len(self.buffer) - HEADER) % size))
+        return self
+
+    def put(self, fmt: str, *values) -> "Writer":
+        """``values`` packed as ``fmt`` (one struct format letter, repeated), aligned to its size."""
+        self.pad(struct.calcsize("<" + fmt.lstrip("0123456789")[0]))
+        self.buffer.extend(struct.pack("<" + fmt, *values))
+        return self
+
+    def string(self, text: str) -> "Writer":
+        data = text.encode() + b"\0"
+        return self.put("I", len(data)).raw(data)
+
+    def raw(self, data: bytes) -> "Writer":
+        self.buffer.extend(data)
+        return self
+
+    def header(self, frame_id: str) -> "Writer":
+        """A std_msgs/Header at stamp 0 (an encoder writes each message's stamp in)."""
+        return self.put("iI", 0, 0).string(frame_id)
+
+    def sequence(self, fmt: str, values) -> "Writer":
+        """A sequence of one primitive: its count, then the elements (aligned even when empty,
+        as Fast CDR does)."""
+        self.put("I", len(values)).pad(struct.calcsize("<" + fmt))
+        return self.raw(struct.pack(f"<{len(values)}{fmt}", *values))
+
+
+# sensor_msgs/PointField datatypes.
+INT8, UINT8, INT16, UINT16, INT32, UINT32, FLOAT32, FLOAT64 = range(1, 9)
+_POINT_FIELD_TYPES = {np.dtype("<f4"): FLOAT32, np.dtype("<u4"): UINT32, np.dtype("u1"): UINT8}
+
+
+def point_fields(dtype: np.dtype) -> tuple[tuple[str, int, int, int], ...]:
+    """A PointCloud2's fields (name, offset, datatype, count) for points laid out as ``dtype``
+    (an array field: its count)."""
+    fields = []
+    for name in dtype.names:
+        field_type, offset = dtype.fields[name][:2]
+        fields.append((name, offset, _POINT_FIELD_TYPES[field_type.base], int(np.prod(field_type.shape, dtype=int))))
+    return tuple(fields)
+
+
+def scan_bytes(frame_id: str, angle_min: float, angle_max: float, angle_increment: float, scan_time: float,
+               range_min: float, range_max: float, n_ranges: int, n_intensities: int) -> bytes:
+    """sensor_msgs/LaserScan with zero readings (time_increment 0: the rays are simultaneous)."""
+    return bytes(Writer().header(frame_id)
+                 .put("7f", angle_min, angle_max, angle_increment, 0.0, scan_time, range_min, range_max)
+                 .sequence("f", [0.0] * n_ranges).sequence("f", [0.0] * n_intensities).buffer)
+
+
+def ring_angles(angles) -> tuple[float, float, float]:
+    """A sensor ring's (angle_min, angle_max, angle_increment) as a scan gives them."""
+    return float(angles[0]), float(angles[-1]), float(angles[1] - angles[0]) if len(angles) > 1 else 0.0
+
+
+def cloud_bytes(frame_id: str, dtype: np.dtype, width: int = 0) -> bytes:
+    """sensor_msgs/PointCloud2, one row of ``width`` zero points laid out as ``dtype``, dense."""
+    w = Writer().header(frame_id).put("II", 1, width)
+    fields = point_fields(dtype)
+    w.put("I", len(fields))
+    for name, offset, datatype, count in fields:
+        w.string(name).put("I", offset).put("B", datatype).put("I", count)
+    return bytes(w.put("?", False).put("II", dtype.itemsize, dtype.itemsize * width)
+                 .sequence("B", bytes(dtype.itemsize * width)).put("?", True).buffer)
+
+
+def _pose(w: Writer) -> Writer:
+    """geometry_msgs/Pose at the origin (quaternion w = 1, as ROS's default)."""
+    return w.put("7d", 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0)
+
+
+def pose_stamped_bytes(frame_id: str) -> bytes:
+    return bytes(_pose(Writer().header(frame_id)).buffer)
+
+
+def odometry_bytes(frame_id: str, child_frame_id: str) -> bytes:
+    """nav_msgs/Odometry at rest, zero covariances."""
+    w = _pose(Writer().header(frame_id).string(child_frame_id)).put("36d", *[0.0] * 36)
+    return bytes(w.put("6d", *[0.0] * 6).put("36d", *[0.0] * 36).buffer)
+
+
+def joint_state_bytes(frame_id: str, names, efforts) -> bytes:
+    """sensor_msgs/JointState of ``names`` at position and velocity 0, with ``efforts``."""
+    w = Writer().header(frame_id).put("I", len(names))
+    for name in names:
+        w.string(name)
+    zeros = [0.0] * len(names)
+    return bytes(w.sequence("d", zeros).sequence("d", zeros).sequence("d", list(efforts)).buffer)
+
+
+def twist_stamped_bytes(frame_id: str = "") -> bytes:
+    return bytes(Writer().header(frame_id).put("6d", *[0.0] * 6).buffer)
+
+
 class ScanEncoder:
     """One robot's LaserScan with fixed metadata and fixed-length arrays: the bytes of a template
     message cut around the stamp and the two arrays, so that a message is those pieces joined
     with the tick's stamp and the arrays' float32 bytes (one ``bytes.join``, no numpy per robot)."""
 
-    def __init__(self, template, n_ranges: int, n_intensities: int) -> None:
-        template.ranges = [0.0] * n_ranges
-        template.intensities = [0.0] * n_intensities
-        data = serialize_message(template)
-        ranges_at = align(after_header(data), 4) + 7 * 4 + 4        # angle_min … range_max, count
+    def __init__(self, template: bytes) -> None:
+        """``template``: the scan's bytes (``scan_bytes``), its arrays at their lengths."""
+        data = template
+        ranges_at = align(after_header(data), 4) + 7 * 4
+        (n_ranges,) = _U32.unpack_from(data, ranges_at)
+        ranges_at += 4
+        (n_intensities,) = _U32.unpack_from(data, ranges_at + 4 * n_ranges)
         intensities_at = ranges_at + 4 * n_ranges + 4
         end = intensities_at + 4 * n_intensities
         self.ranges_bytes, self.intensities_bytes = 4 * n_ranges, 4 * n_intensities
@@ -107,10 +211,10 @@ class CloudEncoder:
     """One robot's PointCloud2 of fixed fields (one row, ``width`` points): the template's bytes
     up to its data, with the stamp, width and row_step written in, then the points."""
 
-    def __init__(self, template) -> None:
-        template.width, template.row_step, template.data = 0, 0, b""
-        data = serialize_message(template)
-        self._point_step = template.point_step
+    def __init__(self, template: bytes) -> None:
+        """``template``: the cloud's bytes without points (``cloud_bytes``)."""
+        data = template
+        self._point_step = cloud_layout(data).point_step
         self._dense = data[-1:]                               # is_dense, after the empty data
         self._head = bytearray(data[:-5])                     # up to the data's length field
         self._stamp = np.frombuffer(self._head, dtype="<u4", count=2, offset=HEADER)
@@ -182,8 +286,8 @@ def decode_cloud(data) -> tuple[int, tuple[tuple[str, int, int], ...], int, memo
 class TwistEncoder:
     """TwistStamped with an empty frame_id; only linear.x and angular.z are set."""
 
-    def __init__(self, template) -> None:
-        self._buffer = bytearray(serialize_message(template))
+    def __init__(self) -> None:
+        self._buffer = bytearray(twist_stamped_bytes())
         self._linear_at = align(after_header(self._buffer), 8)
         self._angular_at = self._linear_at + 5 * 8               # angular.z, after linear x, y, z and angular x, y
 
@@ -213,8 +317,8 @@ class FixedEncoder:
     the template's bytes, with the stamp and the float64 fields at ``f64_at`` written in per
     message. ``pose_f64_at`` and the like say where a message type's fields are."""
 
-    def __init__(self, template, f64_at) -> None:
-        self._buffer = bytearray(serialize_message(template))
+    def __init__(self, template: bytes, f64_at) -> None:
+        self._buffer = bytearray(template)
         self._f64_at = tuple(f64_at(self._buffer))
 
     def encode(self, stamp: bytes, *values: float) -> bytes:
@@ -288,27 +392,15 @@ class TransformsEncoder:
     names are laid out once; each message then only writes the stamps and the poses."""
 
     def __init__(self, frames) -> None:
-        buffer = bytearray(b"\x00\x01\x00\x00")          # CDR little endian
-
-        def pad(size: int) -> None:
-            buffer.extend(bytes(-(len(buffer) - HEADER) % size))
-
-        def string(text: str) -> None:
-            data = text.encode() + b"\0"
-            pad(4)
-            buffer.extend(_U32.pack(len(data)) + data)
-        buffer.extend(_U32.pack(len(frames)))
+        w = Writer().put("I", len(frames))
         self._stamps, self._poses = [], []
         for parent, child in frames:                     # geometry_msgs/TransformStamped
-            pad(4)
-            self._stamps.append(len(buffer))
-            buffer.extend(bytes(_STAMP.size))
-            string(parent)
-            string(child)
-            pad(8)
-            self._poses.append(len(buffer))              # translation x y z, rotation x y z w
-            buffer.extend(bytes(_POSE.size))
-        self._buffer = buffer
+            w.pad(4)
+            self._stamps.append(len(w.buffer))
+            w.put("iI", 0, 0).string(parent).string(child).pad(8)
+            self._poses.append(len(w.buffer))            # translation x y z, rotation x y z w
+            w.raw(bytes(_POSE.size))
+        self._buffer = w.buffer
 
     def encode(self, sec: int, nanosec: int, poses) -> bytes:
         """``poses``: per frame pair (x, y, z, qx, qy, qz, qw)."""

@@ -1,20 +1,45 @@
 """Proximity: the IR ring, ARGoS's ``footbot_proximity_default_sensor.cpp`` and
 ``proximity_default_sensor.cpp`` (docs/architecture.md, "Proximity ring"), over all robots at once.
 
-Its layout: ``world/robot_models.ProximityRing``; its settings: the schema's ``ProximityConfig``;
-its topic: ``ros/devices/proximity.py``.
+``/<r>/proximity``, sensor_msgs/LaserScan in base_link: one ray per sensor at the ring's angles;
+ranges = the nearest hit's distance from the rim (m, +inf: nothing within range), intensities =
+ARGoS's reading in [0, 1]. A controller's Tick: ``proximity`` and ``proximity_distances``.
 """
 from __future__ import annotations
 
-from typing import Optional
+from dataclasses import dataclass
+from typing import Literal, Optional
 
 import numpy as np
 from scipy.spatial import cKDTree
 
-from composed_sim.core.devices.sensing import SensedGroup, Sensing
-from composed_sim.core.geometry import StaticScene, ray_circle_distance
-from composed_sim.core.sensors import _both_ways, _check_noise, _observer_rows, _robots, _uniform_noise
-from composed_sim.world.robot_models import PROXIMITY, ProximityRing
+from composed_sim.devices.common import cdr
+from composed_sim.devices.common.device import Device, DevicePublisher, reads_into
+from composed_sim.devices.common.geometry import StaticScene, ray_circle_distance
+from composed_sim.devices.common.sensing import SensedGroup, Sensing
+from composed_sim.devices.common.sensors import _both_ways, _check_noise, _observer_rows, _robots, _uniform_noise
+from composed_sim.devices.common.settings import DeviceSwitch, NonNegativeFloat
+from composed_sim.devices.common.topic import Topic, base_link
+
+NAME = "proximity"
+
+# How a proximity ray's distance becomes a reading; one calibration per robot family.
+ProximityCalibration = Literal["foot-bot", "e-puck", "exponential", "kheperaiv"]
+
+
+@dataclass(frozen=True)
+class ProximityRing:
+    """IR rays cast outward from the body: radially from the rim, or from given body-frame points."""
+    angles_rad: tuple[float, ...]   # [k] ray directions, CCW from the front
+    range_m: float                   # ray length measured from the ray's origin
+    elevation_m: float               # height of the rays: lower bodies are not seen
+    # [k] (x, y) body-frame ray origins; None: on the rim, at the ray's own angle.
+    origins_m: Optional[tuple[tuple[float, float], ...]] = None
+    calibration: ProximityCalibration = "foot-bot"
+
+
+class ProximityConfig(DeviceSwitch):
+    noise: NonNegativeFloat = 0.0        # uniform(-noise, noise) on each reading
 
 
 def footbot_proximity_reading(distances: np.ndarray) -> np.ndarray:
@@ -103,10 +128,44 @@ def proximity_ring(positions, headings, radii, heights, ring: ProximityRing, sce
     return dist, _uniform_noise(PROXIMITY_READINGS[ring.calibration](dist), noise, rng)
 
 
-
 def read(s: Sensing, group: SensedGroup, out) -> None:
     """The group's readings into ``out`` (its GroupReadings)."""
     out.proximity_distances, out.proximity = proximity_ring(
         s.positions, s.headings, s.radii, s.heights, group.model.proximity, s.scene,
-        noise=group.settings.config(PROXIMITY).noise, rng=s.rngs[PROXIMITY], tree=s.tree,
+        noise=group.settings.config(NAME).noise, rng=s.rngs[NAME], tree=s.tree,
         observers=s.observers(group))
+
+
+# --- its topic ------------------------------------------------------------------------------------
+
+TOPIC = Topic("proximity", "sensor_msgs/msg/LaserScan", "sensor",
+              "IR proximity ring: ranges = distance from the rim in m (+inf: nothing within "
+              "range), intensities = ARGoS reading in [0, 1]; angle_min/increment give the ring")
+
+
+def encoder(ring: ProximityRing, robot: str) -> cdr.ScanEncoder:
+    """Robot's scans: the ring's angles and range, one range and one intensity per sensor."""
+    k = len(ring.angles_rad)
+    return cdr.ScanEncoder(cdr.scan_bytes(base_link(robot), *cdr.ring_angles(ring.angles_rad), 0.0, 0.0,
+                                          ring.range_m, k, k))
+
+
+def decode(data: bytes) -> tuple[np.ndarray, np.ndarray]:
+    """A scan's bytes → distances [k] (m from the rim, inf = none), readings [k] in [0, 1]."""
+    return cdr.decode_scan(data)
+
+
+class Publisher(DevicePublisher):
+    topic, device = TOPIC, NAME
+
+    def template(self, robots, i):
+        return encoder(robots.models[i].proximity, robots.names[i])
+
+    def publish(self, plan, frame, out):
+        group = frame.groups[plan.group]
+        self.send_scans(plan, out, group.proximity_distances[plan.within], group.proximity[plan.within])
+
+
+DEVICE = Device(NAME, (TOPIC,), Publisher, reads_into(("proximity_distances", "proximity"), decode),
+                tick_fields=("proximity", "proximity_distances"), settings=ProximityConfig, layout=ProximityRing,
+                read=read, readings=("proximity_distances", "proximity"))

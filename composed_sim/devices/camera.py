@@ -2,24 +2,43 @@
 ``colored_blob_omnidirectional_camera_rotzonly_sensor.cpp`` (docs/architecture.md, "Blob camera and
 LEDs"), over all robots at once.
 
-Its layout: ``world/robot_models.BlobCamera`` and the LEDs; its settings: the schema's
-``BlobCameraConfig`` and ``CameraConfig``; its topic: ``ros/devices/camera.py``.
+``/<r>/blobs``, sensor_msgs/PointCloud2 in base_link: one point per blob, x/y of the seen LED (m;
+z = 0, the camera is planar), rgb = 0x00RRGGBB (uint32). A controller's Tick: ``blobs``, a ``Blobs``
+(bearing, distance, colour per blob). The LEDs it sees are the robot models' (``led_positions_m``);
+the window's aperture is a robot group's ``camera.aperture_deg`` in the world file.
 """
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Optional
+from typing import Optional, Sequence
 
 import numpy as np
 from scipy.spatial import cKDTree
 
-from composed_sim.core.devices.sensing import SensedGroup, Sensing
-from composed_sim.core.geometry import StaticScene
-from composed_sim.core.poses import wrap_angle
-from composed_sim.core.sensors import (_both_ways, _check_noise, _observer_rows, _pair_order, _ranges, _robots,
-                                       blocked_by_robots)
-from composed_sim.world.robot_models import CAMERA
+from composed_sim.devices.common import cdr
+from composed_sim.devices.common.device import Device, DevicePublisher, csr_take, reads_cloud_into
+from composed_sim.devices.common.geometry import StaticScene
+from composed_sim.devices.common.poses import wrap_angle
+from composed_sim.devices.common.sensing import SensedGroup, Sensing
+from composed_sim.devices.common.sensors import (_both_ways, _check_noise, _observer_rows, _pair_order, _ranges,
+                                                 _robots, blocked_by_robots)
+from composed_sim.devices.common.settings import DeviceSwitch, NonNegativeFloat
+from composed_sim.devices.common.topic import Topic, base_link
+
+NAME = "camera"
+
+
+@dataclass(frozen=True)
+class BlobCamera:
+    """Omnidirectional coloured-blob camera looking down a mirror above the body."""
+    height_m: float
+    aperture_rad: float   # the square window's half-side is height * tan(aperture)
+
+
+class BlobCameraConfig(DeviceSwitch):
+    noise_std: NonNegativeFloat = 0.0    # relative planar position noise (ARGoS)
+
 
 # Camera work per chunk, in (observer, lit LED) candidates; ~15 float64 temporaries each, so
 # about 150 MB of them, plus the occlusion walk's samples.
@@ -176,5 +195,122 @@ def _visible_leds(obs, owner, n_lit, first_lit, led, flat, positions, radii, hei
 
 def read(s: Sensing, group: SensedGroup, out) -> None:
     out.blobs = blob_camera(s.positions, s.headings, s.radii, s.heights, s.camera_heights, s.half_windows,
-                            s.led_world, s.led_colors, s.scene, noise_std=group.settings.config(CAMERA).noise_std,
-                            rng=s.rngs[CAMERA], tree=s.tree, observers=s.observers(group))
+                            s.led_world, s.led_colors, s.scene, noise_std=group.settings.config(NAME).noise_std,
+                            rng=s.rngs[NAME], tree=s.tree, observers=s.observers(group))
+
+
+# --- its topic ------------------------------------------------------------------------------------
+
+TOPIC = Topic("blobs", "sensor_msgs/msg/PointCloud2", "sensor",
+              "coloured-blob omnidirectional camera: one point per blob, x/y of the LED in "
+              "base_link (m; z = 0, the camera is planar), rgb = 0x00RRGGBB (uint32)")
+# One point per blob. float32 coordinates are ample for a camera with cm-level range.
+BLOB_DTYPE = np.dtype([("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("rgb", "<u4")])
+
+
+def encoder(robot: str) -> cdr.CloudEncoder:
+    return cdr.CloudEncoder(cdr.cloud_bytes(base_link(robot), BLOB_DTYPE))
+
+
+def points_of(angles: np.ndarray, distances: np.ndarray, colors: np.ndarray) -> np.ndarray:
+    """Blobs given as (bearing [m], planar distance [m], RGB [m,3]) → BLOB_DTYPE points (z = 0)."""
+    points = np.empty(len(angles), dtype=BLOB_DTYPE)
+    points["x"] = distances * np.cos(angles)
+    points["y"] = distances * np.sin(angles)
+    points["z"] = 0.0
+    c = colors.astype(np.uint32)
+    points["rgb"] = (c[:, 0] << 16) | (c[:, 1] << 8) | c[:, 2]
+    return points
+
+
+class Publisher(DevicePublisher):
+    topic, device = TOPIC, NAME
+
+    def template(self, robots, i):
+        return encoder(robots.names[i])
+
+    def publish(self, plan, frame, out):
+        blobs = frame.groups[plan.group].blobs
+        take, local = csr_take(blobs.offsets, plan.within)
+        self.send_clouds(plan, out, points_of(blobs.angles[take], blobs.distances[take], blobs.colors[take]),
+                         local.tolist())
+
+
+# --- the controller's side -----------------------------------------------------------------------
+
+_NO_FLOATS, _NO_WORDS = np.empty(0), np.empty(0, dtype=np.uint32)
+for _empty in (_NO_FLOATS, _NO_WORDS):
+    _empty.flags.writeable = False
+_CLOUD_DTYPES: dict = {}
+
+
+class Blobs:
+    """The coloured blobs a camera sees this tick. Colours are kept as 0x00RRGGBB words when decoded
+    from a cloud; ``colors`` (RGB rows) is derived on first use. Read-only by convention: ``of_color``
+    returns this very object when every blob has that colour."""
+    __slots__ = ("angles", "distances", "rgb", "_colors")
+
+    def __init__(self, angles: np.ndarray, distances: np.ndarray, colors: Optional[np.ndarray] = None,
+                 rgb: Optional[np.ndarray] = None):
+        if colors is None and rgb is None:
+            raise ValueError("Blobs needs colors ([m, 3] uint8) or rgb ([m] uint32)")
+        self.angles = angles          # [m] rad, bearing relative to the heading, CCW
+        self.distances = distances    # [m] planar distance from the robot centre, m
+        self.rgb = rgb                # [m] uint32 0x00RRGGBB, or None
+        self._colors = colors         # [m, 3] uint8 RGB, or None until asked for
+
+    @property
+    def colors(self) -> np.ndarray:
+        """[m, 3] uint8 RGB."""
+        if self._colors is None:
+            colors = np.empty((len(self.rgb), 3), dtype=np.uint8)
+            colors[:, 0], colors[:, 1], colors[:, 2] = self.rgb >> 16, self.rgb >> 8, self.rgb  # uint8 keeps the low byte
+            self._colors = colors
+        return self._colors
+
+    def __len__(self) -> int:
+        return len(self.angles)
+
+    def of_color(self, rgb: Sequence[int]) -> "Blobs":
+        if self.rgb is not None:
+            r, g, b = (int(v) for v in rgb)
+            keep = self.rgb == ((r << 16) | (g << 8) | b)
+        else:
+            keep = np.all(self.colors == np.asarray(rgb, dtype=np.uint8), axis=1)
+        if keep.all():      # the common case in a swarm of one beacon colour: no copies
+            return self
+        return Blobs(self.angles[keep], self.distances[keep], None if self._colors is None else self._colors[keep],
+                     None if self.rgb is None else self.rgb[keep])
+
+
+def decode(data: bytes, decoder: Optional[cdr.CloudDecoder] = None) -> Blobs:
+    """``decoder``: one per stream of clouds (a subscription), so their layout is parsed once."""
+    width, fields, point_step, points = (decoder or cdr.CloudDecoder()).decode(data)
+    return _blobs(np.frombuffer(points, dtype=_cloud_dtype(fields, point_step), count=width))
+
+
+def _blobs(points: np.ndarray) -> Blobs:
+    if len(points) == 0:
+        return Blobs(_NO_FLOATS, _NO_FLOATS, rgb=_NO_WORDS)
+    x = points["x"].astype(float)
+    y = points["y"].astype(float)
+    return Blobs(np.arctan2(y, x), np.hypot(x, y), rgb=points["rgb"] & 0xFFFFFF)
+
+
+def _cloud_dtype(fields: tuple, point_step: int) -> np.dtype:
+    """The numpy dtype of a blob cloud's points from its fields ((name, offset, datatype) …):
+    x, y float32 and rgb uint32, wherever the publisher put them."""
+    key = (fields, point_step)
+    dtype = _CLOUD_DTYPES.get(key)
+    if dtype is None:
+        found = {name: (offset, datatype) for name, offset, datatype in fields}
+        wanted = {"x": cdr.FLOAT32, "y": cdr.FLOAT32, "rgb": cdr.UINT32}
+        if any(found.get(name, (0, None))[1] != datatype for name, datatype in wanted.items()):
+            raise ValueError(f"not a blob cloud: fields {sorted(found)} (need x, y float32 and rgb uint32)")
+        dtype = _CLOUD_DTYPES[key] = np.dtype({"names": list(wanted), "formats": ["<f4", "<f4", "<u4"],
+                                               "offsets": [found[n][0] for n in wanted], "itemsize": point_step})
+    return dtype
+
+
+DEVICE = Device(NAME, (TOPIC,), Publisher, reads_cloud_into("blobs", decode), tick_fields=("blobs",),
+                settings=BlobCameraConfig, layout=BlobCamera, read=read, csr_readings=("blobs",))

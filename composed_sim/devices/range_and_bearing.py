@@ -13,9 +13,17 @@ receiver's probability. Units are SI (ARGoS's cm ranges are metres here).
 The medium works on the emitters' positions after physics and on the payloads set before the
 tick, so a payload set at tick k is received at tick k + 1 (the caller's job: see
 ``Simulation.step``). "global" mode skips range and occlusion: everyone hears everyone.
+
+``/<r>/rab_rx``, sensor_msgs/PointCloud2 in base_link: the messages heard this tick, one point per
+sender: x/y/z of its emitter (m), range (m), bearing (horizontal, rad), elevation (vertical bearing,
+rad), float32; payload = its bytes (uint8, count = payload_bytes). A controller's Tick: ``rab``.
+``/<r>/rab_tx``, std_msgs/UInt8MultiArray from the controller: exactly payload_bytes bytes,
+broadcast from the next tick on (heard one tick later), kept until changed. The simulator node
+drains it with the LEDs at the act phase (ros/decoding.py).
 """
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from typing import Literal, Optional
@@ -23,9 +31,29 @@ from typing import Literal, Optional
 import numpy as np
 from scipy.spatial import cKDTree
 
-from composed_sim.core.geometry import StaticScene
-from composed_sim.core.poses import wrap_angle
-from composed_sim.core.sensors import _pair_order, blocked_by_robots
+from composed_sim.devices.common import cdr
+from composed_sim.devices.common.device import Device, DevicePublisher, csr_take, reads_cloud_into
+from composed_sim.devices.common.geometry import StaticScene
+from composed_sim.devices.common.poses import wrap_angle
+from composed_sim.devices.common.sensors import _pair_order, blocked_by_robots
+from composed_sim.devices.common.settings import DeviceSwitch, NonNegativeFloat, PositiveFloat, Probability
+from composed_sim.devices.common.topic import Topic, base_link
+
+NAME = "range_and_bearing"
+
+
+@dataclass(frozen=True)
+class RangeAndBearingDevice:
+    """Range-and-bearing emitter/receiver pair on the robot's vertical axis."""
+    elevation_m: float      # above the robot's origin (floor level)
+    range_m: float          # default emission range; a world file may change it per group
+
+
+class RangeAndBearingConfig(DeviceSwitch):
+    range_m: Optional[PositiveFloat] = None          # None: the robot model's
+    packet_drop_probability: Probability = 0.0
+    noise_std_m: NonNegativeFloat = 0.0
+
 
 Mode = Literal["local", "global"]
 
@@ -141,3 +169,91 @@ def range_and_bearing(positions: np.ndarray, headings: np.ndarray, radii: np.nda
         horizontal_bearings=wrap_angle(np.arctan2(v[:, 1], v[:, 0]) - headings[rx]),
         vertical_bearings=np.arctan2(v[:, 2], planar),
         payloads=payloads[tx])
+
+
+# --- its topics -----------------------------------------------------------------------------------
+
+RX = Topic("rab_rx", "sensor_msgs/msg/PointCloud2", "sensor",
+           "range-and-bearing messages heard this tick, one point per sender: x/y/z of its "
+           "emitter in base_link (m), range (m), bearing (horizontal, rad), elevation (vertical "
+           "bearing, rad), float32; payload = its bytes (uint8, count = payload_bytes)")
+TX = Topic("rab_tx", "std_msgs/msg/UInt8MultiArray", "actuator",
+           "range-and-bearing payload: data = exactly payload_bytes bytes, broadcast from the next "
+           "tick on (heard one tick later), kept until changed")
+
+
+def point_dtype(payload_bytes: int) -> np.dtype:
+    """One range-and-bearing point: emitter position, the ARGoS reading, the payload bytes."""
+    return np.dtype([("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("range", "<f4"), ("bearing", "<f4"),
+                     ("elevation", "<f4"), ("payload", "u1", (payload_bytes,))])
+
+
+def encoder(robot: str, payload_bytes: int) -> cdr.CloudEncoder:
+    return cdr.CloudEncoder(cdr.cloud_bytes(base_link(robot), point_dtype(payload_bytes)))
+
+
+def points_of(ranges: np.ndarray, bearings: np.ndarray, elevations: np.ndarray,
+              payloads: np.ndarray) -> np.ndarray:
+    """m messages: ranges, horizontal bearings, vertical bearings [m], payloads [m, B] → [m] points."""
+    payloads = np.asarray(payloads, dtype=np.uint8)
+    points = np.empty(len(ranges), dtype=point_dtype(payloads.shape[1]))
+    planar = ranges * np.cos(elevations)
+    points["x"] = planar * np.cos(bearings)
+    points["y"] = planar * np.sin(bearings)
+    points["z"] = ranges * np.sin(elevations)
+    points["range"] = ranges
+    points["bearing"] = bearings
+    points["elevation"] = elevations
+    points["payload"] = payloads
+    return points
+
+
+@dataclass(frozen=True)
+class RabMessages:
+    """The range-and-bearing messages one robot heard in a tick (one per sender, no sender id)."""
+    ranges: np.ndarray      # [m] m, emitter to emitter
+    bearings: np.ndarray    # [m] rad, horizontal, relative to the heading, CCW
+    elevations: np.ndarray  # [m] rad, vertical bearing
+    payloads: np.ndarray    # [m, B] uint8
+
+    def __len__(self) -> int:
+        return len(self.ranges)
+
+
+def decode(data: bytes, decoder: Optional[cdr.CloudDecoder] = None) -> RabMessages:
+    """``decoder``: one per stream of clouds (a subscription), so their layout is parsed once."""
+    width, fields, point_step, points = (decoder or cdr.CloudDecoder()).decode(data)
+    payload_bytes = point_step - _HEAD_BYTES
+    if payload_bytes < 0 or fields != _cloud_fields(payload_bytes):
+        raise ValueError(f"not a rab_rx cloud: fields {[name for name, _, _ in fields]} (need x, y, z, range, "
+                         f"bearing, elevation float32 and payload uint8)")
+    points = np.frombuffer(points, dtype=point_dtype(payload_bytes), count=width)
+    return RabMessages(points["range"].astype(float), points["bearing"].astype(float),
+                       points["elevation"].astype(float), points["payload"].copy())
+
+
+_HEAD_BYTES = point_dtype(0).itemsize      # a point's bytes before its payload
+
+
+@functools.lru_cache(maxsize=None)
+def _cloud_fields(payload_bytes: int) -> tuple:
+    """A rab_rx cloud's (name, offset, datatype) per field, as ``cdr.CloudDecoder`` gives them."""
+    return tuple((name, offset, datatype) for name, offset, datatype, _ in cdr.point_fields(point_dtype(payload_bytes)))
+
+
+class Publisher(DevicePublisher):
+    topic, device = RX, NAME
+
+    def template(self, robots, i):
+        return encoder(robots.names[i], robots.rab_payload_bytes)
+
+    def publish(self, plan, frame, out):
+        rab = frame.range_and_bearing
+        take, offsets = csr_take(rab.offsets, plan.rows)
+        points = points_of(rab.ranges[take], rab.horizontal_bearings[take], rab.vertical_bearings[take],
+                           rab.payloads[take])
+        self.send_clouds(plan, out, points, offsets.tolist())
+
+
+DEVICE = Device(NAME, (RX, TX), Publisher, reads_cloud_into("rab", decode), tick_fields=("rab",),
+                settings=RangeAndBearingConfig, layout=RangeAndBearingDevice)

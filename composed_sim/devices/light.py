@@ -1,33 +1,49 @@
 """Light: the light ring, ARGoS's ``footbot_light_rotzonly_sensor.cpp`` (docs/architecture.md,
 "Light ring"), over all robots at once.
 
-Its layout: ``world/robot_models.LightRing``; its settings: the schema's ``LightConfig``; its
-topic: ``ros/devices/light.py``.
+``/<r>/light``, sensor_msgs/LaserScan in base_link: intensities = the reading in [0, 1] per sensor
+at the ring's angles; ranges empty. A controller's Tick: ``light``.
 """
 from __future__ import annotations
 
 import math
-from typing import Optional, Sequence
+from dataclasses import dataclass
+from typing import Any, Optional, Sequence
 
 import numpy as np
 from scipy.spatial import cKDTree
 
-from composed_sim.core.devices.sensing import SensedGroup, Sensing
-from composed_sim.core.geometry import StaticScene
-from composed_sim.core.poses import wrap_angle
-from composed_sim.core.sensors import _check_noise, _observer_rows, _robots, _uniform_noise, blocked_by_robots
-from composed_sim.world.robot_models import LIGHT, LightRing
-from composed_sim.world.schema import Light
+from composed_sim.devices.common import cdr
+from composed_sim.devices.common.device import Device, DevicePublisher, reads_into
+from composed_sim.devices.common.geometry import StaticScene
+from composed_sim.devices.common.poses import wrap_angle
+from composed_sim.devices.common.sensing import SensedGroup, Sensing
+from composed_sim.devices.common.sensors import _check_noise, _observer_rows, _robots, _uniform_noise, blocked_by_robots
+from composed_sim.devices.common.settings import DeviceSwitch, NonNegativeFloat
+from composed_sim.devices.common.topic import Topic, base_link
+
+NAME = "light"
+
+
+@dataclass(frozen=True)
+class LightRing:
+    angles_rad: tuple[float, ...]   # [k] CCW from the front
+
+
+class LightConfig(DeviceSwitch):
+    noise: NonNegativeFloat = 0.0
+
 
 # footbot_light_rotzonly_sensor.cpp: a light lights the nearest sensor and 6 on either side.
 _LIGHT_HALF_WINDOW = 6
 
 
-def light_ring(positions, headings, radii, heights, ring: LightRing, lights: Sequence[Light],
+def light_ring(positions, headings, radii, heights, ring: LightRing, lights: Sequence[Any],
                scene: StaticScene, *, noise: float = 0.0, rng: Optional[np.random.Generator] = None,
                tree: Optional[cKDTree] = None, observers=None) -> np.ndarray:
     """positions [n, 2], headings [n], radii [n], heights [n] → readings [n, k] in [0, 1]
-    (or [m, k] for the robots ``observers`` [m] only; all robots can block the light).
+    (or [m, k] for the robots ``observers`` [m] only; all robots can block the light); ``lights``: the
+    world file's (position, height_m, intensity).
 
     For each light with intensity I > 0 whose ray from the robot's origin on the floor (z = 0)
     to the light is not blocked by another robot or a static body: d' = (3D distance) / I,
@@ -71,8 +87,37 @@ def light_ring(positions, headings, radii, heights, ring: LightRing, lights: Seq
     return _uniform_noise(out, noise, rng)
 
 
-
 def read(s: Sensing, group: SensedGroup, out) -> None:
     out.light = light_ring(s.positions, s.headings, s.radii, s.heights, group.model.light, s.lights, s.scene,
-                           noise=group.settings.config(LIGHT).noise, rng=s.rngs[LIGHT], tree=s.tree,
+                           noise=group.settings.config(NAME).noise, rng=s.rngs[NAME], tree=s.tree,
                            observers=s.observers(group))
+
+
+# --- its topic ------------------------------------------------------------------------------------
+
+TOPIC = Topic("light", "sensor_msgs/msg/LaserScan", "sensor",
+              "light ring: intensities = reading in [0, 1] per sensor; ranges empty")
+
+
+def encoder(ring: LightRing, robot: str) -> cdr.ScanEncoder:
+    return cdr.ScanEncoder(cdr.scan_bytes(base_link(robot), *cdr.ring_angles(ring.angles_rad), 0.0, 0.0, 0.0,
+                                          0, len(ring.angles_rad)))
+
+
+def decode(data: bytes) -> np.ndarray:
+    """A scan's bytes → readings [k] in [0, 1]."""
+    return cdr.decode_scan_intensities(data)
+
+
+class Publisher(DevicePublisher):
+    topic, device = TOPIC, NAME
+
+    def template(self, robots, i):
+        return encoder(robots.models[i].light, robots.names[i])
+
+    def publish(self, plan, frame, out):
+        self.send_scans(plan, out, None, frame.groups[plan.group].light[plan.within])
+
+
+DEVICE = Device(NAME, (TOPIC,), Publisher, reads_into("light", decode), tick_fields=("light",),
+                settings=LightConfig, layout=LightRing, read=read, readings=("light",))

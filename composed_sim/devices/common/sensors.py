@@ -1,4 +1,4 @@
-"""What the sensors of core/devices/ (and the range-and-bearing medium) share: checks of the
+"""What the sensors of devices/ (and the range-and-bearing medium) share: checks of the
 per-robot arrays, noise, candidate pairs, and occlusion by robots.
 
 Occlusion follows ARGoS 3's ``dynamics2d_engine.cpp`` (see docs/architecture.md): bodies are
@@ -18,7 +18,7 @@ from typing import Optional
 import numpy as np
 from scipy.spatial import cKDTree
 
-from composed_sim.core.geometry import segments_blocked_by_cylinders
+from composed_sim.devices.common.geometry import segments_blocked_by_cylinders
 
 # Occlusion search: sample spacing along a segment, in robot radii (see blocked_by_robots).
 _SPACING_RADII = 4.0

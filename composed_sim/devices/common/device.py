@@ -1,23 +1,26 @@
-"""A device on the ROS side: its topics, how a simulator node publishes its readings each tick, and
-how a controller reads them back into arrays. Each module of this package is one device.
+"""What a device module declares (``Device``), and what its ROS side is built from.
 
-A device's readings come from the core (``SensorFrame``: ``frame.groups[g].<device>`` for the
-devices with a layout, the frame's own arrays for the rest); its module turns them into its topic's
-messages for the robots of one simulator node, and back into arrays for a ``SwarmController``.
+A device's module holds all of it: its layout in a robot model, its world-file settings, its
+batched numpy model over a robot group (``read``, which fills its fields of the core's
+``GroupReadings``), its topics, how a simulator node publishes its readings each tick
+(``DevicePublisher``: every message written as its CDR bytes) and how a controller reads them back
+into a ``Tick`` (``reader``). No module here imports ROS: a simulator node hands a publisher
+what it needs (``PublishingNode``), and the ROS layer makes publishers from a ``Topic``'s type name.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, Callable, ClassVar, Optional, Protocol, Sequence, Union
+from typing import Any, Callable, ClassVar, Optional, Protocol, Sequence, Union
 
 import numpy as np
-from builtin_interfaces.msg import Time
 
-from composed_sim.ros import cdr
-from composed_sim.ros.topic import Topic
-from composed_sim.world.robot_models import RobotModel
-if TYPE_CHECKING:
-    from composed_sim.core.simulation import SensorFrame
+from composed_sim.devices.common import cdr
+from composed_sim.devices.common.settings import DeviceSwitch
+from composed_sim.devices.common.topic import Topic
+
+# Types of the layers above, named for the reader: a world/robot_models.RobotModel, a
+# core/simulation.SensorFrame, a ros/controller.Tick.
+RobotModel = SensorFrame = Tick = Any
 
 
 @dataclass(frozen=True)
@@ -49,16 +52,18 @@ class GroupPlan:
 @dataclass(frozen=True)
 class Outgoing:
     """One tick as every device publisher of a node sends it."""
-    stamp: Time
+    sec: int                       # the stamp
+    nanosec: int
     stamp_ns: int
     stamp_cdr: bytes               # the stamp's 8 CDR bytes (cdr.stamp_bytes)
     failed: list[bool]             # per robot of the node: stopped for good, published no more
 
 
 class PublishingNode(Protocol):
-    """What a device publisher uses of its simulator node."""
+    """What a device publisher uses of its simulator node (ros/simulator_node.py): publishers
+    of a topic's type and QoS, ``/<robot>/<topic>`` or under another name (tf's global /tf)."""
     def create_robot_publisher(self, robot: str, topic: Topic) -> Any: ...
-    def create_publisher(self, msg_type: type, topic: str, qos, **kwargs) -> Any: ...
+    def create_topic_publisher(self, name: str, topic: Topic) -> Any: ...
     def taps(self, topic: Topic, i: int) -> bool: ...
     def tap_message(self, topic: Topic, i: int, data, stamp_ns: int) -> None: ...
 
@@ -128,7 +133,7 @@ class DevicePublisher:
         the k-th robot's points are ``points[offsets[k]:offsets[k + 1]]`` (a structured array laid
         out as the cloud's fields), turned into bytes once per tick and sliced per robot."""
         data, step = points.tobytes(), points.dtype.itemsize
-        sec, nanosec = out.stamp.sec, out.stamp.nanosec
+        sec, nanosec = out.sec, out.nanosec
         for k, i in enumerate(plan.local.tolist()):
             if self.wanted(i, out):
                 first, end = offsets[k], offsets[k + 1]
@@ -144,7 +149,7 @@ class DevicePublisher:
 
 # How a controller reads a device's sensor topic: made once per controller (from its robot's
 # model), then called with each tick's message as serialized bytes and the Tick to fill.
-Reader = Callable[[Any, Any], None]
+Reader = Callable[[bytes, Tick], None]
 
 
 def reads_into(fields: Union[str, tuple[str, ...]], decode: Callable) -> Callable[[RobotModel], Reader]:
@@ -172,12 +177,24 @@ def reads_cloud_into(field: str, decode: Callable) -> Callable[[RobotModel], Rea
 
 @dataclass(frozen=True)
 class Device:
-    name: str                                          # the world file's name (world/robot_models.py)
+    """One device, as its module declares it (``DEVICE``)."""
+    name: str                                          # as world files and robot models spell it
     topics: tuple[Topic, ...]                          # every contract topic it gives a robot
     publisher: type[DevicePublisher]                   # the simulator's side of its topics
     # The controller's side of its sensor topic, taken as serialized bytes and decoded straight
     # into arrays (cdr.py): the same messages without Python message objects.
     reader: Optional[Callable[[RobotModel], Reader]]
+    tick_fields: tuple[str, ...] = ()                  # the Tick fields its reader fills
+    settings: type[DeviceSwitch] = DeviceSwitch        # its settings in a world file's ``devices``
+    # Its layout class, a field of the robot models that carry it. None: a device that needs no
+    # layout, which the core computes for every robot and whose topics a world file switches on.
+    layout: Optional[type] = None
+    # A device with a layout read per robot group: read(sensing, group, readings) fills its fields
+    # of the group's GroupReadings, over all the group's robots at once.
+    read: Optional[Callable[[Any, Any, Any], None]] = None
+    readings: tuple[str, ...] = ()                     # those fields: [g, …] arrays, a row per robot
+    csr_readings: tuple[str, ...] = ()                 # … and CSR readings (``offsets`` [g+1], entries)
+    on_robot: bool = True                              # False: not the robot's (tf: frames of others' readings)
 
     @property
     def sensor_topic(self) -> Optional[Topic]:
