@@ -189,7 +189,7 @@ def _run_topics(world) -> list[tuple[str, str]]:
     """(topic, message type) of every robot's contract topic in this run."""
     from composed_sim.ros import contract as c
     from composed_sim.ros.robot_settings import robot_devices
-    return [(c.topic_name(name, t), c.type_name(c.msg_type(t)))
+    return [(c.topic_name(name, t), t.type_name)
             for name, devices in zip(world.robot_names(), robot_devices(world)) for t in c.robot_topics(devices)]
 
 

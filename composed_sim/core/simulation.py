@@ -25,7 +25,7 @@ from composed_sim.core.odometry import (Odometry, PoseReadings, WheelActuator, W
 from composed_sim.core.physics import PhysicsWorld
 from composed_sim.core.placement import place_robots
 from composed_sim.core.scene import static_scene
-from composed_sim.devices import DEVICES, GROUP_READERS
+from composed_sim.devices import DEVICES, GROUP_READERS, WITH_LAYOUT
 from composed_sim.devices.camera import BlobReadings, led_world_positions
 from composed_sim.devices.common.floor import Floor
 from composed_sim.devices.common.geometry import StaticScene, box_corners
@@ -34,7 +34,7 @@ from composed_sim.devices.range_and_bearing import RangeAndBearingReadings, rang
 from composed_sim.world.robot_models import (DIFFERENTIAL_STEERING, GROUND, POSITIONING, RANGE_AND_BEARING,
                                             RobotModel, get_model)
 from composed_sim.core.seeding import STREAM_PLACEMENT, device_rng, stream
-from composed_sim.world.schema import SWITCHED_DEVICES, Box, World
+from composed_sim.world.schema import Box, World
 
 
 class GroupReadings:
@@ -183,7 +183,7 @@ class Simulation:
 
         # One noise generator per device (and the wheels' actuator), seeded by its name.
         self._rngs = {name: device_rng(world.seed, name) for name in
-                      (*SWITCHED_DEVICES, "wheels", DIFFERENTIAL_STEERING, POSITIONING)}
+                      (*WITH_LAYOUT, "wheels", DIFFERENTIAL_STEERING, POSITIONING)}
         wheels = [world.robots[g].devices.wheels for g in world.group_of_robot()]
         noise = WheelNoise(*(np.array([getattr(w, f) for w in wheels], dtype=np.float64).reshape(self.n)
                              for f in ("bias_mean_mps", "bias_std_mps", "factor_mean", "factor_std")))

@@ -41,7 +41,10 @@ WITH_LAYOUT: tuple[str, ...] = tuple(d.name for d in DEVICES if d.layout is not 
 # The robot's devices without a layout: every model has them (the wheels are the drive itself);
 # a world file switches their topics on.
 ALWAYS_ON: tuple[str, ...] = tuple(d.name for d in DEVICES if d.layout is None and d.on_robot)
-# The devices whose topics a world file switches on: the always-on ones and tf.
+# The devices whose topics a world file switches on: the always-on ones and tf. Every robot
+# computes their readings (cheap, vectorised), but publishing three more messages per robot and
+# tick that no controller reads would cost every swarm, the paper's included; so, as ARGoS lists a
+# controller's sensors, their topics exist only where the world file asks for them.
 TOPIC_SWITCHED: tuple[str, ...] = tuple(d.name for d in DEVICES if d.layout is None)
 # device name → read(sensing, group, readings): the devices read per robot group.
 GROUP_READERS = {d.name: d.read for d in DEVICES if d.read is not None}

@@ -100,8 +100,7 @@ TOPIC = Topic("light", "sensor_msgs/msg/LaserScan", "sensor",
 
 
 def encoder(ring: LightRing, robot: str) -> cdr.ScanEncoder:
-    return cdr.ScanEncoder(cdr.scan_bytes(base_link(robot), *cdr.ring_angles(ring.angles_rad), 0.0, 0.0, 0.0,
-                                          0, len(ring.angles_rad)))
+    return cdr.ScanEncoder(cdr.ring_scan_bytes(base_link(robot), ring.angles_rad, 0.0, 0, len(ring.angles_rad)))
 
 
 def decode(data: bytes) -> np.ndarray:

@@ -146,8 +146,7 @@ TOPIC = Topic("proximity", "sensor_msgs/msg/LaserScan", "sensor",
 def encoder(ring: ProximityRing, robot: str) -> cdr.ScanEncoder:
     """Robot's scans: the ring's angles and range, one range and one intensity per sensor."""
     k = len(ring.angles_rad)
-    return cdr.ScanEncoder(cdr.scan_bytes(base_link(robot), *cdr.ring_angles(ring.angles_rad), 0.0, 0.0,
-                                          ring.range_m, k, k))
+    return cdr.ScanEncoder(cdr.ring_scan_bytes(base_link(robot), ring.angles_rad, ring.range_m, k, k))
 
 
 def decode(data: bytes) -> tuple[np.ndarray, np.ndarray]:

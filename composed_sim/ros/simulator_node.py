@@ -268,7 +268,7 @@ class SimulatorNode(Node):
             if not isinstance(data, bytes):
                 data = serialize_message(data)
             with self._tap_lock:   # answers may arrive on executor worker threads
-                self._tap.write_serialized(c.topic_name(self._names[i], topic), c.type_name(msg_type or c.msg_type(topic)),
+                self._tap.write_serialized(c.topic_name(self._names[i], topic), c.type_name(msg_type) if msg_type else topic.type_name,
                                            data, stamp_ns)
 
     @property
@@ -349,7 +349,8 @@ class SimulatorNode(Node):
         now = RosTime.from_msg(stamp)
         for clock in self._driven_clocks:
             clock.set_ros_time_override(now)
-        out = Outgoing(stamp.sec, stamp.nanosec, self._current_key, cdr.stamp_bytes(stamp.sec, stamp.nanosec), self.failed.tolist())
+        out = Outgoing(stamp.sec, stamp.nanosec, self._current_key, cdr.stamp_bytes(stamp.sec, stamp.nanosec),
+                       self.failed.tolist())
         for plan in self._plans if self._plans is not None else self._make_plans(frame):
             for publisher in self._device_publishers:
                 if publisher.device in plan.devices:

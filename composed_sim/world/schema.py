@@ -199,14 +199,6 @@ class CameraConfig(Strict):
     aperture_deg: Annotated[float, Field(gt=0, lt=90)] = 70.0
 
 
-# The devices that can be switched, by the name robot models and sensor frames use.
-SWITCHED_DEVICES = WITH_LAYOUT
-# Every robot computes these (cheap, vectorised); their ROS topics exist only where the world
-# file switches them on, as ARGoS lists a controller's sensors: publishing three more messages
-# per robot and tick that no controller reads would cost every swarm, the paper's included.
-TOPIC_SWITCHED_DEVICES = TOPIC_SWITCHED
-
-
 class _Devices(Strict):
     """A group's devices: a switched device left out runs when its model runs it by default; an
     always-computed one present (and not enabled: false) gives the robot its topics. One field
@@ -214,9 +206,9 @@ class _Devices(Strict):
     wheels: WheelsConfig = WheelsConfig()           # the actuator and sensor noise of the wheels
 
     def running(self, model: RobotModel) -> tuple[str, ...]:
-        """The switched devices that run on robots of ``model``, in SWITCHED_DEVICES order."""
+        """The switched devices that run on robots of ``model``, in WITH_LAYOUT order."""
         out = []
-        for name in SWITCHED_DEVICES:
+        for name in WITH_LAYOUT:
             config = getattr(self, name)
             if (name in model.default_devices) if config is None else config.enabled:
                 out.append(name)
@@ -224,9 +216,9 @@ class _Devices(Strict):
 
     def published(self, model: RobotModel) -> tuple[str, ...]:
         """Every device that has topics on robots of ``model``: the running switched devices,
-        then the always-computed ones the world file switches on (TOPIC_SWITCHED_DEVICES order)."""
+        then the always-computed ones the world file switches on (TOPIC_SWITCHED order)."""
         return self.running(model) + tuple(
-            name for name in TOPIC_SWITCHED_DEVICES
+            name for name in TOPIC_SWITCHED
             if getattr(self, name) is not None and getattr(self, name).enabled)
 
     def config(self, name: str):
@@ -309,9 +301,9 @@ class RobotGroup(Strict):
                              f"{self.count} positions, lists {len(positions)}", positions)])
         model = MODELS[self.model]
         problems = [(("devices", name), f"the {self.model} has no {name} device (it has: "
-                     f"{', '.join(d for d in model.devices if d in SWITCHED_DEVICES) or 'none'})",
+                     f"{', '.join(d for d in model.devices if d in WITH_LAYOUT) or 'none'})",
                      getattr(self.devices, name).model_dump())
-                    for name in SWITCHED_DEVICES
+                    for name in WITH_LAYOUT
                     if getattr(self.devices, name) is not None and getattr(self.devices, name).enabled
                     and getattr(model, name) is None]
         if problems:

@@ -11,7 +11,8 @@ import pytest
 
 from composed_sim.world.robot_models import EPUCK, FOOTBOT, THYMIO2, TURTLEBOT3_BURGER
 from composed_sim.world import WorldFileError, dump_world, load_world
-from composed_sim.world.schema import SWITCHED_DEVICES, Devices
+from composed_sim.devices import WITH_LAYOUT
+from composed_sim.world.schema import Devices
 
 
 def write(tmp_path: Path, text: str, name: str = "w.yaml") -> Path:
@@ -77,7 +78,7 @@ def test_models_declare_their_devices_and_defaults():
     assert Devices().running(TURTLEBOT3_BURGER) == ("lidar",)
     for model in (FOOTBOT, EPUCK, THYMIO2, TURTLEBOT3_BURGER):
         assert set(model.default_devices) <= set(model.devices)
-        for name in SWITCHED_DEVICES:
+        for name in WITH_LAYOUT:
             assert (name in model.devices) == (getattr(model, name) is not None)
 
 

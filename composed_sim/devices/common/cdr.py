@@ -107,9 +107,11 @@ def scan_bytes(frame_id: str, angle_min: float, angle_max: float, angle_incremen
                  .sequence("f", [0.0] * n_ranges).sequence("f", [0.0] * n_intensities).buffer)
 
 
-def ring_angles(angles) -> tuple[float, float, float]:
-    """A sensor ring's (angle_min, angle_max, angle_increment) as a scan gives them."""
-    return float(angles[0]), float(angles[-1]), float(angles[1] - angles[0]) if len(angles) > 1 else 0.0
+def ring_scan_bytes(frame_id: str, angles, range_max: float, n_ranges: int, n_intensities: int) -> bytes:
+    """A LaserScan of a sensor ring: one ray per sensor at ``angles`` (evenly spaced)."""
+    increment = float(angles[1] - angles[0]) if len(angles) > 1 else 0.0
+    return scan_bytes(frame_id, float(angles[0]), float(angles[-1]), increment, 0.0, 0.0, range_max,
+                      n_ranges, n_intensities)
 
 
 def cloud_bytes(frame_id: str, dtype: np.dtype, width: int = 0) -> bytes:
@@ -156,9 +158,8 @@ class ScanEncoder:
     message cut around the stamp and the two arrays, so that a message is those pieces joined
     with the tick's stamp and the arrays' float32 bytes (one ``bytes.join``, no numpy per robot)."""
 
-    def __init__(self, template: bytes) -> None:
-        """``template``: the scan's bytes (``scan_bytes``), its arrays at their lengths."""
-        data = template
+    def __init__(self, data: bytes) -> None:
+        """``data``: the scan's template bytes (``scan_bytes``), its arrays at their lengths."""
         ranges_at = align(after_header(data), 4) + 7 * 4
         (n_ranges,) = _U32.unpack_from(data, ranges_at)
         ranges_at += 4
@@ -211,9 +212,8 @@ class CloudEncoder:
     """One robot's PointCloud2 of fixed fields (one row, ``width`` points): the template's bytes
     up to its data, with the stamp, width and row_step written in, then the points."""
 
-    def __init__(self, template: bytes) -> None:
-        """``template``: the cloud's bytes without points (``cloud_bytes``)."""
-        data = template
+    def __init__(self, data: bytes) -> None:
+        """``data``: the cloud's template bytes without points (``cloud_bytes``)."""
         self._point_step = cloud_layout(data).point_step
         self._dense = data[-1:]                               # is_dense, after the empty data
         self._head = bytearray(data[:-5])                     # up to the data's length field
