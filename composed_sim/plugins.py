@@ -1,6 +1,9 @@
-"""Controller plugins: rclpy Node classes declared in the entry-point group ``composed_sim.controllers``."""
+"""Controller plugins: rclpy Node classes declared in the entry-point group ``composed_sim.controllers``,
+or named by ``module:Class`` (any importable Node class, no entry point needed)."""
 from __future__ import annotations
 
+import importlib
+import inspect
 from dataclasses import dataclass, field
 from importlib.metadata import EntryPoint
 from typing import Mapping
@@ -27,10 +30,40 @@ def installed() -> dict[str, EntryPoint]:
 
 
 def load(name: str) -> type[Node]:
-    cls = entry_points.load(GROUP, name, "controller plugin", PluginError,
-                            f"; a plugin is an entry point in the group {GROUP!r}")
+    """The Node class ``name`` names: ``module:Class`` (``pkg.module:Class``), or an entry point."""
+    if ":" in name:
+        cls, origin = _import_class(name), name
+    else:
+        cls = entry_points.load(GROUP, name, "controller plugin", PluginError,
+                                f"; a plugin is an entry point in the group {GROUP!r}, or name a class as module:Class")
+        origin = f"controller plugin {name!r} ({installed()[name].value})"
     if not (isinstance(cls, type) and issubclass(cls, Node)):
-        raise PluginError(f"controller plugin {name!r} ({installed()[name].value}) is not an rclpy Node subclass")
+        raise PluginError(f"{origin} is not an rclpy Node subclass")
+    return cls
+
+
+def _import_class(name: str) -> object:
+    module_name, _, attribute = name.partition(":")
+    if not module_name or not attribute:
+        raise PluginError(f"{name!r}: write a node class as module:Class, e.g. my_pkg.talker:Talker")
+    try:
+        module = importlib.import_module(module_name)
+    except ModuleNotFoundError as e:
+        if e.name is not None and module_name.startswith(e.name):
+            raise PluginError(f"{name!r}: no module named {e.name!r} (is its package installed, or on PYTHONPATH?)") from e
+        raise PluginError(f"{name!r}: importing {module_name} failed: {type(e).__name__}: {e}") from e
+    except Exception as e:  # any import-time failure is the module's, reported as such
+        raise PluginError(f"{name!r}: importing {module_name} failed: {type(e).__name__}: {e}") from e
+    cls = module
+    for part in attribute.split("."):
+        if not hasattr(cls, part):
+            nodes = sorted(n for n, v in vars(module).items()
+                           if isinstance(v, type) and issubclass(v, Node) and v.__module__ == module.__name__)
+            raise PluginError(f"{name!r}: module {module_name} has no {attribute!r} (its Node classes: "
+                              f"{', '.join(nodes) or 'none'})")
+        cls = getattr(cls, part)
+    if not inspect.isclass(cls):
+        raise PluginError(f"{name!r} is not a class: a node is an rclpy Node subclass")
     return cls
 
 

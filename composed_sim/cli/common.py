@@ -48,14 +48,18 @@ class Interrupts:
 
 
 def check_plugins(world_path, world) -> None:
-    """Every group's controller plugin loads: one error naming the world file's line and field,
+    """Every node class the world names loads: one error naming the world file's line and field,
     before any node or process is started."""
     from composed_sim import plugins
-    for i, group in enumerate(world.robots):
+    from composed_sim.hosts.controllers import node_field
+    places = [(node_field(group, gi, ni), spec) for gi, group in enumerate(world.robots)
+              for ni, spec in enumerate(group.node_specs)]
+    places += [(("nodes", ni), spec) for ni, spec in enumerate(world.nodes)]
+    for field, spec in places:
         try:
-            plugins.load(group.controller)
+            plugins.load(spec.node)
         except plugins.PluginError as e:
-            e.field = ("robots", i, "controller")
+            e.field = field
             raise UserError(located(world_path, e)) from None
     from composed_sim.loop_functions import LoopFunctionsError, make
     try:

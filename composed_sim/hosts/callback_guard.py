@@ -28,7 +28,7 @@ import ctypes
 import signal
 import threading
 import time
-from typing import Callable, Optional
+from typing import Callable, Optional, Sequence
 
 from rclpy.node import Node
 from rclpy.subscription import Subscription
@@ -53,10 +53,11 @@ class CallbackGuard:
         self.calls = 0                                 # callbacks run: lets a waiter see progress
         self._depth = threading.local()                # per thread: inside a guarded callback?
 
-    def guard(self, node: Node, robot: str, sim_node: SimulatorNode) -> None:
+    def guard(self, node: Node, robot: str, sim_node: SimulatorNode, relayed: Sequence = ()) -> None:
         """Wrap the callbacks of every subscription and timer ``node`` has (a controller creates
-        them in its constructor); ``sim_node`` serves ``robot``."""
-        for sub in node.subscriptions:
+        them in its constructor), and of its subscriptions on run-wide topics (``relayed``,
+        ros/run_wide.py); ``sim_node`` serves ``robot``."""
+        for sub in (*node.subscriptions, *relayed):
             with_info = sub._callback_type is Subscription.CallbackType.WithMessageInfo
             sub.callback = self._wrap(sub.callback, robot, sim_node, with_info)
         for timer in node.timers:

@@ -13,7 +13,7 @@ from composed_sim.core.simulation import Simulation
 from composed_sim.hosts.choices import ROBOTS_PER_PARTICIPANT
 from composed_sim.hosts.host import SetupInfo
 from composed_sim.hosts.lockstep import LoopResult, TickObserver, run_lockstep
-from composed_sim.hosts.participant_groups import ParticipantGroups
+from composed_sim.hosts.participant_groups import ParticipantGroups, RelayingExchange
 from composed_sim.ros.simulator_node import MessageTap
 from composed_sim.world.schema import World
 
@@ -51,7 +51,7 @@ class ComposedHost:
         ticks = self.world.length_ticks if ticks is None else ticks
         wait, interrupting_hangs = self.groups.start_serving()
         with interrupting_hangs:
-            return run_lockstep(self.sim, self.groups.exchange, wait, ticks, progress=progress,
+            return run_lockstep(self.sim, RelayingExchange(self.groups), wait, ticks, progress=progress,
                                 should_stop=should_stop, observers=observers, checkpoint=checkpoint)
 
     def set_message_tap(self, tap: MessageTap) -> None:

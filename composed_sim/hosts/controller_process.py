@@ -3,7 +3,7 @@
     python -m composed_sim.hosts.controller_process --world W.yaml --robot bot3 --domain 5 \\
         --executor lockstep [--parent-pid PID] [--report-fd FD]
 
-It builds the very same plugin Node as the composed host (``create_controller``), in the robot's
+It builds the very same nodes as the composed host (``create_robot_nodes``), in the robot's
 namespace, on the given domain, with ``use_sim_time`` so it follows the simulator's /clock like
 any ROS node. With ``--report-fd`` it reports its start-up on that pipe: ``created type:<type>`` once
 its node exists (the type of its cmd_vel publisher, which the simulator subscribes with: not read
@@ -61,7 +61,7 @@ def main(argv: list[str] | None = None) -> int:
     from rclpy.context import Context
 
     from composed_sim import plugins
-    from composed_sim.hosts.controllers import create_controller, make_executor, published_answer_type
+    from composed_sim.hosts.controllers import create_robot_nodes, load_classes, make_executor, published_answer_type
     from composed_sim.ros import contract as c
     from composed_sim.ros.answer_subscription import cmd_vel_gids
     from composed_sim.world.loader import load_world
@@ -74,25 +74,26 @@ def main(argv: list[str] | None = None) -> int:
     group_index = world.group_of_robot()[names.index(args.robot)]
     context = Context()
     rclpy.init(context=context, domain_id=args.domain)   # a non-default context: no rclpy handlers
-    node = executor = spinner = None
+    nodes, executor, spinner = [], None, None
     try:
         try:
-            cls = plugins.load(world.robots[group_index].controller)
-            node = create_controller(cls, args.robot, world, group_index, context, use_sim_time=True)
+            nodes = create_robot_nodes(world, group_index, args.robot, context, classes=load_classes(world),
+                                       use_sim_time=True).nodes
         except plugins.PluginError as e:
             print(e, file=sys.stderr)
             return EXIT_SETUP
         executor = make_executor(args.executor, context)
-        executor.add_node(node)
+        for node in nodes:
+            executor.add_node(node)
         if args.report_fd is not None:
             try:
                 with os.fdopen(args.report_fd, "w", buffering=1) as report:
-                    answer_type = published_answer_type(node, args.robot)   # None: its publisher comes later
+                    answer_type = published_answer_type(nodes, args.robot)   # None: its publisher comes later
                     report.write("created" + (f" {TYPE_PREFIX}{c.type_name(answer_type)}" if answer_type else "") + "\n")
-                    if not wait_until_matched(node, args.robot, stop):
+                    if not wait_until_matched(nodes, args.robot, stop):
                         return 0 if stop.is_set() else 1
-                    topics = sorted({e.topic_name for e in contract_endpoints(node, args.robot)})
-                    gids = [GID_PREFIX + gid.hex() for gid in cmd_vel_gids(node, args.robot)]
+                    topics = sorted({e.topic_name for e in contract_endpoints(nodes, args.robot)})
+                    gids = [GID_PREFIX + gid.hex() for node in nodes for gid in cmd_vel_gids(node, args.robot)]
                     report.write(" ".join(["ready"] + topics + gids) + "\n")
             except BrokenPipeError:     # the host gave up on the start-up and is stopping us
                 return 0
@@ -116,7 +117,7 @@ def main(argv: list[str] | None = None) -> int:
             executor.shutdown(timeout_sec=1.0)
         if spinner is not None:
             spinner.join(timeout=2.0)
-        if node is not None:
+        for node in nodes:
             node.destroy_node()
         if context.ok():
             rclpy.shutdown(context=context)
@@ -147,21 +148,21 @@ def spin(executor) -> None:
         pass
 
 
-def contract_endpoints(node, robot: str) -> list:
-    """The node's publishers and subscriptions on contract topics (its own other topics and
-    the parameter/rosout plumbing are not the simulator's business)."""
+def contract_endpoints(nodes, robot: str) -> list:
+    """The robot's nodes' publishers and subscriptions on contract topics (their own other topics
+    and the parameter/rosout plumbing are not the simulator's business)."""
     from composed_sim.ros import contract as c
     topics = {c.topic_name(robot, t) for t in c.SENSOR_TOPICS + c.ACTUATOR_TOPICS} | {c.CLOCK_TOPIC}
-    return [e for e in list(node.publishers) + list(node.subscriptions) if e.topic_name in topics]
+    return [e for node in nodes for e in list(node.publishers) + list(node.subscriptions) if e.topic_name in topics]
 
 
-def wait_until_matched(node, robot: str, stop: StopRequest) -> bool:
+def wait_until_matched(nodes, robot: str, stop: StopRequest) -> bool:
     """Wait until each contract endpoint of ours is matched with the simulator's (a publisher
     has a matched subscription, a subscription a matched publisher); the host then checks its
     side of the same topics. Without this a tick-0 sensor, an answer or the first LED message
     could go to a not-yet-matched endpoint and be lost (topics are volatile)."""
     from rclpy.publisher import Publisher
-    endpoints = contract_endpoints(node, robot)
+    endpoints = contract_endpoints(nodes, robot)
     deadline = time.monotonic() + READY_TIMEOUT_S
     pause = 0.002
     while not all((e.get_subscription_count() if isinstance(e, Publisher) else e.get_publisher_count()) >= 1

@@ -2,9 +2,9 @@
 and by each controller process of the multi-process host (which therefore imports no physics)."""
 from __future__ import annotations
 
-import inspect
 import sys
-from typing import Container, Optional
+from dataclasses import dataclass
+from typing import Collection, Container, Mapping, Optional, Sequence
 
 from rclpy.context import Context
 from rclpy.executors import Executor, ExternalShutdownException, MultiThreadedExecutor, SingleThreadedExecutor
@@ -19,9 +19,10 @@ from composed_sim.world.robot_models import RANGE_AND_BEARING, get_model
 from composed_sim.ros.controller import (PARAM_RAB_PAYLOAD_BYTES, PARAM_ROBOT_MODEL, PARAM_RUN_SEED,
                                          PARAM_SENSOR_TOPICS)
 from composed_sim.ros.lockstep_executor import LockstepExecutor
+from composed_sim.ros.node_options import HostedNodeOptions, construct
+from composed_sim.ros.run_wide import RUN_WIDE_ORIGIN, RunWideRelay
 from composed_sim.ros.sim_timers import SimTimers
-from composed_sim.ros.robot_settings import quiet_node_options
-from composed_sim.world.schema import World
+from composed_sim.world.schema import NodeSpec, RobotGroup, World
 
 
 
@@ -79,106 +80,220 @@ class ContractViolation(Exception):
     """A controller tried to publish what the topic contract does not allow it to."""
 
 
-def guard_publishers(node: Node, robot: str, robots: Container[str], answer_type: Optional[type]) -> None:
+def guard_publishers(node: Node, robot: str, robots: Container[str], answer_type: Optional[type],
+                     robot_nodes: Sequence[Node]) -> None:
     """Make ``node.create_publisher`` refuse another robot's topic, a sensor topic or a wrong
     type on its own actuator topic (``contract.publisher_problem``; on cmd_vel: another type than its
-    answers have, ``answer_type`` or the one of its first cmd_vel publisher): the fault is the
-    publishing robot's, found where it starts, and no other robot ever receives a foreign answer."""
+    answers have, ``answer_type`` or the one of the first cmd_vel publisher of the robot's nodes): the
+    fault is the publishing robot's, found where it starts, and no other robot ever receives a
+    foreign answer."""
     create = node.create_publisher
 
     def create_publisher(msg_type, topic, *args, **kwargs):
         problem = c.publisher_problem(robot, node.resolve_topic_name(topic), msg_type, robots,
-                                      answer_type or published_answer_type(node, robot))
+                                      answer_type or published_answer_type(robot_nodes, robot))
         if problem is not None:
             raise ContractViolation(problem)
         return create(msg_type, topic, *args, **kwargs)
     node.create_publisher = create_publisher
 
 
-def create_controller(cls: type[Node], name: str, world: World, group_index: int,
-                      context: Context, use_sim_time: bool = False,
-                      robots: Optional[Container[str]] = None, clock_from_stamps: bool = False) -> Node:
-    """Construct one plugin Node in the robot's namespace, with its timers on sim time
-    (ros/sim_timers.py), and check the world's params exist and its cmd_vel type.
+@dataclass
+class BuiltNodes:
+    """One robot's nodes (or the run-wide ones), built and checked, in the world file's order."""
+    nodes: list[Node]
+    # The timers of the nodes that do not follow the robot's sensors: the host moves them to each
+    # tick's time (ros/sim_timers.py).
+    tick_timers: list[SimTimers]
+
+
+def node_field(group: RobotGroup, group_index: int, node_index: int) -> tuple:
+    """The world file's field that names a robot's node: its ``controller``, or ``nodes[i]``."""
+    return ("robots", group_index, "controller") if group.controller is not None \
+        else ("robots", group_index, "nodes", node_index)
+
+
+def _describe(field: tuple, spec: NodeSpec) -> str:
+    """How messages name a node: ``robots[0].controller: controller plugin 'x'`` or
+    ``robots[0].nodes[2]: node 'pkg.mod:Class'``."""
+    path = "".join(f"[{p}]" if isinstance(p, int) else f".{p}" for p in field).lstrip(".")
+    return f"{path}: controller plugin {spec.node!r}" if field[-1] == "controller" else f"{path}: node {spec.node!r}"
+
+
+def create_robot_nodes(world: World, group_index: int, name: str, context: Context, *,
+                       classes: Mapping[str, type[Node]], relay: Optional[RunWideRelay] = None,
+                       origin: int = 0, use_sim_time: bool = False, robots: Optional[Container[str]] = None,
+                       clock_from_stamps: bool = False) -> BuiltNodes:
+    """Build robot ``name``'s nodes (its group's ``node_specs``) in its namespace, with their
+    timers on sim time (ros/sim_timers.py), their run-wide topics through ``relay`` (``origin``:
+    the robot's index in the run), and check the world's parameters exist and the cmd_vel type.
     ``robots``: every robot's name (a set; computed from ``world`` when not given).
-    ``clock_from_stamps``: the node's clock follows a /clock that may arrive after the sensors (another
+    ``clock_from_stamps``: the nodes' clocks follow a /clock that may arrive after the sensors (another
     process than the simulator's): a sensor stamp ahead of it moves it (``use_sim_time`` implies it)."""
     group = world.robots[group_index]
-    where = ("robots", group_index, "controller")
-    problem = node_options_problem(cls)
-    if problem is not None:
-        raise plugins.PluginError(f"robots[{group_index}].controller: controller plugin {group.controller!r}: "
-                                  f"{problem}", where)
+    robots = frozenset(world.robot_names()) if robots is None else robots
+    sensors = [c.topic_name(name, t) for t in c.robot_topics(group.devices.published(get_model(group.model)))
+               if t.direction == "sensor"]
     overrides = controller_parameters(world, group_index)
     if use_sim_time:
         overrides.append(Parameter("use_sim_time", value=True))
-    robots = frozenset(world.robot_names()) if robots is None else robots
-    timers = SimTimers(world.tick_ns, follow_stamps=use_sim_time or clock_from_stamps)
+    built = BuiltNodes([], [])
+    timers_of: list[SimTimers] = []
     try:
-        node = timers.construct(cls, context=context, namespace=f"/{name}", use_global_arguments=False,
-                                **quiet_node_options(overrides))
+        for ni, spec in enumerate(group.node_specs):
+            field = node_field(group, group_index, ni)
+            timers = SimTimers(world.tick_ns, follow_stamps=use_sim_time or clock_from_stamps)
+            options = HostedNodeOptions(context, f"/{name}", [*overrides, *spec_parameters(spec)],
+                                        spec.params_file, spec.remappings)
+            node = _construct(classes[spec.node], spec, field, name, options, timers, relay, origin)
+            built.nodes.append(node)
+            timers_of.append(timers)
+            # The constructor's publishers are checked here (nothing it published can answer a
+            # tick: no tick is open yet); the ones it creates later are refused when created.
+            problem = next((p for p in (c.publisher_problem(name, pub.topic_name, pub.msg_type, robots)
+                                        for pub in node.publishers) if p), None)
+            if problem is not None:
+                raise plugins.PluginError(f"{_describe(field, spec)} for {name}: {problem}", field)
+        run_wide = {t for node in built.nodes for t in relay.topics_published_by(node)} if relay is not None else set()
+        problem = wiring_problem(built.nodes, name, sensors, run_wide) \
+            or answer_type_problem(built.nodes, name, group.cmd_vel)
+        if problem is not None:
+            raise plugins.PluginError(f"{_describe(node_field(group, group_index, 0), group.node_specs[0])} "
+                                      f"for {name}: {problem}", node_field(group, group_index, 0))
+    except BaseException:
+        for node in built.nodes:
+            node.destroy_node()
+        raise
+    answers = answer_type(built.nodes, name, group.cmd_vel)
+    for node, timers in zip(built.nodes, timers_of):
+        guard_publishers(node, name, robots, answers, built.nodes)
+        timers.started(sensors)
+        if not timers.follows_sensors:
+            built.tick_timers.append(timers)
+        for warning in timers.period_warnings(group.label, group.answers_every_ticks):
+            warn_once(warning)
+    return built
+
+
+def create_run_wide_nodes(world: World, context: Context, *, classes: Mapping[str, type[Node]],
+                          relay: RunWideRelay) -> BuiltNodes:
+    """Build the world's run-wide nodes (``world.nodes``) outside every robot's namespace, their
+    timers on sim time, moved to each tick's time by the host; their run-wide topics through ``relay``."""
+    built = BuiltNodes([], [])
+    try:
+        for ni, spec in enumerate(world.nodes):
+            timers = SimTimers(world.tick_ns)
+            options = HostedNodeOptions(context, "/", [Parameter(PARAM_RUN_SEED, value=world.seed),
+                                                       *spec_parameters(spec)], spec.params_file, spec.remappings)
+            built.nodes.append(_construct(classes[spec.node], spec, ("nodes", ni), "the run", options, timers,
+                                          relay, RUN_WIDE_ORIGIN))
+            timers.started(())
+            built.tick_timers.append(timers)
+    except BaseException:
+        for node in built.nodes:
+            node.destroy_node()
+        raise
+    return built
+
+
+def spec_parameters(spec: NodeSpec) -> list[Parameter]:
+    return [Parameter(k, value=v) for k, v in spec.parameters.items()]
+
+
+def _construct(cls: type[Node], spec: NodeSpec, field: tuple, owner: str, options: HostedNodeOptions,
+               timers: SimTimers, relay: Optional[RunWideRelay], origin: int) -> Node:
+    """One node built by ``node_options.construct``; an error names the world file's field."""
+    def prepare(node: Node) -> None:
+        timers.prepare(node)
+        if relay is not None:
+            relay.adopt(node, origin)
+    try:
+        node = construct(cls, options, prepare)
     except Exception as e:
-        raise plugins.PluginError(f"robots[{group_index}].controller: controller plugin {group.controller!r} "
-                                  f"failed to construct for {name}: {type(e).__name__}: {e}", where) from e
-    unknown = [k for k in group.params if not node.has_parameter(k)]
+        raise plugins.PluginError(f"{_describe(field, spec)} failed to construct for {owner}: "
+                                  f"{type(e).__name__}: {e}", field) from e
+    unknown = [k for k in spec.parameters if not node.has_parameter(k)]
     if unknown:
         plumbing = ("use_sim_time", PARAM_ROBOT_MODEL, PARAM_RUN_SEED, PARAM_SENSOR_TOPICS,
                     PARAM_RAB_PAYLOAD_BYTES, START_TYPE_DESCRIPTION_SERVICE_PARAM)
         declared = sorted(p for p in node._parameters if p not in plumbing)
         node.destroy_node()
-        raise plugins.PluginError(f"robots[{group_index}].params: controller {group.controller!r} has no "
-                                  f"parameter {', '.join(map(repr, unknown))} (it declares: {', '.join(declared) or 'none'})",
-                                  ("robots", group_index, "params"))
-    # The constructor's publishers are checked here (nothing it published can answer a tick:
-    # no tick is open yet); the ones it creates later are refused when created.
-    problems = [c.publisher_problem(name, p.topic_name, p.msg_type, robots) for p in node.publishers]
-    problems += [answer_type_problem(node, name, group.cmd_vel)]
-    if any(problems):
-        node.destroy_node()
-        raise plugins.PluginError(f"robots[{group_index}].controller: controller plugin {group.controller!r} "
-                                  f"for {name}: {next(p for p in problems if p)}", where)
-    guard_publishers(node, name, robots, answer_type(node, name, group.cmd_vel))
-    sensors = [c.topic_name(name, t) for t in c.robot_topics(group.devices.published(get_model(group.model)))
-               if t.direction == "sensor"]
-    timers.started(sensors)
-    for warning in timers.period_warnings(group.controller, group.answers_every_ticks):
-        warn_once(warning)
+        where = field[:-1] + ("params",) if field[-1] == "controller" else field + ("parameters",)
+        what = f"controller {spec.node!r}" if field[-1] == "controller" else f"node {spec.node!r}"
+        path = "".join(f"[{p}]" if isinstance(p, int) else f".{p}" for p in where).lstrip(".")
+        raise plugins.PluginError(f"{path}: {what} has no parameter {', '.join(map(repr, unknown))} "
+                                  f"(it declares: {', '.join(declared) or 'none'})", where)
     return node
 
 
-def node_options_problem(cls: type[Node]) -> Optional[str]:
-    """A controller class must take the host's node options (context, namespace, parameters…) and
-    pass them on to ``Node.__init__``, as an rclcpp component takes ``NodeOptions``."""
-    try:
-        parameters = inspect.signature(cls.__init__).parameters.values()
-    except (TypeError, ValueError):
-        return None
-    if any(p.kind is inspect.Parameter.VAR_KEYWORD for p in parameters):
-        return None
-    return (f"{cls.__module__}.{cls.__qualname__}.__init__ takes no **kwargs: accept them and pass them on, "
-            f"``def __init__(self, **kwargs): super().__init__('name', **kwargs)``, so that the host can give the "
-            f"node its context, namespace and parameters")
+def wiring_problem(nodes: Sequence[Node], robot: str, sensors: Sequence[str],
+                   run_wide: Collection[str] = ()) -> Optional[str]:
+    """Why a robot's nodes cannot answer its ticks, found as soon as they are built: no node
+    publishes its cmd_vel, none subscribes to one of its sensor topics, or one subscribes to a
+    robot topic that nobody publishes (a sensor its model lacks, a misspelt name). The message
+    names what the robot has and the closest name. ``run_wide``: the topics outside the robots'
+    namespaces the nodes publish (ros/run_wide.py)."""
+    published = {p.topic_name for node in nodes for p in node.publishers} | set(run_wide)
+    subscribed = [(node, s.topic_name, s.msg_type) for node in nodes for s in node.subscriptions]
+    sensor_types = {t: c.msg_type(c.TOPICS[t.rsplit("/", 1)[1]]) for t in sensors}
+    own = f"/{robot}/"
+    for node, topic, msg_type in subscribed:
+        if not topic.startswith(own) or topic in sensor_types or topic in published:
+            continue
+        name = topic[len(own):]
+        close = _closest(name, [t[len(own):] for t in sensor_types], msg_type,
+                         {t[len(own):]: ty for t, ty in sensor_types.items()})
+        if name in c.TOPICS or close is not None:
+            return (f"node {node.get_fully_qualified_name()} subscribes to {topic}, which {robot} does not have "
+                    f"(its sensor topics: {', '.join(sensors) or 'none'}){f'; did you mean {close}?' if close else ''}")
+    cmd_vel = c.topic_name(robot, c.CMD_VEL)
+    if cmd_vel not in published:
+        tails = {t.rsplit("/", 1)[1]: t for t in sorted(published, reverse=True)}
+        close = _closest(c.CMD_VEL.name, list(tails), None, {})
+        return (f"none of {robot}'s nodes publishes {cmd_vel}, the robot's answer to each tick (they publish: "
+                f"{', '.join(sorted(published)) or 'nothing'})"
+                f"{f'; remap {tails[close]} to cmd_vel?' if close else ''}")
+    if not any(topic in sensor_types for _, topic, _ in subscribed):
+        return (f"none of {robot}'s nodes subscribes to one of its sensor topics ({', '.join(sensors)}); they "
+                f"subscribe to: {', '.join(sorted({t for _, t, _ in subscribed})) or 'nothing'}")
+    return None
 
 
-def published_answer_type(node: Node, robot: str) -> Optional[type]:
-    """The type of ``node``'s publisher on its robot's cmd_vel, None without one."""
+def _closest(name: str, candidates: Sequence[str], msg_type: Optional[type], types: Mapping[str, type]) -> Optional[str]:
+    """The candidate closest to ``name`` in spelling, else the only one of the same message type."""
+    import difflib
+    close = difflib.get_close_matches(name, candidates, n=1, cutoff=0.6)
+    if close:
+        return close[0]
+    same_type = [t for t in candidates if msg_type is not None and types.get(t) is msg_type]
+    return same_type[0] if len(same_type) == 1 else None
+
+
+def published_answer_type(nodes: Sequence[Node], robot: str) -> Optional[type]:
+    """The type of the first publisher on the robot's cmd_vel among ``nodes``, None without one."""
     topic = c.topic_name(robot, c.CMD_VEL)
-    return next((p.msg_type for p in node.publishers if p.topic_name == topic), None)
+    return next((p.msg_type for node in nodes for p in node.publishers if p.topic_name == topic), None)
 
 
-def answer_type(node: Node, robot: str, declared: str) -> Optional[type]:
+def answer_type(nodes: Sequence[Node], robot: str, declared: str) -> Optional[type]:
     """What ``robot``'s answers will be: the world file's ``cmd_vel`` type (stamped, unstamped),
-    else (auto) its publisher's, else None: not known yet (a publisher created later)."""
-    return c.ANSWER_TYPES[declared] if declared != "auto" else published_answer_type(node, robot)
+    else (auto) its nodes' publisher's, else None: not known yet (a publisher created later)."""
+    return c.ANSWER_TYPES[declared] if declared != "auto" else published_answer_type(nodes, robot)
 
 
-def answer_type_problem(node: Node, robot: str, declared: str) -> Optional[str]:
-    """The world file's ``cmd_vel`` (stamped, unstamped) against what the node publishes."""
-    found = published_answer_type(node, robot)
+def answer_type_problem(nodes: Sequence[Node], robot: str, declared: str) -> Optional[str]:
+    """The world file's ``cmd_vel`` (stamped, unstamped) against what the nodes publish."""
+    found = published_answer_type(nodes, robot)
     if declared == "auto" or found is None or found is c.ANSWER_TYPES[declared]:
         return None
     return (f"it publishes {c.type_name(found)} on {c.topic_name(robot, c.CMD_VEL)}, but the world file says "
             f"cmd_vel: {declared} ({c.type_name(c.ANSWER_TYPES[declared])})")
+
+
+def load_classes(world: World) -> dict[str, type[Node]]:
+    """Every node class the world names (robots' and run-wide), imported once."""
+    names = [spec.node for g in world.robots for spec in g.node_specs] + [spec.node for spec in world.nodes]
+    return {name: plugins.load(name) for name in dict.fromkeys(names)}
 
 
 _warned: set[str] = set()

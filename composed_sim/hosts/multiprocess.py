@@ -32,10 +32,9 @@ import rclpy
 from rclpy.context import Context
 from rclpy.executors import Executor
 
-from composed_sim import plugins
 from composed_sim.core.simulation import Simulation
 from composed_sim.hosts.host import ControllersElsewhere, SetupInfo
-from composed_sim.hosts.controllers import HostError, check_executor, matched, spin_until_shutdown
+from composed_sim.hosts.controllers import HostError, check_executor, load_classes, matched, spin_until_shutdown
 from composed_sim.hosts.domains import DomainError, assign_domains
 from composed_sim.hosts.processes import GID_PREFIX, TYPE_PREFIX, InterruptWatch, exit_reason, last_words, reap, signal_group
 from composed_sim.hosts.lockstep import NodesExchange
@@ -141,8 +140,7 @@ class MultiProcessHost(ControllersElsewhere):
     def __enter__(self) -> "MultiProcessHost":
         t0 = time.perf_counter()
         try:
-            for g in self.world.robots:    # fail here, not in N children
-                plugins.load(g.controller)
+            load_classes(self.world)       # fail here, not in N children
             self.sim = Simulation(self.world)
             self._tmp = Path(tempfile.mkdtemp(prefix="composed_sim_mp_"))
             world_file = self._tmp / "world.yaml"

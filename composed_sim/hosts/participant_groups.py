@@ -23,22 +23,27 @@ from rclpy.context import Context
 from rclpy.executors import Executor
 from rclpy.node import Node
 
-from composed_sim import plugins
+from rclpy.time import Time
+
+from composed_sim.core.simulation import SensorFrame
 from composed_sim.world.robot_models import get_model
 from composed_sim.hosts.callback_guard import CallbackGuard, refuse_shutdown_from_callbacks
 from composed_sim.hosts.choices import ROBOTS_PER_PARTICIPANT
-from composed_sim.hosts.controllers import (HostError, answer_type, check_executor, create_controller, make_executor,
-                                             spin_until_shutdown)
+from composed_sim.hosts.controllers import (BuiltNodes, HostError, answer_type, check_executor, create_robot_nodes,
+                                             create_run_wide_nodes, load_classes, make_executor, spin_until_shutdown)
 from composed_sim.hosts.lockstep import NodesExchange
 from composed_sim.ros import contract as c
 from composed_sim.ros.answer_subscription import cmd_vel_gids
+from composed_sim.ros.lockstep_executor import LockstepExecutor
 from composed_sim.ros.participants import ignore_participants_of_this_process
 from composed_sim.ros.robot_settings import robot_settings
+from composed_sim.ros.run_wide import Message, RunWideRelay
 from composed_sim.ros.simulator_node import AnswerTypeError, SimulatorNode
 from composed_sim.world.schema import World
 
 DISCOVERY_TIMEOUT_S = 60.0
 WAIT_SLICE_S = 0.02           # how long one spin_once may wait for a callback while a tick is open
+SETTLE_ROUNDS = 1000          # bound on the walks that run what a tick's answers left to do
 
 
 def simulator_node_name(group: int) -> str:
@@ -66,7 +71,13 @@ class ParticipantGroups:
         self.first_group = first_group
         self.contexts: list[Context] = []
         self.simulator_nodes: list[SimulatorNode] = []      # one per group, in robot order
-        self.controllers: list[Node] = []
+        self.robot_nodes: list[list[Node]] = []             # per robot of the block: its nodes
+        self.controllers: list[Node] = []                   # every robot node, robot by robot
+        self.relay = RunWideRelay(world.robot_names())
+        self.run_wide: Optional[BuiltNodes] = None          # the world's run-wide nodes (block of robot 0)
+        self._run_wide_executor: Optional[LockstepExecutor] = None
+        self._tick_timers = []                              # SimTimers the host moves to each tick's time
+        self._settle = False
         self.exchange: Optional[NodesExchange] = None
         self.executor: Optional[Executor] = None
         self.guard: Optional[CallbackGuard] = None
@@ -82,12 +93,14 @@ class ParticipantGroups:
 
     def _build(self) -> None:
         world = self.world
-        classes = {g.controller: plugins.load(g.controller) for g in world.robots}
+        classes = load_classes(world)
         ignore_participants_of_this_process()
         lockstep = world.lockstep
         self.guard = CallbackGuard(lockstep.watchdog_s, lockstep.unresponsive_s)
         names, groups = world.robot_names(), world.group_of_robot()
         robots = frozenset(names)
+        if self.first_group == 0 and world.nodes:
+            self._build_run_wide(classes)
         for k, first in enumerate(range(self.start, self.stop, self.robots_per_participant)):
             block = range(first, min(self.stop, first + self.robots_per_participant))
             context = Context()
@@ -95,13 +108,16 @@ class ParticipantGroups:
             refuse_shutdown_from_callbacks(context, self.guard)
             self.contexts.append(context)
             group = self.first_group + k
-            # The controllers first: the simulator node subscribes to each robot's cmd_vel with the
-            # type its controller publishes (one participant allows one type per topic).
-            first_node = len(self.controllers)
+            # The nodes first: the simulator node subscribes to each robot's cmd_vel with the
+            # type its nodes publish (one participant allows one type per topic).
+            first_robot = len(self.robot_nodes)
             for i in block:
-                self.controllers.append(create_controller(classes[world.robots[groups[i]].controller], names[i],
-                                                          world, groups[i], context, robots=robots))
-            controllers = self.controllers[first_node:]
+                built = create_robot_nodes(world, groups[i], names[i], context, classes=classes, relay=self.relay,
+                                           origin=i, robots=robots)
+                self.robot_nodes.append(built.nodes)
+                self.controllers += built.nodes
+                self._tick_timers += built.tick_timers
+            block_nodes = self.robot_nodes[first_robot:]
             sim_node = SimulatorNode([names[i] for i in block], [get_model(world.robots[groups[i]].model) for i in block],
                                      context=context, tick_ns=world.tick_ns,
                                      rows=np.arange(block.start - self.start, block.stop - self.start),
@@ -109,27 +125,73 @@ class ParticipantGroups:
                                      rab_payload_bytes=world.range_and_bearing.payload_bytes,
                                      publish_clock=group == 0,
                                      **{**robot_settings(world, block),
-                                        "answer_types": [answer_type(node, names[i], world.robots[groups[i]].cmd_vel)
-                                                         for i, node in zip(block, controllers)]})
+                                        "answer_types": [answer_type(nodes, names[i], world.robots[groups[i]].cmd_vel)
+                                                         for i, nodes in zip(block, block_nodes)]})
             sim_node.on_failed.append(self.guard.stop_worker)
             self.simulator_nodes.append(sim_node)
-            for i, node in zip(block, controllers):
-                self.guard.guard(node, names[i], sim_node)
-                sim_node.drive_clock_of(node)
+            for i, nodes in zip(block, block_nodes):
+                for node in nodes:
+                    self.guard.guard(node, names[i], sim_node, self.relay.subscriptions_of(node))
+                    sim_node.drive_clock_of(node)
         self.exchange = NodesExchange(self.simulator_nodes)
         self.executor = make_executor(self.executor_kind, self.contexts[0])
         # Simulator nodes last, so that the lockstep executor's one ordered pass runs every
         # controller on its sensors first and then collects the answers they just published.
         for node in (*self.controllers, *self.simulator_nodes):
             self.executor.add_node(node)
+        # A tick's answers may leave work behind (a later node of a chain, a run-wide message
+        # published after the answer): run it before the tick closes, so that what the tick
+        # sends on does not depend on the walk in which the last robot answered.
+        sensor_topics = {c.topic_name(r, t) for r in names[self.start:self.stop] for t in c.SENSOR_TOPICS}
+        self._settle = self.relay.in_use or any(s.topic_name not in sensor_topics
+                                                for node in self.controllers for s in node.subscriptions)
         self._wait_for_discovery()
-        gids = {names[i]: cmd_vel_gids(node, names[i]) for i, node in zip(range(self.start, self.stop), self.controllers)}
+        gids = {names[i]: [gid for node in nodes for gid in cmd_vel_gids(node, names[i])]
+                for i, nodes in zip(range(self.start, self.stop), self.robot_nodes)}
         for sim_node in self.simulator_nodes:
             sim_node.note_controllers(gids)
 
+    def _build_run_wide(self, classes) -> None:
+        """The world's run-wide nodes: a participant of their own, driven by the host at the start
+        of each tick with an executor of their own (the lockstep one, whatever the robots')."""
+        context = Context()
+        rclpy.init(context=context, domain_id=self.domain_id)
+        self.contexts.append(context)
+        self.run_wide = create_run_wide_nodes(self.world, context, classes=classes, relay=self.relay)
+        self._run_wide_executor = LockstepExecutor(context=context)
+        for node in self.run_wide.nodes:
+            node.get_clock()._set_ros_time_is_active(True)
+            self._run_wide_executor.add_node(node)
+
+    # --- run-wide topics, at the tick's edges (ros/run_wide.py) --------------------------------
+
+    def open_tick(self, tick: int, batch: list[Message]) -> None:
+        """Before tick ``tick``'s sensors: the nodes' timers that do not wait for sensors move to
+        the tick's time, and the run-wide messages of the batch reach their subscribers."""
+        now_ns = tick * self.world.tick_ns
+        for timers in self._tick_timers:
+            timers.advance_to(now_ns)
+        if batch:
+            self.relay.deliver(batch)
+
+    def close_run_wide(self, next_tick: int) -> list[Message]:
+        """After a tick's answers: the run-wide nodes' part of ``next_tick`` (their timers due by
+        then, and what they have to handle), then what this process published on run-wide topics."""
+        if self.run_wide is not None:
+            now_ns = next_tick * self.world.tick_ns
+            now = Time(nanoseconds=now_ns)
+            for node in self.run_wide.nodes:
+                node.get_clock().set_ros_time_override(now)
+            for timers in self.run_wide.tick_timers:
+                timers.advance_to(now_ns)
+            for _ in range(SETTLE_ROUNDS):
+                if self._run_wide_executor.dispatch_ready() == 0:
+                    break
+        return self.relay.take_outbox()
+
     @property
     def nodes(self) -> int:
-        return len(self.controllers) + len(self.simulator_nodes)
+        return len(self.controllers) + len(self.simulator_nodes) + (len(self.run_wide.nodes) if self.run_wide else 0)
 
     def _wait_for_discovery(self) -> None:
         """Every robot's answer topic has a publisher and its sensors a subscriber before tick 0."""
@@ -188,17 +250,61 @@ class ParticipantGroups:
             idle = idle + 1 if (self.guard.calls, self.exchange.answered_count) == before else 0
             if drain_left <= 0 or idle >= 2:
                 return False
+        if self._settle:
+            self._run_until_idle()
         return True
+
+    def _run_until_idle(self) -> None:
+        """Run what is ready until nothing is (bounded): every robot has answered, but a chain of
+        its nodes may go on, and what it publishes belongs to this tick."""
+        if isinstance(self.executor, LockstepExecutor):
+            for _ in range(SETTLE_ROUNDS):
+                if self.executor.dispatch_ready() == 0:
+                    return
+            return
+        idle = 0
+        for _ in range(SETTLE_ROUNDS):
+            before = self.guard.calls
+            self.executor.spin_once(timeout_sec=0)
+            idle = idle + 1 if self.guard.calls == before else 0
+            if idle >= 2:
+                return
 
     def __exit__(self, *exc) -> None:
         if self.executor is not None:
             self.executor.shutdown()
         if self._spin_thread is not None:
             self._spin_thread.join(timeout=5.0)
-        for node in (*self.controllers, *self.simulator_nodes):
+        if self._run_wide_executor is not None:
+            self._run_wide_executor.shutdown()
+        for node in (*self.controllers, *self.simulator_nodes, *(self.run_wide.nodes if self.run_wide else ())):
             node.destroy_node()
-        self.controllers, self.simulator_nodes = [], []
+        self.controllers, self.simulator_nodes, self.robot_nodes, self.run_wide = [], [], [], None
         for context in self.contexts:
             if context.ok():
                 Context.shutdown(context)       # the class's: the instance refuses it from callbacks
         self.contexts = []
+
+
+class RelayingExchange(NodesExchange):
+    """The simulator nodes of every robot's participant groups (the composed host's), and their
+    run-wide relay: each tick opens with the run-wide messages of the tick before (ros/run_wide.py).
+    A worker process does the same steps itself, its batches coming from the main process."""
+
+    def __init__(self, groups: ParticipantGroups):
+        super().__init__(groups.simulator_nodes)
+        self._groups = groups
+        self._batch: Optional[list[Message]] = None     # what opens the next tick
+        self._tick = 0
+
+    def publish_tick(self, frame: SensorFrame) -> None:
+        if self._batch is None:               # tick 0: what the nodes published while being built
+            self._batch = self._groups.close_run_wide(frame.tick)
+        self._tick = frame.tick
+        self._groups.open_tick(frame.tick, self._batch)
+        super().publish_tick(frame)
+
+    def close_tick(self, fallback: str, previous: tuple[np.ndarray, np.ndarray],
+                   commands: tuple[np.ndarray, np.ndarray]) -> None:
+        super().close_tick(fallback, previous, commands)
+        self._batch = self._groups.close_run_wide(self._tick + 1)

@@ -3,7 +3,7 @@ elsewhere (``composed-sim host WORLD --robots 0-639``; the simulator runs with
 ``composed-sim run WORLD --external-controllers``).
 
 It is the composed host without the simulator: one rclpy context, one executor, the very same
-plugin nodes (``create_controller``) on the very same topics. DDS carries the topics between
+robot nodes (``create_robot_nodes``) on the very same topics. DDS carries the topics between
 machines; nothing else crosses. Sim time: one ``/clock`` subscription per shard sets every hosted
 node's clock (as the composed host does from the simulator node), instead of one per node.
 
@@ -29,9 +29,8 @@ from rclpy.executors import Executor
 from rclpy.node import Node
 from rclpy.time import Time as RosTime
 
-from composed_sim import plugins
 from composed_sim.hosts.controller_process import contract_endpoints
-from composed_sim.hosts.controllers import (HostError, check_executor, create_controller, make_executor, matched,
+from composed_sim.hosts.controllers import (HostError, check_executor, create_robot_nodes, load_classes, make_executor, matched,
                                              spin_until_shutdown)
 from composed_sim.hosts.robot_ranges import format_ranges
 from composed_sim.hosts.shard_announce import ShardAnnouncer, ShardInfo, world_fingerprint
@@ -58,7 +57,7 @@ class ShardHost:
         self.shard_id = f"{socket.gethostname()}:{os.getpid()}"
         self.context: Optional[Context] = None
         self.announcer: Optional[ShardAnnouncer] = None
-        self.controllers: list[Node] = []
+        self.robot_nodes: list[list[Node]] = []      # per hosted robot: its nodes
         self.executor: Optional[Executor] = None
         self._clocks: list[RosClock] = []
         self._clock_sub = None
@@ -69,8 +68,7 @@ class ShardHost:
             names = self.world.robot_names()
             groups = self.world.group_of_robot()
             robot_names = frozenset(names)
-            classes = {self.world.robots[groups[i]].controller: None for i in self.robots}
-            classes = {name: plugins.load(name) for name in classes}
+            classes = load_classes(self.world)
             self.context = Context()
             rclpy.init(context=self.context, domain_id=self.domain_id)
             node_name = "composed_sim_shard_" + re.sub(r"\W", "_", self.shard_id)
@@ -85,13 +83,14 @@ class ShardHost:
                 if self.should_stop():
                     break
                 group = groups[i]
-                node = create_controller(classes[self.world.robots[group].controller], names[i], self.world,
-                                         group, self.context, robots=robot_names, clock_from_stamps=True)
-                clock = node.get_clock()
-                clock._set_ros_time_is_active(True)    # as SimulatorNode.drive_clock_of
-                self._clocks.append(clock)
-                self.controllers.append(node)
-                self.executor.add_node(node)
+                nodes = create_robot_nodes(self.world, group, names[i], self.context, classes=classes,
+                                           robots=robot_names, clock_from_stamps=True).nodes
+                for node in nodes:
+                    clock = node.get_clock()
+                    clock._set_ros_time_is_active(True)    # as SimulatorNode.drive_clock_of
+                    self._clocks.append(clock)
+                    self.executor.add_node(node)
+                self.robot_nodes.append(nodes)
         except BaseException:
             self.__exit__(None, None, None)
             raise
@@ -109,8 +108,8 @@ class ShardHost:
         matched with a simulator's; then announce. False if a stop was requested first. Without
         this a tick-0 sensor or answer could go to a not yet matched endpoint and be lost."""
         names = self.world.robot_names()
-        endpoints = [(i, e) for i, node in zip(self.robots, self.controllers)
-                     for e in contract_endpoints(node, names[i])]
+        endpoints = [(i, e) for i, nodes in zip(self.robots, self.robot_nodes)
+                     for e in contract_endpoints(nodes, names[i])]
         deadline = time.monotonic() + timeout_s
         pause = 0.002
         while True:
@@ -132,7 +131,8 @@ class ShardHost:
         for i, e in endpoints:
             if e.topic_name != c.CLOCK_TOPIC:
                 topics.setdefault(i, set()).add(e.topic_name.rsplit("/", 1)[1])
-        gids = {i: cmd_vel_gids(node, names[i]) for i, node in zip(self.robots, self.controllers)}
+        gids = {i: [gid for node in nodes for gid in cmd_vel_gids(node, names[i])]
+                for i, nodes in zip(self.robots, self.robot_nodes)}
         self.announcer.announce(ShardInfo(self.shard_id, self.robots, world_fingerprint(self.world),
                                           {i: sorted(t) for i, t in topics.items()}, gids))
         return True
@@ -166,9 +166,9 @@ class ShardHost:
             self.executor.shutdown()
         if self._spin_thread is not None:
             self._spin_thread.join(timeout=5.0)
-        for node in self.controllers:
+        for node in (n for nodes in self.robot_nodes for n in nodes):
             node.destroy_node()
-        self.controllers = []
+        self.robot_nodes = []
         if self.announcer is not None:
             self.announcer.destroy()
             self.announcer = None

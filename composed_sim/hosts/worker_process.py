@@ -6,10 +6,12 @@
 
     main → worker   ("setup", WorkerSetup)         once, first
                     ("tap", [glob, …])             record these topics' messages (--record-topics)
-                    ("tick", SensorFrame)          the block's readings of one tick
+                    ("tick", SensorFrame, batch)   the block's readings of one tick, and the run-wide
+                                                   messages that open it (ros/run_wide.py)
                     ("clock", tick)                /clock alone, for the state after the last tick
                     ("stop",)                      end now
-    worker → main   ("ready", nodes)               discovery done: tick 0 can start
+    worker → main   ("ready", nodes, messages)     discovery done: tick 0 can start; what its nodes
+                                                   published on run-wide topics while being built
                     ("error", kind, message, field) the block could not be built
                     ("answers", TickAnswers)       the tick's commands, LEDs, payloads, violations
 
@@ -56,6 +58,7 @@ class TickAnswers:
     rab: dict = field(default_factory=dict)            # row in the block → [B] uint8
     violations: list = field(default_factory=list)     # new ones since the last tick: (tick, robot, reason)
     tapped: list = field(default_factory=list)         # (topic, type, bytes, stamp ns)
+    run_wide: list = field(default_factory=list)       # (topic, type, bytes) for the next tick's batch
     peak_rss_kb: int = 0                               # the worker's own peak resident memory so far
     another_simulator: Optional[str] = None            # NodesExchange.another_simulator, this tick
 
@@ -93,7 +96,7 @@ def main(argv: list[str] | None = None) -> int:
     except (plugins.PluginError, HostError) as e:
         conn.send(("error", type(e).__name__, str(e), getattr(e, "field", ())))
         return EXIT_SETUP
-    conn.send(("ready", groups.nodes))
+    conn.send(("ready", groups.nodes, groups.close_run_wide(0)))
 
     m = setup.stop - setup.start
     (node,), exchange = groups.simulator_nodes, groups.exchange    # one participant group, one simulator node
@@ -109,7 +112,8 @@ def main(argv: list[str] | None = None) -> int:
             except EOFError:       # the main process is gone
                 break
             if message[0] == "tick":
-                frame = message[1]
+                _, frame, batch = message
+                groups.open_tick(frame.tick, batch)
                 exchange.publish_tick(frame)
                 wait(lockstep.watchdog_s)
                 commands = (np.empty(m), np.empty(m))
@@ -121,6 +125,7 @@ def main(argv: list[str] | None = None) -> int:
                 seen = len(node.violations)
                 if tap is not None:
                     answers.tapped = tap.drain()
+                answers.run_wide = groups.close_run_wide(frame.tick + 1)
                 answers.peak_rss_kb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
                 answers.another_simulator = exchange.another_simulator()
                 conn.send(("answers", answers))

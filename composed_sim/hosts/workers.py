@@ -101,6 +101,9 @@ class WorkersExchange:
         self._lockstep = lockstep
         self._tick = 0
         self.tap = None
+        # The run-wide messages that open the next tick (ros/run_wide.py): the workers' parts in
+        # worker order, i.e. robot order, the run-wide nodes' (worker 0's) first.
+        self.run_wide: list[list] = [[] for _ in workers]
 
     @property
     def violations(self) -> list[Violation]:
@@ -109,11 +112,12 @@ class WorkersExchange:
 
     def publish_tick(self, frame: SensorFrame) -> None:
         self._tick = frame.tick
+        batch = [m for part in self.run_wide for m in part]
         for w in self.workers:
             w.answers = None
             if w.dead is None:
                 try:
-                    w.conn.send(("tick", frame.rows(w.start, w.stop)))
+                    w.conn.send(("tick", frame.rows(w.start, w.stop), batch))
                 except OSError:
                     self._lost(w)
 
@@ -152,6 +156,7 @@ class WorkersExchange:
                     continue
                 w.answers = answers
                 w.peak_rss_kb = answers.peak_rss_kb
+                self.run_wide[w.index] = answers.run_wide
                 self._violations[w.index].extend(Violation(*v) for v in answers.violations)
                 if self.tap is not None:
                     for topic, msgtype, data, stamp_ns in answers.tapped:
@@ -225,9 +230,10 @@ class WorkerHost(ControllersElsewhere):
             # The workers build their nodes while this process builds the physics.
             self.sim = Simulation(self.world)
             with InterruptWatch() as interrupts:
-                nodes = self._wait_ready(lambda: interrupts.requested)
+                nodes, run_wide = self._wait_ready(lambda: interrupts.requested)
             self._startup_interrupted = interrupts.requested
             self.exchange = WorkersExchange(self.workers, self.sim.names, self.world.lockstep)
+            self.exchange.run_wide = run_wide
         except BaseException:
             self.__exit__(None, None, None)
             raise
@@ -255,11 +261,13 @@ class WorkerHost(ControllersElsewhere):
         conn.send(("setup", WorkerSetup(self.world, start, stop, index, self.executor_kind, self.domain_id,
                                         prefix, str(self._tmp))))
 
-    def _wait_ready(self, interrupted: Callable[[], bool]) -> int:
-        """Every worker's nodes built and matched (how many nodes in all); a worker's set-up error is
-        raised here as the error it was (a plugin's names the world file's field)."""
+    def _wait_ready(self, interrupted: Callable[[], bool]) -> tuple[int, list[list]]:
+        """Every worker's nodes built and matched: how many nodes in all, and per worker what they
+        published on run-wide topics meanwhile; a worker's set-up error is raised here as the error
+        it was (a plugin's names the world file's field)."""
         from composed_sim import plugins
         ready: dict[int, int] = {}      # worker → its nodes
+        run_wide: dict[int, list] = {}  # worker → what its nodes published before tick 0
         deadline = time.monotonic() + STARTUP_TIMEOUT_S
         while len(ready) < len(self.workers) and not interrupted():
             waiting = {w.conn: w for w in self.workers if w.index not in ready}
@@ -279,8 +287,8 @@ class WorkerHost(ControllersElsewhere):
                     if kind == "PluginError":
                         raise plugins.PluginError(text, field)
                     raise HostError(text)
-                ready[w.index] = message[1]
-        return sum(ready.values())
+                _, ready[w.index], run_wide[w.index] = message
+        return sum(ready.values()), [run_wide.get(w.index, []) for w in self.workers]
 
     def workers_peak_rss_mb(self) -> list[float]:
         """Each worker's peak resident memory, as last reported with its answers."""

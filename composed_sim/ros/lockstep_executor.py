@@ -7,8 +7,10 @@ DDS participant a published message is ready to take at once. So this executor f
 subscriptions and timers of its nodes in a fixed order (nodes in the order they were added, each
 node's subscriptions in creation order, then the waitables that can be taken without a wait set
 (the simulator's cmd_vel subscriptions, ros/answer_subscription.py), then its timers), takes one
-ready message from each subscription, fires each timer that is due, and runs the callbacks; a callback's own publishes (a
-controller's answer) are picked up by the same walk. Only when a walk finds nothing does it fall
+ready message from each sensor subscription (a robot's sensors come once per tick) and every ready
+message from any other subscription (a robot's own topics between its nodes), fires each timer
+that is due, and runs the callbacks; a callback's own publishes (a controller's answer, a message
+to a later node of the robot) are picked up by the same walk. Only when a walk finds nothing does it fall
 back to the ordinary wait set, which also serves services, guard conditions and messages from
 other processes.
 
@@ -22,6 +24,16 @@ from typing import Optional
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.subscription import Subscription
+
+from composed_sim.ros import contract as c
+
+_SENSOR_NAMES = frozenset(t.name for t in c.SENSOR_TOPICS)
+
+
+def _once_per_tick(topic: str) -> bool:
+    """A robot's sensor topic (``/<robot>/<sensor>``): one message per tick."""
+    parts = topic.split("/")
+    return len(parts) == 3 and parts[2] in _SENSOR_NAMES
 
 
 _WAITABLE = object()     # marks a waitable with dispatch_ready() in the walk's entity list
@@ -68,12 +80,12 @@ class LockstepExecutor(SingleThreadedExecutor):
             message_only = Subscription.CallbackType.MessageOnly
             entities = self._entities = [
                 entity for node in self._ordered_nodes
-                for entity in [(s, s.handle, s.msg_type, s.raw, s._callback_type is message_only)
-                               for s in node.subscriptions]
-                + [(w, None, _WAITABLE, None, None) for w in node.waitables if hasattr(w, "dispatch_ready")]
-                + [(t, t.handle, None, None, None) for t in node.timers]]
+                for entity in [(s, s.handle, s.msg_type, s.raw, s._callback_type is message_only,
+                                _once_per_tick(s.topic_name)) for s in node.subscriptions]
+                + [(w, None, _WAITABLE, None, None, True) for w in node.waitables if hasattr(w, "dispatch_ready")]
+                + [(t, t.handle, None, None, None, True) for t in node.timers]]
         handled = 0
-        for entity, handle, msg_type, raw, message_only in entities:
+        for entity, handle, msg_type, raw, message_only, once in entities:
             if msg_type is _WAITABLE:
                 handled += entity.dispatch_ready()
                 continue
@@ -85,16 +97,19 @@ class LockstepExecutor(SingleThreadedExecutor):
                 entity.callback()
                 handled += 1
                 continue
-            # One message per subscription and walk: in a lockstep tick there is one, and
-            # looking for a second would cost an empty take per subscription. Any more are taken
-            # by the next walk, in the same order.
-            with handle:
-                taken = handle.take_message(msg_type, raw)
-            if taken is None:
-                continue
-            if message_only:
-                entity.callback(taken[0])
-            else:
-                entity.callback(*taken)
-            handled += 1
+            # One message per sensor subscription and walk: in a lockstep tick there is one, and
+            # looking for a second would cost an empty take per subscription (any more are taken
+            # by the next walk, in the same order). Every message queued on any other.
+            while True:
+                with handle:
+                    taken = handle.take_message(msg_type, raw)
+                if taken is None:
+                    break
+                if message_only:
+                    entity.callback(taken[0])
+                else:
+                    entity.callback(*taken)
+                handled += 1
+                if once:
+                    break
         return handled

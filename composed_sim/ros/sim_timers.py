@@ -54,14 +54,11 @@ class SimTimers:
 
     # --- set-up ------------------------------------------------------------------------------
 
-    def construct(self, cls: type[Node], **node_kwargs) -> Node:
-        """``cls(**node_kwargs)``, with its ``create_timer`` put on sim time before its
-        constructor runs (controllers create their timers there)."""
-        node = cls.__new__(cls)
+    def prepare(self, node: Node) -> None:
+        """Before ``node``'s constructor: its ``create_timer`` puts timers on sim time
+        (controllers create their timers there)."""
         self._node = node
         node.create_timer = self._create_timer
-        node.__init__(**node_kwargs)
-        return node
 
     def started(self, sensor_topics: Collection[str]) -> None:
         """The node is constructed; ``sensor_topics``: its robot's sensor topics (resolved names),
@@ -92,9 +89,19 @@ class SimTimers:
             self._watch()
         return timer
 
+    @property
+    def follows_sensors(self) -> bool:
+        """Does the node subscribe to its robot's sensors? Its timers then fire once its sensor
+        callbacks of the tick have run; the timers of a node without (a later node of a robot's
+        chain, a run-wide node) are moved to each tick's time by the host (``advance_to``)."""
+        return any(s.topic_name in self._sensor_topics for s in self._node.subscriptions)
+
+    def advance_to(self, now_ns: int) -> None:
+        """The tick at ``now_ns`` has begun: timers due by then may fire."""
+        self._advance(now_ns)
+
     def _watch(self) -> None:
-        """Count the node's sensor callbacks per tick. (A controller has at least one sensor
-        subscription: the hosts wait for one before tick 0.)"""
+        """Count the node's sensor callbacks per tick."""
         self._watching = True
         subs = [s for s in self._node.subscriptions if s.topic_name in self._sensor_topics]
         self._expected = len(subs)

@@ -219,7 +219,7 @@ def validate(data: Any, source: str, lines: dict[FieldPath, int]) -> World:
         raise WorldFileError(f"{source}: the world refers to itself too deeply "
                              f"(recursive YAML aliases?)") from None
     else:
-        return _with_floor_image(world, source, lines)
+        return _with_params_files(_with_floor_image(world, source, lines), source, lines)
     rows = sorted({(_line(lines, path), format_path(path), message, got)
                    for path, message, got in problems}, key=lambda r: (r[0] or 0, r[1], r[2]))
     texts = [f"{source}{f':{line}' if line else ''}: {path}{': ' if path else ''}{message}{got}"
@@ -235,8 +235,7 @@ def _with_floor_image(world: World, source: str, lines: dict[FieldPath, int]) ->
     image = world.floor.image
     if image is None:
         return world
-    base = os.path.dirname(os.path.abspath(source)) if os.path.isfile(source) else os.getcwd()
-    path = os.path.normpath(os.path.join(base, os.path.expanduser(image)))
+    path = _relative_to(source, image)
     where = f"{_where(source, lines, ('floor', 'image'))}: floor.image"
     if not os.path.isfile(path):
         raise WorldFileError(f"{where}: no such image file {path}{_got(image)}")
@@ -255,6 +254,65 @@ def _with_floor_image(world: World, source: str, lines: dict[FieldPath, int]) ->
     return world.model_copy(update={"floor": world.floor.model_copy(update={"image": path})})
 
 
+def _relative_to(source: str, path: str) -> str:
+    """``path`` as written in the world file ``source``: relative to the file's folder."""
+    base = os.path.dirname(os.path.abspath(source)) if os.path.isfile(source) else os.getcwd()
+    return os.path.normpath(os.path.join(base, os.path.expanduser(path)))
+
+
+def _with_params_files(world: World, source: str, lines: dict[FieldPath, int]) -> World:
+    """Make every node's params_file absolute (relative to the world file) and check that it is a
+    ROS 2 parameters file: a mapping of node names (or ``/**``) to ``ros__parameters``."""
+    data = None
+    places = [(("robots", gi, "nodes", ni), spec) for gi, group in enumerate(world.robots)
+              for ni, spec in enumerate(group.nodes)] + [(("nodes", ni), spec) for ni, spec in enumerate(world.nodes)]
+    for path, spec in places:
+        if spec.params_file is None:
+            continue
+        field = path + ("params_file",)
+        where = f"{_where(source, lines, field)}: {format_path(field)}"
+        resolved = _relative_to(source, spec.params_file)
+        problem = params_file_problem(resolved)
+        if problem is not None:
+            raise WorldFileError(f"{where}: {problem}{_got(spec.params_file)}")
+        data = data if data is not None else world.model_dump()
+        target = data
+        for key in path:
+            target = target[key]
+        target["params_file"] = resolved
+    return world if data is None else World.model_validate(data)
+
+
+def params_file_problem(path: str) -> Optional[str]:
+    """Why ``path`` is not a ROS 2 parameters file, or None."""
+    if not os.path.isfile(path):
+        return f"no such parameters file {path}"
+    try:
+        with open(path, encoding="utf-8") as f:
+            data = yaml.safe_load(f)
+    except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:
+        return f"cannot read {path} as YAML: {str(exc).splitlines()[0]}"
+    nodes = data if isinstance(data, dict) else {}
+    if not nodes or not all(isinstance(v, dict) and isinstance(v.get("ros__parameters"), dict)
+                            for v in _param_sections(nodes)):
+        return (f"{path} is not a ROS 2 parameters file: it must map node names (or /**) to "
+                f"`ros__parameters:` mappings")
+    return None
+
+
+def _param_sections(nodes: dict) -> list:
+    """The sections of a parameters file that carry ``ros__parameters``: a node name maps to them
+    directly, or a namespace maps to node names that do (``ns: {node: {ros__parameters: …}}``)."""
+    out = []
+    for value in nodes.values():
+        if isinstance(value, dict) and "ros__parameters" not in value and value \
+                and all(isinstance(v, dict) for v in value.values()):
+            out += _param_sections(value)
+        else:
+            out.append(value)
+    return out
+
+
 def _problems(err: dict) -> list[tuple[FieldPath, str, str]]:
     """(path the user wrote, message, " (got value)" or "") for one pydantic error."""
     ctx = err.get("ctx") or {}
@@ -262,7 +320,7 @@ def _problems(err: dict) -> list[tuple[FieldPath, str, str]]:
         out = []
         for sub, message, value in ctx["problems"]:
             path, _, _ = _resolve(tuple(err["loc"]) + tuple(sub))
-            out.append((path, message, _got(value)))
+            out.append((path, message, "" if value is ... else _got(value)))   # ...: no value to show
         return out
     path, owner, tp = _resolve(tuple(err["loc"]))
     kind, value = err["type"], err.get("input")

@@ -235,12 +235,64 @@ Devices = create_model("Devices", __base__=_Devices, __module__=__name__,
 ParamValue = Union[float, int, str, bool, list[float]]
 
 
+def _check_param_values(value: Any) -> Any:
+    """A parameters mapping: names are text, values numbers, strings, booleans or number lists.
+    Checked by hand rather than by the Union so that a bad value gets one message, not one per
+    member of the Union."""
+    if not isinstance(value, dict):
+        return value    # the dict validator reports it
+    problems = []
+    for key, item in value.items():
+        scalar = isinstance(item, (bool, int, float, str))
+        number_list = isinstance(item, list) and all(
+            isinstance(x, (int, float)) and not isinstance(x, bool) for x in item)
+        numbers = item if number_list else [item] if isinstance(item, float) else []
+        if not isinstance(key, str):
+            problems.append(((key,), "parameter names must be text", key))
+        elif not (scalar or number_list):
+            problems.append(((key,), "must be a number, a string, true/false or a list "
+                             "of numbers", item))
+        elif not all(_finite(x) for x in numbers):
+            problems.append(((key,), "must be finite", item))
+    if problems:
+        raise _invalid(problems)
+    return value
+
+
+class NodeSpec(Strict):
+    """One hosted ROS node as its package ships it: the class (an entry-point name of the group
+    ``composed_sim.controllers``, or ``module:Class``), the parameters it is given (over those of
+    its parameters file), a ROS 2 parameters file (``/**: ros__parameters: …``, relative to the
+    world file) and topic remappings (from → to, as ``--ros-args -r from:=to``)."""
+    node: Annotated[str, Field(min_length=1)]
+    parameters: dict[str, ParamValue] = {}
+    params_file: Optional[str] = None
+    remappings: dict[str, str] = {}
+
+    @field_validator("parameters", mode="before")
+    @classmethod
+    def _parameter_values(cls, value: Any) -> Any:
+        return _check_param_values(value)
+
+    @field_validator("remappings")
+    @classmethod
+    def _names(cls, value: dict[str, str]) -> dict[str, str]:
+        problems = [((source,), "a remapping is a topic name to another (from: to)", target)
+                    for source, target in value.items() if not source or not target]
+        if problems:
+            raise _invalid(problems)
+        return value
+
+
 class RobotGroup(Strict):
     model: str = "foot-bot"                          # a key of world.robot_models.MODELS
     count: Annotated[int, Field(ge=0)]
     name_prefix: str = "bot"
-    controller: Annotated[str, Field(min_length=1)]  # entry-point name in composed_sim.controllers
+    # Each robot runs ``nodes`` (its ROS software: one node or several, docs/contract.md); the
+    # one-node shorthand is ``controller`` (an entry-point name or module:Class) with ``params``.
+    controller: Optional[Annotated[str, Field(min_length=1)]] = None
     params: dict[str, ParamValue] = {}
+    nodes: list[NodeSpec] = []
     placement: Placement = Placement()
     heading: Heading = Heading()
     camera: CameraConfig = CameraConfig()
@@ -252,6 +304,16 @@ class RobotGroup(Strict):
     # A controller that decides on a timer slower than the tick answers every k-th tick (ticks
     # 0, k, 2k …); in between its robot keeps its last command, and that is no violation.
     answers_every_ticks: Annotated[int, Field(ge=1)] = 1
+
+    @property
+    def node_specs(self) -> list[NodeSpec]:
+        """The nodes each robot of the group runs, in the order the host builds and walks them."""
+        return self.nodes if self.controller is None else [NodeSpec(node=self.controller, parameters=self.params)]
+
+    @property
+    def label(self) -> str:
+        """The group's software in one phrase, for messages: its controller, or its nodes."""
+        return self.controller or "+".join(spec.node for spec in self.nodes)
 
     @field_validator("model")
     @classmethod
@@ -272,26 +334,20 @@ class RobotGroup(Strict):
     @field_validator("params", mode="before")
     @classmethod
     def _param_values(cls, value: Any) -> Any:
-        # Checked here rather than by the Union so that a bad value gets one message, not
-        # one per member of the Union.
-        if not isinstance(value, dict):
-            return value    # the dict validator reports it
-        problems = []
-        for key, item in value.items():
-            scalar = isinstance(item, (bool, int, float, str))
-            number_list = isinstance(item, list) and all(
-                isinstance(x, (int, float)) and not isinstance(x, bool) for x in item)
-            numbers = item if number_list else [item] if isinstance(item, float) else []
-            if not isinstance(key, str):
-                problems.append(((key,), "parameter names must be text", key))
-            elif not (scalar or number_list):
-                problems.append(((key,), "must be a number, a string, true/false or a list "
-                                 "of numbers", item))
-            elif not all(_finite(x) for x in numbers):
-                problems.append(((key,), "must be finite", item))
-        if problems:
-            raise _invalid(problems)
-        return value
+        return _check_param_values(value)
+
+    @model_validator(mode="after")
+    def _one_way_to_name_the_nodes(self) -> RobotGroup:
+        if self.controller is None and not self.nodes:
+            raise _invalid([(("controller",), "is required: the robots' software, `controller: NAME` "
+                             "(one node) or `nodes: [{node: NAME}, …]`", ...)])
+        if self.controller is not None and self.nodes:
+            raise _invalid([(("nodes",), "give either `controller` (one node) or `nodes`, not both",
+                             [spec.node for spec in self.nodes])])
+        if self.params and self.controller is None:
+            raise _invalid([(("params",), "`params` belong to `controller`; with `nodes`, give each "
+                             "node its `parameters`", self.params)])
+        return self
 
     @model_validator(mode="after")
     def _explicit_count(self) -> RobotGroup:
@@ -391,6 +447,9 @@ class World(Strict):
     lights: list[Light] = []
     obstacles: list[Obstacle] = []
     robots: list[RobotGroup]
+    # Run-wide nodes, hosted once outside every robot's namespace (a mission control, a logger):
+    # they talk to the robots on run-wide topics (docs/contract.md).
+    nodes: list[NodeSpec] = []
     loop_functions: Optional[LoopFunctionsRef] = None
 
     @model_validator(mode="after")
@@ -410,9 +469,26 @@ class World(Strict):
                 problems.append((("robots", gi, "name_prefix"), f"robot name {name} is also made "
                                  f"by robots[{first}]", self.robots[gi].name_prefix))
                 break
+        problems += self._remapping_problems()
         if problems:
             raise _invalid(problems)
         return self
+
+    def _remapping_problems(self) -> list[tuple[tuple, str, Any]]:
+        """A robot's node remaps within its own namespace only: an absolute name in a robot's
+        namespace would be the same robot's topic for every robot of the group."""
+        names = set(self.robot_names())
+        problems = []
+        for gi, group in enumerate(self.robots):
+            for ni, spec in enumerate(group.nodes):
+                for source, target in spec.remappings.items():
+                    owner = target.split("/")[1] if target.startswith("/") and target.count("/") >= 2 else None
+                    if owner in names:
+                        problems.append((("robots", gi, "nodes", ni, "remappings", source),
+                                         f"{target} is in robot {owner}'s namespace: a robot's node remaps onto "
+                                         f"its own topics only (a relative name, e.g. {target.split('/', 2)[2]}, "
+                                         f"resolves in each robot's namespace)", target))
+        return problems
 
     @property
     def robot_count(self) -> int:

@@ -79,10 +79,35 @@ class TwistTimer(_OnTimer):
 
 
 class NoOptions(Node):
-    """Forgets to take the host's node options."""
+    """Written as the ROS 2 tutorials write a node: no node options taken, relative topic names."""
 
     def __init__(self):
         super().__init__("no_options")
+        self.cmd = self.create_publisher(Twist, "cmd_vel", 10)
+        self.create_subscription(LaserScan, "proximity", self.on_scan, 10)
+
+    def on_scan(self, scan: LaserScan) -> None:
+        out = Twist()
+        out.linear.x, out.angular.z = steer(scan)
+        self.cmd.publish(out)
+
+
+class WrongSensor(Node):
+    """Subscribes to a sensor its robot does not have."""
+
+    def __init__(self):
+        super().__init__("wrong_sensor")
+        self.create_publisher(Twist, "cmd_vel", 10)
+        self.create_subscription(LaserScan, "proximity", lambda scan: None, 10)
+
+
+class NoAnswer(Node):
+    """Publishes its commands on a topic other than its robot's cmd_vel."""
+
+    def __init__(self):
+        super().__init__("no_answer")
+        self.create_publisher(Twist, "cmd_vel_out", 10)
+        self.create_subscription(LaserScan, "proximity", lambda scan: None, 10)
 
 
 class StringCommands(Node):

@@ -2,6 +2,7 @@
 Twist, timer-driven decisions on sim time, sensor-data QoS; mixed in one world, in every executor
 and in both host modes."""
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -21,7 +22,8 @@ sys.path.insert(0, str(ROOT / "tests"))
 from conftest import install_plugin  # noqa: E402
 
 STYLES = {"twist-on-scan": "TwistOnScan", "stamped-timer": "StampedTimer", "twist-timer": "TwistTimer",
-          "no-options": "NoOptions", "string-commands": "StringCommands"}
+          "no-options": "NoOptions", "string-commands": "StringCommands", "wrong-sensor": "WrongSensor",
+          "no-answer": "NoAnswer"}
 
 
 @pytest.fixture
@@ -111,16 +113,45 @@ def test_timer_faster_than_the_tick_fires_once_per_tick_and_odd_periods_are_warn
     assert "has a timer of 0.15 s, neither a multiple nor a divisor of the world's tick (0.1 s)" in capfd.readouterr().err
 
 
+def one_group_model(fields):
+    """A robot group's fields validated as the world file's (devices as settings objects)."""
+    from composed_sim.world.schema import RobotGroup
+    group = RobotGroup.model_validate({"controller": "x", "count": 1, **fields})
+    return {k: getattr(group, k) for k in fields}
+
+
 def one_group(controller, **group):
     world = load_world(FLOCKING, robots=2, ticks=3)
     return world.model_copy(update={"robots": [world.robots[0].model_copy(
         update={"controller": controller, "params": {}, **group})]})
 
 
-def test_a_node_without_node_options_is_told_to_take_kwargs(styles, domain_id):
-    with pytest.raises(plugins.PluginError, match=r"robots\[0\]\.controller: .*ros_styles\.NoOptions\.__init__ "
-                                                  r"takes no \*\*kwargs: accept them and pass them on"):
-        composed(one_group("no-options"), domain_id)
+def test_a_tutorial_node_without_node_options_is_hosted_in_every_mode(styles, domain_id, mp_domain):
+    # __init__(self) with super().__init__('no_options'): the host hands Node.__init__ the robot's
+    # namespace and context, so it answers on /botN/cmd_vel like a node taking **kwargs.
+    world = one_group("no-options")
+    reference = composed(world, domain_id)
+    assert reference.violations == []
+    assert (np.abs(np.diff(reference.trajectories.positions, axis=0)) > 0).any()
+    for host in (MultiProcessHost(world, domain_id=mp_domain), WorkerHost(world, workers=2, domain_id=domain_id)):
+        with host:
+            result = host.run()
+        assert result.violations == [], (type(host).__name__, result.violations[:3])
+        np.testing.assert_array_equal(result.trajectories.positions, reference.trajectories.positions)
+
+
+def test_a_wrong_topic_fails_at_once_naming_what_the_robot_has(styles, domain_id):
+    turtlebots = {"model": "turtlebot3-burger", "devices": {"lidar": {"enabled": True}}}
+    started = time.monotonic()
+    with pytest.raises(plugins.PluginError, match=r"robots\[0\]\.controller: controller plugin 'wrong-sensor' for "
+                                                  r"bot0: node /bot0/wrong_sensor subscribes to /bot0/proximity, which "
+                                                  r"bot0 does not have \(its sensor topics: /bot0/scan\); did you mean scan\?"):
+        composed(one_group("wrong-sensor", **one_group_model(turtlebots)), domain_id)
+    with pytest.raises(plugins.PluginError, match=r"none of bot0's nodes publishes /bot0/cmd_vel, the robot's answer "
+                                                  r"to each tick \(they publish: .*/bot0/cmd_vel_out.*\); remap "
+                                                  r"/bot0/cmd_vel_out to cmd_vel\?"):
+        composed(one_group("no-answer"), domain_id)
+    assert time.monotonic() - started < 30      # not the 60 s discovery timeout
 
 
 def test_wrong_cmd_vel_types_are_one_error_naming_robot_topic_and_types(styles, domain_id, mp_domain):
