@@ -99,8 +99,6 @@ class ParticipantGroups:
         self.guard = CallbackGuard(lockstep.watchdog_s, lockstep.unresponsive_s)
         names, groups = world.robot_names(), world.group_of_robot()
         robots = frozenset(names)
-        if self.first_group == 0 and world.nodes:
-            self._build_run_wide(classes)
         for k, first in enumerate(range(self.start, self.stop, self.robots_per_participant)):
             block = range(first, min(self.stop, first + self.robots_per_participant))
             context = Context()
@@ -108,6 +106,8 @@ class ParticipantGroups:
             refuse_shutdown_from_callbacks(context, self.guard)
             self.contexts.append(context)
             group = self.first_group + k
+            if group == 0 and world.nodes:
+                self._build_run_wide(classes, context)
             # The nodes first: the simulator node subscribes to each robot's cmd_vel with the
             # type its nodes publish (one participant allows one type per topic).
             first_robot = len(self.robot_nodes)
@@ -151,12 +151,10 @@ class ParticipantGroups:
         for sim_node in self.simulator_nodes:
             sim_node.note_controllers(gids)
 
-    def _build_run_wide(self, classes) -> None:
-        """The world's run-wide nodes: a participant of their own, driven by the host at the start
-        of each tick with an executor of their own (the lockstep one, whatever the robots')."""
-        context = Context()
-        rclpy.init(context=context, domain_id=self.domain_id)
-        self.contexts.append(context)
+    def _build_run_wide(self, classes, context: Context) -> None:
+        """The world's run-wide nodes, in the participant of robot 0's group (a worker has one
+        participant), driven by the host at the start of each tick with an executor of their own
+        (the lockstep one, whatever the robots')."""
         self.run_wide = create_run_wide_nodes(self.world, context, classes=classes, relay=self.relay)
         self._run_wide_executor = LockstepExecutor(context=context)
         for node in self.run_wide.nodes:

@@ -1,0 +1,73 @@
+"""A robot's ROS software as its authors wrote it (tests/user_pkg/swarm_vote): tutorial-style
+``__init__(self)`` nodes, three per robot wired by remappings, a ROS 2 parameters file, a run-wide
+node that starts the swarm on /swarm_command, and an opinion every robot broadcasts on /opinions
+each tick. A robot drives only while it heard every robot's opinion of the tick before, so one
+message cut or delayed anywhere stops a robot and shows in its trajectory."""
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from composed_sim.hosts.composed import ComposedHost
+from composed_sim.hosts.workers import WorkerHost
+from composed_sim.world.loader import load_world
+
+ROOT = Path(__file__).resolve().parents[2]
+PACKAGE = ROOT / "tests" / "user_pkg" / "swarm_vote"
+WORLD = ROOT / "tests" / "user_pkg" / "swarm_vote_world.yaml"
+START_TICK = 5              # the world's mission control sends "start" at 0.5 s
+MAX_STEP_M = 0.08 * 0.1     # the parameters file's max_speed (the safety node's cap) over one tick
+
+
+@pytest.fixture
+def swarm_vote(monkeypatch):
+    """The package importable here and in the hosts' child processes, as an installed one is."""
+    monkeypatch.syspath_prepend(str(PACKAGE))
+    monkeypatch.setenv("PYTHONPATH", str(PACKAGE))
+    yield
+    for name in [m for m in sys.modules if m.split(".")[0] == "swarm_vote"]:
+        del sys.modules[name]
+
+
+def steps(result) -> np.ndarray:
+    """[ticks, robots] distance each robot moved in each tick."""
+    return np.linalg.norm(np.diff(result.trajectories.positions, axis=0), axis=2)
+
+
+def test_the_package_runs_unchanged_and_every_robot_hears_every_message(swarm_vote, domain_id):
+    world = load_world(WORLD)
+    with ComposedHost(world, domain_id=domain_id) as host:
+        reference = host.run()
+        assert [type(n).__name__ for n in host.groups.robot_nodes[0]] == ["SensorLayer", "Behaviour", "Safety"]
+        assert [n.get_fully_qualified_name() for n in host.groups.robot_nodes[3]] == \
+            ["/bot3/sensor_layer", "/bot3/behaviour", "/bot3/safety"]
+    assert reference.violations == []
+    moved = steps(reference)
+    assert (moved[:START_TICK] == 0).all()          # no robot moves before the start command …
+    assert (moved[START_TICK:] > 1e-4).all()        # … all from its tick on, every tick (a stopped one: 0)
+    assert moved.max() <= MAX_STEP_M + 1e-6         # behaviour's 0.1 m/s capped by the params file's 0.08
+
+
+@pytest.mark.parametrize("executor", ["single-threaded", "events"])
+def test_a_stock_executor_gives_the_same_run(swarm_vote, domain_id, executor):
+    world = load_world(WORLD, ticks=12)
+    runs = []
+    for kind in ("lockstep", executor):
+        with ComposedHost(world, executor=kind, domain_id=domain_id) as host:
+            runs.append(host.run())
+    assert runs[1].violations == []
+    np.testing.assert_array_equal(runs[1].trajectories.positions, runs[0].trajectories.positions)
+
+
+def test_every_worker_layout_gives_the_same_run(swarm_vote, domain_id):
+    world = load_world(WORLD, ticks=15)
+    with ComposedHost(world, domain_id=domain_id) as host:
+        reference = host.run()
+    for workers in (2, 3):
+        with WorkerHost(world, workers=workers, domain_id=domain_id) as host:
+            result = host.run()
+        assert result.violations == [], (workers, result.violations[:3])
+        np.testing.assert_array_equal(result.trajectories.positions, reference.trajectories.positions,
+                                      err_msg=f"{workers} workers")
+    assert (steps(reference)[START_TICK:] > 1e-4).all()
