@@ -219,7 +219,7 @@ def validate(data: Any, source: str, lines: dict[FieldPath, int]) -> World:
         raise WorldFileError(f"{source}: the world refers to itself too deeply "
                              f"(recursive YAML aliases?)") from None
     else:
-        return _with_floor_image(world, source, lines)
+        return _with_interfaces(_with_floor_image(world, source, lines), source, lines)
     rows = sorted({(_line(lines, path), format_path(path), message, got)
                    for path, message, got in problems}, key=lambda r: (r[0] or 0, r[1], r[2]))
     texts = [f"{source}{f':{line}' if line else ''}: {path}{': ' if path else ''}{message}{got}"
@@ -253,6 +253,24 @@ def _with_floor_image(world: World, source: str, lines: dict[FieldPath, int]) ->
         raise WorldFileError(f"{where}: cannot read {path} as a grey or RGB(A) image: {problem}"
                              f"{_got(image)}")
     return world.model_copy(update={"floor": world.floor.model_copy(update={"image": path})})
+
+
+def _with_interfaces(world: World, source: str, lines: dict[FieldPath, int]) -> World:
+    """Make each interfaces entry absolute (relative to the world file) and check it is an
+    interface package folder; building it is the host's (composed_sim.interfaces.activate)."""
+    if not world.interfaces:
+        return world
+    from composed_sim.interfaces.package import InterfaceError, read_package
+    base = os.path.dirname(os.path.abspath(source)) if os.path.isfile(source) else os.getcwd()
+    paths = []
+    for i, entry in enumerate(world.interfaces):
+        path = os.path.normpath(os.path.join(base, os.path.expanduser(entry)))
+        try:
+            read_package(path)
+        except InterfaceError as e:
+            raise WorldFileError(f"{_where(source, lines, ('interfaces', i))}: interfaces[{i}]: {e}{_got(entry)}") from None
+        paths.append(path)
+    return world.model_copy(update={"interfaces": paths})
 
 
 def _problems(err: dict) -> list[tuple[FieldPath, str, str]]:
