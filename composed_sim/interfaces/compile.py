@@ -32,7 +32,7 @@ LIBRARIES = (
     ("rosidl_typesupport_fastrtps_c", "cxx", ("rosidl_typesupport_fastrtps_c", "*.cpp"),
      ("rosidl_generator_c",), ("rosidl_typesupport_fastrtps_c", "rosidl_generator_c"),
      ("rosidl_typesupport_fastrtps_c", "fastcdr", "rmw", "rosidl_runtime_c", "rcutils")),
-    ("rosidl_typesupport_c", "cxx", ("rosidl_typesupport_c", "*.cpp"), ("rosidl_generator_c",), (),
+    ("rosidl_typesupport_c", "cxx", ("rosidl_typesupport_c", "*.cpp"), ("rosidl_generator_c",), ("rosidl_typesupport_c",),
      ("rosidl_typesupport_c", "rcpputils", "rosidl_runtime_c", "rcutils")),
     ("rosidl_generator_py", "cc", ("py", "_*_s.c"), ("rosidl_generator_c", "rosidl_typesupport_c"),
      ("rosidl_generator_py", "rosidl_generator_c"), ("rosidl_runtime_c", "rcutils")),

@@ -38,7 +38,7 @@ RUNTIME_LIBRARIES = {
     "fastcdr": "ros-jazzy-rmw-fastrtps-cpp",
 }
 # Bump when the build's output changes: it is part of every cache key.
-BUILDER_VERSION = "1"
+BUILDER_VERSION = "2"
 
 _WHAT_TO_DO = "reinstall composed_sim's dependencies (pip install -e . in its checkout) or pip install {wheel}"
 
