@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from composed_sim.interfaces import InterfaceError, activate, build_package
-from composed_sim.interfaces.toolchain import find_toolchain
+from composed_sim.interfaces import toolchain
 
 PACKAGE = "cs_test_msgs"     # a name no installed package has
 
@@ -209,14 +209,25 @@ def test_a_folder_without_package_xml_is_named(tmp_path):
         build_package(tmp_path, cache=tmp_path / "cache")
 
 
-def test_a_missing_compiler_is_named_with_what_to_do(tmp_path, monkeypatch):
+def test_a_missing_compiler_is_named_with_what_to_do(tmp_path, monkeypatch, built, cache):
     monkeypatch.setenv("CC", "no-such-cc")
-    find_toolchain.cache_clear()
+    text = _error(tmp_path, {"msg/Vote.msg": "int32 robot\n"})
+    assert "no C compiler was found ($CC=no-such-cc not on PATH)" in text and "apt-get install gcc g++" in text
+    assert build_package(built.source, cache=cache).cached     # a cached build needs no compiler
+
+
+def test_a_missing_wheel_is_named_with_what_to_do(tmp_path, monkeypatch):
+    real = toolchain.importlib.util.find_spec
+    monkeypatch.setattr(toolchain.importlib.util, "find_spec",
+                        lambda name, *a: None if name == "rosidl_generator_py" else real(name, *a))
+    toolchain.find_toolchain.cache_clear()
     try:
         text = _error(tmp_path, {"msg/Vote.msg": "int32 robot\n"})
     finally:
-        find_toolchain.cache_clear()
-    assert "no C compiler was found ($CC=no-such-cc not on PATH)" in text and "apt-get install gcc g++" in text
+        toolchain.find_toolchain.cache_clear()
+    assert text == ("building interface packages needs the Python module rosidl_generator_py (wheel "
+                    "ros-rosidl-generator-py), which is not installed: reinstall composed_sim's dependencies "
+                    "(pip install -e . in its checkout) or pip install ros-rosidl-generator-py")
 
 
 def test_the_world_file_names_packages_relative_to_itself(tmp_path, built):

@@ -31,7 +31,7 @@ from composed_sim.interfaces.compile import compile_package
 from composed_sim.interfaces.errors import InterfaceError
 from composed_sim.interfaces.generate import dependencies, generate_sources, translate
 from composed_sim.interfaces.package import read_package
-from composed_sim.interfaces.toolchain import find_toolchain
+from composed_sim.interfaces.toolchain import find_compilers, find_toolchain
 
 MARKER = "build.json"
 
@@ -79,6 +79,7 @@ def build_package(path: str | os.PathLike, *, after: Iterable[BuiltPackage] = ()
     final = root / f"{pkg.name}-{key}"
     if (final / MARKER).is_file():
         return BuiltPackage(pkg.name, final, True, time.perf_counter() - start, pkg.root)
+    compilers = find_compilers()
     root.mkdir(parents=True, exist_ok=True)
     work = Path(tempfile.mkdtemp(prefix=f".{final.name}.", dir=root))
     try:
@@ -89,7 +90,7 @@ def build_package(path: str | os.PathLike, *, after: Iterable[BuiltPackage] = ()
         deps = dependencies(pkg, out / "share" / pkg.name, idls, share_dirs)
         generate_sources(pkg, out / "share" / pkg.name, idls, share_dirs, generated)
         _install_python_and_headers(pkg.name, pkg.root, generated, out)
-        compile_package(pkg.name, generated, out, deps, [p.prefix for p in after], tools)
+        compile_package(pkg.name, generated, out, deps, [p.prefix for p in after], tools, compilers)
         _install_share(pkg, out)
         seconds = time.perf_counter() - start
         (out / MARKER).write_text(json.dumps({"name": pkg.name, "source": str(pkg.root), "seconds": round(seconds, 3),

@@ -20,7 +20,7 @@ import sysconfig
 from pathlib import Path
 
 from composed_sim.interfaces.errors import InterfaceError
-from composed_sim.interfaces.toolchain import Toolchain
+from composed_sim.interfaces.toolchain import Compilers, Toolchain
 
 # (library, compiler, sources under the generated folder, what it links of its own package,
 # what it links of each dependency, what of the ROS tree), in link order.
@@ -42,7 +42,7 @@ _FLAGS = ("-shared", "-fPIC", "-O2", "-w")    # -w: generated code; its warnings
 
 
 def compile_package(name: str, generated: Path, out: Path, deps: list[str], dep_prefixes: list[Path],
-                    tools: Toolchain) -> None:
+                    tools: Toolchain, compilers: Compilers) -> None:
     """Compile the sources generated under ``generated`` into ``out/lib`` and ``out/python/<name>``.
     ``deps``: the interface packages it uses; ``dep_prefixes``: built packages' folders (their
     ``include``, ``lib``) that some of those come from, besides the ROS tree."""
@@ -52,7 +52,7 @@ def compile_package(name: str, generated: Path, out: Path, deps: list[str], dep_
                                                              "rosidl_typesupport_fastrtps_c"))]
     for prefix in dep_prefixes:
         includes += [prefix / "include", *sorted((prefix / "include").iterdir())]
-    includes += [*tools.include_dirs(), tools.python_include, tools.numpy_include]
+    includes += [*tools.include_dirs(), compilers.python_include, compilers.numpy_include]
     lib_dirs = [lib, *(p / "lib" for p in dep_prefixes), tools.lib]
     search = [f"-I{d}" for d in includes] + [f"-L{d}" for d in lib_dirs]
     run_path = ["-Wl,-rpath,$ORIGIN", *(f"-Wl,-rpath,{d}" for d in lib_dirs[1:])]
@@ -61,7 +61,7 @@ def compile_package(name: str, generated: Path, out: Path, deps: list[str], dep_
         sources = sorted((generated / folder).rglob(pattern))
         target = lib / f"lib{name}__{library}.so"
         links = [f"{name}__{x}" for x in own] + [f"{d}__{x}" for d in deps for x in per_dep] + list(ros)
-        _run([tools.cc if compiler == "cc" else tools.cxx, *_FLAGS, f"-Wl,-soname,{target.name}", *search,
+        _run([compilers.cc if compiler == "cc" else compilers.cxx, *_FLAGS, f"-Wl,-soname,{target.name}", *search,
               *run_path, "-o", str(target), *map(str, sources), *(f"-l{x}" for x in links)], name, library)
 
     suffix = sysconfig.get_config_var("EXT_SUFFIX")
@@ -69,7 +69,7 @@ def compile_package(name: str, generated: Path, out: Path, deps: list[str], dep_
     for ts in EXTENSION_TYPESUPPORTS:
         source = generated / "py" / name / f"_{name}_s.ep.{ts}.c"
         links = [f"{name}__rosidl_generator_py", f"{name}__{ts}", f"{name}__rosidl_generator_c", "rosidl_runtime_c"]
-        _run([tools.cc, *_FLAGS, *search, "-Wl,-rpath,$ORIGIN/../../lib", *run_path[1:],
+        _run([compilers.cc, *_FLAGS, *search, "-Wl,-rpath,$ORIGIN/../../lib", *run_path[1:],
               "-o", str(package_dir / f"{name}_s__{ts}{suffix}"), str(source), *(f"-l{x}" for x in links)],
              name, f"{ts} extension module")
 

@@ -1,7 +1,7 @@
 """What a build needs from outside the package, found and checked before anything runs: the ROS
 tree that the ``ros-*`` wheels install into the environment's prefix (``lib/``, ``include/``,
-``share/``), the rosidl generators (Python modules of those wheels), the C and C++ compilers,
-and the Python and numpy headers."""
+``share/``) and the rosidl generators (Python modules of those wheels); for a build that is not
+cached, the C and C++ compilers and the Python and numpy headers."""
 from __future__ import annotations
 
 import functools
@@ -46,10 +46,6 @@ _WHAT_TO_DO = "reinstall composed_sim's dependencies (pip install -e . in its ch
 @dataclass(frozen=True)
 class Toolchain:
     prefix: Path              # the ROS tree: <prefix>/lib, include, share
-    cc: str
-    cxx: str
-    python_include: Path
-    numpy_include: Path
 
     @property
     def share(self) -> Path:
@@ -67,15 +63,24 @@ class Toolchain:
 
     def fingerprint(self) -> str:
         """What else a build's output depends on: the generators' versions, the ROS tree (its
-        path is in the libraries' run paths), the Python and the compilers."""
-        parts = [BUILDER_VERSION, str(self.prefix), sys.version, self.cc, self.cxx]
+        path is in the libraries' run paths) and the Python. Not the compilers: a cached build
+        is found on a machine that has none."""
+        parts = [BUILDER_VERSION, str(self.prefix), sys.version]
         parts += [f"{w}={_version(w)}" for w in sorted(set(GENERATOR_WHEELS.values()))]
         return hashlib.sha256("\n".join(parts).encode()).hexdigest()
 
 
+@dataclass(frozen=True)
+class Compilers:
+    cc: str
+    cxx: str
+    python_include: Path
+    numpy_include: Path
+
+
 @functools.lru_cache(maxsize=1)
 def find_toolchain() -> Toolchain:
-    """The toolchain of this environment, or InterfaceError naming the missing wheel or tool."""
+    """The rosidl toolchain of this environment, or InterfaceError naming the missing wheel."""
     for module, wheel in GENERATOR_WHEELS.items():
         if importlib.util.find_spec(module) is None:
             raise InterfaceError(f"building interface packages needs the Python module {module} "
@@ -91,6 +96,12 @@ def find_toolchain() -> Toolchain:
             wheel = GENERATOR_WHEELS[generator]
             raise InterfaceError(f"building interface packages needs the templates in {prefix}/share/{generator} "
                                  f"(wheel {wheel}), which are missing: " + _WHAT_TO_DO.format(wheel=wheel))
+    return Toolchain(prefix=prefix)
+
+
+def find_compilers() -> Compilers:
+    """The C and C++ compilers and the headers the generated code includes, or InterfaceError
+    naming what is missing and how to get it (pip cannot)."""
     cc = _compiler("CC", ("cc", "gcc", "clang"), "C")
     cxx = _compiler("CXX", ("c++", "g++", "clang++"), "C++")
     python_include = Path(sysconfig.get_paths()["include"])
@@ -98,8 +109,7 @@ def find_toolchain() -> Toolchain:
         raise InterfaceError(f"building interface packages needs the Python headers ({python_include}/Python.h "
                              f"is missing): install them (Debian: apt-get install python3.11-dev)")
     import numpy    # the generated Python support code converts arrays with numpy's C API
-    return Toolchain(prefix=prefix, cc=cc, cxx=cxx, python_include=python_include,
-                     numpy_include=Path(numpy.get_include()))
+    return Compilers(cc=cc, cxx=cxx, python_include=python_include, numpy_include=Path(numpy.get_include()))
 
 
 def _compiler(variable: str, names: tuple[str, ...], language: str) -> str:
