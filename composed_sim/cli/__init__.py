@@ -1,6 +1,6 @@
 """The ``composed-sim`` command: its arguments, and the dispatch to each subcommand's module
 (``run``: a run and its outputs; ``report``: what a run prints; ``distributed``: ``host``;
-``files``: worlds, plugins, results and recordings)."""
+``files``: worlds, plugins, results and recordings; ``interfaces``: interface packages)."""
 from __future__ import annotations
 
 import argparse
@@ -10,6 +10,7 @@ from pathlib import Path
 from composed_sim.command_line import EXIT_USAGE, UserError, number_arg
 from composed_sim.cli.distributed import cmd_host
 from composed_sim.cli.files import cmd_export, cmd_plugins, cmd_render, cmd_replay, cmd_worlds
+from composed_sim.cli.interfaces import cmd_interfaces
 from composed_sim.cli.report import keep_stdout_for_json
 from composed_sim.cli.run import cmd_run
 
@@ -130,6 +131,16 @@ def build_parser() -> argparse.ArgumentParser:
 
     sub.add_parser("worlds", help="list the shipped world files")
 
+    interfaces = sub.add_parser("interfaces", help="build ROS 2 interface packages (.msg, .srv) into Python messages",
+                                description="Build a user's interface packages with the pip-installed rosidl "
+                                            "toolchain, cached by content (docs/interfaces.md).")
+    interfaces_sub = interfaces.add_subparsers(dest="interfaces_command", required=True, metavar="ACTION")
+    interfaces_build = interfaces_sub.add_parser("build", help="build (or find built) interface packages",
+                                                 description="Build each package folder (package.xml, msg/, srv/) "
+                                                             "in order, a package may use those before it; print "
+                                                             "where each is, how long it took, whether it was cached.")
+    interfaces_build.add_argument("packages", type=Path, nargs="+", metavar="DIR", help="an interface package folder")
+
     bench = sub.add_parser("bench", help="benchmark swarm sizes, modes and executors against the paper",
                            description="Sweep swarm sizes, host modes and executors; measure setup, "
                                        "wall time, CPU and peak memory of each run's process tree; write "
@@ -188,6 +199,8 @@ def main(argv: list[str] | None = None) -> int:
             return cmd_worlds()
         if args.command == "host":
             return cmd_host(args)
+        if args.command == "interfaces":
+            return cmd_interfaces(args)
         if args.json and args.exit_when_done:
             keep_stdout_for_json()
         return cmd_run(args)

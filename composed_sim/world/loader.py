@@ -219,7 +219,9 @@ def validate(data: Any, source: str, lines: dict[FieldPath, int]) -> World:
         raise WorldFileError(f"{source}: the world refers to itself too deeply "
                              f"(recursive YAML aliases?)") from None
     else:
-        return _with_params_files(_with_floor_image(world, source, lines), source, lines)
+        for resolve in (_with_floor_image, _with_params_files, _with_interfaces):
+            world = resolve(world, source, lines)
+        return world
     rows = sorted({(_line(lines, path), format_path(path), message, got)
                    for path, message, got in problems}, key=lambda r: (r[0] or 0, r[1], r[2]))
     texts = [f"{source}{f':{line}' if line else ''}: {path}{': ' if path else ''}{message}{got}"
@@ -311,6 +313,23 @@ def _param_sections(nodes: dict) -> list:
         else:
             out.append(value)
     return out
+
+
+def _with_interfaces(world: World, source: str, lines: dict[FieldPath, int]) -> World:
+    """Make each interfaces entry absolute (relative to the world file) and check it is an
+    interface package folder; building it is the host's (composed_sim.interfaces.activate)."""
+    if not world.interfaces:
+        return world
+    from composed_sim.interfaces.package import InterfaceError, read_package
+    paths = []
+    for i, entry in enumerate(world.interfaces):
+        path = _relative_to(source, entry)
+        try:
+            read_package(path)
+        except InterfaceError as e:
+            raise WorldFileError(f"{_where(source, lines, ('interfaces', i))}: interfaces[{i}]: {e}{_got(entry)}") from None
+        paths.append(path)
+    return world.model_copy(update={"interfaces": paths})
 
 
 def _problems(err: dict) -> list[tuple[FieldPath, str, str]]:

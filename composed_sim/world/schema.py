@@ -451,6 +451,11 @@ class World(Strict):
     # they talk to the robots on run-wide topics (docs/contract.md).
     nodes: list[NodeSpec] = []
     loop_functions: Optional[LoopFunctionsRef] = None
+    # ROS 2 interface package folders (package.xml, msg/, srv/) the run's nodes use, built and made
+    # importable before the nodes load (composed_sim/interfaces/). Relative paths are relative to
+    # the world file; the loader makes them absolute and checks each is a package. In order: a
+    # package may use the messages of those before it.
+    interfaces: list[str] = []
 
     @model_validator(mode="after")
     def _consistent(self) -> World:
