@@ -52,6 +52,11 @@ def check_plugins(world_path, world) -> None:
     before any node or process is started."""
     from composed_sim import plugins
     from composed_sim.hosts.controllers import node_field
+    from composed_sim.interfaces import InterfaceError, activate
+    try:
+        activate(world.interfaces)      # the nodes may import their messages
+    except InterfaceError as e:
+        raise UserError(str(e)) from None
     places = [(node_field(group, gi, ni), spec) for gi, group in enumerate(world.robots)
               for ni, spec in enumerate(group.node_specs)]
     places += [(("nodes", ni), spec) for ni, spec in enumerate(world.nodes)]

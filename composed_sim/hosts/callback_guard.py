@@ -51,6 +51,7 @@ class CallbackGuard:
         self._workers: dict[str, int] = {}             # robot → worker thread running its callback
         self._workers_lock = threading.Lock()
         self.calls = 0                                 # callbacks run: lets a waiter see progress
+        self.running = 0                               # callbacks running now, on any thread
         self._depth = threading.local()                # per thread: inside a guarded callback?
 
     def guard(self, node: Node, robot: str, sim_node: SimulatorNode, relayed: Sequence = ()) -> None:
@@ -77,13 +78,17 @@ class CallbackGuard:
                 self._running, self._started = robot, started
             else:
                 self._workers[robot] = threading.get_ident()
-            self.calls += 1
+            with self._workers_lock:
+                self.calls += 1
+                self.running += 1
             self._depth.inside = True
             try:
                 try:
                     result = callback(*args)
                 finally:
                     self._depth.inside = False
+                    with self._workers_lock:
+                        self.running -= 1
                     if in_main:
                         self._running = None
                     else:

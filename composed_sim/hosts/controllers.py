@@ -14,6 +14,7 @@ from rclpy.type_description_service import START_TYPE_DESCRIPTION_SERVICE_PARAM
 
 from composed_sim import plugins
 from composed_sim.hosts.choices import EXECUTORS
+from composed_sim.interfaces import InterfaceError, activate
 from composed_sim.ros import contract as c
 from composed_sim.world.robot_models import RANGE_AND_BEARING, get_model
 from composed_sim.ros.controller import (PARAM_RAB_PAYLOAD_BYTES, PARAM_ROBOT_MODEL, PARAM_RUN_SEED,
@@ -291,7 +292,12 @@ def answer_type_problem(nodes: Sequence[Node], robot: str, declared: str) -> Opt
 
 
 def load_classes(world: World) -> dict[str, type[Node]]:
-    """Every node class the world names (robots' and run-wide), imported once."""
+    """Every node class the world names (robots' and run-wide), imported once, after the world's
+    interface packages are built (or found built) and importable (composed_sim/interfaces/)."""
+    try:
+        activate(world.interfaces)
+    except InterfaceError as e:
+        raise HostError(str(e)) from None
     names = [spec.node for g in world.robots for spec in g.node_specs] + [spec.node for spec in world.nodes]
     return {name: plugins.load(name) for name in dict.fromkeys(names)}
 

@@ -44,6 +44,7 @@ from composed_sim.world.schema import World
 DISCOVERY_TIMEOUT_S = 60.0
 WAIT_SLICE_S = 0.02           # how long one spin_once may wait for a callback while a tick is open
 SETTLE_ROUNDS = 1000          # bound on the walks that run what a tick's answers left to do
+QUIET_CHECK_S = 0.002         # multi-threaded executor: how often to look whether its threads are idle
 
 
 def simulator_node_name(group: int) -> str:
@@ -219,8 +220,24 @@ class ParticipantGroups:
             # the simulator nodes' "all answered".
             self._spin_thread = threading.Thread(target=spin_until_shutdown, args=(self.executor,), name="executor", daemon=True)
             self._spin_thread.start()
-            wait = self.exchange.wait_for_answers
+            wait = self._await_answers
         return wait, self.guard.interrupting_hangs(self._spin_thread is None)
+
+    def _await_answers(self, timeout_s: float) -> bool:
+        """The multi-threaded executor's callbacks run on its threads: wait for every answer, then
+        (when the tick's work may go on after an answer) for its threads to fall quiet."""
+        answered = self.exchange.wait_for_answers(timeout_s)
+        if answered and self._settle:
+            quiet, calls = 0, -1
+            for _ in range(SETTLE_ROUNDS):
+                # Quiet: no callback running, and none started since the last look, twice in a row
+                # (a message queued by the last callback is picked up within that time).
+                quiet = quiet + 1 if self.guard.running == 0 and self.guard.calls == calls else 0
+                if quiet >= 2:
+                    break
+                calls = self.guard.calls
+                time.sleep(QUIET_CHECK_S)
+        return answered
 
     def _spin_until_answered(self, timeout_s: float) -> bool:
         """Executors driven from this thread: the lockstep executor by design, the EventsExecutor

@@ -49,7 +49,7 @@ def test_the_package_runs_unchanged_and_every_robot_hears_every_message(swarm_vo
     assert moved.max() <= MAX_STEP_M + 1e-6         # behaviour's 0.1 m/s capped by the params file's 0.08
 
 
-@pytest.mark.parametrize("executor", ["single-threaded", "events"])
+@pytest.mark.parametrize("executor", ["single-threaded", "events", "multi-threaded"])
 def test_a_stock_executor_gives_the_same_run(swarm_vote, domain_id, executor):
     world = load_world(WORLD, ticks=12)
     runs = []

@@ -4,6 +4,7 @@ import rclpy
 from geometry_msgs.msg import Twist
 from rclpy.node import Node
 from std_msgs.msg import Float32MultiArray, String
+from swarm_vote_interfaces.msg import Opinion
 
 
 class Behaviour(Node):
@@ -17,20 +18,20 @@ class Behaviour(Node):
         self.started = False
         self.heard = {}          # sender -> (tick stamp ns, opinion)
         self.commands = self.create_publisher(Twist, 'cmd_out', 10)
-        self.opinions = self.create_publisher(String, '/opinions', 10)
+        self.opinions = self.create_publisher(Opinion, '/opinions', 10)
         self.create_subscription(String, '/swarm_command', self.on_command, 10)
-        self.create_subscription(String, '/opinions', self.on_opinion, 100)
+        self.create_subscription(Opinion, '/opinions', self.on_opinion, 100)
         self.create_subscription(Float32MultiArray, 'ranges', self.on_ranges, 10)
 
     def on_command(self, msg):
         self.started = msg.data == 'start'
 
     def on_opinion(self, msg):
-        sender, opinion, stamp = msg.data.split()
-        self.heard[sender] = (int(stamp), int(opinion))
+        self.heard[msg.sender] = (msg.stamp.sec * 1_000_000_000 + msg.stamp.nanosec, msg.opinion)
 
     def on_ranges(self, msg):
-        now = self.get_clock().now().nanoseconds
+        clock_now = self.get_clock().now()
+        now = clock_now.nanoseconds
         period = 100_000_000
         heard_all = sum(1 for stamp, _ in self.heard.values() if stamp == now - period) == self.swarm_size
         if heard_all:
@@ -42,7 +43,7 @@ class Behaviour(Node):
             out.linear.x = self.speed
             out.angular.z = -self.turn_gain * bearing if nearest < 0.1 else 0.0
         self.commands.publish(out)
-        self.opinions.publish(String(data=f'{self.me} {self.opinion} {now}'))
+        self.opinions.publish(Opinion(sender=self.me, opinion=self.opinion, stamp=clock_now.to_msg()))
 
 
 def main(args=None):
