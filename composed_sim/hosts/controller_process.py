@@ -23,7 +23,7 @@ import sys
 import threading
 import time
 
-from composed_sim.hosts.processes import GID_PREFIX, TYPE_PREFIX, die_with_parent
+from composed_sim.hosts.processes import GID_PREFIX, RUN_WIDE_PREFIX, TYPE_PREFIX, die_with_parent
 
 READY_TIMEOUT_S = 120.0
 EXIT_SETUP = 3          # the controller could not be built; the reason is on stderr
@@ -61,9 +61,11 @@ def main(argv: list[str] | None = None) -> int:
     from rclpy.context import Context
 
     from composed_sim import plugins
-    from composed_sim.hosts.controllers import create_robot_nodes, load_classes, make_executor, published_answer_type
+    from composed_sim.hosts.controllers import (HostError, create_robot_nodes, load_classes, make_executor,
+                                                published_answer_type)
     from composed_sim.ros import contract as c
     from composed_sim.ros.answer_subscription import cmd_vel_gids
+    from composed_sim.ros.run_wide import RunWideLink, RunWideRelay
     from composed_sim.world.loader import load_world
 
     world = load_world(args.world)
@@ -74,14 +76,21 @@ def main(argv: list[str] | None = None) -> int:
     group_index = world.group_of_robot()[names.index(args.robot)]
     context = Context()
     rclpy.init(context=context, domain_id=args.domain)   # a non-default context: no rclpy handlers
-    nodes, executor, spinner = [], None, None
+    nodes, executor, spinner, link = [], None, None, None
     try:
+        relay = RunWideRelay(names)
         try:
             nodes = create_robot_nodes(world, group_index, args.robot, context, classes=load_classes(world),
-                                       use_sim_time=True).nodes
-        except plugins.PluginError as e:
+                                       relay=relay, origin=names.index(args.robot), use_sim_time=True).nodes
+        except (plugins.PluginError, HostError) as e:
             print(e, file=sys.stderr)
             return EXIT_SETUP
+        if relay.in_use:
+            link = RunWideLink(context, args.robot, relay, receives=any(relay.subscriptions_of(n) for n in nodes),
+                               sends=any(relay.topics_published_by(n) for n in nodes),
+                               timeout_s=world.lockstep.watchdog_s)
+            sensors = {c.topic_name(args.robot, t) for t in c.SENSOR_TOPICS}
+            link.wrap_sensors([s for n in nodes for s in n.subscriptions if s.topic_name in sensors])
         executor = make_executor(args.executor, context)
         for node in nodes:
             executor.add_node(node)
@@ -89,10 +98,13 @@ def main(argv: list[str] | None = None) -> int:
             try:
                 with os.fdopen(args.report_fd, "w", buffering=1) as report:
                     answer_type = published_answer_type(nodes, args.robot)   # None: its publisher comes later
-                    report.write("created" + (f" {TYPE_PREFIX}{c.type_name(answer_type)}" if answer_type else "") + "\n")
-                    if not wait_until_matched(nodes, args.robot, stop):
+                    words = ["created"] + ([f"{TYPE_PREFIX}{c.type_name(answer_type)}"] if answer_type else [])
+                    words += [f"{RUN_WIDE_PREFIX}{e.topic_name}" for e in (link.endpoints if link else ())]
+                    report.write(" ".join(words) + "\n")
+                    endpoints = contract_endpoints(nodes, args.robot) + (link.endpoints if link else [])
+                    if not wait_until_matched(endpoints, args.robot, stop):
                         return 0 if stop.is_set() else 1
-                    topics = sorted({e.topic_name for e in contract_endpoints(nodes, args.robot)})
+                    topics = sorted({e.topic_name for e in endpoints})
                     gids = [GID_PREFIX + gid.hex() for node in nodes for gid in cmd_vel_gids(node, args.robot)]
                     report.write(" ".join(["ready"] + topics + gids) + "\n")
             except BrokenPipeError:     # the host gave up on the start-up and is stopping us
@@ -102,11 +114,22 @@ def main(argv: list[str] | None = None) -> int:
             # the EventsExecutor because its spin() in a thread hung in our probes (docs/architecture.md).
             while not stop.is_set():
                 executor.spin_once(timeout_sec=0.05)
+                if link is not None and link.sends and link.tick > link.sent:
+                    run_until_idle(executor)
+                    link.send()
         else:
             spinner = threading.Thread(target=spin, args=(executor,), daemon=True)
             spinner.start()
+            ticks_seen = -1
             while not stop.is_set():
-                time.sleep(0.1)     # signal handlers run during the sleep, which then goes on
+                # Signal handlers run during the sleep, which then goes on. A tick's run-wide messages
+                # go out once the robot's nodes are past the tick's sensors for one look (a
+                # threaded executor tells no one when it is idle).
+                time.sleep(0.002 if link is not None and link.sends else 0.1)
+                if link is not None and link.sends and link.tick > link.sent:
+                    if ticks_seen == link.tick:
+                        link.send()
+                    ticks_seen = link.tick
         return 0
     finally:
         # A bound on the clean-up: a DDS call that waits on a peer that died with the simulator
@@ -119,6 +142,8 @@ def main(argv: list[str] | None = None) -> int:
             spinner.join(timeout=2.0)
         for node in nodes:
             node.destroy_node()
+        if link is not None:
+            link.destroy()
         if context.ok():
             rclpy.shutdown(context=context)
 
@@ -148,6 +173,19 @@ def spin(executor) -> None:
         pass
 
 
+def run_until_idle(executor, rounds: int = 1000) -> None:
+    """Run what is ready until nothing is: a robot's chain may go on after its answer, and what it
+    publishes on run-wide topics belongs to the tick."""
+    from composed_sim.ros.lockstep_executor import LockstepExecutor
+    for _ in range(rounds):
+        if isinstance(executor, LockstepExecutor):
+            if executor.dispatch_ready() == 0:
+                return
+        else:
+            executor.spin_once(timeout_sec=0)
+            return
+
+
 def contract_endpoints(nodes, robot: str) -> list:
     """The robot's nodes' publishers and subscriptions on contract topics (their own other topics
     and the parameter/rosout plumbing are not the simulator's business)."""
@@ -156,13 +194,12 @@ def contract_endpoints(nodes, robot: str) -> list:
     return [e for node in nodes for e in list(node.publishers) + list(node.subscriptions) if e.topic_name in topics]
 
 
-def wait_until_matched(nodes, robot: str, stop: StopRequest) -> bool:
+def wait_until_matched(endpoints, robot: str, stop: StopRequest) -> bool:
     """Wait until each contract endpoint of ours is matched with the simulator's (a publisher
     has a matched subscription, a subscription a matched publisher); the host then checks its
     side of the same topics. Without this a tick-0 sensor, an answer or the first LED message
     could go to a not-yet-matched endpoint and be lost (topics are volatile)."""
     from rclpy.publisher import Publisher
-    endpoints = contract_endpoints(nodes, robot)
     deadline = time.monotonic() + READY_TIMEOUT_S
     pause = 0.002
     while not all((e.get_subscription_count() if isinstance(e, Publisher) else e.get_publisher_count()) >= 1

@@ -36,11 +36,13 @@ from composed_sim.core.simulation import Simulation
 from composed_sim.hosts.host import ControllersElsewhere, SetupInfo
 from composed_sim.hosts.controllers import HostError, check_executor, load_classes, matched, spin_until_shutdown
 from composed_sim.hosts.domains import DomainError, assign_domains
-from composed_sim.hosts.processes import GID_PREFIX, TYPE_PREFIX, InterruptWatch, exit_reason, last_words, reap, signal_group
+from composed_sim.hosts.processes import GID_PREFIX, RUN_WIDE_PREFIX, TYPE_PREFIX, InterruptWatch, exit_reason, last_words, reap, signal_group
 from composed_sim.hosts.lockstep import NodesExchange
+from composed_sim.hosts.run_wide_nodes import RunWideNodes
 from composed_sim.ros import contract as c
 from composed_sim.ros.lockstep_executor import LockstepExecutor
 from composed_sim.ros.robot_settings import robot_settings
+from composed_sim.ros.run_wide import RunWideRelay, SimulatorLink
 from composed_sim.ros.simulator_node import AnswerTypeError, SimulatorNode
 from composed_sim.world.loader import dump_world
 from composed_sim.world.schema import World
@@ -64,6 +66,8 @@ class ControllerProcess:
     spawned: float = field(default_factory=time.perf_counter)
     created: bool = False                # its node exists: the CPU-heavy part of start-up is done
     answer_type: Optional[str] = None    # its cmd_vel publisher's type, as "created" reported it
+    run_wide_topics: list[str] = field(default_factory=list)   # its run-wide link's, as "created" reported them
+    linked: bool = False                 # the simulator's side of its link exists
     topics: Optional[list[str]] = None   # its contract topics, once matched on its side
     gids: list[bytes] = field(default_factory=list)    # its cmd_vel publishers' (cmd_vel_gids)
     startup_s: Optional[float] = None    # spawn → matched on both sides
@@ -79,6 +83,7 @@ class ControllerProcess:
             self.created = True
             if words and words[0] == "created":
                 self.answer_type = next((w[len(TYPE_PREFIX):] for w in words if w.startswith(TYPE_PREFIX)), None)
+                self.run_wide_topics = [w[len(RUN_WIDE_PREFIX):] for w in words if w.startswith(RUN_WIDE_PREFIX)]
             if words and words[0] == "ready":
                 self.topics = [w for w in words[1:] if not w.startswith(GID_PREFIX)]
                 self.gids = [bytes.fromhex(w[len(GID_PREFIX):]) for w in words[1:] if w.startswith(GID_PREFIX)]
@@ -134,13 +139,16 @@ class MultiProcessHost(ControllersElsewhere):
         self._tmp: Optional[Path] = None
         self._last_check = 0.0
         self._startup_interrupted = False
+        self.relay = RunWideRelay(world.robot_names())
+        self.run_wide: Optional[RunWideNodes] = None
+        self._links: dict[int, SimulatorLink] = {}      # per domain, once a robot there uses run-wide topics
 
     # --- start-up ---------------------------------------------------------------------------
 
     def __enter__(self) -> "MultiProcessHost":
         t0 = time.perf_counter()
         try:
-            load_classes(self.world)       # fail here, not in N children
+            classes = load_classes(self.world)       # fail here, not in N children
             self.sim = Simulation(self.world)
             self._tmp = Path(tempfile.mkdtemp(prefix="composed_sim_mp_"))
             world_file = self._tmp / "world.yaml"
@@ -158,7 +166,9 @@ class MultiProcessHost(ControllersElsewhere):
                                                rab_payload_bytes=self.world.range_and_bearing.payload_bytes,
                                                **robot_settings(self.world, rows))
                 self._nodes[d].on_failed.append(self._stop_failed)
-            self.exchange = NodesExchange(list(self._nodes.values()), self._check_children)
+            if self.world.nodes:
+                self.run_wide = RunWideNodes(self.world, self._contexts[0], classes, self.relay)
+            self.exchange = LinkedExchange(self, list(self._nodes.values()), self._check_children)
             with InterruptWatch() as interrupts:
                 self._start_controllers(world_file, interrupts)
             self._startup_interrupted = interrupts.requested
@@ -205,6 +215,11 @@ class MultiProcessHost(ControllersElsewhere):
                 if detect:
                     next_detection = time.monotonic() + DETECT_PERIOD_S
                 self._subscribe_answers(unmatched.values(), endpoints, detect)
+                for p in unmatched.values():
+                    if p.created and p.run_wide_topics and not p.linked:
+                        endpoints[p.domain].update(self._link(p.domain).add_robot(
+                            self.sim.names.index(p.robot), p.robot, p.run_wide_topics))
+                        p.linked = True
                 for robot, p in list(unmatched.items()):
                     if p.topics is not None and self._nodes[p.domain].answer_subscription(robot) is not None and all(matched(endpoints[p.domain].get(t)) for t in p.topics):
                         p.startup_s = time.perf_counter() - p.spawned
@@ -217,6 +232,18 @@ class MultiProcessHost(ControllersElsewhere):
                                     f"subscribe to a sensor); {len(waiting)} more not started")
         for node in self._nodes.values():
             node.note_controllers({p.robot: p.gids for p in self.processes})
+
+    def _link(self, domain: int) -> SimulatorLink:
+        if domain not in self._links:
+            self._links[domain] = SimulatorLink(self._nodes[domain].context, f"composed_sim_run_wide_d{domain}")
+        return self._links[domain]
+
+    def run_wide_batch(self, tick: int, sent: dict[int, list]) -> list:
+        """The batch that opens ``tick``: the run-wide nodes' part of it, then what the robots sent
+        during the tick before, in robot order (ros/run_wide.py)."""
+        if self.run_wide is not None:
+            self.run_wide.start_tick(tick)
+        return self.relay.take_outbox() + [m for i in sorted(sent) for m in sent[i]]
 
     def _subscribe_answers(self, children: Iterable[ControllerProcess], endpoints: dict, detect: bool) -> None:
         """Subscribe to each created child's robot's cmd_vel with the type the child reported; with
@@ -313,6 +340,12 @@ class MultiProcessHost(ControllersElsewhere):
         for thread in self._threads:
             thread.join(timeout=5.0)
         self._executors, self._threads = [], []
+        if self.run_wide is not None:
+            self.run_wide.destroy()
+            self.run_wide = None
+        for link in self._links.values():
+            link.destroy()
+        self._links = {}
         for node in self._nodes.values():
             node.destroy_node()
         self._nodes = {}
@@ -333,3 +366,52 @@ class MultiProcessHost(ControllersElsewhere):
         for p in self.processes:
             signal_group(p.popen, signal.SIGTERM)
         reap([p.popen for p in self.processes], TERM_GRACE_S)
+
+
+class LinkedExchange(NodesExchange):
+    """The per-domain simulator nodes, and the run-wide relay between the controller processes
+    (ros/run_wide.py): each tick's batch goes to every domain before the tick's sensors, and a
+    tick closes once every robot that publishes run-wide messages has sent its part."""
+
+    def __init__(self, host: MultiProcessHost, nodes: list[SimulatorNode], check):
+        super().__init__(nodes, check)
+        self._host = host
+        self._batch: Optional[list] = None
+        self._stamp = 0
+
+    def publish_tick(self, frame) -> None:
+        host = self._host
+        if self._batch is None:               # tick 0: what the run-wide nodes publish at its start
+            self._batch = host.run_wide_batch(frame.tick, {})
+        self._stamp = frame.tick * host.world.tick_ns
+        host.relay.deliver(self._batch)       # the run-wide nodes' subscriptions
+        for link in host._links.values():
+            link.publish(self._stamp, self._batch)
+        super().publish_tick(frame)
+
+    def wait_for_answers(self, timeout_s: float) -> bool:
+        deadline = time.monotonic() + timeout_s
+        answered = super().wait_for_answers(timeout_s)
+        links = self._host._links.values()
+        while True:
+            waiting = False
+            for link in links:
+                pending = [i for i in link.senders if not link.done(i) and not self._failed(i)]
+                link.take(self._stamp, pending)
+                waiting = waiting or any(not link.done(i) for i in pending)
+            if not waiting or time.monotonic() > deadline:
+                return answered
+            self._check()
+            time.sleep(0.0002)
+
+    def _failed(self, index: int) -> bool:
+        name = self._host.sim.names[index]
+        node = self._host._nodes[self._host.domains[name]]
+        return bool(node.failed[node.row_of(name)])
+
+    def close_tick(self, fallback, previous, commands) -> None:
+        super().close_tick(fallback, previous, commands)
+        sent = {}
+        for link in self._host._links.values():
+            sent.update(link.collect())
+        self._batch = self._host.run_wide_batch(self._stamp // self._host.world.tick_ns + 1, sent)

@@ -23,15 +23,14 @@ from rclpy.context import Context
 from rclpy.executors import Executor
 from rclpy.node import Node
 
-from rclpy.time import Time
-
 from composed_sim.core.simulation import SensorFrame
 from composed_sim.world.robot_models import get_model
 from composed_sim.hosts.callback_guard import CallbackGuard, refuse_shutdown_from_callbacks
 from composed_sim.hosts.choices import ROBOTS_PER_PARTICIPANT
-from composed_sim.hosts.controllers import (BuiltNodes, HostError, answer_type, check_executor, create_robot_nodes,
-                                             create_run_wide_nodes, load_classes, make_executor, spin_until_shutdown)
+from composed_sim.hosts.controllers import (HostError, answer_type, check_executor, create_robot_nodes, load_classes,
+                                             make_executor, spin_until_shutdown)
 from composed_sim.hosts.lockstep import NodesExchange
+from composed_sim.hosts.run_wide_nodes import SETTLE_ROUNDS, RunWideNodes
 from composed_sim.ros import contract as c
 from composed_sim.ros.answer_subscription import cmd_vel_gids
 from composed_sim.ros.lockstep_executor import LockstepExecutor
@@ -43,7 +42,6 @@ from composed_sim.world.schema import World
 
 DISCOVERY_TIMEOUT_S = 60.0
 WAIT_SLICE_S = 0.02           # how long one spin_once may wait for a callback while a tick is open
-SETTLE_ROUNDS = 1000          # bound on the walks that run what a tick's answers left to do
 QUIET_CHECK_S = 0.002         # multi-threaded executor: how often to look whether its threads are idle
 
 
@@ -75,8 +73,7 @@ class ParticipantGroups:
         self.robot_nodes: list[list[Node]] = []             # per robot of the block: its nodes
         self.controllers: list[Node] = []                   # every robot node, robot by robot
         self.relay = RunWideRelay(world.robot_names())
-        self.run_wide: Optional[BuiltNodes] = None          # the world's run-wide nodes (block of robot 0)
-        self._run_wide_executor: Optional[LockstepExecutor] = None
+        self.run_wide: Optional[RunWideNodes] = None        # the world's run-wide nodes (block of robot 0)
         self._tick_timers = []                              # SimTimers the host moves to each tick's time
         self._settle = False
         self.exchange: Optional[NodesExchange] = None
@@ -107,8 +104,8 @@ class ParticipantGroups:
             refuse_shutdown_from_callbacks(context, self.guard)
             self.contexts.append(context)
             group = self.first_group + k
-            if group == 0 and world.nodes:
-                self._build_run_wide(classes, context)
+            if group == 0 and world.nodes:    # first: they are delivered to before the robots
+                self.run_wide = RunWideNodes(world, context, classes, self.relay)
             # The nodes first: the simulator node subscribes to each robot's cmd_vel with the
             # type its nodes publish (one participant allows one type per topic).
             first_robot = len(self.robot_nodes)
@@ -152,16 +149,6 @@ class ParticipantGroups:
         for sim_node in self.simulator_nodes:
             sim_node.note_controllers(gids)
 
-    def _build_run_wide(self, classes, context: Context) -> None:
-        """The world's run-wide nodes, in the participant of robot 0's group (a worker has one
-        participant), driven by the host at the start of each tick with an executor of their own
-        (the lockstep one, whatever the robots')."""
-        self.run_wide = create_run_wide_nodes(self.world, context, classes=classes, relay=self.relay)
-        self._run_wide_executor = LockstepExecutor(context=context)
-        for node in self.run_wide.nodes:
-            node.get_clock()._set_ros_time_is_active(True)
-            self._run_wide_executor.add_node(node)
-
     # --- run-wide topics, at the tick's edges (ros/run_wide.py) --------------------------------
 
     def open_tick(self, tick: int, batch: list[Message]) -> None:
@@ -177,15 +164,7 @@ class ParticipantGroups:
         """After a tick's answers: the run-wide nodes' part of ``next_tick`` (their timers due by
         then, and what they have to handle), then what this process published on run-wide topics."""
         if self.run_wide is not None:
-            now_ns = next_tick * self.world.tick_ns
-            now = Time(nanoseconds=now_ns)
-            for node in self.run_wide.nodes:
-                node.get_clock().set_ros_time_override(now)
-            for timers in self.run_wide.tick_timers:
-                timers.advance_to(now_ns)
-            for _ in range(SETTLE_ROUNDS):
-                if self._run_wide_executor.dispatch_ready() == 0:
-                    break
+            self.run_wide.start_tick(next_tick)
         return self.relay.take_outbox()
 
     @property
@@ -290,9 +269,9 @@ class ParticipantGroups:
             self.executor.shutdown()
         if self._spin_thread is not None:
             self._spin_thread.join(timeout=5.0)
-        if self._run_wide_executor is not None:
-            self._run_wide_executor.shutdown()
-        for node in (*self.controllers, *self.simulator_nodes, *(self.run_wide.nodes if self.run_wide else ())):
+        if self.run_wide is not None:
+            self.run_wide.destroy()
+        for node in (*self.controllers, *self.simulator_nodes):
             node.destroy_node()
         self.controllers, self.simulator_nodes, self.robot_nodes, self.run_wide = [], [], [], None
         for context in self.contexts:

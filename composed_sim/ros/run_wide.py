@@ -21,14 +21,21 @@ messages; the host moves the batches between processes. Messages travel as their
 from __future__ import annotations
 
 import inspect
+import pickle
 import threading
+import time
+from array import array
 from typing import Callable, Collection
 
 from rclpy.node import Node
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message, serialize_message
 from rclpy.subscription import Subscription
+from std_msgs.msg import UInt8MultiArray
 
+from composed_sim.devices.common import cdr
 from composed_sim.ros import contract as c
+from composed_sim.ros.robot_settings import quiet_node_options
 
 # Topics every node has, or the contract's own run-wide topics: never relayed.
 _NOT_RELAYED = frozenset({"/rosout", "/parameter_events", c.CLOCK_TOPIC, "/tf", "/tf_static",
@@ -184,3 +191,158 @@ class RunWideRelay:
             for sub in list(self._subscriptions.get(topic, ())):
                 if sub.type_name == type_name:     # DDS would not match another type either
                     sub.deliver(data)
+
+
+# --- across processes (multi-process mode) --------------------------------------------------------
+#
+# A controller process has a relay of its own. Its robot's messages of tick k go to the simulator
+# on /<robot>/_composed_sim/run_wide, once the robot's nodes have nothing left to do in the tick;
+# the simulator publishes each tick's batch on /_composed_sim/run_wide in every domain before the
+# tick's sensors, and a controller process delivers it before the first sensor callback of the
+# tick runs. Both carry (stamp ns, messages), pickled, in a std_msgs/UInt8MultiArray.
+
+BATCH_TOPIC = "/_composed_sim/run_wide"
+LINK_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
+
+
+def outbox_topic(robot: str) -> str:
+    return f"/{robot}/_composed_sim/run_wide"
+
+
+def pack(stamp_ns: int, messages: list[Message]) -> UInt8MultiArray:
+    return UInt8MultiArray(data=array("B", pickle.dumps((stamp_ns, messages), protocol=pickle.HIGHEST_PROTOCOL)))
+
+
+def unpack(msg: UInt8MultiArray) -> tuple[int, list[Message]]:
+    return pickle.loads(bytes(msg.data))
+
+
+class RunWideLink:
+    """A controller process's side of the run: it takes each tick's batch from the simulator
+    before the robot's first sensor callback of the tick (``wrap_sensors``) and sends what the
+    robot's nodes published once they are idle (``send``)."""
+
+    def __init__(self, context, robot: str, relay: RunWideRelay, *, receives: bool, sends: bool,
+                 timeout_s: float):
+        self._relay, self._timeout_s = relay, timeout_s
+        self.node = Node("run_wide_link", namespace=f"/{robot}", context=context, **quiet_node_options())
+        self._batches = self.node.create_subscription(UInt8MultiArray, BATCH_TOPIC, lambda msg: None, LINK_QOS) \
+            if receives else None
+        self._outbox = self.node.create_publisher(UInt8MultiArray, outbox_topic(robot), LINK_QOS) if sends else None
+        self.delivered = -1         # stamp of the last batch delivered
+        self.tick = -1              # stamp of the last tick whose sensors arrived
+        self.sent = -1              # stamp of the last tick whose messages went out
+
+    @property
+    def endpoints(self) -> list:
+        return [e for e in (self._batches, self._outbox) if e is not None]
+
+    @property
+    def sends(self) -> bool:
+        return self._outbox is not None
+
+    def wrap_sensors(self, subscriptions) -> None:
+        """Before a sensor callback of tick k: tick k's batch is delivered (waiting for it)."""
+        for sub in subscriptions:
+            callback, raw = sub.callback, sub.raw
+
+            def run(msg, *info, callback=callback, raw=raw):
+                stamp = cdr.stamp_ns(msg) if raw else msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+                self.tick = max(self.tick, stamp)
+                if self._batches is not None:
+                    self._deliver_through(stamp)
+                return callback(msg, *info)
+            # rclpy picks a subscription's call signature from the callback's: keep the original's.
+            sub.callback = (lambda msg, info, run=run: run(msg, info)) \
+                if sub._callback_type is Subscription.CallbackType.WithMessageInfo else (lambda msg, run=run: run(msg))
+
+    def _deliver_through(self, stamp: int) -> None:
+        deadline = time.monotonic() + self._timeout_s
+        while self.delivered < stamp:
+            with self._batches.handle:
+                taken = self._batches.handle.take_message(UInt8MultiArray, False)
+            if taken is None:
+                if time.monotonic() > deadline:
+                    return          # the simulator is gone or stopped: the tick goes on without
+                time.sleep(0.0002)
+                continue
+            batch_stamp, batch = unpack(taken[0])
+            self._relay.deliver(batch)
+            self.delivered = batch_stamp
+
+    def send(self) -> None:
+        """What the robot's nodes published in the tick of the last sensors, to the simulator."""
+        self._outbox.publish(pack(self.tick, self._relay.take_outbox()))
+        self.sent = self.tick
+
+    def destroy(self) -> None:
+        self.node.destroy_node()
+
+
+class SimulatorLink:
+    """The simulator's side of the run-wide relay in one ROS domain (multi-process mode): it
+    publishes each tick's batch there and takes what each robot of the domain sent."""
+
+    def __init__(self, context, name: str):
+        self.node = Node(name, context=context, **quiet_node_options())
+        self._batches = self.node.create_publisher(UInt8MultiArray, BATCH_TOPIC, LINK_QOS)
+        self._receivers = 0
+        self._outboxes: dict[int, object] = {}       # robot index in the run → its subscription
+        self._pending: dict[int, list[Message]] = {}  # what a robot sent for the open tick so far
+        self._done: set[int] = set()                  # robots whose messages of the open tick are in
+
+    def add_robot(self, index: int, robot: str, topics: Collection[str]) -> dict[str, object]:
+        """A controller process reported its link's topics: its endpoints on this side, by topic
+        (each answers ``get_*_count() >= 1`` once matched, as the start-up check asks)."""
+        endpoints = {}
+        if BATCH_TOPIC in topics:
+            self._receivers += 1
+            endpoints[BATCH_TOPIC] = _AllReceivers(self._batches, self._receivers)
+        if outbox_topic(robot) in topics:
+            sub = self.node.create_subscription(UInt8MultiArray, outbox_topic(robot), lambda msg: None, LINK_QOS)
+            self._outboxes[index] = sub
+            endpoints[outbox_topic(robot)] = sub
+        return endpoints
+
+    @property
+    def senders(self) -> list[int]:
+        return list(self._outboxes)
+
+    def publish(self, stamp_ns: int, batch: list[Message]) -> None:
+        if self._receivers:
+            self._batches.publish(pack(stamp_ns, batch))
+
+    def take(self, stamp_ns: int, waiting: Collection[int]) -> None:
+        """Take what arrived from the robots ``waiting`` (indices) for ticks up to ``stamp_ns``."""
+        for index in waiting:
+            sub = self._outboxes[index]
+            while index not in self._done:
+                with sub.handle:
+                    taken = sub.handle.take_message(UInt8MultiArray, False)
+                if taken is None:
+                    break
+                stamp, messages = unpack(taken[0])
+                self._pending.setdefault(index, []).extend(messages)
+                if stamp >= stamp_ns:
+                    self._done.add(index)
+
+    def done(self, index: int) -> bool:
+        return index in self._done
+
+    def collect(self) -> dict[int, list[Message]]:
+        """What the robots sent for the tick, by robot index; the next tick starts empty."""
+        out, self._pending, self._done = self._pending, {}, set()
+        return out
+
+    def destroy(self) -> None:
+        self.node.destroy_node()
+
+
+class _AllReceivers:
+    """The batch publisher counts as matched once it has matched every receiving process so far."""
+
+    def __init__(self, publisher, receivers: int):
+        self._publisher, self._receivers = publisher, receivers
+
+    def get_subscription_count(self) -> int:
+        return int(self._publisher.get_subscription_count() >= self._receivers)

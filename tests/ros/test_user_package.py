@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from composed_sim.hosts.composed import ComposedHost
+from composed_sim.hosts.multiprocess import MultiProcessHost
 from composed_sim.hosts.workers import WorkerHost
 from composed_sim.world.loader import load_world
 
@@ -71,3 +72,17 @@ def test_every_worker_layout_gives_the_same_run(swarm_vote, domain_id):
         np.testing.assert_array_equal(result.trajectories.positions, reference.trajectories.positions,
                                       err_msg=f"{workers} workers")
     assert (steps(reference)[START_TICK:] > 1e-4).all()
+
+
+def test_multi_process_mode_gives_the_same_run_across_domains(swarm_vote, domain_id, mp_domain):
+    # One process per robot, spread over three ROS domains: the run-wide topics still reach
+    # every robot, at the same point of the tick.
+    world = load_world(WORLD, ticks=12)
+    with ComposedHost(world, domain_id=domain_id) as host:
+        reference = host.run()
+    with MultiProcessHost(world, domain_id=mp_domain, robots_per_domain=3) as host:
+        assert len(set(host.domains.values())) == 3
+        result = host.run()
+    assert result.violations == [], result.violations[:3]
+    np.testing.assert_array_equal(result.trajectories.positions, reference.trajectories.positions)
+    assert (steps(result)[START_TICK:] > 1e-4).all()
