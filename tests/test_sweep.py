@@ -96,7 +96,7 @@ def test_a_failed_run_is_a_row_and_the_sweep_goes_on(tmp_path, monkeypatch):
 ])
 def test_a_bad_set_is_one_line_before_any_run(tmp_path, capsys, given, says):
     assert main(["sweep", str(FLOCKING), "--seeds", "1", "--set", given, "--out", str(tmp_path / "out")]) == 2
-    assert capsys.readouterr().err.strip() == f"composed-sim: error: {says}"
+    assert capsys.readouterr().err.strip() == f"composed-sim sweep: error: {says}"
     assert not (tmp_path / "out").exists()
 
 

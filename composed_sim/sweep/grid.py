@@ -64,7 +64,11 @@ class Grid:
         out = []
         for combo in itertools.product(*(values for _, values in axes)):
             values = dict(zip((name for name, _ in axes), combo))
-            out.append(RunSpec(_apply(base, values, str(self.world_path)), values, self.ticks))
+            try:
+                world = _apply(base, values, str(self.world_path))
+            except WorldFileError as e:     # e.g. a seed past the schema's limit
+                raise GridError(str(e)) from None
+            out.append(RunSpec(world, values, self.ticks))
         return out
 
 
@@ -94,6 +98,17 @@ def parse_list(text: str, what: str) -> list[Any]:
         except yaml.YAMLError:
             raise GridError(f"{what}: cannot read the value {item!r}") from None
     return out
+
+
+def whole_numbers(values: list[Any], what: str, *, minimum: int, example: str) -> list[int]:
+    """Seeds (minimum 0) or swarm sizes (minimum 1) as parsed: each a whole number, else one
+    GridError naming where it came from (``--seeds`` or the sweep file's ``seeds``)."""
+    for value in values:
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise GridError(f"{what}: {value!r} is not a whole number (give e.g. {example})")
+        if value < minimum:
+            raise GridError(f"{what}: must be >= {minimum} (got {value})")
+    return values
 
 
 def parse_set(text: str) -> tuple[str, list[Any]]:

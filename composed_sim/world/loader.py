@@ -50,6 +50,13 @@ def load_world(path: str | os.PathLike, *, robots: Optional[int] = None,
     return with_overrides(world, robots=robots, ticks=ticks, seed=seed, source=source)
 
 
+def read_yaml(path: str | os.PathLike) -> Any:
+    """A YAML file's data, read as world files are (safe, errors naming file:line), e.g. a sweep file."""
+    source = os.fspath(path)
+    data, _ = _parse(read_file(source), source)
+    return data
+
+
 def world_from_dict(data: Any, source: str = "<dict>") -> World:
     """Validate an already parsed world (e.g. a run's saved configuration); no line numbers."""
     return validate(data, source, {})
@@ -219,9 +226,11 @@ def validate(data: Any, source: str, lines: dict[FieldPath, int]) -> World:
         raise WorldFileError(f"{source}: the world refers to itself too deeply "
                              f"(recursive YAML aliases?)") from None
     else:
-        for resolve in (_with_floor_image, _with_params_files, _with_interfaces):
-            world = resolve(world, source, lines)
-        return world
+        problems = _nothing_to_run(world)
+        if not problems:
+            for resolve in (_with_floor_image, _with_params_files, _with_interfaces):
+                world = resolve(world, source, lines)
+            return world
     rows = sorted({(_line(lines, path), format_path(path), message, got)
                    for path, message, got in problems}, key=lambda r: (r[0] or 0, r[1], r[2]))
     texts = [f"{source}{f':{line}' if line else ''}: {path}{': ' if path else ''}{message}{got}"
@@ -230,6 +239,17 @@ def validate(data: Any, source: str, lines: dict[FieldPath, int]) -> World:
         raise WorldFileError(texts[0], texts)
     raise WorldFileError(f"{source}: {len(texts)} problems:\n" + "\n".join(f"  {t}" for t in texts),
                          texts)
+
+
+def _nothing_to_run(world: World) -> list[tuple[FieldPath, str, str]]:
+    """A world file with no robot at all is refused, not run: the schema allows it (the core's
+    tests build empty scenes), but every host is made of its robots' participants, processes or
+    shards. A group of count 0 beside others is fine."""
+    if world.robot_count > 0:
+        return []
+    if not world.robots:
+        return [(("robots",), "lists no robot group; a run needs at least one robot", "")]
+    return [(("robots", 0, "count"), "every group's count is 0; a run needs at least one robot", "")]
 
 
 def _with_floor_image(world: World, source: str, lines: dict[FieldPath, int]) -> World:
