@@ -5,9 +5,23 @@ from __future__ import annotations
 import contextlib
 import json
 import os
+import shutil
 import sys
 
 
+WATCHING_DOC = 'docs/contract.md, "Watching a run from another process"'
+
+
+def watch_hint(domain_id: int, *, foxglove: bool, markers: bool) -> str:
+    """How to watch a run with what this machine has: the pip-only install has rclpy but no
+    ``ros2`` command (ros2cli is not on PyPI), so ``ros2`` is named only where it is on PATH;
+    an option this run already has is not offered again."""
+    now = [f"an rclpy process with ROS_DOMAIN_ID={domain_id} ({WATCHING_DOC})"]
+    if shutil.which("ros2"):
+        now.append(f"ROS_DOMAIN_ID={domain_id} ros2 topic list")
+    options = [] if foxglove else ["--foxglove (the Foxglove app, no ROS install needed)"]
+    options += [] if markers else ["--markers (the scene on /swarm/markers)"]
+    return f"to watch it: {' or '.join(now)}" + (f"; or run with {' and '.join(options)}" if options else "")
 
 
 def print_summary(args, world, summary: dict) -> None:

@@ -9,7 +9,7 @@ import sys
 from composed_sim.command_line import EXIT_INTERRUPTED, UserError, check_writable
 from composed_sim.cli.common import (Interrupts, check_no_distributed_flags, check_plugins, distributed_settings,
                                      load_any_world, located, pick_domain)
-from composed_sim.cli.report import print_summary, progress_bar
+from composed_sim.cli.report import print_summary, progress_bar, watch_hint
 
 
 def cmd_run(args) -> int:
@@ -79,8 +79,9 @@ def cmd_run(args) -> int:
             claim, domain_id = claim_free_domain(len(used), about, controllers_expected=shards_first)
             host = make_host(domain_id)
             used = [domain_id + i for i in range(len(used))]
+            hint = watch_hint(domain_id, foxglove=args.foxglove is not None, markers=args.markers)
             print(f"composed-sim: ROS domain {domain_id}{f'..{used[-1]}' if len(used) > 1 else ''} (free, "
-                  f"picked; to watch it: ROS_DOMAIN_ID={domain_id} ros2 topic list)", file=sys.stderr)
+                  f"picked); {hint}", file=sys.stderr)
     except (HostError, DomainTaken) as e:
         raise UserError(str(e)) from None
 
