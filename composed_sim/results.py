@@ -79,7 +79,10 @@ def summarize(world: World, result: LoopResult, *, setup_s: float, mode: str, ex
                                 key=t.names.index),
         "peak_rss_mb": peak_rss_mb(),
         "rss_mb_by_tick": [[tick, round(mb, 1)] for tick, mb in result.memory],
-        "finished": result.finished,      # the loop functions ended the run (is_finished)
+        "ended_by_loop_functions": result.finished,     # is_finished ended the run before its length
+        # Deprecated, kept for old readers until the next release: the same as the above, though it
+        # read as "the run did not finish" when false (docs/experiments.md).
+        "finished": result.finished,
         "metrics": {"initial": result.metrics[0], "final": result.metrics[-1]} if result.metrics else {},
         "versions": versions(),
     }

@@ -118,7 +118,7 @@ def _human_summary(s: dict, metric_lines: list[str] = ()) -> str:
         f"  violations: {s['violations']}",
     ]
     lines += metric_lines
-    if s.get("finished"):
+    if s.get("ended_by_loop_functions"):
         lines.append(f"  ended by the loop functions at tick {s['ticks']}")
     lines.append(f"  results in {s['out']}/ (summary.json, trajectories.npz, arena.png)")
     return "\n".join(lines)

@@ -60,7 +60,9 @@ def _results(folder: Path) -> dict:
     """The figures of a run's summary.json and its metrics.csv rows."""
     s = json.loads((folder / "summary.json").read_text())
     final = (s.get("metrics") or {}).get("final", {})
-    out = {"robots_run": s["robots"], "ticks": s["ticks"], "finished": s.get("finished", False),
+    ended_by_loop_functions = s.get("ended_by_loop_functions", s.get("finished", False))   # older summaries
+    out = {"robots_run": s["robots"], "ticks": s["ticks"], "ended_by_loop_functions": ended_by_loop_functions,
+           "finished": ended_by_loop_functions,        # deprecated column, as in summary.json
            "setup_s": s["setup_s"], "ticks_wall_s": s["ticks_wall_s"], "real_time_factor": s["real_time_factor"],
            "violations": s["violations"], **{f"final_{k}": v for k, v in final.items() if k != "tick"}}
     out["_metrics"] = []
