@@ -324,3 +324,16 @@ def test_the_documented_watcher_lists_a_runs_topics_and_hears_its_clock(tmp_path
     lines = watch.stdout.splitlines()
     assert "/bot1/cmd_vel geometry_msgs/msg/TwistStamped" in lines and "/clock rosgraph_msgs/msg/Clock" in lines
     assert re.fullmatch(r"\d+ \d+", lines[-1]), lines[-1]      # a /clock sample
+
+
+def test_run_help_says_how_the_domain_is_chosen(capsys):
+    """A run without --domain-id or $ROS_DOMAIN_ID picks a free domain: the help says so."""
+    from composed_sim.cli import main
+    with pytest.raises(SystemExit) as exit_:
+        main(["run", "--help"])
+    assert exit_.value.code == 0
+    help_text = " ".join(capsys.readouterr().out.split())
+    assert ("--domain-id DOMAIN_ID ROS domain of the run, refused if another simulator uses it (default: "
+            "$ROS_DOMAIN_ID where set, else the first free domain from 0 up, printed first and recorded in "
+            "summary.json; multi-process mode: the first of a block of free domains)") in help_text
+    assert "$ROS_DOMAIN_ID or 0" not in help_text

@@ -72,7 +72,9 @@ def build_parser() -> argparse.ArgumentParser:
                      help="wall seconds to wait for a controller's answer before its fallback")
     run.add_argument("--fallback", choices=("zero", "previous"), help="command given to a late robot")
     run.add_argument("--domain-id", type=int, default=None,
-                     help="ROS domain (default: $ROS_DOMAIN_ID or 0)")
+                     help="ROS domain of the run, refused if another simulator uses it (default: "
+                          "$ROS_DOMAIN_ID where set, else the first free domain from 0 up, printed first and "
+                          "recorded in summary.json; multi-process mode: the first of a block of free domains)")
     run.add_argument("--controller", metavar="NAME",
                      help="for an ARGoS .argos file: the controller plugin its robots run")
     run.add_argument("--out", type=Path, default=Path("out"), help="output directory (default: %(default)s)")
