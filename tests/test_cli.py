@@ -337,3 +337,17 @@ def test_run_help_says_how_the_domain_is_chosen(capsys):
             "$ROS_DOMAIN_ID where set, else the first free domain from 0 up, printed first and recorded in "
             "summary.json; multi-process mode: the first of a block of free domains)") in help_text
     assert "$ROS_DOMAIN_ID or 0" not in help_text
+
+
+@pytest.mark.parametrize("no_picture", [True, False])
+def test_the_run_names_the_files_it_wrote_and_no_other(tmp_path, no_picture):
+    """Under --no-picture there is no arena.png, and the closing line does not claim one."""
+    out = tmp_path / "out"
+    r = cli("run", FLOCKING, "--robots", 3, "--ticks", 3, "--no-progress", "--out", out,
+            *(["--no-picture"] if no_picture else []))
+    assert r.returncode == 0, r.stderr[-2000:]
+    line = r.stdout.strip().splitlines()[-1].strip()
+    assert line.startswith(f"results in {out}/ (") and line.endswith(")"), line
+    named = line[len(f"results in {out}/ ("):-1].split(", ")
+    assert sorted(named) == sorted(p.name for p in out.iterdir())
+    assert ("arena.png" in named) is (not no_picture)

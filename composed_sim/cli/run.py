@@ -85,7 +85,8 @@ def cmd_run(args) -> int:
     except (HostError, DomainTaken) as e:
         raise UserError(str(e)) from None
 
-    def finish(result, checkpoint: bool = False) -> dict:
+    def finish(result, checkpoint: bool = False) -> tuple[dict, list[str]]:
+        """Write the results; the summary and the names of the files written."""
         mode = "external-controllers" if args.external_controllers else args.mode
         summary = summarize(world, result, setup_s=host.setup.setup_s, mode=mode,
                             executor=args.executor,
@@ -99,9 +100,9 @@ def cmd_run(args) -> int:
         summary["domain_id"], summary["domains"] = used[0], used
         summary["checkpoint"] = checkpoint     # true: written while running; the run did not end
         summary["out"] = str(args.out)
-        write_results(args.out, world, result, summary, picture=not (args.no_picture or checkpoint),
-                      checkpoint=checkpoint)
-        return summary
+        files = write_results(args.out, world, result, summary, picture=not (args.no_picture or checkpoint),
+                              checkpoint=checkpoint)
+        return summary, files
 
     with Interrupts() as interrupts, contextlib.ExitStack() as outputs:
         try:
@@ -124,14 +125,14 @@ def cmd_run(args) -> int:
                     raise
                 finally:
                     progress.close()
-                summary = finish(result)
+                summary, files = finish(result)
                 code = EXIT_INTERRUPTED if result.interrupted else 0
                 if args.exit_when_done and isinstance(host, (ComposedHost, WorkerHost)):
                     # Destroying thousands of nodes one by one takes minutes (each destruction
                     # republishes the participant's graph, docs/speed.md): with every result and
                     # the recording written, the process ends and the system reclaims the rest.
                     outputs.close()
-                    print_summary(args, world, summary)
+                    print_summary(args, world, summary, files)
                     sys.stdout.flush()
                     sys.stderr.flush()
                     os._exit(code)
@@ -140,7 +141,7 @@ def cmd_run(args) -> int:
         except (HostError, AnotherSimulator) as e:
             raise UserError(str(e)) from None
     claim.release()
-    print_summary(args, world, summary)
+    print_summary(args, world, summary, files)
     return code
 
 
