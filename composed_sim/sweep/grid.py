@@ -13,7 +13,7 @@ from typing import Annotated, Any, Literal, Optional, Union, get_args, get_origi
 import yaml
 from pydantic import BaseModel
 
-from composed_sim.world.loader import WorldFileError, dump_world, load_world, world_from_dict
+from composed_sim.world.loader import WorldFileError, check_has_robots, dump_world, load_world, world_from_dict
 from composed_sim.world.schema import World
 
 
@@ -129,7 +129,7 @@ def _apply(base: World, values: dict[str, Any], source: str) -> World:
             data = with_overrides(world_from_dict(data), robots=value).model_dump(mode="json")
         else:
             _set(data, name.split("."), value)
-    return world_from_dict(data, f"{source} (sweep)")
+    return check_has_robots(world_from_dict(data, f"{source} (sweep)"), f"{source} (sweep)")
 
 
 def _set(data: Any, keys: list[str], value: Any) -> None:

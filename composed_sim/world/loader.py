@@ -12,7 +12,7 @@ import os
 import reprlib
 import types
 from pathlib import Path
-from typing import Annotated, Any, Optional, Union, get_args, get_origin
+from typing import Annotated, Any, NoReturn, Optional, Union, get_args, get_origin
 
 import yaml
 from pydantic import BaseModel, ValidationError
@@ -46,7 +46,7 @@ def load_world(path: str | os.PathLike, *, robots: Optional[int] = None,
     """Load a world file, then apply the command-line overrides (see ``with_overrides``)."""
     source = os.fspath(path)
     data, lines = _parse(read_file(source), source)
-    world = validate(data, source, lines)
+    world = check_has_robots(validate(data, source, lines), source, lines)
     return with_overrides(world, robots=robots, ticks=ticks, seed=seed, source=source)
 
 
@@ -226,11 +226,14 @@ def validate(data: Any, source: str, lines: dict[FieldPath, int]) -> World:
         raise WorldFileError(f"{source}: the world refers to itself too deeply "
                              f"(recursive YAML aliases?)") from None
     else:
-        problems = _nothing_to_run(world)
-        if not problems:
-            for resolve in (_with_floor_image, _with_params_files, _with_interfaces):
-                world = resolve(world, source, lines)
-            return world
+        for resolve in (_with_floor_image, _with_params_files, _with_interfaces):
+            world = resolve(world, source, lines)
+        return world
+    _raise(problems, source, lines)
+
+
+def _raise(problems: list[tuple[FieldPath, str, str]], source: str, lines: dict[FieldPath, int]) -> NoReturn:
+    """One WorldFileError for the problems, each as file:line: field: message (got value)."""
     rows = sorted({(_line(lines, path), format_path(path), message, got)
                    for path, message, got in problems}, key=lambda r: (r[0] or 0, r[1], r[2]))
     texts = [f"{source}{f':{line}' if line else ''}: {path}{': ' if path else ''}{message}{got}"
@@ -241,15 +244,17 @@ def validate(data: Any, source: str, lines: dict[FieldPath, int]) -> World:
                          texts)
 
 
-def _nothing_to_run(world: World) -> list[tuple[FieldPath, str, str]]:
-    """A world file with no robot at all is refused, not run: the schema allows it (the core's
-    tests build empty scenes), but every host is made of its robots' participants, processes or
-    shards. A group of count 0 beside others is fine."""
+def check_has_robots(world: World, source: str, lines: Optional[dict[FieldPath, int]] = None) -> World:
+    """The world, if it has a robot to run; else one WorldFileError at its robots field. The
+    schema allows an empty world (the core places and senses empty scenes), but a run does not:
+    every host is made of its robots' participants, processes or shards. A group of count 0
+    beside others is fine."""
     if world.robot_count > 0:
-        return []
+        return world
     if not world.robots:
-        return [(("robots",), "lists no robot group; a run needs at least one robot", "")]
-    return [(("robots", 0, "count"), "every group's count is 0; a run needs at least one robot", "")]
+        _raise([(("robots",), "lists no robot group; a run needs at least one robot", "")], source, lines or {})
+    _raise([(("robots", 0, "count"), "every group's count is 0; a run needs at least one robot", "")],
+           source, lines or {})
 
 
 def _with_floor_image(world: World, source: str, lines: dict[FieldPath, int]) -> World:
