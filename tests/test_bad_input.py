@@ -201,3 +201,13 @@ def test_a_mistake_before_the_command_is_one_line_too(capsys):
     assert main_fails(capsys) == "composed-sim: error: the following arguments are required: COMMAND " \
                                  "(see composed-sim --help)"
     assert main_fails(capsys, "nosuch").startswith("composed-sim: error: argument COMMAND: invalid choice: 'nosuch'")
+
+
+def test_a_sweep_of_a_missing_world_or_into_an_unwritable_folder_is_one_line(tmp_path, capsys):
+    missing = tmp_path / "nosuch.yaml"
+    assert main_fails(capsys, "sweep", missing, "--seeds", "1") == (
+        f"composed-sim sweep: error: {missing}: no such world file")
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    assert main_fails(capsys, "sweep", FLOCKING, "--seeds", "1", "--out", blocker / "out") == (
+        f"composed-sim sweep: error: --out {blocker / 'out'}: cannot write there (Not a directory)")
