@@ -79,18 +79,23 @@ def summarize(world: World, result: LoopResult, *, setup_s: float, mode: str, ex
                                 key=t.names.index),
         "peak_rss_mb": peak_rss_mb(),
         "rss_mb_by_tick": [[tick, round(mb, 1)] for tick, mb in result.memory],
-        "finished": result.finished,      # the loop functions ended the run (is_finished)
+        "ended_by_loop_functions": result.finished,     # is_finished ended the run before its length
+        # Deprecated, kept for old readers until the next release: the same as the above, though it
+        # read as "the run did not finish" when false (docs/experiments.md).
+        "finished": result.finished,
         "metrics": {"initial": result.metrics[0], "final": result.metrics[-1]} if result.metrics else {},
         "versions": versions(),
     }
 
 
 def write_results(out_dir: Path, world: World, result: LoopResult, summary: dict,
-                  picture: bool = True, checkpoint: bool = False) -> None:
+                  picture: bool = True, checkpoint: bool = False) -> list[str]:
     """Write every file of a run; each file is complete on its own, the picture last. Each file
     replaces the one before in one step (written aside, then renamed): a run killed while writing
-    leaves the previous checkpoint's file, never half a file."""
+    leaves the previous checkpoint's file, never half a file. Returns the names written, in order
+    (what the run says it wrote)."""
     out_dir.mkdir(parents=True, exist_ok=True)
+    written = [WORLD, TRAJECTORIES, VIOLATIONS]
     with _replacing(out_dir / WORLD) as f:
         f.write(dump_world(world).encode())
     t = result.trajectories
@@ -108,6 +113,7 @@ def write_results(out_dir: Path, world: World, result: LoopResult, summary: dict
         w.writerows((v.tick, v.robot, v.reason) for v in result.violations)
         text.detach()
     if result.metrics:
+        written.append(METRICS)
         with _replacing(out_dir / METRICS) as f:
             text = io.TextIOWrapper(f, newline="")
             columns = list(dict.fromkeys(k for row in result.metrics for k in row))
@@ -117,11 +123,14 @@ def write_results(out_dir: Path, world: World, result: LoopResult, summary: dict
             text.detach()
     with _replacing(out_dir / SUMMARY) as f:
         f.write((json.dumps(summary, indent=2) + "\n").encode())
+    written.append(SUMMARY)
     if picture:
         from composed_sim.render import render
         # The whole run's trails: the picture summarises the run, not its last seconds.
         render(t, world, out_dir / PICTURE, led_colors=t.led_colors, trail_ticks=t.ticks_done,
                tick_s=world.tick_s)
+        written.append(PICTURE)
+    return written
 
 
 @contextlib.contextmanager

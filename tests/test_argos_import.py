@@ -156,8 +156,18 @@ def test_controller_from_params_plugin_mapping_and_pass_through_params():
     # The diffusion plugin declares its port of footbot_diffusion: units converted, the rest listed.
     assert group.controller == "diffusion"
     assert group.params == pytest.approx({"alpha_deg": 7.5, "delta": 0.1, "speed_mps": 0.05})
-    assert [w.split(": ")[1] for w in warnings] == ["params/mode", "params/wheels.max"]
-    passed, _ = load(argos(robots, controllers=controllers), controller="aggregation")
+    assert [w.split(": ", 1)[1] for w in warnings] == [
+        'params: 2 ARGoS parameters dropped (no counterpart in the plugin "diffusion"): mode, wheels.max']
+    # --controller names a plugin that ports no ARGoS controller: the <params> (written for the
+    # diffusion plugin) are not its own, so it runs with its defaults and the drop is one warning.
+    dropped, warnings = load(argos(robots, controllers=controllers), controller="aggregation")
+    assert dropped.robots[0].params == {}
+    assert [w.split(": ", 1)[1] for w in warnings if "params" in w] == [
+        "params: 5 ARGoS parameters dropped (footbot_diffusion_controller's; the plugin \"aggregation\" runs with "
+        "its own defaults): alpha, delta, velocity, mode, wheels.max"]
+    # <params plugin="NAME"> naming the plugin that runs: written for it, passed on unchanged.
+    own = controllers.replace('plugin="diffusion"', 'plugin="aggregation"')
+    passed, _ = load(argos(robots, controllers=own), controller="aggregation")
     assert passed.robots[0].params == {"alpha": 7.5, "delta": 0.1, "velocity": 5, "mode": "fast",
                                        "wheels.max": 10}
     mapped, _ = load(argos(robots, controllers=controllers), controller={"fdc": "plain"})

@@ -116,7 +116,7 @@ def test_every_ported_controller_and_robot_entity_runs(tmp_path):
         assert f'runs with the installed plugin "{plugin}"' in r.stderr, r.stderr
     summary = json.loads(r.stdout)
     assert summary["ticks"] == 15 and summary["robots"] == 14 and summary["violations"] == 0
-    for omitted in ("params/state.minimum_resting_time: not a parameter the plugin \"foraging\" translates",
+    for omitted in ("1 ARGoS parameter dropped (no counterpart in the plugin \"foraging\"): state.minimum_resting_time",
                     "kheperaiv_ultrasound: sensor of controller kdc is not simulated",
                     "kheperaiv_lidar/num_readings: not simulated"):
         assert omitted in r.stderr
@@ -252,3 +252,24 @@ def test_an_image_floor_is_stretched_over_the_arena_and_a_loop_functions_floor_i
     text = experiment('\n    <floor id="f" source="loop_functions" pixels_per_meter="50" />' + robot)
     _, warnings = loads_argos(text, source="t.argos")
     assert any(": floor: painted by the loop functions" in w for w in warnings)
+
+
+FLOCKING_PARAMS = ("wheel_turning.hard_turn_angle_threshold, wheel_turning.soft_turn_angle_threshold, "
+                   "wheel_turning.no_turn_angle_threshold, wheel_turning.max_speed, flocking.target_distance, "
+                   "flocking.gain, flocking.exponent")
+
+
+@pytest.mark.parametrize("plugin", ["diffusion", "aggregation"])   # a port of another controller; no port
+def test_another_controller_on_the_shipped_flocking_argos_runs_with_its_defaults(tmp_path, plugin):
+    """--controller NAME on a real .argos file whose <params> are footbot_flocking's: the run goes on
+    with the plugin's defaults, and one warning line lists what was dropped."""
+    out = tmp_path / "out"
+    r = cli("run", ROOT / "worlds" / "flocking.argos", "--controller", plugin, "--robots", 4, "--ticks", 3,
+            "--no-progress", "--no-picture", "--out", out)
+    assert r.returncode == 0, r.stderr[-3000:]
+    dropped = [line.strip() for line in r.stderr.splitlines() if "dropped" in line]
+    assert dropped == [f"{ROOT / 'worlds' / 'flocking.argos'}:38: params: 7 ARGoS parameters dropped "
+                       f"(footbot_flocking_controller's; the plugin \"{plugin}\" runs with its own defaults): "
+                       f"{FLOCKING_PARAMS}"]
+    (group,) = load_world(out / "world.yaml").robots
+    assert (group.controller, group.params) == (plugin, {})

@@ -110,3 +110,104 @@ def test_an_unwritable_output_directory(tmp_path):
     blocker.write_text("")
     assert fails(FLOCKING, "--robots", 2, "--out", blocker / "out") == (
         f"composed-sim: error: --out {blocker / 'out'}: cannot write there (Not a directory)")
+
+
+@pytest.mark.parametrize("changes, field, says", [
+    ({"robots__0__count": 0}, "count", "robots[0].count: every group's count is 0; a run needs at least one robot"),
+    ({"robots": []}, "robots", "robots: lists no robot group; a run needs at least one robot"),
+])
+def test_a_world_with_no_robot_is_refused_at_its_line(tmp_path, changes, field, says):
+    w = world_with(tmp_path, **changes)
+    assert fails(w, "--out", tmp_path / "o") == f"composed-sim: error: {w}:{line_of(w, field)}: {says}"
+    assert not (tmp_path / "o").exists()
+
+
+def main_fails(capsys, *args) -> str:
+    """``main(args)`` as the command line calls it: exit 2 and one line on stderr, argparse's
+    errors included (they exit through SystemExit)."""
+    from composed_sim.cli import main
+    try:
+        code = main([str(a) for a in args])
+    except SystemExit as e:
+        code = e.code
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and len(err.splitlines()) == 1 and "Traceback" not in err, (code, err)
+    return err
+
+
+@pytest.mark.parametrize("args, says", [
+    (("--seeds", "1-x"), "--seeds: '1-x' is not a whole number (give e.g. 1-5 or 1,2,7)"),
+    (("--seeds", "true"), "--seeds: True is not a whole number (give e.g. 1-5 or 1,2,7)"),
+    (("--seeds", "-3"), "--seeds: must be >= 0 (got -3)"),
+    (("--seeds", "5-1"), "--seeds: the range 5-1 runs backwards"),
+    (("--seeds", "1,,2"), "--seeds: an empty value in '1,,2'"),
+    (("--robots", "-4"), "--robots: must be >= 1 (got -4)"),
+    (("--robots", "1.5"), "--robots: 1.5 is not a whole number (give e.g. 20,80)"),
+    (("--set", "gain"), "--set 'gain': expected PATH=V1,V2,... e.g. robots.0.params.gain=500,1000"),
+    (("--set", "robots.0.count=0"), "--set robots.0.count=0: the field is int >= 0; every group's count is 0; "
+                                    "a run needs at least one robot"),
+    (("--cluster", "nonsense"), "--cluster nonsense: missing port number in address 'nonsense'"),
+])
+def test_every_sweep_argument_mistake_is_one_line(tmp_path, capsys, args, says):
+    err = main_fails(capsys, "sweep", FLOCKING, *args, "--out", tmp_path / "out")
+    assert err == f"composed-sim sweep: error: {says}"
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("text, says", [
+    ("world: flocking.yaml\nseeds: [1, x]\n", "seeds: 'x' is not a whole number (give e.g. 1-5 or 1,2,7)"),
+    ("world: flocking.yaml\nrobots: -3\n", "robots: must be >= 1 (got -3)"),
+    ("world: flocking.yaml\nset: 5\n", "set: must map dotted paths to values, e.g. {robots.0.params.gain: "
+                                       "[500, 1000]} (got 5)"),
+])
+def test_every_sweep_file_mistake_is_one_line(tmp_path, capsys, text, says):
+    sweep_file = tmp_path / "sweep.yaml"
+    sweep_file.write_text(text)
+    (tmp_path / "flocking.yaml").write_text(FLOCKING.read_text())
+    assert main_fails(capsys, "sweep", sweep_file) == f"composed-sim sweep: error: {sweep_file}: {says}"
+
+
+def test_a_sweep_file_that_is_not_yaml_names_its_line(tmp_path, capsys):
+    sweep_file = tmp_path / "sweep.yaml"
+    sweep_file.write_text("world: [\n")
+    assert main_fails(capsys, "sweep", sweep_file).startswith(
+        f"composed-sim sweep: error: {sweep_file}:2: not valid YAML: ")
+
+
+@pytest.mark.parametrize("args, says", [
+    (("run", FLOCKING, "--ticks", "abc"), "argument --ticks: expected a whole number, got 'abc'"),
+    (("run", FLOCKING, "--robots", "-5"), "argument --robots: must be >= 1 (got -5)"),
+    (("run", FLOCKING, "--mode", "fast"), "argument --mode: invalid choice: 'fast' (choose from 'composed', "
+                                          "'multi-process')"),
+    (("run", FLOCKING, "--bogus"), "unrecognized arguments: --bogus"),
+    (("run",), "the following arguments are required: world"),
+    (("sweep", FLOCKING, "--ticks", "0"), "argument --ticks: must be >= 1 (got 0)"),
+    (("sweep", FLOCKING, "--jobs", "x"), "argument --jobs: expected a whole number, got 'x'"),
+    (("sweep", FLOCKING, "--seeds", "1", "--bogus", "x"), "unrecognized arguments: --bogus x"),
+    (("host", FLOCKING), "the following arguments are required: --robots"),
+    (("render", ROOT), "the following arguments are required: --out"),
+    (("replay",), "the following arguments are required: recording"),
+    (("export", ROOT, "--format", "xls"), "argument --format: invalid choice: 'xls' (choose from 'csv', 'parquet')"),
+    (("bench", "--sizes", "x"), "argument --sizes: expected whole numbers separated by commas, got 'x'"),
+    (("plugins", "--bogus"), "unrecognized arguments: --bogus"),
+    (("worlds", "extra"), "unrecognized arguments: extra"),
+])
+def test_an_argparse_mistake_is_one_line_naming_the_command_and_its_help(capsys, args, says):
+    command = f"composed-sim {args[0]}"
+    assert main_fails(capsys, *args) == f"{command}: error: {says} (see {command} --help)"
+
+
+def test_a_mistake_before_the_command_is_one_line_too(capsys):
+    assert main_fails(capsys) == "composed-sim: error: the following arguments are required: COMMAND " \
+                                 "(see composed-sim --help)"
+    assert main_fails(capsys, "nosuch").startswith("composed-sim: error: argument COMMAND: invalid choice: 'nosuch'")
+
+
+def test_a_sweep_of_a_missing_world_or_into_an_unwritable_folder_is_one_line(tmp_path, capsys):
+    missing = tmp_path / "nosuch.yaml"
+    assert main_fails(capsys, "sweep", missing, "--seeds", "1") == (
+        f"composed-sim sweep: error: {missing}: no such world file")
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    assert main_fails(capsys, "sweep", FLOCKING, "--seeds", "1", "--out", blocker / "out") == (
+        f"composed-sim sweep: error: --out {blocker / 'out'}: cannot write there (Not a directory)")

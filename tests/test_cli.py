@@ -274,3 +274,80 @@ def test_a_second_ctrl_c_quits_at_once_even_with_a_hung_controller(tmp_path, fau
     finally:
         if run.poll() is None:
             run.kill()
+
+
+@pytest.mark.parametrize("ros2_installed", [False, True])
+def test_the_watch_hint_names_what_this_machine_has(tmp_path, ros2_installed):
+    """The pip-only install has no ros2 command: the hint names it only where one is on PATH."""
+    import os
+    import shutil
+    bin_dir = tmp_path / "bin"
+    bin_dir.mkdir()
+    if ros2_installed:
+        (bin_dir / "ros2").write_text("#!/bin/sh\n")
+        (bin_dir / "ros2").chmod(0o755)
+    path = os.pathsep.join([str(bin_dir)] + [d for d in os.environ["PATH"].split(os.pathsep)
+                                             if not (Path(d) / "ros2").exists()])
+    env = {k: v for k, v in os.environ.items() if k != "ROS_DOMAIN_ID"} | {"PATH": path}
+    assert (shutil.which("ros2", path=path) is not None) == ros2_installed
+    r = subprocess.run([sys.executable, "-m", "composed_sim.cli", "run", FLOCKING, "--robots", "2", "--ticks", "2",
+                        "--markers", "--no-progress", "--no-picture", "--json", "--out", tmp_path / "o"],
+                       cwd=ROOT, capture_output=True, text=True, timeout=300, env=env)
+    assert r.returncode == 0, r.stderr[-2000:]
+    domain = json.loads(r.stdout)["domain_id"]
+    hint = next(line for line in r.stderr.splitlines() if line.startswith("composed-sim: ROS domain"))
+    assert hint == (f"composed-sim: ROS domain {domain} (free, picked); to watch it: an rclpy process with "
+                    f"ROS_DOMAIN_ID={domain} (docs/contract.md, \"Watching a run from another process\")"
+                    + (f" or ROS_DOMAIN_ID={domain} ros2 topic list" if ros2_installed else "")
+                    + "; or run with --foxglove (the Foxglove app, no ROS install needed)")
+
+
+def test_the_documented_watcher_lists_a_runs_topics_and_hears_its_clock(tmp_path, domain_id):
+    """docs/contract.md's pip-only stand-in for `ros2 topic list` and `ros2 topic echo` works."""
+    import os
+    import re
+    doc = (ROOT / "docs" / "contract.md").read_text()
+    section = doc[doc.index("## Watching a run from another process"):]
+    (tmp_path / "watch.py").write_text(re.search(r"```python\n(.*?)```", section, flags=re.S).group(1))
+    run = subprocess.Popen([sys.executable, "-m", "composed_sim.cli", "run", str(FLOCKING), "--robots", "2",
+                            "--ticks", "100000", "--out", str(tmp_path / "out"), "--no-progress", "--no-picture",
+                            "--domain-id", str(domain_id)], cwd=ROOT,
+                           stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        _wait_for_ticks(domain_id, run, 2)
+        watch = subprocess.run([sys.executable, str(tmp_path / "watch.py")], capture_output=True, text=True,
+                               timeout=60, env=os.environ | {"ROS_DOMAIN_ID": str(domain_id)})
+    finally:
+        run.send_signal(signal.SIGTERM)
+        run.wait(timeout=120)
+    assert watch.returncode == 0, watch.stderr[-2000:]
+    lines = watch.stdout.splitlines()
+    assert "/bot1/cmd_vel geometry_msgs/msg/TwistStamped" in lines and "/clock rosgraph_msgs/msg/Clock" in lines
+    assert re.fullmatch(r"\d+ \d+", lines[-1]), lines[-1]      # a /clock sample
+
+
+def test_run_help_says_how_the_domain_is_chosen(capsys):
+    """A run without --domain-id or $ROS_DOMAIN_ID picks a free domain: the help says so."""
+    from composed_sim.cli import main
+    with pytest.raises(SystemExit) as exit_:
+        main(["run", "--help"])
+    assert exit_.value.code == 0
+    help_text = " ".join(capsys.readouterr().out.split())
+    assert ("--domain-id DOMAIN_ID ROS domain of the run, refused if another simulator uses it (default: "
+            "$ROS_DOMAIN_ID where set, else the first free domain from 0 up, printed first and recorded in "
+            "summary.json; multi-process mode: the first of a block of free domains)") in help_text
+    assert "$ROS_DOMAIN_ID or 0" not in help_text
+
+
+@pytest.mark.parametrize("no_picture", [True, False])
+def test_the_run_names_the_files_it_wrote_and_no_other(tmp_path, no_picture):
+    """Under --no-picture there is no arena.png, and the closing line does not claim one."""
+    out = tmp_path / "out"
+    r = cli("run", FLOCKING, "--robots", 3, "--ticks", 3, "--no-progress", "--out", out,
+            *(["--no-picture"] if no_picture else []))
+    assert r.returncode == 0, r.stderr[-2000:]
+    line = r.stdout.strip().splitlines()[-1].strip()
+    assert line.startswith(f"results in {out}/ (") and line.endswith(")"), line
+    named = line[len(f"results in {out}/ ("):-1].split(", ")
+    assert sorted(named) == sorted(p.name for p in out.iterdir())
+    assert ("arena.png" in named) is (not no_picture)

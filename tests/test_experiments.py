@@ -68,12 +68,25 @@ def test_flocking_metrics_and_an_end_by_is_finished(tmp_path):
     assert r.returncode == 0, r.stderr[-2000:]
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     rows = list(csv.DictReader(open(tmp_path / "out" / "metrics.csv")))
-    assert summary["finished"] and 0 < summary["ticks"] < 400
+    assert summary["ended_by_loop_functions"] is True and 0 < summary["ticks"] < 400
+    assert summary["finished"] is True            # deprecated, the same value, for old readers
     assert float(rows[-1]["centroid_to_light_m"]) <= 5.7 < float(rows[-2]["centroid_to_light_m"])
     assert [int(r["tick"]) for r in rows[:-1]] == list(range(0, summary["ticks"], 10))
     assert int(rows[-1]["tick"]) == summary["ticks"]
     assert summary["metrics"]["final"]["lattice_order"] == float(rows[-1]["lattice_order"])
     assert "lattice order" in r.stdout and "ended by the loop functions" in r.stdout
+
+
+def test_a_run_that_ran_its_length_was_not_ended_by_the_loop_functions(tmp_path):
+    """"finished": false read as "did not finish" on a complete run: the field that says what it
+    means is ended_by_loop_functions; finished stays, with the same value, for one release."""
+    r = _cli("run", ROOT / "worlds" / "flocking.yaml", "--robots", 3, "--ticks", 5, "--workers", 1, "--no-picture",
+             "--no-progress", "--out", tmp_path / "out")
+    assert r.returncode == 0, r.stderr[-2000:]
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert (summary["ticks"], summary["ticks_requested"], summary["interrupted"]) == (5, 5, False)
+    assert summary["ended_by_loop_functions"] is False and summary["finished"] is False
+    assert "ended by the loop functions" not in r.stdout
 
 
 def test_foraging_scores_and_the_robots_agree_on_who_carries(tmp_path):

@@ -85,6 +85,7 @@ def test_a_failed_run_is_a_row_and_the_sweep_goes_on(tmp_path, monkeypatch):
     assert failed["status"] == "failed" and failed["exit_code"] == 1 and failed["ticks"] == 3
     assert "Traceback" in failed["error"] and "RuntimeError: the experiment's own bug at tick 3" in failed["error"]
     assert ok["status"] == "ok" and ok["ticks"] == 5 and ok["final_mean_x"] == ok["_metrics"][-1]["mean_x"]
+    assert ok["ended_by_loop_functions"] is False and ok["finished"] is False     # ran its length
 
 
 @pytest.mark.parametrize("given, says", [
@@ -96,7 +97,7 @@ def test_a_failed_run_is_a_row_and_the_sweep_goes_on(tmp_path, monkeypatch):
 ])
 def test_a_bad_set_is_one_line_before_any_run(tmp_path, capsys, given, says):
     assert main(["sweep", str(FLOCKING), "--seeds", "1", "--set", given, "--out", str(tmp_path / "out")]) == 2
-    assert capsys.readouterr().err.strip() == f"composed-sim: error: {says}"
+    assert capsys.readouterr().err.strip() == f"composed-sim sweep: error: {says}"
     assert not (tmp_path / "out").exists()
 
 

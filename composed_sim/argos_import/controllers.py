@@ -83,7 +83,7 @@ class ControllerTranslator(AttributeReader):
                 if device.tag in ("lua_controller", "buzz_controller"):
                     self.warn(device, device.tag, "Lua and Buzz controllers are not run")
         devices = device_settings(self, sensors, actuators, config)
-        values = self.params(params, plugin, what) if params is not None else {}
+        values = self.params(params, plugin, definition.tag) if params is not None else {}
         result = RobotController(plugin, values, devices, _sensor_topics(plugin))
         self.translated[config] = result
         return result
@@ -109,10 +109,12 @@ class ControllerTranslator(AttributeReader):
                          "ARGoS controller; give --controller NAME (a plugin that does the same "
                          f'job) or <params plugin="NAME"> (ported: {ported or "none"})')
 
-    def params(self, node: XmlElement, plugin: str, what: str) -> dict[str, Any]:
-        """The plugin's parameters from ARGoS's <params>: through the plugin's ArgosPort when
-        it declares one (units converted; the rest listed as not translated), else every
-        attribute passed on unchanged, nested ones as "child.attr"."""
+    def params(self, node: XmlElement, plugin: str, controller: str) -> dict[str, Any]:
+        """The plugin's parameters from ARGoS's <params> of ``controller`` (its XML tag): through
+        the plugin's ArgosPort when it ports this controller (units converted); unchanged (nested
+        ones as "child.attr") where <params plugin=NAME> says they were written for this plugin;
+        else they are another controller's and the plugin runs with its own defaults. Whatever is
+        dropped is listed in one warning: the run goes on, and the user sees what it lost."""
         raw: dict[str, tuple[XmlElement, str, str]] = {}     # path → (element, attribute, text)
 
         def walk(n: XmlElement, prefix: str) -> None:
@@ -126,18 +128,22 @@ class ControllerTranslator(AttributeReader):
             port = plugins.argos_port(plugin)
         except plugins.PluginError:
             port = None          # the run reports an unknown or broken plugin by name
-        if port is None:
+        if port is not None and port.controller == controller:
+            out = {port.params[path][0]: self.number(element, attr) * port.params[path][1]
+                   for path, (element, attr, _) in raw.items() if path in port.params}
+            self._dropped(node, [path for path in raw if path not in port.params],
+                          f'no counterpart in the plugin "{plugin}"')
+            return out
+        if node.attrib.get("plugin") == plugin:
             return {path: _param_value(text) for path, (_, _, text) in raw.items()}
-        out: dict[str, Any] = {}
-        for path, (element, attr, text) in raw.items():
-            target = port.params.get(path)
-            if target is None:
-                self.warn(element, f"params/{path}", f'not a parameter the plugin "{plugin}" '
-                          f"translates, ignored")
-                continue
-            name, factor = target
-            out[name] = self.number(element, attr) * factor
-        return out
+        self._dropped(node, list(raw), f'{controller}\'s; the plugin "{plugin}" runs with its own defaults')
+        return {}
+
+    def _dropped(self, node: XmlElement, paths: list[str], why: str) -> None:
+        """One warning for the <params> attributes a run goes without."""
+        if paths:
+            self.warn(node, "params", f"{len(paths)} ARGoS parameter{'s' if len(paths) > 1 else ''} dropped "
+                                      f"({why}): {', '.join(paths)}")
 
 
 def _sensor_topics(plugin: str) -> tuple[str, ...]:

@@ -29,10 +29,19 @@ def _workers(text: str):
     return "auto" if text == "auto" else _positive_int(text)
 
 
+class _OneLineParser(argparse.ArgumentParser):
+    """argparse's errors as one line naming the command, plus where the usage is, instead of the
+    whole usage first: the mistake is the line a user must see (subcommands' parsers are of this
+    class too, add_subparsers makes them so)."""
+
+    def error(self, message: str):
+        self.exit(EXIT_USAGE, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
     from composed_sim.hosts.choices import EXECUTORS, MODES, ROBOTS_PER_PARTICIPANT
 
-    parser = argparse.ArgumentParser(prog="composed-sim", description=(
+    parser = _OneLineParser(prog="composed-sim", description=(
         "Swarm simulator whose robot controllers are ROS 2 nodes, hosted with the simulator in a few processes."))
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
@@ -63,7 +72,9 @@ def build_parser() -> argparse.ArgumentParser:
                      help="wall seconds to wait for a controller's answer before its fallback")
     run.add_argument("--fallback", choices=("zero", "previous"), help="command given to a late robot")
     run.add_argument("--domain-id", type=int, default=None,
-                     help="ROS domain (default: $ROS_DOMAIN_ID or 0)")
+                     help="ROS domain of the run, refused if another simulator uses it (default: "
+                          "$ROS_DOMAIN_ID where set, else the first free domain from 0 up, printed first and "
+                          "recorded in summary.json; multi-process mode: the first of a block of free domains)")
     run.add_argument("--controller", metavar="NAME",
                      help="for an ARGoS .argos file: the controller plugin its robots run")
     run.add_argument("--out", type=Path, default=Path("out"), help="output directory (default: %(default)s)")
@@ -154,6 +165,7 @@ def build_parser() -> argparse.ArgumentParser:
                                        "metrics.csv and plots (docs/experiments.md). Resumable.")
     from composed_sim.sweep import command as sweep_command
     sweep_command.add_arguments(sweep)
+    parser.commands = sub.choices        # name → subcommand parser, for the errors found after parsing
     return parser
 
 
@@ -177,8 +189,24 @@ def _add_render_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--every", type=_positive_int, default=1, help="draw every k-th tick (default: %(default)s)")
 
 
+def _parse(argv: list[str] | None) -> argparse.Namespace:
+    """The arguments; an unknown flag is reported by its subcommand's parser, so that the line
+    names the command whose --help lists the flags (the top parser would say just composed-sim)."""
+    parser = build_parser()
+    args, unknown = parser.parse_known_args(argv)
+    if unknown:
+        parser.commands[args.command].error(f"unrecognized arguments: {' '.join(unknown)}")
+    return args
+
+
+def _error_prefix(command: str) -> str:
+    """A sweep's own mistakes name the sweep, like its argparse errors and its progress lines:
+    its runs' errors, in their logs and rows, are the ones that start "composed-sim: error"."""
+    return "composed-sim sweep" if command == "sweep" else "composed-sim"
+
+
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    args = _parse(argv)
     args.exit_when_done = argv is None    # a program of its own (not called from Python): see cmd_run
     try:
         if args.command == "plugins":
@@ -205,5 +233,5 @@ def main(argv: list[str] | None = None) -> int:
             keep_stdout_for_json()
         return cmd_run(args)
     except UserError as e:
-        print(f"composed-sim: error: {e}", file=sys.stderr)
+        print(f"{_error_prefix(args.command)}: error: {e}", file=sys.stderr)
         return EXIT_USAGE

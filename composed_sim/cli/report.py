@@ -5,19 +5,33 @@ from __future__ import annotations
 import contextlib
 import json
 import os
+import shutil
 import sys
 
 
+WATCHING_DOC = 'docs/contract.md, "Watching a run from another process"'
 
 
-def print_summary(args, world, summary: dict) -> None:
+def watch_hint(domain_id: int, *, foxglove: bool, markers: bool) -> str:
+    """How to watch a run with what this machine has: the pip-only install has rclpy but no
+    ``ros2`` command (ros2cli is not on PyPI), so ``ros2`` is named only where it is on PATH;
+    an option this run already has is not offered again."""
+    now = [f"an rclpy process with ROS_DOMAIN_ID={domain_id} ({WATCHING_DOC})"]
+    if shutil.which("ros2"):
+        now.append(f"ROS_DOMAIN_ID={domain_id} ros2 topic list")
+    options = [] if foxglove else ["--foxglove (the Foxglove app, no ROS install needed)"]
+    options += [] if markers else ["--markers (the scene on /swarm/markers)"]
+    return f"to watch it: {' or '.join(now)}" + (f"; or run with {' and '.join(options)}" if options else "")
+
+
+def print_summary(args, world, summary: dict, files: list[str]) -> None:
     if args.json:
         with json_stdout():
             print(json.dumps(summary, indent=2), flush=True)
     else:
         from composed_sim.loop_functions import describe
         metrics = summary.get("metrics") or {}
-        print(_human_summary(summary, describe(world, metrics.get("initial", {}), metrics.get("final", {}))))
+        print(_human_summary(summary, files, describe(world, metrics.get("initial", {}), metrics.get("final", {}))))
 
 
 _json_fd: int | None = None     # the real stdout while a --json run sends everything else to stderr
@@ -90,7 +104,7 @@ def _workers_text(s: dict) -> str:
     return f" in {s['workers']} worker processes" + (" (auto)" if s.get("workers_requested") == "auto" else "")
 
 
-def _human_summary(s: dict, metric_lines: list[str] = ()) -> str:
+def _human_summary(s: dict, files: list[str], metric_lines: list[str] = ()) -> str:
     ph = s["phases_s"]
     lines = [
         f"{s['world']}: {s['robots']} robots, {s['ticks']} ticks ({s['sim_time_s']:.1f} s sim time), "
@@ -104,7 +118,7 @@ def _human_summary(s: dict, metric_lines: list[str] = ()) -> str:
         f"  violations: {s['violations']}",
     ]
     lines += metric_lines
-    if s.get("finished"):
+    if s.get("ended_by_loop_functions"):
         lines.append(f"  ended by the loop functions at tick {s['ticks']}")
-    lines.append(f"  results in {s['out']}/ (summary.json, trajectories.npz, arena.png)")
+    lines.append(f"  results in {s['out']}/ ({', '.join(files)})")     # what this run wrote, no more
     return "\n".join(lines)

@@ -9,7 +9,7 @@ import sys
 from composed_sim.command_line import EXIT_INTERRUPTED, UserError, check_writable
 from composed_sim.cli.common import (Interrupts, check_no_distributed_flags, check_plugins, distributed_settings,
                                      load_any_world, located, pick_domain)
-from composed_sim.cli.report import print_summary, progress_bar
+from composed_sim.cli.report import print_summary, progress_bar, watch_hint
 
 
 def cmd_run(args) -> int:
@@ -79,12 +79,14 @@ def cmd_run(args) -> int:
             claim, domain_id = claim_free_domain(len(used), about, controllers_expected=shards_first)
             host = make_host(domain_id)
             used = [domain_id + i for i in range(len(used))]
+            hint = watch_hint(domain_id, foxglove=args.foxglove is not None, markers=args.markers)
             print(f"composed-sim: ROS domain {domain_id}{f'..{used[-1]}' if len(used) > 1 else ''} (free, "
-                  f"picked; to watch it: ROS_DOMAIN_ID={domain_id} ros2 topic list)", file=sys.stderr)
+                  f"picked); {hint}", file=sys.stderr)
     except (HostError, DomainTaken) as e:
         raise UserError(str(e)) from None
 
-    def finish(result, checkpoint: bool = False) -> dict:
+    def finish(result, checkpoint: bool = False) -> tuple[dict, list[str]]:
+        """Write the results; the summary and the names of the files written."""
         mode = "external-controllers" if args.external_controllers else args.mode
         summary = summarize(world, result, setup_s=host.setup.setup_s, mode=mode,
                             executor=args.executor,
@@ -98,9 +100,9 @@ def cmd_run(args) -> int:
         summary["domain_id"], summary["domains"] = used[0], used
         summary["checkpoint"] = checkpoint     # true: written while running; the run did not end
         summary["out"] = str(args.out)
-        write_results(args.out, world, result, summary, picture=not (args.no_picture or checkpoint),
-                      checkpoint=checkpoint)
-        return summary
+        files = write_results(args.out, world, result, summary, picture=not (args.no_picture or checkpoint),
+                              checkpoint=checkpoint)
+        return summary, files
 
     with Interrupts() as interrupts, contextlib.ExitStack() as outputs:
         try:
@@ -123,14 +125,14 @@ def cmd_run(args) -> int:
                     raise
                 finally:
                     progress.close()
-                summary = finish(result)
+                summary, files = finish(result)
                 code = EXIT_INTERRUPTED if result.interrupted else 0
                 if args.exit_when_done and isinstance(host, (ComposedHost, WorkerHost)):
                     # Destroying thousands of nodes one by one takes minutes (each destruction
                     # republishes the participant's graph, docs/speed.md): with every result and
                     # the recording written, the process ends and the system reclaims the rest.
                     outputs.close()
-                    print_summary(args, world, summary)
+                    print_summary(args, world, summary, files)
                     sys.stdout.flush()
                     sys.stderr.flush()
                     os._exit(code)
@@ -139,7 +141,7 @@ def cmd_run(args) -> int:
         except (HostError, AnotherSimulator) as e:
             raise UserError(str(e)) from None
     claim.release()
-    print_summary(args, world, summary)
+    print_summary(args, world, summary, files)
     return code
 
 

@@ -7,12 +7,11 @@ import sys
 import time
 from pathlib import Path
 
-import yaml
-
 from composed_sim.command_line import UserError, check_writable, number_arg
 from composed_sim.sweep import report
-from composed_sim.sweep.grid import Grid, GridError, parse_list, parse_set
+from composed_sim.sweep.grid import Grid, GridError, parse_list, parse_set, whole_numbers
 from composed_sim.sweep.runner import dask_cluster, local_pool
+from composed_sim.world.loader import WorldFileError, read_yaml
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -34,28 +33,44 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def grid_from(args) -> Grid:
     """The grid of the command line, over a sweep file's when one is given (the command line wins)."""
     spec_path = args.spec
-    data = {}
-    if spec_path.suffix in (".yaml", ".yml") and spec_path.is_file():
-        loaded = yaml.safe_load(spec_path.read_text())
-        if isinstance(loaded, dict) and "world" in loaded:   # a sweep file (a world has no `world:` field)
-            data = loaded
-            unknown = set(data) - {"world", "seeds", "robots", "set", "ticks"}
-            if unknown:
-                raise GridError(f"{spec_path}: unknown sweep file field {sorted(unknown)[0]!r} "
-                                f"(fields: world, seeds, robots, set, ticks)")
-            spec_path = (spec_path.parent / data["world"]).resolve()
+    data = _sweep_file(spec_path)
+    if data:
+        spec_path = (spec_path.parent / str(data["world"])).resolve()
 
-    def values(cli: str | None, key: str) -> list:
+    def values(cli: str | None, key: str, minimum: int, example: str) -> list:
         if cli is not None:
-            return parse_list(cli, f"--{key}")
+            return whole_numbers(parse_list(cli, f"--{key}"), f"--{key}", minimum=minimum, example=example)
         given = data.get(key, [])
-        return parse_list(str(given), key) if isinstance(given, (str, int)) else list(given)
+        parsed = parse_list(str(given), key) if isinstance(given, (str, int)) else list(given)
+        return whole_numbers(parsed, f"{args.spec}: {key}", minimum=minimum, example=example)
 
+    file_sets = data.get("set") or {}
+    if not isinstance(file_sets, dict):
+        raise GridError(f"{args.spec}: set: must map dotted paths to values, e.g. "
+                        f"{{robots.0.params.gain: [500, 1000]}} (got {file_sets!r})")
     sets = {path: (list(v) if isinstance(v, list) else parse_list(str(v), f"set.{path}"))
-            for path, v in (data.get("set") or {}).items()}
+            for path, v in file_sets.items()}
     sets.update(parse_set(text) for text in args.set)
-    return Grid(spec_path, seeds=values(args.seeds, "seeds"), robots=values(args.robots, "robots"), sets=sets,
-                ticks=args.ticks if args.ticks is not None else data.get("ticks"))
+    return Grid(spec_path, seeds=values(args.seeds, "seeds", 0, "1-5 or 1,2,7"),
+                robots=values(args.robots, "robots", 1, "20,80"),
+                sets=sets, ticks=args.ticks if args.ticks is not None else data.get("ticks"))
+
+
+def _sweep_file(path: Path) -> dict:
+    """A sweep file's fields, or {} where ``path`` is a world file (a world has no ``world:`` field)."""
+    if path.suffix not in (".yaml", ".yml") or not path.is_file():
+        return {}
+    try:
+        loaded = read_yaml(path)
+    except WorldFileError as e:
+        raise GridError(str(e)) from None
+    if not (isinstance(loaded, dict) and "world" in loaded):
+        return {}
+    unknown = set(loaded) - {"world", "seeds", "robots", "set", "ticks"}
+    if unknown:
+        raise GridError(f"{path}: unknown sweep file field {sorted(unknown)[0]!r} "
+                        f"(fields: world, seeds, robots, set, ticks)")
+    return loaded
 
 
 def run(args) -> int:
@@ -65,14 +80,18 @@ def run(args) -> int:
     except GridError as e:
         raise UserError(str(e)) from None
     check_writable(args.out)
-    args.out.mkdir(parents=True, exist_ok=True)
     swept = list(specs[0].values) if specs else []
     if args.cluster:
-        where, rows_as_done = f"Dask cluster {args.cluster}", dask_cluster(specs, str(args.out), args.cluster)
+        try:
+            rows_as_done = dask_cluster(specs, str(args.out), args.cluster)
+        except (ValueError, OSError) as e:      # a malformed or unreachable address
+            raise UserError(f"--cluster {args.cluster}: {e}") from None
+        where = f"Dask cluster {args.cluster}"
     else:
         from composed_sim.hosts.workers import usable_cores
         jobs = args.jobs or usable_cores()
         where, rows_as_done = f"{jobs} at a time", local_pool(specs, str(args.out), jobs)
+    args.out.mkdir(parents=True, exist_ok=True)
     print(f"composed-sim sweep: {len(specs)} runs ({' × '.join(f'{k} {len(set(s.values[k] for s in specs))}' for k in swept)}), "
           f"{where}, into {args.out}/", file=sys.stderr)
     rows: list[dict] = []

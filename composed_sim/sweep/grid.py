@@ -13,7 +13,7 @@ from typing import Annotated, Any, Literal, Optional, Union, get_args, get_origi
 import yaml
 from pydantic import BaseModel
 
-from composed_sim.world.loader import WorldFileError, dump_world, load_world, world_from_dict
+from composed_sim.world.loader import WorldFileError, check_has_robots, dump_world, load_world, world_from_dict
 from composed_sim.world.schema import World
 
 
@@ -64,7 +64,11 @@ class Grid:
         out = []
         for combo in itertools.product(*(values for _, values in axes)):
             values = dict(zip((name for name, _ in axes), combo))
-            out.append(RunSpec(_apply(base, values, str(self.world_path)), values, self.ticks))
+            try:
+                world = _apply(base, values, str(self.world_path))
+            except WorldFileError as e:     # e.g. a seed past the schema's limit
+                raise GridError(str(e)) from None
+            out.append(RunSpec(world, values, self.ticks))
         return out
 
 
@@ -96,6 +100,17 @@ def parse_list(text: str, what: str) -> list[Any]:
     return out
 
 
+def whole_numbers(values: list[Any], what: str, *, minimum: int, example: str) -> list[int]:
+    """Seeds (minimum 0) or swarm sizes (minimum 1) as parsed: each a whole number, else one
+    GridError naming where it came from (``--seeds`` or the sweep file's ``seeds``)."""
+    for value in values:
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise GridError(f"{what}: {value!r} is not a whole number (give e.g. {example})")
+        if value < minimum:
+            raise GridError(f"{what}: must be >= {minimum} (got {value})")
+    return values
+
+
 def parse_set(text: str) -> tuple[str, list[Any]]:
     """``robots.0.params.gain=500,1000`` → ("robots.0.params.gain", [500, 1000])."""
     path, sep, values = text.partition("=")
@@ -114,7 +129,7 @@ def _apply(base: World, values: dict[str, Any], source: str) -> World:
             data = with_overrides(world_from_dict(data), robots=value).model_dump(mode="json")
         else:
             _set(data, name.split("."), value)
-    return world_from_dict(data, f"{source} (sweep)")
+    return check_has_robots(world_from_dict(data, f"{source} (sweep)"), f"{source} (sweep)")
 
 
 def _set(data: Any, keys: list[str], value: Any) -> None:

@@ -60,7 +60,9 @@ def _results(folder: Path) -> dict:
     """The figures of a run's summary.json and its metrics.csv rows."""
     s = json.loads((folder / "summary.json").read_text())
     final = (s.get("metrics") or {}).get("final", {})
-    out = {"robots_run": s["robots"], "ticks": s["ticks"], "finished": s.get("finished", False),
+    ended_by_loop_functions = s.get("ended_by_loop_functions", s.get("finished", False))   # older summaries
+    out = {"robots_run": s["robots"], "ticks": s["ticks"], "ended_by_loop_functions": ended_by_loop_functions,
+           "finished": ended_by_loop_functions,        # deprecated column, as in summary.json
            "setup_s": s["setup_s"], "ticks_wall_s": s["ticks_wall_s"], "real_time_factor": s["real_time_factor"],
            "violations": s["violations"], **{f"final_{k}": v for k, v in final.items() if k != "tick"}}
     out["_metrics"] = []
@@ -96,8 +98,14 @@ def dask_cluster(specs: list[RunSpec], out_dir: str, address: str) -> Iterator[d
     """Rows as runs end on a Dask distributed cluster (``tcp://scheduler:8786``, or a Client's
     cluster object): every worker needs composed_sim installed and ``out_dir`` on a shared file
     system. Each task is one run, retried by Dask if its worker dies."""
-    from distributed import Client, as_completed
-    with Client(address) as client:
+    from distributed import Client
+    client = Client(address)   # now, not at the first row: a bad address is an error before any run
+    return _cluster_rows(client, specs, out_dir)
+
+
+def _cluster_rows(client, specs: list[RunSpec], out_dir: str) -> Iterator[dict]:
+    from distributed import as_completed
+    with client:
         futures = [client.submit(run_one, spec, str(Path(out_dir).resolve()), key=f"run-{spec.name}", pure=False)
                    for spec in specs]
         for future in as_completed(futures):

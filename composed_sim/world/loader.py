@@ -12,7 +12,7 @@ import os
 import reprlib
 import types
 from pathlib import Path
-from typing import Annotated, Any, Optional, Union, get_args, get_origin
+from typing import Annotated, Any, NoReturn, Optional, Union, get_args, get_origin
 
 import yaml
 from pydantic import BaseModel, ValidationError
@@ -46,8 +46,15 @@ def load_world(path: str | os.PathLike, *, robots: Optional[int] = None,
     """Load a world file, then apply the command-line overrides (see ``with_overrides``)."""
     source = os.fspath(path)
     data, lines = _parse(read_file(source), source)
-    world = validate(data, source, lines)
+    world = check_has_robots(validate(data, source, lines), source, lines)
     return with_overrides(world, robots=robots, ticks=ticks, seed=seed, source=source)
+
+
+def read_yaml(path: str | os.PathLike) -> Any:
+    """A YAML file's data, read as world files are (safe, errors naming file:line), e.g. a sweep file."""
+    source = os.fspath(path)
+    data, _ = _parse(read_file(source), source)
+    return data
 
 
 def world_from_dict(data: Any, source: str = "<dict>") -> World:
@@ -222,6 +229,11 @@ def validate(data: Any, source: str, lines: dict[FieldPath, int]) -> World:
         for resolve in (_with_floor_image, _with_params_files, _with_interfaces):
             world = resolve(world, source, lines)
         return world
+    _raise(problems, source, lines)
+
+
+def _raise(problems: list[tuple[FieldPath, str, str]], source: str, lines: dict[FieldPath, int]) -> NoReturn:
+    """One WorldFileError for the problems, each as file:line: field: message (got value)."""
     rows = sorted({(_line(lines, path), format_path(path), message, got)
                    for path, message, got in problems}, key=lambda r: (r[0] or 0, r[1], r[2]))
     texts = [f"{source}{f':{line}' if line else ''}: {path}{': ' if path else ''}{message}{got}"
@@ -230,6 +242,19 @@ def validate(data: Any, source: str, lines: dict[FieldPath, int]) -> World:
         raise WorldFileError(texts[0], texts)
     raise WorldFileError(f"{source}: {len(texts)} problems:\n" + "\n".join(f"  {t}" for t in texts),
                          texts)
+
+
+def check_has_robots(world: World, source: str, lines: Optional[dict[FieldPath, int]] = None) -> World:
+    """The world, if it has a robot to run; else one WorldFileError at its robots field. The
+    schema allows an empty world (the core places and senses empty scenes), but a run does not:
+    every host is made of its robots' participants, processes or shards. A group of count 0
+    beside others is fine."""
+    if world.robot_count > 0:
+        return world
+    if not world.robots:
+        _raise([(("robots",), "lists no robot group; a run needs at least one robot", "")], source, lines or {})
+    _raise([(("robots", 0, "count"), "every group's count is 0; a run needs at least one robot", "")],
+           source, lines or {})
 
 
 def _with_floor_image(world: World, source: str, lines: dict[FieldPath, int]) -> World:

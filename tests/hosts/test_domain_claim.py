@@ -156,7 +156,7 @@ def test_two_runs_started_together_without_a_domain_each_fly_as_alone(tmp_path):
     for seed, p in zip((1, 2), together):
         out, err = p.communicate(timeout=300)
         assert p.returncode == 0, err
-        assert "composed-sim: ROS domain " in err and "(free, picked; to watch it: ROS_DOMAIN_ID=" in err
+        assert "composed-sim: ROS domain " in err and "(free, picked); to watch it: an rclpy process with ROS_DOMAIN_ID=" in err
         assert json.loads(out) == json.loads((tmp_path / f"t{seed}" / "summary.json").read_text())
         summaries.append(json.loads(out))
     assert summaries[0]["domain_id"] != summaries[1]["domain_id"]
