@@ -48,7 +48,8 @@ class Repaired:
                            f"of the unfinished tick {self.last_tick + 1}")
         if self.dropped_bytes:
             dropped.append(f"{self.dropped_bytes} bytes of an incomplete record")
-        return (f"{self.path}: repaired: ticks 0…{self.last_tick} recovered ({self.messages} messages on "
+        ticks = f"ticks 0…{self.last_tick}" if self.last_tick else "tick 0"
+        return (f"{self.path}: repaired: {ticks} recovered ({self.messages} messages on "
                 f"{self.topics} topics)" + (f"; dropped {' and '.join(dropped)}" if dropped else ""))
 
 

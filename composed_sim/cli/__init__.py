@@ -7,7 +7,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from composed_sim.command_line import EXIT_USAGE, UserError, number_arg
+from composed_sim.command_line import EXIT_FAILED, EXIT_USAGE, RunStopped, UserError, number_arg
 from composed_sim.cli.distributed import cmd_host
 from composed_sim.cli.files import cmd_bag_repair, cmd_export, cmd_plugins, cmd_render, cmd_replay, cmd_worlds
 from composed_sim.cli.report import keep_stdout_for_json
@@ -204,3 +204,6 @@ def main(argv: list[str] | None = None) -> int:
     except UserError as e:
         print(f"composed-sim: error: {e}", file=sys.stderr)
         return EXIT_USAGE
+    except RunStopped as e:
+        print(f"composed-sim: error: {e}", file=sys.stderr)
+        return EXIT_FAILED
