@@ -360,12 +360,9 @@ class BagRecorder:
         /clock of the tick after its last complete one (what ``bag repair`` cuts at)."""
         if self._closed:
             raise RecordingError(f"{self.path}: the recording is closed")
-        storage = self._writer.storage
         self._busy = True
         try:
-            if storage.chunk.bio.tell():            # an empty chunk would be a record with no messages
-                storage.close_chunk()
-            self._sync()
+            self._sync(end_chunk=True)
         finally:
             self._busy = False
         self._next_flush = self.ticks_written + FLUSH_EVERY_TICKS
@@ -401,15 +398,18 @@ class BagRecorder:
         self._closed = True
         self._writer.abort()
 
-    def _sync(self) -> None:
-        """Everything written so far onto the disk, up to a complete record (after close_chunk)."""
-        bio = self._writer.storage.bio
+    def _sync(self, *, end_chunk: bool = False) -> None:
+        """Everything written so far onto the disk, up to a complete record; ``end_chunk``: the
+        chunk in progress too."""
+        storage = self._writer.storage
         try:
-            bio.flush()
-            os.fsync(bio.fileno())
+            if end_chunk and storage.chunk.bio.tell():  # an empty chunk would be a record with no messages
+                storage.close_chunk()
+            storage.bio.flush()
+            os.fsync(storage.bio.fileno())
         except OSError as e:
             self._fail(e)
-        self._durable_bytes = bio.tell()
+        self._durable_bytes = storage.bio.tell()
 
     def _fail(self, error: OSError):
         """A write failed (a full disk): cut the MCAP file back to its last flush, where it ends

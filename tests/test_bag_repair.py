@@ -5,6 +5,7 @@ import contextlib
 import json
 import os
 import re
+import resource
 import shutil
 import signal
 import subprocess
@@ -212,22 +213,33 @@ def test_a_recording_killed_outright_is_repaired_up_to_its_last_complete_tick(ki
 
 # --- a full disk -------------------------------------------------------------------------
 
-@pytest.fixture
-def small_disk(tmp_path):
-    """A 256 kB file system (tmpfs): room for about 200 ticks of a 20-robot run's results and
-    recording. Mounting needs root (CAP_SYS_ADMIN): skipped where it is not allowed."""
+def _limit_file_size() -> None:
+    """In the run's process: files may not grow past 120 kB (a write past it fails with EFBIG;
+    Python ignores SIGXFSZ, which would otherwise kill the process)."""
+    resource.setrlimit(resource.RLIMIT_FSIZE, (120_000, 120_000))
+
+
+@pytest.fixture(params=["tmpfs", "file size limit"])
+def small_disk(request, tmp_path):
+    """(a directory where a 20-robot run runs out of room after 100 to 200 ticks, the run's
+    preexec_fn): a 256 kB tmpfs, which mounting needs root for (skipped where it is not allowed),
+    or, anywhere, a file size limit on the run's process."""
     disk = tmp_path / "disk"
     disk.mkdir()
+    if request.param == "file size limit":
+        yield disk, _limit_file_size
+        return
     mounted = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=256k", "tmpfs", str(disk)], capture_output=True)
     if mounted.returncode != 0:
         pytest.skip(f"cannot mount a tmpfs here: {mounted.stderr.decode().strip()}")
-    yield disk
+    yield disk, None
     subprocess.run(["umount", str(disk)], check=True)
 
 
 def test_a_full_disk_stops_the_run_with_one_line_and_keeps_what_was_written(small_disk, tmp_path, domain_id):
-    out, bag = small_disk / "out", small_disk / "bag"
-    proc = _start(small_disk, domain_id, "--ticks", "100000", "--record", str(bag))
+    disk, preexec_fn = small_disk
+    out, bag = disk / "out", disk / "bag"
+    proc = _start(disk, domain_id, "--ticks", "100000", "--record", str(bag), preexec_fn=preexec_fn)
     try:
         _, err = proc.communicate(timeout=300)
     finally:
@@ -236,12 +248,12 @@ def test_a_full_disk_stops_the_run_with_one_line_and_keeps_what_was_written(smal
     assert proc.returncode == 1
     lines = [line for line in err.splitlines() if "ROS domain" not in line]
     assert len(lines) == 1 and "Traceback" not in err, err
-    summary = json.loads((out / "summary.json").read_text())      # the last checkpoint, whole
+    summary = json.loads((out / "summary.json").read_text())      # a checkpoint, whole
     assert summary["checkpoint"] is True and summary["ticks"] >= 100
-    assert re.fullmatch(rf"composed-sim: error: disk full: cannot write {small_disk}/\S+ \(No space left on device\); "
-                        rf"the run stopped at tick \d+; kept: results of ticks 0…{summary['ticks']} in {out}/ "
-                        rf"and the recording up to its last flush in {bag}/ \(with room again: "
-                        rf"composed-sim bag repair {bag}\)", lines[0]), lines[0]
+    assert re.fullmatch(rf"composed-sim: error: (disk full|file size limit reached): cannot write {disk}/\S+ "
+                        rf"\((No space left on device|File too large)\); the run stopped at tick \d+; kept: results "
+                        rf"of ticks 0…{summary['ticks']} in {out}/ and the recording up to its last flush in {bag}/ "
+                        rf"\(with room again: composed-sim bag repair {bag}\)", lines[0]), lines[0]
     assert not list(out.glob("*.part"))                           # the half-written file gave its room back
     with np.load(out / "trajectories.npz") as t:
         assert t["positions"].shape == (summary["ticks"] + 1, 20, 2)

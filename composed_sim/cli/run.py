@@ -133,7 +133,8 @@ def _disk_full_line(args, error: OSError) -> str:
                     f"composed-sim bag repair {args.record})")
     elif args.record is not None:
         kept.append(f"the recording in {args.record}/")
-    return (f"disk full: cannot write {error.filename or args.out} ({error.strerror}); the run stopped{stopped}; "
+    why = "file size limit reached" if error.errno == errno.EFBIG else "disk full"
+    return (f"{why}: cannot write {error.filename or args.out} ({error.strerror}); the run stopped{stopped}; "
             f"kept: {' and '.join(kept)}")
 
 
