@@ -574,8 +574,9 @@ def _custom_data(path: Path) -> dict[str, str]:
         data = yaml.safe_load(meta.read_text(encoding="utf-8"))
         return dict(data["rosbag2_bagfile_information"].get("custom_data") or {})
     except FileNotFoundError:
-        raise RecordingError(f"{path}: no metadata.yaml; not a rosbag2 directory "
-                             f"(or the recording was killed before it was closed)") from None
+        hint = f"; its run was killed before closing it: composed-sim bag repair {path}" \
+            if (path / UNFINISHED).exists() else "; not a rosbag2 directory"
+        raise RecordingError(f"{path}: no metadata.yaml{hint}") from None
     except Exception as e:    # noqa: BLE001
         raise RecordingError(f"{meta}: unreadable rosbag2 metadata: {e}") from None
 

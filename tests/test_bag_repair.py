@@ -105,7 +105,7 @@ def test_repair_keeps_the_complete_ticks_and_what_a_replay_needs(tmp_path):
     bag = killed_copy(rec, tmp_path / "killed")
     rec.close()
     assert is_unfinished(bag) and not is_unfinished(tmp_path / "bag")
-    with pytest.raises(RecordingError, match="no metadata.yaml"):
+    with pytest.raises(RecordingError, match="no metadata.yaml; its run was killed before closing it: composed-sim bag repair"):
         read_recording(bag)
     repaired = repair(bag)
     assert (repaired.last_tick, repaired.messages, repaired.dropped_messages) == (50, 102, 1)
