@@ -6,12 +6,18 @@ import tempfile
 from pathlib import Path
 
 
+EXIT_FAILED = 1      # the run could not go on (a full disk); what it wrote is kept
 EXIT_USAGE = 2       # bad input: world file, plugin, CLI value
 EXIT_INTERRUPTED = 130
 
 
 class UserError(Exception):
     """A mistake in what the user gave us: reported as one line, never a traceback."""
+
+
+class RunStopped(Exception):
+    """The machine stopped the run (a full disk): one line saying why and what was kept, exit
+    EXIT_FAILED."""
 
 
 def number_arg(kind: type, *, minimum: float, inclusive: bool = True):

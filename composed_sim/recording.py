@@ -35,6 +35,16 @@ metadata record), what a replay needs without the results directory:
 (the ticks simulated, as summary.json counts them), ``composed_sim.world`` (the resolved world as
 YAML, when given) and ``composed_sim.executor`` (what ``replay --check`` re-simulates with).
 
+A recording survives a kill. Every ``FLUSH_EVERY_TICKS`` ticks, or ``FLUSH_EVERY_S`` of wall time,
+whichever comes first, the chunk in progress is ended and the file synced to disk (``flush``):
+the MCAP file then ends on a complete record, so a process killed with SIGKILL, or a machine
+losing power, leaves every tick up to the last flush readable by an MCAP stream reader. What
+``close`` writes at the end (the MCAP summary and index, metadata.yaml) is what such a bag lacks;
+``composed-sim bag repair`` writes it (bag_repair.py) from the chunks and from ``UNFINISHED``, the
+custom_data kept beside the MCAP file from the start and deleted by ``close``: its presence, with
+no metadata.yaml, marks a recording that was never closed. A write that fails (a full disk) cuts
+the MCAP file back to its last flush and raises an OSError naming the file.
+
 rosbags (pure Python) writes and reads the bag; message definitions and type hashes come from
 its ROS 2 Jazzy typestore, so the MCAP schemas are the real ``ros2msg`` definitions. A type the
 typestore lacks is loaded from the ``share/<package>/msg/<Type>.msg`` file of the installed
@@ -42,12 +52,14 @@ interface package (the venv or $AMENT_PREFIX_PATH).
 """
 from __future__ import annotations
 
+import errno
 import functools
 import json
 import math
 import os
 import re
 import sys
+import time
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Iterable, Optional
@@ -70,9 +82,15 @@ CLOCK_TYPE = "rosgraph_msgs/msg/Clock"
 STATE_DTYPE = np.dtype([("x", "<f8"), ("y", "<f8"), ("z", "<f8"), ("yaw", "<f8"),
                         ("rgb", "<u4"), ("id", "<u4")])
 
-_KEY = "composed_sim."
+CUSTOM_PREFIX = "composed_sim."     # of our custom_data keys
 _NS_PER_S = 1_000_000_000
 _BAG_VERSION = 9            # the rosbag2 metadata version of ROS 2 Jazzy
+
+# How much a killed run may lose from its recording: each flush ends a chunk (so compression
+# works on smaller chunks) and syncs the file (docs/faults.md gives the cost).
+FLUSH_EVERY_TICKS = 50
+FLUSH_EVERY_S = 5.0
+UNFINISHED = "unfinished.yaml"      # the custom_data of a recording not yet closed
 
 
 class RecordingError(Exception):
@@ -191,7 +209,8 @@ class BagRecorder:
     read by ros2 bag, Foxglove and rosbags).
 
     Leaving the ``with`` block closes the bag, also on an exception or a KeyboardInterrupt:
-    a run stopped early leaves a bag with the ticks written so far.
+    a run stopped early leaves a bag with the ticks written so far. A run killed outright leaves
+    the ticks up to the last ``flush`` (module docstring).
     """
 
     def __init__(self, path: str | os.PathLike, *, robot_names: Iterable[str], tick_s: float,
@@ -218,15 +237,24 @@ class BagRecorder:
         self._writer = Writer(self.path, version=_BAG_VERSION, storage_plugin=StoragePlugin.MCAP)
         if compress:
             self._writer.set_compression(CompressionMode.STORAGE, CompressionFormat.ZSTD)
-        self._custom: dict[str, str] = {}
+        self._custom: dict[str, str] = {CUSTOM_PREFIX + "robot_names": json.dumps(self.robot_names),
+                                        CUSTOM_PREFIX + "tick_s": repr(self.tick_s)}
         if world is not None:
             from composed_sim.world.loader import dump_world
-            self._custom[_KEY + "world"] = dump_world(world)
+            self._custom[CUSTOM_PREFIX + "world"] = dump_world(world)
         try:
             self._writer.open()
         except Exception as e:
             raise RecordingError(f"{self.path}: cannot create the recording: {e}") from None
+        _check_flushable(self._writer.storage)
+        self.mcap_path: Path = self._writer.storage.path
         self._closed = False
+        self._durable_bytes = 0                     # the MCAP file's size at its last flush
+        self._next_flush = 2                        # clocks written; the first flush once tick 1 begins
+        self._flushed_at = time.monotonic()
+        self._sync()
+        self._keep_unfinished()
+        _fsync_directory(self.path)                 # the new files' names survive a power loss too
         self._busy = False                          # inside a write: see close_if_idle
         self._connections: dict[str, Any] = {}     # topic -> rosbags Connection
         self._qos = _qos_profiles()
@@ -270,8 +298,10 @@ class BagRecorder:
         return self._globs.wants(topic)
 
     def set_custom(self, key: str, value: str) -> None:
-        """Add a ``composed_sim.<key>`` entry to the bag's custom_data (written at close)."""
-        self._custom[_KEY + key] = str(value)
+        """Add a ``composed_sim.<key>`` entry to the bag's custom_data (written at close, and to
+        ``UNFINISHED`` at once)."""
+        self._custom[CUSTOM_PREFIX + key] = str(value)
+        self._keep_unfinished()
 
     # -- writing --
 
@@ -280,7 +310,6 @@ class BagRecorder:
         ns = tick * self.tick_ns if stamp_ns is None else int(stamp_ns)
         msg = self._Clock(clock=self._stamp(ns))
         self._write(CLOCK_TOPIC, ns, self._typestore.serialize_cdr(msg, CLOCK_TYPE))
-        self.ticks_written += 1
 
     def write_swarm_state(self, stamp_ns: int, positions: np.ndarray, headings: np.ndarray,
                           led_colors: Optional[np.ndarray] = None) -> None:
@@ -324,6 +353,21 @@ class BagRecorder:
         self._write(topic, int(stamp_ns), data, msgtype)
         return True
 
+    def flush(self) -> None:
+        """End the chunk in progress and sync the MCAP file to disk: a process killed after this
+        leaves everything written so far readable. Done by itself every FLUSH_EVERY_TICKS ticks
+        or FLUSH_EVERY_S seconds, right after a tick's /clock: a flushed file always holds the
+        /clock of the tick after its last complete one (what ``bag repair`` cuts at)."""
+        if self._closed:
+            raise RecordingError(f"{self.path}: the recording is closed")
+        self._busy = True
+        try:
+            self._sync(end_chunk=True)
+        finally:
+            self._busy = False
+        self._next_flush = self.ticks_written + FLUSH_EVERY_TICKS
+        self._flushed_at = time.monotonic()
+
     def close(self) -> None:
         """Write the MCAP index and metadata.yaml; the bag is complete afterwards. Idempotent."""
         if self._closed:
@@ -331,11 +375,13 @@ class BagRecorder:
         self._closed = True
         for key, value in self._custom.items():
             self._writer.set_custom_data(key, value)
-        self._writer.set_custom_data(_KEY + "robot_names", json.dumps(self.robot_names))
-        self._writer.set_custom_data(_KEY + "tick_s", repr(self.tick_s))
         # The ticks simulated, as summary.json counts them: the last tick (tick 0 is the start).
-        self._writer.set_custom_data(_KEY + "ticks", str(max(self.ticks_written - 1, 0)))
-        self._writer.close()
+        self._writer.set_custom_data(CUSTOM_PREFIX + "ticks", str(max(self.ticks_written - 1, 0)))
+        try:
+            self._writer.close()
+        except OSError as e:
+            self._fail(e)
+        (self.path / UNFINISHED).unlink(missing_ok=True)
 
     def close_if_idle(self) -> bool:
         """Close unless a write is under way; for a signal handler about to end the process
@@ -351,6 +397,49 @@ class BagRecorder:
     def _abort(self) -> None:
         self._closed = True
         self._writer.abort()
+
+    def _sync(self, *, end_chunk: bool = False) -> None:
+        """Everything written so far onto the disk, up to a complete record; ``end_chunk``: the
+        chunk in progress too."""
+        storage = self._writer.storage
+        try:
+            if end_chunk and storage.chunk.bio.tell():  # an empty chunk would be a record with no messages
+                storage.close_chunk()
+            storage.bio.flush()
+            os.fsync(storage.bio.fileno())
+        except OSError as e:
+            self._fail(e)
+        self._durable_bytes = storage.bio.tell()
+
+    def _fail(self, error: OSError):
+        """A write failed (a full disk): cut the MCAP file back to its last flush, where it ends
+        on a complete record and stays repairable, stop recording, and raise the error naming
+        the file."""
+        self._closed = True
+        storage, self._writer.storage = self._writer.storage, None
+        if storage is not None:                     # else the MCAP file was complete: metadata.yaml failed
+            try:
+                storage.bio.close()                 # closes the file even when its buffer cannot be written
+            except OSError:
+                pass
+            os.truncate(self.mcap_path, self._durable_bytes)
+        raise OSError(error.errno or errno.EIO, error.strerror or str(error),
+                      str(error.filename or self.mcap_path)) from None
+
+    def _keep_unfinished(self) -> None:
+        """The custom_data on disk beside the MCAP file until ``close``: what repairs a bag
+        whose writer was killed."""
+        import yaml
+        part = self.path / (UNFINISHED + ".part")
+        try:
+            with open(part, "w", encoding="utf-8") as f:
+                yaml.safe_dump(self._custom, f, sort_keys=False)
+                f.flush()
+                os.fsync(f.fileno())
+            os.replace(part, self.path / UNFINISHED)
+        except OSError as e:
+            part.unlink(missing_ok=True)
+            raise OSError(e.errno, e.strerror, str(self.path / UNFINISHED)) from None
 
     def _stamp(self, ns: int):
         return self._Time(sec=ns // _NS_PER_S, nanosec=ns % _NS_PER_S)
@@ -373,10 +462,34 @@ class BagRecorder:
         self._busy = True
         try:
             conn = self._connections[topic] if msgtype is None else self._connection(topic, msgtype)
-            self._writer.write(conn, ns, data)
+            try:
+                self._writer.write(conn, ns, data)      # rosbags writes a chunk out when it exceeds 1 MiB
+            except OSError as e:
+                self._fail(e)
             self.counts[topic] += 1
         finally:
             self._busy = False
+        if topic == CLOCK_TOPIC:
+            self.ticks_written += 1
+            if self.ticks_written >= self._next_flush or time.monotonic() - self._flushed_at >= FLUSH_EVERY_S:
+                self.flush()
+
+
+def _check_flushable(storage) -> None:
+    """``flush`` ends rosbags' chunk in progress with its MCAP writer's own ``close_chunk``; a
+    rosbags without it would leave recordings that a kill makes unreadable."""
+    if not all(hasattr(storage, a) for a in ("close_chunk", "bio", "chunk")):
+        from importlib.metadata import version
+        raise RecordingError(f"rosbags {version('rosbags')}: its MCAP writer has no close_chunk/bio/chunk, "
+                             f"which flushing a recording needs (written for rosbags 0.11)")
+
+
+def _fsync_directory(path: Path) -> None:
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
 
 
 # --- reading -----------------------------------------------------------------------------
@@ -425,27 +538,27 @@ def read_recording(path: str | os.PathLike) -> Recording:
         raise
     except Exception as e:    # noqa: BLE001 - rosbags' reader errors and file-system errors alike
         raise RecordingError(f"{path}: not a readable rosbag2 recording: {e}") from None
-    names = json.loads(custom[_KEY + "robot_names"]) if _KEY + "robot_names" in custom else \
+    names = json.loads(custom[CUSTOM_PREFIX + "robot_names"]) if CUSTOM_PREFIX + "robot_names" in custom else \
         [f"robot{i}" for i in range(len(clouds[0]) if clouds else 0)]
     n = len(names)
     if any(len(c) != n for c in clouds):
         raise RecordingError(f"{path}: a swarm state does not hold the {n} recorded robots")
-    tick_s = float(custom.get(_KEY + "tick_s", "nan"))
+    tick_s = float(custom.get(CUSTOM_PREFIX + "tick_s", "nan"))
     if not math.isfinite(tick_s):
         tick_s = (stamps[1] - stamps[0]) / _NS_PER_S if len(stamps) > 1 else 0.1
     order = np.argsort(stamps, kind="stable")
     pts = np.stack([clouds[i] for i in order]) if clouds else np.zeros((0, n), STATE_DTYPE)
     world = None
-    if _KEY + "world" in custom:
+    if CUSTOM_PREFIX + "world" in custom:
         import yaml
         from composed_sim.world.loader import world_from_dict
-        world = world_from_dict(yaml.safe_load(custom[_KEY + "world"]),
-                                source=f"{path}/metadata.yaml custom_data {_KEY}world")
+        world = world_from_dict(yaml.safe_load(custom[CUSTOM_PREFIX + "world"]),
+                                source=f"{path}/metadata.yaml custom_data {CUSTOM_PREFIX}world")
     return Recording(names=names, tick_s=tick_s,
                      stamps_ns=np.asarray(stamps, dtype=np.int64)[order],
                      positions=np.stack([pts["x"], pts["y"]], axis=-1),
                      headings=pts["yaw"].copy(), led_colors=unpack_rgb(pts["rgb"]),
-                     world=world, topics=topics, executor=custom.get(_KEY + "executor"))
+                     world=world, topics=topics, executor=custom.get(CUSTOM_PREFIX + "executor"))
 
 
 def read_swarm_states(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -461,8 +574,9 @@ def _custom_data(path: Path) -> dict[str, str]:
         data = yaml.safe_load(meta.read_text(encoding="utf-8"))
         return dict(data["rosbag2_bagfile_information"].get("custom_data") or {})
     except FileNotFoundError:
-        raise RecordingError(f"{path}: no metadata.yaml; not a rosbag2 directory "
-                             f"(or the recording was killed before it was closed)") from None
+        hint = f"; its run was killed before closing it: composed-sim bag repair {path}" \
+            if (path / UNFINISHED).exists() else "; not a rosbag2 directory"
+        raise RecordingError(f"{path}: no metadata.yaml{hint}") from None
     except Exception as e:    # noqa: BLE001
         raise RecordingError(f"{meta}: unreadable rosbag2 metadata: {e}") from None
 

@@ -135,10 +135,19 @@ def write_results(out_dir: Path, world: World, result: LoopResult, summary: dict
 
 @contextlib.contextmanager
 def _replacing(path: Path):
-    """A binary file to write that takes ``path``'s place once complete."""
+    """A binary file to write that takes ``path``'s place once complete. A write that fails
+    (a full disk) removes the part written, giving its space back, leaves the previous file and
+    raises an OSError naming ``path``."""
     part = path.with_name(path.name + ".part")
-    with open(part, "wb") as f:
-        yield f
+    try:
+        with open(part, "wb") as f:
+            yield f
+    except OSError as e:
+        part.unlink(missing_ok=True)
+        raise OSError(e.errno, e.strerror, str(path)) from None
+    except BaseException:
+        part.unlink(missing_ok=True)
+        raise
     os.replace(part, path)
 
 

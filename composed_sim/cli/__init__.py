@@ -7,9 +7,9 @@ import argparse
 import sys
 from pathlib import Path
 
-from composed_sim.command_line import EXIT_USAGE, UserError, number_arg
+from composed_sim.command_line import EXIT_FAILED, EXIT_USAGE, RunStopped, UserError, number_arg
 from composed_sim.cli.distributed import cmd_host
-from composed_sim.cli.files import cmd_export, cmd_plugins, cmd_render, cmd_replay, cmd_worlds
+from composed_sim.cli.files import cmd_bag_repair, cmd_export, cmd_plugins, cmd_render, cmd_replay, cmd_worlds
 from composed_sim.cli.interfaces import cmd_interfaces
 from composed_sim.cli.report import keep_stdout_for_json
 from composed_sim.cli.run import cmd_run
@@ -140,6 +140,14 @@ def build_parser() -> argparse.ArgumentParser:
     replay.add_argument("--check", action="store_true", help="exit 1 unless every tick of the world was recorded")
     _add_render_options(replay)
 
+    bag = sub.add_parser("bag", help="mend a recording", description="Tools for --record directories.")
+    bag_sub = bag.add_subparsers(dest="bag_command", required=True, metavar="COMMAND")
+    bag_repair = bag_sub.add_parser(
+        "repair", help="make the bag of a killed run complete and readable",
+        description="Write the MCAP index and metadata.yaml of a recording whose run was killed (SIGKILL, power "
+                    "loss, full disk), from its chunks on disk: every tick up to the last one complete on disk.")
+    bag_repair.add_argument("recording", type=Path, help="a --record directory")
+
     sub.add_parser("worlds", help="list the shipped world files")
 
     interfaces = sub.add_parser("interfaces", help="build ROS 2 interface packages (.msg, .srv) into Python messages",
@@ -221,6 +229,8 @@ def main(argv: list[str] | None = None) -> int:
             return cmd_render(args)
         if args.command == "replay":
             return cmd_replay(args)
+        if args.command == "bag":
+            return cmd_bag_repair(args)
         if args.command == "export":
             return cmd_export(args)
         if args.command == "worlds":
@@ -235,3 +245,6 @@ def main(argv: list[str] | None = None) -> int:
     except UserError as e:
         print(f"{_error_prefix(args.command)}: error: {e}", file=sys.stderr)
         return EXIT_USAGE
+    except RunStopped as e:
+        print(f"composed-sim: error: {e}", file=sys.stderr)
+        return EXIT_FAILED

@@ -41,9 +41,35 @@ def cmd_render(args) -> int:
     return 0
 
 
+def cmd_bag_repair(args) -> int:
+    from composed_sim.bag_repair import is_unfinished
+    if not is_unfinished(args.recording) and (args.recording / "metadata.yaml").exists():
+        rec = _read_recording(args.recording)
+        print(f"{args.recording}: complete already (ticks 0…{rec.ticks_done}): nothing to repair")
+        return 0
+    print(_repair(args.recording))
+    return 0
+
+
+def _repair(path: Path):
+    """What the repair of an unfinished recording recovered; a UserError when it cannot."""
+    from composed_sim.bag_repair import repair
+    from composed_sim.recording import RecordingError
+    try:
+        return repair(path)
+    except RecordingError as e:
+        raise UserError(str(e)) from None
+    except OSError as e:
+        raise UserError(f"{e.filename or path}: cannot repair the recording ({e.strerror or e})") from None
+
+
 def cmd_replay(args) -> int:
+    from composed_sim.bag_repair import is_unfinished
     from composed_sim.render import render
     out = _render_target(args.out) if args.out else None
+    if is_unfinished(args.recording):       # its run was killed: what it left is repaired first
+        print(f"composed-sim: {_repair(args.recording)} (the recording had not been closed: its run was killed)",
+              file=sys.stderr)
     rec = _read_recording(args.recording)
     n = len(rec.names)
     print(f"{args.recording}: {rec.world.name if rec.world else 'unknown world'}, {n} robots, "

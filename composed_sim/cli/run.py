@@ -3,23 +3,22 @@ write the results, whatever ends the run."""
 from __future__ import annotations
 
 import contextlib
+import errno
+import json
 import os
 import sys
 
-from composed_sim.command_line import EXIT_INTERRUPTED, UserError, check_writable
+from composed_sim.command_line import EXIT_INTERRUPTED, RunStopped, UserError, check_writable
 from composed_sim.cli.common import (Interrupts, check_no_distributed_flags, check_plugins, distributed_settings,
                                      load_any_world, located, pick_domain)
 from composed_sim.cli.report import print_summary, progress_bar, watch_hint
 
 
 def cmd_run(args) -> int:
-    from composed_sim import plugins
-    from composed_sim.core.placement import PlacementError
     from composed_sim.hosts.composed import ComposedHost
     from composed_sim.hosts.controllers import HostError
     from composed_sim.hosts.domain_claim import DomainTaken, claim_domains, claim_free_domain, run_identity
-    from composed_sim.hosts.lockstep import AnotherSimulator
-    from composed_sim.hosts.workers import WorkerHost, auto_workers, usable_cores
+    from composed_sim.hosts.workers import WorkerHost, auto_workers
     from composed_sim.results import summarize, write_results
 
     world = load_any_world(args)
@@ -104,6 +103,52 @@ def cmd_run(args) -> int:
                               checkpoint=checkpoint)
         return summary, files
 
+    try:
+        summary, files, code = _run_and_write(args, world, host, finish)
+    except OSError as e:
+        if e.errno not in DISK_FULL:
+            raise
+        claim.release()
+        raise RunStopped(_disk_full_line(args, e)) from None
+    claim.release()
+    print_summary(args, world, summary, files)
+    return code
+
+
+# A write refused for lack of room: the disk or quota is full, or the file size limit reached.
+DISK_FULL = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)
+
+
+def _disk_full_line(args, error: OSError) -> str:
+    """One line: the file that could not be written, the tick reached, what is kept."""
+    from composed_sim.bag_repair import is_unfinished
+    from composed_sim.results import SUMMARY
+    partial = getattr(error, "partial_result", None)
+    stopped = f" at tick {partial.trajectories.ticks_done}" if partial is not None else ""
+    try:
+        results = f"results of ticks 0…{json.loads((args.out / SUMMARY).read_text())['ticks']} in {args.out}/"
+    except (OSError, ValueError, KeyError):
+        results = f"no results in {args.out}/"
+    kept = [results]
+    if args.record is not None and is_unfinished(args.record):
+        kept.append(f"the recording up to its last flush in {args.record}/ (with room again: "
+                    f"composed-sim bag repair {args.record})")
+    elif args.record is not None:
+        kept.append(f"the recording in {args.record}/")
+    why = "file size limit reached" if error.errno == errno.EFBIG else "disk full"
+    return (f"{why}: cannot write {error.filename or args.out} ({error.strerror}); the run stopped{stopped}; "
+            f"kept: {' and '.join(kept)}")
+
+
+def _run_and_write(args, world, host, finish) -> tuple[dict, list, int]:
+    """Run the ticks with the observers, write the results; (summary, files written, exit code)."""
+    from composed_sim import plugins
+    from composed_sim.core.placement import PlacementError
+    from composed_sim.hosts.composed import ComposedHost
+    from composed_sim.hosts.controllers import HostError
+    from composed_sim.hosts.lockstep import AnotherSimulator
+    from composed_sim.hosts.workers import WorkerHost, usable_cores
+
     with Interrupts() as interrupts, contextlib.ExitStack() as outputs:
         try:
             with host:
@@ -118,6 +163,9 @@ def cmd_run(args) -> int:
                                       observers=observers, checkpoint=lambda partial: finish(partial, True))
                 except Exception as e:
                     partial = getattr(e, "partial_result", None)
+                    if isinstance(e, OSError) and e.errno in DISK_FULL:
+                        _write_if_room(finish, partial)
+                        raise
                     if partial is not None:   # write what was simulated before the failure
                         finish(partial)
                         print(f"composed-sim: the run failed at tick {partial.trajectories.ticks_done}; "
@@ -140,9 +188,19 @@ def cmd_run(args) -> int:
             raise UserError(located(args.world, e)) from None
         except (HostError, AnotherSimulator) as e:
             raise UserError(str(e)) from None
-    claim.release()
-    print_summary(args, world, summary, files)
-    return code
+    return summary, files, code
+
+
+def _write_if_room(finish, partial) -> None:
+    """The results so far, after a write failed for lack of room: the part written of a file
+    is given back, so the smaller files may fit; if not, the last checkpoint stays."""
+    if partial is None:
+        return
+    try:
+        finish(partial, True)
+    except OSError as e:
+        if e.errno not in DISK_FULL:
+            raise
 
 
 def _run_observers(args, world, host, outputs: contextlib.ExitStack, interrupts) -> list:
