@@ -53,7 +53,7 @@ def test_unknown_plugin(tmp_path):
         f"composed-sim: error: {w}:{line_of(w, 'controller')}: robots[0].controller: unknown controller plugin "
         f"'nosuch' (installed: aggregation, diffusion, epuck-obstacle-avoidance, firefly, flocking, foraging, "
         f"obstacle-avoidance, turtlebot-flocking); a plugin is an "
-        f"entry point in the group 'composed_sim.controllers'")
+        f"entry point in the group 'composed_sim.controllers', or name a class as module:Class")
 
 
 @pytest.mark.parametrize("module, entry, message", [

@@ -15,5 +15,7 @@ class NotANode:
 class PublishesAnothersTopic(Node):
     def __init__(self, **node_kwargs):
         from geometry_msgs.msg import TwistStamped
+        from sensor_msgs.msg import LaserScan
         super().__init__("intruder", **node_kwargs)
+        self.create_subscription(LaserScan, "proximity", lambda scan: None, 10)
         self.create_publisher(TwistStamped, "/bot0/cmd_vel", 10)
