@@ -211,3 +211,78 @@ def test_a_sweep_of_a_missing_world_or_into_an_unwritable_folder_is_one_line(tmp
     blocker.write_text("")
     assert main_fails(capsys, "sweep", FLOCKING, "--seeds", "1", "--out", blocker / "out") == (
         f"composed-sim sweep: error: --out {blocker / 'out'}: cannot write there (Not a directory)")
+
+
+# --- a robot's nodes (robots[i].nodes), run-wide nodes and interface packages -------------------
+
+def nodes_world(tmp_path, nodes, **changes) -> Path:
+    """worlds/flocking.yaml whose robots run ``nodes`` (a robots[0].nodes list) instead of their controller."""
+    data = yaml.safe_load(FLOCKING.read_text())
+    group = data["robots"][0]
+    group.pop("controller"), group.pop("params", None)
+    group["nodes"], group["count"] = nodes, 2
+    data.update(changes)
+    path = tmp_path / "w.yaml"
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    return path
+
+
+@pytest.mark.parametrize("node, message", [
+    ("no_such_module:Talker", "robots[0].nodes[0]: 'no_such_module:Talker': no module named 'no_such_module' "
+                              "(is its package installed, or on PYTHONPATH?)"),
+    ("composed_sim.ros.controller:NoSuchClass", "robots[0].nodes[0]: 'composed_sim.ros.controller:NoSuchClass': "
+                                                 "module composed_sim.ros.controller has no 'NoSuchClass' (its Node "
+                                                 "classes: SwarmController)"),
+    ("composed_sim.ros.controller:Tick", "robots[0].nodes[0]: composed_sim.ros.controller:Tick is not an rclpy "
+                                         "Node subclass"),
+    ("flocking", None),
+])
+def test_a_node_class_that_cannot_be_found_or_is_not_a_node(tmp_path, node, message):
+    w = nodes_world(tmp_path, [{"node": node}, {"node": "composed_sim.ros.controller:Tick"}])
+    error = fails(w, "--out", tmp_path / "o")
+    nodes_line = line_of(w, "node")
+    if message is None:       # the first loads: the second is the one named
+        nodes_line = [i for i, line in enumerate(w.read_text().splitlines(), 1) if "node:" in line][1]
+        message = "robots[0].nodes[1]: composed_sim.ros.controller:Tick is not an rclpy Node subclass"
+    assert error == f"composed-sim: error: {w}:{nodes_line}: {message}", error
+
+
+def test_a_params_file_that_is_missing_or_not_a_parameters_file(tmp_path):
+    w = nodes_world(tmp_path, [{"node": "flocking", "params_file": "nowhere.yaml"}])
+    error = fails(w, "--out", tmp_path / "o")
+    assert error == (f"composed-sim: error: {w}:{line_of(w, 'params_file')}: robots[0].nodes[0].params_file: no such "
+                     f"parameters file {tmp_path / 'nowhere.yaml'} (got \"nowhere.yaml\")")
+    (tmp_path / "plain.yaml").write_text("speed: 0.1\n")
+    w = nodes_world(tmp_path, [{"node": "flocking", "params_file": "plain.yaml"}])
+    error = fails(w, "--out", tmp_path / "o")
+    assert error == (f"composed-sim: error: {w}:{line_of(w, 'params_file')}: robots[0].nodes[0].params_file: "
+                     f"{tmp_path / 'plain.yaml'} is not a ROS 2 parameters file: it must map node names (or /**) to "
+                     f"`ros__parameters:` mappings (got \"plain.yaml\")")
+
+
+def test_a_remapping_onto_another_robots_namespace(tmp_path):
+    w = nodes_world(tmp_path, [{"node": "flocking", "remappings": {"cmd_vel": "/bot1/cmd_vel"}}])
+    error = fails(w, "--out", tmp_path / "o")
+    assert error == (f"composed-sim: error: {w}:{line_of(w, 'cmd_vel')}: robots[0].nodes[0].remappings.cmd_vel: "
+                     f"/bot1/cmd_vel is in robot bot1's namespace: a robot's node remaps onto its own topics only "
+                     f"(a relative name, e.g. cmd_vel, resolves in each robot's namespace) (got \"/bot1/cmd_vel\")")
+
+
+def test_a_run_wide_node_that_cannot_be_found(tmp_path):
+    w = world_with(tmp_path, nodes=[{"node": "mission:Control"}])
+    error = fails(w, "--out", tmp_path / "o")
+    assert error == (f"composed-sim: error: {w}:{line_of(w, 'node')}: nodes[0]: 'mission:Control': no module named "
+                     f"'mission' (is its package installed, or on PYTHONPATH?)")
+
+
+def test_an_interface_package_that_does_not_build(tmp_path):
+    package = tmp_path / "bad_interfaces"
+    (package / "msg").mkdir(parents=True)
+    (package / "package.xml").write_text(
+        '<?xml version="1.0"?><package format="3"><name>bad_interfaces</name><version>0.0.1</version>'
+        '<description>x</description><maintainer email="a@b.c">a</maintainer><license>MIT</license></package>')
+    (package / "msg" / "Opinion.msg").write_text("string sender\nflaot32 x\n")
+    w = world_with(tmp_path, interfaces=["bad_interfaces"])
+    error = fails(w, "--out", tmp_path / "o")
+    assert error.startswith(f"composed-sim: error: {package / 'msg' / 'Opinion.msg'}:2: 'flaot32 x'"), error
+    assert len(error.splitlines()) == 1, error

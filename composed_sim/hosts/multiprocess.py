@@ -385,6 +385,8 @@ class LinkedExchange(NodesExchange):
             self._batch = host.run_wide_batch(frame.tick, {})
         self._stamp = frame.tick * host.world.tick_ns
         host.relay.deliver(self._batch)       # the run-wide nodes' subscriptions
+        if self._batch:
+            self.nodes[0].mirror_run_wide(self._batch, self._stamp)
         for link in host._links.values():
             link.publish(self._stamp, self._batch)
         super().publish_tick(frame)

@@ -159,6 +159,8 @@ class ParticipantGroups:
             timers.advance_to(now_ns)
         if batch:
             self.relay.deliver(batch)
+            if self.first_group == 0:       # the run's first participant shows them to the world
+                self.simulator_nodes[0].mirror_run_wide(batch, now_ns)
 
     def close_run_wide(self, next_tick: int) -> list[Message]:
         """After a tick's answers: the run-wide nodes' part of ``next_tick`` (their timers due by

@@ -24,6 +24,7 @@ if TYPE_CHECKING:   # only a type here: a controller process must not import the
     from composed_sim.core.simulation import SensorFrame
 from composed_sim.devices.common import cdr
 from composed_sim.ros import contract as c, decoding
+from composed_sim.ros.topic import message_class
 from composed_sim.ros.answer_subscription import (NODE_NAME_UNKNOWN, AnswerSubscription, ControllerPublishers, graph_gid,
                                                  publisher_gid, publisher_text)
 from composed_sim.devices import DEVICES
@@ -101,6 +102,7 @@ class SimulatorNode(Node):
         self._other_seen_at: dict[bytes, float] = {}     # another /clock publisher's GID → first seen, not named
         self._driven_clocks = []
         self._tap: Optional[MessageTap] = None
+        self._run_wide_publishers: dict[str, object] = {}    # topic → its publisher (mirror_run_wide)
 
         self._devices = [frozenset(m.default_devices) for m in models] if devices is None \
             else [frozenset(d) for d in devices]
@@ -270,6 +272,20 @@ class SimulatorNode(Node):
             with self._tap_lock:   # answers may arrive on executor worker threads
                 self._tap.write_serialized(c.topic_name(self._names[i], topic), c.type_name(msg_type) if msg_type else topic.type_name,
                                            data, stamp_ns)
+
+    def mirror_run_wide(self, batch, stamp_ns: int) -> None:
+        """A tick's run-wide messages (ros/run_wide.py) on the wire, for processes outside the run
+        (a second rclpy process, a recorder), and to the tap: the hosted nodes get them from the
+        relay, never from these publishers. One simulator node of the run does this."""
+        for topic, type_name, data in batch:
+            publisher = self._run_wide_publishers.get(topic)
+            if publisher is None:
+                publisher = self._run_wide_publishers[topic] = self.create_publisher(
+                    message_class(type_name), topic, c.QOS)
+            publisher.publish(data)
+            if self._tap is not None and self._tap.wants(topic):
+                with self._tap_lock:
+                    self._tap.write_serialized(topic, type_name, data, stamp_ns)
 
     @property
     def robots(self) -> list[str]:

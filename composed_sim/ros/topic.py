@@ -36,6 +36,11 @@ def msg_type(topic: Topic) -> type:
     return _message_class(topic.type_name, topic.raw)
 
 
+def message_class(type_name: str) -> type:
+    """The message class of an installed type (``std_msgs/msg/String`` → ``std_msgs.msg.String``)."""
+    return _message_class(type_name, None)
+
+
 @functools.lru_cache(maxsize=None)
 def _message_class(name: str, raw) -> type:
     def installed(type_name: str) -> type:

@@ -3,6 +3,7 @@
 node that starts the swarm on /swarm_command, and an opinion every robot broadcasts on /opinions
 each tick. A robot drives only while it heard every robot's opinion of the tick before, so one
 message cut or delayed anywhere stops a robot and shows in its trajectory."""
+import subprocess
 import sys
 from pathlib import Path
 
@@ -86,3 +87,27 @@ def test_multi_process_mode_gives_the_same_run_across_domains(swarm_vote, domain
     assert result.violations == [], result.violations[:3]
     np.testing.assert_array_equal(result.trajectories.positions, reference.trajectories.positions)
     assert (steps(result)[START_TICK:] > 1e-4).all()
+
+
+def test_run_wide_messages_are_recorded_with_their_own_type(swarm_vote, tmp_path):
+    # The CLI, as a user runs it: the package on PYTHONPATH, its message package built on first
+    # use; the run-wide topics are in the bag (with Opinion's definition), readable by rosbags.
+    from rosbags.highlevel import AnyReader
+    bag = tmp_path / "bag"
+    run = subprocess.run([sys.executable, "-m", "composed_sim.cli", "run", str(WORLD), "--ticks", "8", "--out",
+                          str(tmp_path / "out"), "--record", str(bag), "--record-topics", "/opinions",
+                          "/swarm_command", "--no-progress", "--no-picture"],
+                         cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr[-2000:]
+    with AnyReader([bag]) as reader:
+        topics = {c.topic: c.msgtype for c in reader.connections}
+        assert topics["/opinions"] == "swarm_vote_interfaces/msg/Opinion"
+        assert topics["/swarm_command"] == "std_msgs/msg/String"
+        opinions = [reader.deserialize(raw, c.msgtype) for c, _, raw in reader.messages()
+                    if c.topic == "/opinions"]
+        commands = [reader.deserialize(raw, c.msgtype).data for c, _, raw in reader.messages()
+                    if c.topic == "/swarm_command"]
+    # Every robot's opinion of ticks 0 … 6 (those of tick 7 open a tick the run no longer has).
+    assert len(opinions) == 9 * 7
+    assert {o.sender for o in opinions} == {f"bot{i}" for i in range(9)}
+    assert commands == ["start"]
