@@ -52,6 +52,7 @@ class CallbackGuard:
         self._workers_lock = threading.Lock()
         self.calls = 0                                 # callbacks run: lets a waiter see progress
         self.running = 0                               # callbacks running now, on any thread
+        self.calls_of: dict[str, int] = {}             # per robot: its callbacks run so far
         self._depth = threading.local()                # per thread: inside a guarded callback?
 
     def guard(self, node: Node, robot: str, sim_node: SimulatorNode, relayed: Sequence = ()) -> None:
@@ -81,6 +82,7 @@ class CallbackGuard:
             with self._workers_lock:
                 self.calls += 1
                 self.running += 1
+                self.calls_of[robot] = self.calls_of.get(robot, 0) + 1
             self._depth.inside = True
             try:
                 try:

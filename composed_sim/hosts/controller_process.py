@@ -85,12 +85,16 @@ def main(argv: list[str] | None = None) -> int:
         except (plugins.PluginError, HostError) as e:
             print(e, file=sys.stderr)
             return EXIT_SETUP
-        if relay.in_use:
+        # The link also tells the simulator when a robot that answers when published is idle.
+        quiet = world.robots[group_index].answers == "when_published"
+        if relay.in_use or quiet:
             link = RunWideLink(context, args.robot, relay, receives=any(relay.subscriptions_of(n) for n in nodes),
-                               sends=any(relay.topics_published_by(n) for n in nodes),
+                               sends=quiet or any(relay.topics_published_by(n) for n in nodes),
                                timeout_s=world.lockstep.watchdog_s)
             sensors = {c.topic_name(args.robot, t) for t in c.SENSOR_TOPICS}
             link.wrap_sensors([s for n in nodes for s in n.subscriptions if s.topic_name in sensors])
+            link.watch_answers([p for n in nodes for p in n.publishers
+                                if p.topic_name == c.topic_name(args.robot, c.CMD_VEL)])
         executor = make_executor(args.executor, context)
         for node in nodes:
             executor.add_node(node)

@@ -126,6 +126,17 @@ class NodesExchange:
     def answered_count(self) -> int:
         return sum(n.answered_count for n in self.nodes)
 
+    @property
+    def waiting_on_quiet_robots(self) -> bool:
+        """Is a robot that answers when published (``answers: when_published``) still open?"""
+        return any((n.when_published & ~n.answered & ~n.failed).any() for n in self.nodes)
+
+    def settle_idle(self, robots=None) -> int:
+        """Those robots' nodes (or those of them in ``robots``) have nothing left to do in the
+        tick: they keep their last command."""
+        return sum(n.settle_idle(None if robots is None else [r for r in n.robots if r in robots])
+                   for n in self.nodes)
+
     def publish_tick(self, frame: SensorFrame) -> None:
         for node in self.nodes:
             node.publish_tick(frame)

@@ -392,19 +392,30 @@ class LinkedExchange(NodesExchange):
         super().publish_tick(frame)
 
     def wait_for_answers(self, timeout_s: float) -> bool:
+        """Every robot's answer, and the part of the tick that each robot using the link sent once
+        its nodes were idle (its run-wide messages; for a robot that answers when published, the
+        sign that its nodes are done with the tick: it keeps its last command)."""
+        host = self._host
         deadline = time.monotonic() + timeout_s
-        answered = super().wait_for_answers(timeout_s)
-        links = self._host._links.values()
         while True:
             waiting = False
-            for link in links:
+            for link in host._links.values():
                 pending = [i for i in link.senders if not link.done(i) and not self._failed(i)]
                 link.take(self._stamp, pending)
-                waiting = waiting or any(not link.done(i) for i in pending)
-            if not waiting or time.monotonic() > deadline:
-                return answered
-            self._check()
-            time.sleep(0.0002)
+                for i in pending:
+                    if not link.done(i):
+                        waiting = True
+                    elif i not in link.answered:      # idle without an answer: keeps its command
+                        name = host.sim.names[i]
+                        host._nodes[host.domains[name]].settle_idle([name])
+            if (self.all_answered and not waiting) or time.monotonic() > deadline:
+                return self.all_answered
+            if not self.all_answered:
+                unanswered = next(n for n in self.nodes if not n.all_answered)
+                if not unanswered.wait_for_answers(min(self.POLL_S, max(0.0, deadline - time.monotonic()))):
+                    self._check()
+            else:
+                time.sleep(0.0002)
 
     def _failed(self, index: int) -> bool:
         name = self._host.sim.names[index]

@@ -76,6 +76,7 @@ class ParticipantGroups:
         self.run_wide: Optional[RunWideNodes] = None        # the world's run-wide nodes (block of robot 0)
         self._tick_timers = []                              # SimTimers the host moves to each tick's time
         self._settle = False
+        self._calls_at_open: dict[str, int] = {}            # guard.calls_of when the tick opened
         self.exchange: Optional[NodesExchange] = None
         self.executor: Optional[Executor] = None
         self.guard: Optional[CallbackGuard] = None
@@ -155,6 +156,7 @@ class ParticipantGroups:
         """Before tick ``tick``'s sensors: the nodes' timers that do not wait for sensors move to
         the tick's time, and the run-wide messages of the batch reach their subscribers."""
         now_ns = tick * self.world.tick_ns
+        self._calls_at_open = dict(self.guard.calls_of)
         for timers in self._tick_timers:
             timers.advance_to(now_ns)
         if batch:
@@ -207,18 +209,38 @@ class ParticipantGroups:
     def _await_answers(self, timeout_s: float) -> bool:
         """The multi-threaded executor's callbacks run on its threads: wait for every answer, then
         (when the tick's work may go on after an answer) for its threads to fall quiet."""
-        answered = self.exchange.wait_for_answers(timeout_s)
+        deadline = time.monotonic() + timeout_s
+        while self.exchange.waiting_on_quiet_robots and time.monotonic() < deadline:
+            if self._threads_quiet():
+                # Quiet callbacks have published everything; their answers may still wait to be
+                # taken by the executor's threads: taken here first, the rest keep their command.
+                for node in self.simulator_nodes:
+                    node.take_ready_answers()
+                self.exchange.settle_idle(self._ran_since_open())
+            else:
+                self.exchange.wait_for_answers(QUIET_CHECK_S)
+        answered = self.exchange.wait_for_answers(max(0.0, deadline - time.monotonic()))
         if answered and self._settle:
-            quiet, calls = 0, -1
-            for _ in range(SETTLE_ROUNDS):
-                # Quiet: no callback running, and none started since the last look, twice in a row
-                # (a message queued by the last callback is picked up within that time).
-                quiet = quiet + 1 if self.guard.running == 0 and self.guard.calls == calls else 0
-                if quiet >= 2:
-                    break
-                calls = self.guard.calls
-                time.sleep(QUIET_CHECK_S)
+            self._threads_quiet()
         return answered
+
+    def _ran_since_open(self) -> set[str]:
+        """The robots that ran a callback since the tick opened: only those have had their tick's
+        readings; an idle executor that has not reached a robot yet says nothing about it."""
+        return {r for r, calls in self.guard.calls_of.items() if calls > self._calls_at_open.get(r, 0)}
+
+    def _threads_quiet(self) -> bool:
+        """Wait until no callback runs and none started since the last look, twice in a row (a
+        message queued by the last callback is picked up within that time); False if that takes
+        more than SETTLE_ROUNDS looks."""
+        quiet, calls = 0, -1
+        for _ in range(SETTLE_ROUNDS):
+            quiet = quiet + 1 if self.guard.running == 0 and self.guard.calls == calls else 0
+            if quiet >= 2:
+                return True
+            calls = self.guard.calls
+            time.sleep(QUIET_CHECK_S)
+        return False
 
     def _spin_until_answered(self, timeout_s: float) -> bool:
         """Executors driven from this thread: the lockstep executor by design, the EventsExecutor
@@ -232,6 +254,9 @@ class ParticipantGroups:
         drain_left = 4 * len(self.controllers) + 16     # bounded: a busy timer cannot keep the tick open
         idle = 0
         while not self.exchange.all_answered:
+            if self.exchange.waiting_on_quiet_robots and self._executor_idle() \
+                    and self.exchange.settle_idle(self._ran_since_open()):
+                continue
             if time.monotonic() < deadline:
                 # A constant timeout: a stock executor keeps the ready callbacks of one wait only
                 # while spin_once's arguments stay the same, and rebuilds its wait set over every
@@ -248,6 +273,17 @@ class ParticipantGroups:
                 return False
         if self._settle:
             self._run_until_idle()
+        return True
+
+    def _executor_idle(self) -> bool:
+        """Nothing of the tick is left to run: two passes over the executor ran no callback."""
+        for _ in range(2):
+            before = self.guard.calls
+            if isinstance(self.executor, LockstepExecutor) and self.executor.dispatch_ready():
+                return False
+            self.executor.spin_once(timeout_sec=0)
+            if self.guard.calls != before:
+                return False
         return True
 
     def _run_until_idle(self) -> None:

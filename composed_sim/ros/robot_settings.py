@@ -20,9 +20,10 @@ def robot_devices(world: World) -> list[tuple[str, ...]]:
 
 def robot_settings(world: World, rows: Sequence[int]) -> dict[str, list]:
     """The SimulatorNode keyword arguments that the world file gives per robot, for the robots
-    ``rows``: devices, declared answer types, answers_every_ticks, global_tf."""
+    ``rows``: devices, declared answer types, answers_every_ticks, global_tf, answers_when_published."""
     per_robot = {"devices": robot_devices(world), "answer_types": declared_answer_types(world),
-                 "answers_every_ticks": answers_every_ticks(world), "global_tf": global_tf(world)}
+                 "answers_every_ticks": answers_every_ticks(world), "global_tf": global_tf(world),
+                 "answers_when_published": answers_when_published(world)}
     return {key: [values[i] for i in rows] for key, values in per_robot.items()}
 
 
@@ -36,6 +37,11 @@ def global_tf(world: World) -> list[bool]:
     """Per robot: whether its group's tf goes to /tf and /tf_static (``tf: {topics: global}``)."""
     per_group = [g.devices.tf is not None and g.devices.tf.topics == "global" for g in world.robots]
     return [per_group[g] for g in world.group_of_robot()]
+
+
+def answers_when_published(world: World) -> list[bool]:
+    """Per robot: does its group answer only when its nodes publish (``answers: when_published``)?"""
+    return [world.robots[g].answers == "when_published" for g in world.group_of_robot()]
 
 
 def answers_every_ticks(world: World) -> list[int]:

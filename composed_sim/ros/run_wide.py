@@ -209,11 +209,13 @@ def outbox_topic(robot: str) -> str:
     return f"/{robot}/_composed_sim/run_wide"
 
 
-def pack(stamp_ns: int, messages: list[Message]) -> UInt8MultiArray:
-    return UInt8MultiArray(data=array("B", pickle.dumps((stamp_ns, messages), protocol=pickle.HIGHEST_PROTOCOL)))
+def pack(stamp_ns: int, messages: list[Message], answered: bool = False) -> UInt8MultiArray:
+    """``answered``: a robot's part says whether its nodes published cmd_vel in the tick."""
+    return UInt8MultiArray(data=array("B", pickle.dumps((stamp_ns, messages, answered),
+                                                        protocol=pickle.HIGHEST_PROTOCOL)))
 
 
-def unpack(msg: UInt8MultiArray) -> tuple[int, list[Message]]:
+def unpack(msg: UInt8MultiArray) -> tuple[int, list[Message], bool]:
     return pickle.loads(bytes(msg.data))
 
 
@@ -232,6 +234,7 @@ class RunWideLink:
         self.delivered = -1         # stamp of the last batch delivered
         self.tick = -1              # stamp of the last tick whose sensors arrived
         self.sent = -1              # stamp of the last tick whose messages went out
+        self.answered = -1          # stamp of the last tick the robot's nodes published cmd_vel in
 
     @property
     def endpoints(self) -> list:
@@ -256,6 +259,17 @@ class RunWideLink:
             sub.callback = (lambda msg, info, run=run: run(msg, info)) \
                 if sub._callback_type is Subscription.CallbackType.WithMessageInfo else (lambda msg, run=run: run(msg))
 
+    def watch_answers(self, publishers) -> None:
+        """Note the ticks in which the robot's cmd_vel ``publishers`` publish (the simulator then
+        waits for the answer itself, not only for the sign that the robot is idle)."""
+        for publisher in publishers:
+            publish = publisher.publish
+
+            def noting(msg, publish=publish):
+                self.answered = self.tick
+                return publish(msg)
+            publisher.publish = noting
+
     def _deliver_through(self, stamp: int) -> None:
         deadline = time.monotonic() + self._timeout_s
         while self.delivered < stamp:
@@ -266,13 +280,13 @@ class RunWideLink:
                     return          # the simulator is gone or stopped: the tick goes on without
                 time.sleep(0.0002)
                 continue
-            batch_stamp, batch = unpack(taken[0])
+            batch_stamp, batch, _ = unpack(taken[0])
             self._relay.deliver(batch)
             self.delivered = batch_stamp
 
     def send(self) -> None:
         """What the robot's nodes published in the tick of the last sensors, to the simulator."""
-        self._outbox.publish(pack(self.tick, self._relay.take_outbox()))
+        self._outbox.publish(pack(self.tick, self._relay.take_outbox(), self.answered == self.tick))
         self.sent = self.tick
 
     def destroy(self) -> None:
@@ -290,6 +304,7 @@ class SimulatorLink:
         self._outboxes: dict[int, object] = {}       # robot index in the run → its subscription
         self._pending: dict[int, list[Message]] = {}  # what a robot sent for the open tick so far
         self._done: set[int] = set()                  # robots whose messages of the open tick are in
+        self.answered: set[int] = set()               # … of which those that published cmd_vel in it
 
     def add_robot(self, index: int, robot: str, topics: Collection[str]) -> dict[str, object]:
         """A controller process reported its link's topics: its endpoints on this side, by topic
@@ -321,17 +336,19 @@ class SimulatorLink:
                     taken = sub.handle.take_message(UInt8MultiArray, False)
                 if taken is None:
                     break
-                stamp, messages = unpack(taken[0])
+                stamp, messages, answered = unpack(taken[0])
                 self._pending.setdefault(index, []).extend(messages)
                 if stamp >= stamp_ns:
                     self._done.add(index)
+                    if answered:
+                        self.answered.add(index)
 
     def done(self, index: int) -> bool:
         return index in self._done
 
     def collect(self) -> dict[int, list[Message]]:
         """What the robots sent for the tick, by robot index; the next tick starts empty."""
-        out, self._pending, self._done = self._pending, {}, set()
+        out, self._pending, self._done, self.answered = self._pending, {}, set(), set()
         return out
 
     def destroy(self) -> None:

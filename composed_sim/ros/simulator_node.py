@@ -71,7 +71,8 @@ class SimulatorNode(Node):
                  lockstep: Optional[Lockstep] = None, devices: Optional[Sequence[Collection[str]]] = None,
                  rab_payload_bytes: int = 10, publish_clock: bool = True,
                  answer_types: Optional[Sequence[Optional[type]]] = None,
-                 answers_every_ticks: Optional[Sequence[int]] = None, global_tf: Optional[Sequence[bool]] = None):
+                 answers_every_ticks: Optional[Sequence[int]] = None, global_tf: Optional[Sequence[bool]] = None,
+                 answers_when_published: Optional[Sequence[bool]] = None):
         """``lockstep``: the world's fault policy (unresponsive_after_s, max_violations); None:
         robots are never failed for being unresponsive or for their violations. ``devices``: per
         robot, the devices whose topics it has (``Devices.published``; None: each model's
@@ -82,7 +83,9 @@ class SimulatorNode(Node):
         publisher is discovered (``detect_answer_types``); None: TwistStamped for all.
         ``answers_every_ticks``: per robot, k: it answers ticks 0, k, 2k … and keeps its last
         command in between (None: every tick). ``global_tf``: per robot running tf, whether its
-        frames go to /tf and /tf_static instead of its own /<robot>/tf (None: its own)."""
+        frames go to /tf and /tf_static instead of its own /<robot>/tf (None: its own).
+        ``answers_when_published``: per robot, whether a tick its nodes leave without a cmd_vel keeps
+        its last command, without a violation (``settle_idle``; None: no robot)."""
         super().__init__(node_name, context=context, **quiet_node_options())
         self._names = names
         self._index = {name: i for i, name in enumerate(names)}
@@ -121,6 +124,8 @@ class SimulatorNode(Node):
         self._foreign_noted: set[tuple[int, bytes]] = set()   # (robot, GID) recorded this tick
         self._every = None if answers_every_ticks is None or all(k == 1 for k in answers_every_ticks) \
             else np.asarray(answers_every_ticks)
+        self.when_published = np.zeros(n, dtype=bool) if answers_when_published is None \
+            else np.asarray(answers_when_published, dtype=bool)
         for i, name in enumerate(names):
             if self._answer_types[i] is not None:
                 self._subscribe_answers(i, self._answer_types[i])
@@ -313,6 +318,26 @@ class SimulatorNode(Node):
             self.rejected[i] = True
             self._settle(i)
             self._record(self._current_tick, i, reason)
+
+    def take_ready_answers(self) -> int:
+        """Take the answers waiting on the cmd_vel subscriptions now, from this thread (a
+        multi-threaded executor takes them on its own threads, when it gets to them)."""
+        return sum(sub.dispatch_ready() for sub in self._cmd_subs if sub is not None)
+
+    def settle_idle(self, robots: Optional[Collection[str]] = None) -> int:
+        """The robots that answer when published (``answers: when_published``) and have not
+        answered the open tick, whose nodes have nothing left to do in it (all of them, or
+        ``robots``): settled, keeping their last command. How many were settled."""
+        with self._lock:
+            if self._current_key < 0:
+                return 0
+            rows = np.flatnonzero(self.when_published & ~self.answered & ~self.failed) if robots is None \
+                else [i for i in (self._index[r] for r in robots)
+                      if self.when_published[i] and not self.answered[i] and not self.failed[i]]
+            for i in rows:
+                self._settle(i)
+                self._last_accepted_s[i] = time.monotonic()     # quiet by design, not unresponsive
+            return len(rows)
 
     def _settle(self, i: int) -> None:
         # A robot failed while its answer was handled (its last violation) is no longer expected

@@ -304,6 +304,12 @@ class RobotGroup(Strict):
     # A controller that decides on a timer slower than the tick answers every k-th tick (ticks
     # 0, k, 2k …); in between its robot keeps its last command, and that is no violation.
     answers_every_ticks: Annotated[int, Field(ge=1)] = 1
+    # "every_tick": each tick needs the robot's cmd_vel (a missing one is a violation).
+    # "when_published": its nodes publish cmd_vel when they choose, as much ROS software does (a
+    # pattern that only steers around obstacles, a discussion phase that sends nothing); a tick
+    # closes for the robot once its nodes have nothing left to do, and its base keeps the last
+    # command, as a real robot's does (docs/contract.md).
+    answers: Literal["every_tick", "when_published"] = "every_tick"
 
     @property
     def node_specs(self) -> list[NodeSpec]:

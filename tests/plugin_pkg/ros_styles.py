@@ -117,3 +117,20 @@ class StringCommands(Node):
         super().__init__("string_commands", **kwargs)
         self.create_publisher(String, "cmd_vel", 10)
         self.create_subscription(LaserScan, "proximity", lambda scan: None, 10)
+
+
+class EveryThirdTick(Node):
+    """Publishes cmd_vel only on every third tick, as software that sends a command when it
+    decides to: its robot group says ``answers: when_published``."""
+
+    def __init__(self):
+        super().__init__("every_third_tick")
+        self.cmd = self.create_publisher(Twist, "cmd_vel", 10)
+        self.create_subscription(LaserScan, "proximity", self.on_scan, 10)
+
+    def on_scan(self, scan: LaserScan) -> None:
+        tick = round(self.get_clock().now().nanoseconds / 1e8)
+        if tick % 3 == 0:
+            out = Twist()
+            out.linear.x, out.angular.z = 0.05, 0.3 * ((tick // 3) % 2 * 2 - 1)
+            self.cmd.publish(out)

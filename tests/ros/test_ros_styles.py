@@ -23,7 +23,7 @@ from conftest import install_plugin  # noqa: E402
 
 STYLES = {"twist-on-scan": "TwistOnScan", "stamped-timer": "StampedTimer", "twist-timer": "TwistTimer",
           "no-options": "NoOptions", "string-commands": "StringCommands", "wrong-sensor": "WrongSensor",
-          "no-answer": "NoAnswer"}
+          "no-answer": "NoAnswer", "every-third-tick": "EveryThirdTick"}
 
 
 @pytest.fixture
@@ -170,3 +170,22 @@ def test_wrong_cmd_vel_type_in_multi_process_mode_is_the_same_one_error(styles, 
                                         r"geometry_msgs/msg/Twist \(the topic contract\), not std_msgs/msg/String"):
         with MultiProcessHost(one_group("string-commands"), domain_id=mp_domain) as host:
             host.run()
+
+
+def test_a_robot_that_answers_when_published_keeps_its_last_command_in_every_mode(styles, domain_id, mp_domain):
+    # cmd_vel on ticks 0, 3, 6 …: in between the tick closes once the robot's nodes are idle (not
+    # at the watchdog), with no violation, and the robot goes on with its last command.
+    world = one_group("every-third-tick", count=3, answers="when_published")
+    world = world.model_copy(update={"length_ticks": 12})
+    runs = {}
+    for executor in EXECUTORS:
+        runs[executor] = composed(world, domain_id, executor)
+    for host in (WorkerHost(world, workers=2, domain_id=domain_id), MultiProcessHost(world, domain_id=mp_domain)):
+        with host:
+            runs[type(host).__name__] = host.run()
+    reference = runs["lockstep"]
+    step = np.linalg.norm(np.diff(reference.trajectories.positions, axis=0), axis=2)
+    assert (step > 0.003).all()              # moving on every tick, commands or none
+    for name, result in runs.items():
+        assert result.violations == [], (name, result.violations[:3])     # never the watchdog
+        np.testing.assert_array_equal(result.trajectories.positions, reference.trajectories.positions, err_msg=name)
