@@ -11,6 +11,8 @@ from composed_sim.cli.common import (Interrupts, check_no_distributed_flags, che
                                      load_any_world, located, pick_domain)
 from composed_sim.cli.report import print_summary, progress_bar
 
+EXIT_CONTROLLER_FAILED = 1      # --fail-fast: a controller failed
+
 
 def cmd_run(args) -> int:
     from composed_sim import plugins
@@ -19,6 +21,7 @@ def cmd_run(args) -> int:
     from composed_sim.hosts.controllers import HostError
     from composed_sim.hosts.domain_claim import DomainTaken, claim_domains, claim_free_domain, run_identity
     from composed_sim.hosts.lockstep import AnotherSimulator
+    from composed_sim.hosts.node_logs import LEVELS, Console, LogSettings, NodeLogs
     from composed_sim.hosts.workers import WorkerHost, auto_workers, usable_cores
     from composed_sim.results import summarize, write_results
 
@@ -48,6 +51,12 @@ def cmd_run(args) -> int:
 
     distributed = distributed_settings(args) if args.external_controllers else None
     check_plugins(args.world, world)
+    # The nodes' log lines and tracebacks: OUT/logs/<robot>.log, the console's share once (hosts/node_logs.py).
+    logs_dir = args.out / "logs"
+    for old in logs_dir.glob("*.log"):          # a run before into the same --out
+        old.unlink()
+    logs = NodeLogs(LogSettings(str(logs_dir), LEVELS[args.log_level], rosout=args.record is not None),
+                    world.tick_ns, console=Console(logs_hint=str(logs_dir)))
 
     def make_host(domain_id: int):
         if args.external_controllers:
@@ -57,12 +66,12 @@ def cmd_run(args) -> int:
         if args.mode == "multi-process":
             from composed_sim.hosts.multiprocess import MultiProcessHost
             return MultiProcessHost(world, executor=args.executor, domain_id=domain_id,
-                                    robots_per_domain=args.robots_per_domain)
+                                    robots_per_domain=args.robots_per_domain, logs=logs)
         workers = auto_workers(len(world.robot_names())) if args.workers == "auto" else args.workers
         if workers == 1:
             return ComposedHost(world, executor=args.executor, domain_id=domain_id,
-                                robots_per_participant=args.robots_per_participant)
-        return WorkerHost(world, workers=workers, executor=args.executor, domain_id=domain_id)
+                                robots_per_participant=args.robots_per_participant, logs=logs)
+        return WorkerHost(world, workers=workers, executor=args.executor, domain_id=domain_id, logs=logs)
 
     try:
         host = make_host(domain_id)
@@ -98,10 +107,14 @@ def cmd_run(args) -> int:
         summary["domain_id"], summary["domains"] = used[0], used
         summary["checkpoint"] = checkpoint     # true: written while running; the run did not end
         summary["out"] = str(args.out)
+        summary["logs"] = str(logs_dir)
+        summary["failed_by"] = logs.console.failures    # "ZeroDivisionError in pkg.mod:Class": robots
+        summary["stopped_by_fail_fast"] = stopped_by_fail_fast
         write_results(args.out, world, result, summary, picture=not (args.no_picture or checkpoint),
                       checkpoint=checkpoint)
         return summary
 
+    stopped_by_fail_fast = ""     # the first failure's violation, with --fail-fast
     with Interrupts() as interrupts, contextlib.ExitStack() as outputs:
         try:
             with host:
@@ -109,10 +122,16 @@ def cmd_run(args) -> int:
                     print(f"composed-sim: {len(host.sim.names)} robots in {host.setup.workers} worker processes"
                           + (f" (--workers auto, {usable_cores()} usable cores)" if args.workers == "auto" else ""),
                           file=sys.stderr)
-                observers = _run_observers(args, world, host, outputs, interrupts)
+                observers = _run_observers(args, world, host, outputs, interrupts, logs)
                 progress = progress_bar(world.length_ticks, disabled=args.no_progress)
+
+                def should_stop() -> bool:
+                    nonlocal stopped_by_fail_fast
+                    if args.fail_fast and not stopped_by_fail_fast:
+                        stopped_by_fail_fast = _first_failure(host)
+                    return interrupts.requested or bool(stopped_by_fail_fast)
                 try:
-                    result = host.run(progress=progress.update, should_stop=lambda: interrupts.requested,
+                    result = host.run(progress=progress.update, should_stop=should_stop,
                                       observers=observers, checkpoint=lambda partial: finish(partial, True))
                 except Exception as e:
                     partial = getattr(e, "partial_result", None)
@@ -123,9 +142,18 @@ def cmd_run(args) -> int:
                     raise
                 finally:
                     progress.close()
+                    logs.flush()
                 summary = finish(result)
                 code = EXIT_INTERRUPTED if result.interrupted else 0
+                if stopped_by_fail_fast:
+                    code = EXIT_CONTROLLER_FAILED
+                    print(f"composed-sim: --fail-fast: {stopped_by_fail_fast}; stopped at tick "
+                          f"{result.trajectories.ticks_done}, results so far in {args.out}/", file=sys.stderr)
+                for line in logs.console.closing_lines():
+                    print(line, file=sys.stderr)
                 if args.exit_when_done and isinstance(host, (ComposedHost, WorkerHost)):
+                    if isinstance(host, WorkerHost):
+                        host.__exit__(None, None, None)     # quick: the workers write their logs and end
                     # Destroying thousands of nodes one by one takes minutes (each destruction
                     # republishes the participant's graph, docs/speed.md): with every result and
                     # the recording written, the process ends and the system reclaims the rest.
@@ -143,7 +171,16 @@ def cmd_run(args) -> int:
     return code
 
 
-def _run_observers(args, world, host, outputs: contextlib.ExitStack, interrupts) -> list:
+def _first_failure(host) -> str:
+    """The first violation that failed a robot so far, as "bot1: controller failed: …", or ""."""
+    from composed_sim.core.violations import FAILED
+    exchange = getattr(host, "exchange", None) or getattr(getattr(host, "groups", None), "exchange", None)
+    first = next((v for v in (exchange.violations if exchange is not None else ()) if v.reason.startswith(FAILED)),
+                 None)
+    return f"{first.robot}: {first.reason}" if first is not None else ""
+
+
+def _run_observers(args, world, host, outputs: contextlib.ExitStack, interrupts, logs) -> list:
     """The recording, live markers, the Foxglove server and pacing asked for on the command
     line, as tick observers (in that order: a tick is shown before the pause after it)."""
     from composed_sim.observers import MarkerObserver, RecordingObserver, Scene
@@ -159,6 +196,8 @@ def _run_observers(args, world, host, outputs: contextlib.ExitStack, interrupts)
         interrupts.on_second = recorder.close_if_idle   # even a hard quit leaves a readable bag
         recorder.set_custom("executor", args.executor)  # what `replay --check` re-simulates with
         observers.append(RecordingObserver(recorder, scene))
+        from composed_sim.observers import RosoutObserver
+        observers.append(RosoutObserver(recorder, logs))
         if args.record_topics:
             _warn_unmatched_globs(args.record_topics, world, "--record-topics")
             taps.append(recorder)
