@@ -44,6 +44,28 @@ class RecordingObserver:
         self.recorder.write_serialized(MARKERS_TOPIC, MARKERS_TYPE, self.scene.cdr(sim), stamp_ns, always=True)
 
 
+class RosoutObserver:
+    """Writes the hosted nodes' log lines (``NodeLogs.rosout``, hosts/node_logs.py) to /rosout as
+    ``rcl_interfaces/msg/Log``, stamped with sim time, as a ROS node's /rosout carries them."""
+
+    TOPIC, TYPE = "/rosout", "rcl_interfaces/msg/Log"
+
+    def __init__(self, recorder: BagRecorder, logs):
+        from rosbags.typesys import Stores, get_typestore
+        self.recorder, self.logs = recorder, logs
+        self._store = get_typestore(Stores.ROS2_JAZZY)
+        self._Log = self._store.types[self.TYPE]
+        self._Time = self._store.types["builtin_interfaces/msg/Time"]
+
+    def on_tick(self, sim: Simulation) -> None:
+        records, self.logs.rosout = self.logs.rosout, []
+        for ns, level, name, text, file, function, line in records:
+            msg = self._Log(stamp=self._Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000), level=level,
+                            name=name, msg=text, file=file, function=function, line=line)
+            self.recorder.write_serialized(self.TOPIC, self.TYPE, self._store.serialize_cdr(msg, self.TYPE), ns,
+                                           always=True)
+
+
 class MarkerObserver:
     """Publishes the whole swarm as one MarkerArray on /swarm/markers."""
 

@@ -94,6 +94,11 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
     run.add_argument("--no-picture", action="store_true", help="skip arena.png")
     run.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
+    run.add_argument("--log-level", choices=("debug", "info", "warn", "error"), default="warn",
+                     help="the nodes' log lines shown on the console, each call site once per node class "
+                          "(all go to OUT/logs/<robot>.log; default: %(default)s)")
+    run.add_argument("--fail-fast", action="store_true",
+                     help="stop the run at the first controller failure, exit code 1 (for CI)")
     run.add_argument("--external-controllers", action="store_true",
                      help="run the simulator only; the controllers are hosted by `composed-sim host` shards "
                           "(on this or other machines), waited for before tick 0 (docs/distributed.md)")

@@ -117,6 +117,10 @@ def _human_summary(s: dict, files: list[str], metric_lines: list[str] = ()) -> s
         f"ROS exchange {1e3 * ph['ros_exchange_s'] / max(s['ticks'], 1):.1f} ms",
         f"  violations: {s['violations']}",
     ]
+    if s.get("failed_robots"):      # one line: how many, why, where to look
+        causes = "; ".join(f"{cause}: {n}" for cause, n in (s.get("failed_by") or {}).items())
+        lines.append(f"  controllers failed: {len(s['failed_robots'])} of {s['robots']} robots"
+                     f"{f' ({causes})' if causes else ''}; see {s.get('logs', 'logs')}/<robot>.log and violations.csv")
     lines += metric_lines
     if s.get("ended_by_loop_functions"):
         lines.append(f"  ended by the loop functions at tick {s['ticks']}")

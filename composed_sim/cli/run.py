@@ -13,11 +13,14 @@ from composed_sim.cli.common import (Interrupts, check_no_distributed_flags, che
                                      load_any_world, located, pick_domain)
 from composed_sim.cli.report import print_summary, progress_bar, watch_hint
 
+EXIT_CONTROLLER_FAILED = 1      # --fail-fast: a controller failed
+
 
 def cmd_run(args) -> int:
     from composed_sim.hosts.composed import ComposedHost
     from composed_sim.hosts.controllers import HostError
     from composed_sim.hosts.domain_claim import DomainTaken, claim_domains, claim_free_domain, run_identity
+    from composed_sim.hosts.node_logs import LEVELS, Console, LogSettings, NodeLogs
     from composed_sim.hosts.workers import WorkerHost, auto_workers
     from composed_sim.results import summarize, write_results
 
@@ -47,6 +50,13 @@ def cmd_run(args) -> int:
 
     distributed = distributed_settings(args) if args.external_controllers else None
     check_plugins(args.world, world)
+    # The nodes' log lines and tracebacks: OUT/logs/<robot>.log, the console's share once (hosts/node_logs.py).
+    logs_dir = args.out / "logs"
+    for old in logs_dir.glob("*.log"):          # a run before into the same --out
+        old.unlink()
+    logs = NodeLogs(LogSettings(str(logs_dir), LEVELS[args.log_level], rosout=args.record is not None),
+                    world.tick_ns, console=Console(logs_hint=str(logs_dir)))
+    fail_fast = FailFast(args.fail_fast)
 
     def make_host(domain_id: int):
         if args.external_controllers:
@@ -56,12 +66,12 @@ def cmd_run(args) -> int:
         if args.mode == "multi-process":
             from composed_sim.hosts.multiprocess import MultiProcessHost
             return MultiProcessHost(world, executor=args.executor, domain_id=domain_id,
-                                    robots_per_domain=args.robots_per_domain)
+                                    robots_per_domain=args.robots_per_domain, logs=logs)
         workers = auto_workers(len(world.robot_names())) if args.workers == "auto" else args.workers
         if workers == 1:
             return ComposedHost(world, executor=args.executor, domain_id=domain_id,
-                                robots_per_participant=args.robots_per_participant)
-        return WorkerHost(world, workers=workers, executor=args.executor, domain_id=domain_id)
+                                robots_per_participant=args.robots_per_participant, logs=logs)
+        return WorkerHost(world, workers=workers, executor=args.executor, domain_id=domain_id, logs=logs)
 
     try:
         host = make_host(domain_id)
@@ -99,12 +109,15 @@ def cmd_run(args) -> int:
         summary["domain_id"], summary["domains"] = used[0], used
         summary["checkpoint"] = checkpoint     # true: written while running; the run did not end
         summary["out"] = str(args.out)
+        summary["logs"] = str(logs_dir)
+        summary["failed_by"] = logs.console.failures    # "ZeroDivisionError in pkg.mod:Class": robots
+        summary["stopped_by_fail_fast"] = fail_fast.reason
         files = write_results(args.out, world, result, summary, picture=not (args.no_picture or checkpoint),
                               checkpoint=checkpoint)
         return summary, files
 
     try:
-        summary, files, code = _run_and_write(args, world, host, finish)
+        summary, files, code = _run_and_write(args, world, host, finish, logs, fail_fast)
     except OSError as e:
         if e.errno not in DISK_FULL:
             raise
@@ -140,7 +153,30 @@ def _disk_full_line(args, error: OSError) -> str:
             f"kept: {' and '.join(kept)}")
 
 
-def _run_and_write(args, world, host, finish) -> tuple[dict, list, int]:
+class FailFast:
+    """--fail-fast: the first controller failure seen stops the run."""
+
+    def __init__(self, enabled: bool):
+        self.enabled = enabled
+        self.reason = ""          # the first failure's violation, "bot1: controller failed: …"
+
+    def stops(self, host) -> bool:
+        if self.enabled and not self.reason:
+            self.reason = _first_failure(host)
+        return bool(self.reason)
+
+
+def _first_failure(host) -> str:
+    """The first violation that failed a robot so far, as "bot1: controller failed: …", or ""."""
+    from composed_sim.core.violations import FAILED
+    exchange = getattr(host, "exchange", None) or getattr(getattr(host, "groups", None), "exchange", None)
+    first = next((v for v in (exchange.violations if exchange is not None else ()) if v.reason.startswith(FAILED)),
+                 None)
+    return f"{first.robot}: {first.reason}" if first is not None else ""
+
+
+def _run_and_write(args, world, host, finish, logs, fail_fast: FailFast) -> tuple[dict, list, int]:
+    """Run the ticks with the observers, write the results; (summary, files written, exit code)."""
     """Run the ticks with the observers, write the results; (summary, files written, exit code)."""
     from composed_sim import plugins
     from composed_sim.core.placement import PlacementError
@@ -156,10 +192,11 @@ def _run_and_write(args, world, host, finish) -> tuple[dict, list, int]:
                     print(f"composed-sim: {len(host.sim.names)} robots in {host.setup.workers} worker processes"
                           + (f" (--workers auto, {usable_cores()} usable cores)" if args.workers == "auto" else ""),
                           file=sys.stderr)
-                observers = _run_observers(args, world, host, outputs, interrupts)
+                observers = _run_observers(args, world, host, outputs, interrupts, logs)
                 progress = progress_bar(world.length_ticks, disabled=args.no_progress)
                 try:
-                    result = host.run(progress=progress.update, should_stop=lambda: interrupts.requested,
+                    result = host.run(progress=progress.update,
+                                      should_stop=lambda: interrupts.requested or fail_fast.stops(host),
                                       observers=observers, checkpoint=lambda partial: finish(partial, True))
                 except Exception as e:
                     partial = getattr(e, "partial_result", None)
@@ -173,9 +210,18 @@ def _run_and_write(args, world, host, finish) -> tuple[dict, list, int]:
                     raise
                 finally:
                     progress.close()
+                    logs.flush()
                 summary, files = finish(result)
                 code = EXIT_INTERRUPTED if result.interrupted else 0
+                if fail_fast.reason:
+                    code = EXIT_CONTROLLER_FAILED
+                    print(f"composed-sim: --fail-fast: {fail_fast.reason}; stopped at tick "
+                          f"{result.trajectories.ticks_done}, results so far in {args.out}/", file=sys.stderr)
+                for line in logs.console.closing_lines():
+                    print(line, file=sys.stderr)
                 if args.exit_when_done and isinstance(host, (ComposedHost, WorkerHost)):
+                    if isinstance(host, WorkerHost):
+                        host.__exit__(None, None, None)     # quick: the workers write their logs and end
                     # Destroying thousands of nodes one by one takes minutes (each destruction
                     # republishes the participant's graph, docs/speed.md): with every result and
                     # the recording written, the process ends and the system reclaims the rest.
@@ -203,7 +249,7 @@ def _write_if_room(finish, partial) -> None:
             raise
 
 
-def _run_observers(args, world, host, outputs: contextlib.ExitStack, interrupts) -> list:
+def _run_observers(args, world, host, outputs: contextlib.ExitStack, interrupts, logs) -> list:
     """The recording, live markers, the Foxglove server and pacing asked for on the command
     line, as tick observers (in that order: a tick is shown before the pause after it)."""
     from composed_sim.observers import MarkerObserver, RecordingObserver, Scene
@@ -219,6 +265,8 @@ def _run_observers(args, world, host, outputs: contextlib.ExitStack, interrupts)
         interrupts.on_second = recorder.close_if_idle   # even a hard quit leaves a readable bag
         recorder.set_custom("executor", args.executor)  # what `replay --check` re-simulates with
         observers.append(RecordingObserver(recorder, scene))
+        from composed_sim.observers import RosoutObserver
+        observers.append(RosoutObserver(recorder, logs))
         if args.record_topics:
             _warn_unmatched_globs(args.record_topics, world, "--record-topics")
             taps.append(recorder)

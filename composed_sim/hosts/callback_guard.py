@@ -19,7 +19,9 @@ subscription and timer callbacks:
   failed by the simulator's unresponsive rule, and then interrupted by an asynchronous
   exception in its thread, which takes effect as soon as it runs Python code again (a callback
   blocked forever inside C keeps its worker thread).
-- a failed robot's callbacks are not run any more.
+- a failed robot's callbacks are not run any more;
+- ``on_exception(robot, node, error)``, when set, gets the exception that failed a robot (its
+  traceback goes to the robot's log, hosts/node_logs.py).
 """
 from __future__ import annotations
 
@@ -54,6 +56,7 @@ class CallbackGuard:
         self.running = 0                               # callbacks running now, on any thread
         self.calls_of: dict[str, int] = {}             # per robot: its callbacks run so far
         self._depth = threading.local()                # per thread: inside a guarded callback?
+        self.on_exception: Optional[Callable[[str, Node, BaseException], None]] = None
 
     def guard(self, node: Node, robot: str, sim_node: SimulatorNode, relayed: Sequence = ()) -> None:
         """Wrap the callbacks of every subscription and timer ``node`` has (a controller creates
@@ -61,11 +64,11 @@ class CallbackGuard:
         ros/run_wide.py); ``sim_node`` serves ``robot``."""
         for sub in (*node.subscriptions, *relayed):
             with_info = sub._callback_type is Subscription.CallbackType.WithMessageInfo
-            sub.callback = self._wrap(sub.callback, robot, sim_node, with_info)
+            sub.callback = self._wrap(sub.callback, node, robot, sim_node, with_info)
         for timer in node.timers:
-            timer.callback = self._wrap(timer.callback, robot, sim_node, False, arity=0)
+            timer.callback = self._wrap(timer.callback, node, robot, sim_node, False, arity=0)
 
-    def _wrap(self, callback: Callable, robot: str, sim_node: SimulatorNode, with_info: bool,
+    def _wrap(self, callback: Callable, node: Node, robot: str, sim_node: SimulatorNode, with_info: bool,
               arity: int = 1) -> Callable:
         failed = sim_node.failed         # shared, read-only here
         row = sim_node.row_of(robot)
@@ -96,13 +99,17 @@ class CallbackGuard:
                     else:
                         with self._workers_lock:   # after this, stop_worker cannot reach us
                             self._workers.pop(robot, None)
-            except ControllerHung:
+            except ControllerHung as e:
                 self._running = None
                 sim_node.mark_failed(robot, f"hung: callback still running after "
                                             f"{time.monotonic() - started:.1f} s, interrupted")
+                if self.on_exception is not None:     # where it hung
+                    self.on_exception(robot, node, e)
                 return None
             except (Exception, SystemExit) as e:    # sys.exit() fails its robot, not the host
                 sim_node.mark_failed(robot, _failure(e))
+                if self.on_exception is not None:
+                    self.on_exception(robot, node, e)
                 return None
             took = time.monotonic() - started
             # Worker threads (multi-threaded executor) meet the tick's wall-clock deadline instead.

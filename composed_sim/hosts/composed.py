@@ -12,6 +12,7 @@ from typing import Callable, Optional, Sequence
 from composed_sim.core.simulation import Simulation
 from composed_sim.hosts.choices import ROBOTS_PER_PARTICIPANT
 from composed_sim.hosts.host import SetupInfo
+from composed_sim.hosts.node_logs import NodeLogs
 from composed_sim.hosts.lockstep import LoopResult, TickObserver, run_lockstep
 from composed_sim.hosts.participant_groups import ParticipantGroups, RelayingExchange
 from composed_sim.ros.simulator_node import MessageTap
@@ -22,12 +23,14 @@ class ComposedHost:
     """Context manager owning the simulation and the participant groups (``Host``)."""
 
     def __init__(self, world: World, *, executor: str = "lockstep", domain_id: int = 0,
-                 robots_per_participant: int = ROBOTS_PER_PARTICIPANT):
+                 robots_per_participant: int = ROBOTS_PER_PARTICIPANT, logs: Optional[NodeLogs] = None):
+        """``logs``: the nodes' log lines and tracebacks (hosts/node_logs.py); rclpy's loggers without."""
         self.world = world
         self.executor_kind = executor
         self.sim: Optional[Simulation] = None
         self.groups = ParticipantGroups(world, 0, len(world.robot_names()), executor=executor,
-                                        domain_id=domain_id, robots_per_participant=robots_per_participant)
+                                        domain_id=domain_id, robots_per_participant=robots_per_participant,
+                                        logs=logs)
         self.setup: Optional[SetupInfo] = None
 
     @property

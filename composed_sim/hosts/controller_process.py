@@ -38,6 +38,8 @@ def parse(argv: list[str] | None) -> argparse.Namespace:
     p.add_argument("--domain", type=int, required=True, help="ROS domain id")
     p.add_argument("--executor", default="lockstep")
     p.add_argument("--parent-pid", type=int, default=None)
+    p.add_argument("--log-dir", default=None, help="write the nodes' log lines to LOG_DIR/<robot>.log")
+    p.add_argument("--log-level", type=int, default=30, help="the nodes' console level (a LoggingSeverity)")
     p.add_argument("--report-fd", type=int, default=None,
                    help="pipe for start-up reports: 'created type:<type>', then 'ready <topics> gid:<hex>…'")
     return p.parse_args(argv)
@@ -63,6 +65,7 @@ def main(argv: list[str] | None = None) -> int:
     from composed_sim import plugins
     from composed_sim.hosts.controllers import (HostError, create_robot_nodes, load_classes, make_executor,
                                                 published_answer_type)
+    from composed_sim.hosts.node_logs import FAILURE_MARK, Console, LogSettings, NodeLogs, node_label, raising_node
     from composed_sim.ros import contract as c
     from composed_sim.ros.answer_subscription import cmd_vel_gids
     from composed_sim.ros.run_wide import RunWideLink, RunWideRelay
@@ -77,14 +80,22 @@ def main(argv: list[str] | None = None) -> int:
     context = Context()
     rclpy.init(context=context, domain_id=args.domain)   # a non-default context: no rclpy handlers
     nodes, executor, spinner, link = [], None, None, None
+    # The robot's log file is written here; this process's console is a file nobody reads, so
+    # only a failure's traceback goes there (after FAILURE_MARK, for the host to show).
+    logs = NodeLogs(LogSettings(args.log_dir, args.log_level), world.tick_ns,
+                    console=Console(open(os.devnull, "w"))) if args.log_dir else None
     try:
         relay = RunWideRelay(names)
         try:
             nodes = create_robot_nodes(world, group_index, args.robot, context, classes=load_classes(world),
-                                       relay=relay, origin=names.index(args.robot), use_sim_time=True).nodes
+                                       relay=relay, origin=names.index(args.robot), use_sim_time=True,
+                                       logs=logs).nodes
         except (plugins.PluginError, HostError) as e:
             print(e, file=sys.stderr)
             return EXIT_SETUP
+        if logs is not None:
+            clock = nodes[0].get_clock()
+            logs.clock = lambda: clock.now().nanoseconds
         # The link also tells the simulator when a robot that answers when published is idle.
         quiet = world.robots[group_index].answers == "when_published"
         if relay.in_use or quiet:
@@ -135,7 +146,20 @@ def main(argv: list[str] | None = None) -> int:
                         link.send()
                     ticks_seen = link.tick
         return 0
+    except Exception as e:
+        # A callback raised (the executor passes it on): this process ends with it, as a plain
+        # ROS node's would; the traceback goes to the robot's log and, marked, to the host.
+        node = raising_node(e, nodes)
+        if logs is not None and node is not None:
+            logs.exception(args.robot, type(node), node.get_logger().name, e,
+                           skip="/composed_sim/hosts/,/composed_sim/ros/,/rclpy/")
+            tick, _ = logs.now()
+            print(f"{FAILURE_MARK} {node_label(type(node))} {type(e).__name__} {tick}",
+                  file=sys.stderr, flush=True)
+        raise
     finally:
+        if logs is not None:
+            logs.flush()
         # A bound on the clean-up: a DDS call that waits on a peer that died with the simulator
         # (its shared-memory port, say) must not keep this process alive. SIGALRM has no handler
         # here, so the kernel ends the process even while a C call holds the interpreter.

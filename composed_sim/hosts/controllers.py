@@ -14,6 +14,7 @@ from rclpy.type_description_service import START_TYPE_DESCRIPTION_SERVICE_PARAM
 
 from composed_sim import plugins
 from composed_sim.hosts.choices import EXECUTORS
+from composed_sim.hosts.node_logs import NodeLogs
 from composed_sim.interfaces import InterfaceError, activate
 from composed_sim.ros import contract as c
 from composed_sim.world.robot_models import RANGE_AND_BEARING, get_model
@@ -124,13 +125,14 @@ def _describe(field: tuple, spec: NodeSpec) -> str:
 def create_robot_nodes(world: World, group_index: int, name: str, context: Context, *,
                        classes: Mapping[str, type[Node]], relay: Optional[RunWideRelay] = None,
                        origin: int = 0, use_sim_time: bool = False, robots: Optional[Container[str]] = None,
-                       clock_from_stamps: bool = False) -> BuiltNodes:
+                       clock_from_stamps: bool = False, logs: Optional[NodeLogs] = None) -> BuiltNodes:
     """Build robot ``name``'s nodes (its group's ``node_specs``) in its namespace, with their
     timers on sim time (ros/sim_timers.py), their run-wide topics through ``relay`` (``origin``:
     the robot's index in the run), and check the world's parameters exist and the cmd_vel type.
     ``robots``: every robot's name (a set; computed from ``world`` when not given).
     ``clock_from_stamps``: the nodes' clocks follow a /clock that may arrive after the sensors (another
-    process than the simulator's): a sensor stamp ahead of it moves it (``use_sim_time`` implies it)."""
+    process than the simulator's): a sensor stamp ahead of it moves it (``use_sim_time`` implies it).
+    ``logs``: where the nodes' log lines go (``<robot>.log``, hosts/node_logs.py); rclpy's loggers without."""
     group = world.robots[group_index]
     robots = frozenset(world.robot_names()) if robots is None else robots
     sensors = [c.topic_name(name, t) for t in c.robot_topics(group.devices.published(get_model(group.model)))
@@ -145,7 +147,7 @@ def create_robot_nodes(world: World, group_index: int, name: str, context: Conte
             field = node_field(group, group_index, ni)
             timers = SimTimers(world.tick_ns, follow_stamps=use_sim_time or clock_from_stamps)
             options = HostedNodeOptions(context, f"/{name}", [*overrides, *spec_parameters(spec)],
-                                        spec.params_file, spec.remappings)
+                                        spec.params_file, spec.remappings, hosted_logger(logs, name))
             node = _construct(classes[spec.node], spec, field, name, options, timers, relay, origin)
             built.nodes.append(node)
             timers_of.append(timers)
@@ -177,15 +179,17 @@ def create_robot_nodes(world: World, group_index: int, name: str, context: Conte
 
 
 def create_run_wide_nodes(world: World, context: Context, *, classes: Mapping[str, type[Node]],
-                          relay: RunWideRelay) -> BuiltNodes:
+                          relay: RunWideRelay, logs: Optional[NodeLogs] = None) -> BuiltNodes:
     """Build the world's run-wide nodes (``world.nodes``) outside every robot's namespace, their
-    timers on sim time, moved to each tick's time by the host; their run-wide topics through ``relay``."""
+    timers on sim time, moved to each tick's time by the host; their run-wide topics through ``relay``;
+    their log lines to ``logs`` (``<node>.log``)."""
     built = BuiltNodes([], [])
     try:
         for ni, spec in enumerate(world.nodes):
             timers = SimTimers(world.tick_ns)
             options = HostedNodeOptions(context, "/", [Parameter(PARAM_RUN_SEED, value=world.seed),
-                                                       *spec_parameters(spec)], spec.params_file, spec.remappings)
+                                                       *spec_parameters(spec)], spec.params_file, spec.remappings,
+                                        hosted_logger(logs, None))
             built.nodes.append(_construct(classes[spec.node], spec, ("nodes", ni), "the run", options, timers,
                                           relay, RUN_WIDE_ORIGIN))
             timers.started(())
@@ -195,6 +199,13 @@ def create_run_wide_nodes(world: World, context: Context, *, classes: Mapping[st
             node.destroy_node()
         raise
     return built
+
+
+def hosted_logger(logs: Optional[NodeLogs], owner: Optional[str]):
+    """``HostedNodeOptions.logger``: a node's lines to ``<owner>.log`` (None: the node's name)."""
+    if logs is None:
+        return None
+    return lambda node: logs.logger(owner or node.get_name(), type(node), node.get_logger().name)
 
 
 def spec_parameters(spec: NodeSpec) -> list[Parameter]:

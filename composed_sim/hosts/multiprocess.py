@@ -38,6 +38,7 @@ from composed_sim.hosts.controllers import HostError, check_executor, load_class
 from composed_sim.hosts.domains import DomainError, assign_domains
 from composed_sim.hosts.processes import GID_PREFIX, RUN_WIDE_PREFIX, TYPE_PREFIX, InterruptWatch, exit_reason, last_words, reap, signal_group
 from composed_sim.hosts.lockstep import NodesExchange
+from composed_sim.hosts.node_logs import failure_from_output
 from composed_sim.hosts.run_wide_nodes import RunWideNodes
 from composed_sim.ros import contract as c
 from composed_sim.ros.lockstep_executor import LockstepExecutor
@@ -117,8 +118,11 @@ class MultiProcessHost(ControllersElsewhere):
     """
 
     def __init__(self, world: World, *, executor: str = "lockstep", domain_id: int = 0,
-                 robots_per_domain: Optional[int] = None):
+                 robots_per_domain: Optional[int] = None, logs=None):
+        """``logs``: a ``NodeLogs`` (hosts/node_logs.py): each child writes its robot's log file
+        with its settings; a child's failure shows its traceback here."""
         check_executor(executor)
+        self.logs = logs
         self.world = world
         self.executor_kind = executor
         mp = world.multi_process
@@ -167,7 +171,7 @@ class MultiProcessHost(ControllersElsewhere):
                                                **robot_settings(self.world, rows))
                 self._nodes[d].on_failed.append(self._stop_failed)
             if self.world.nodes:
-                self.run_wide = RunWideNodes(self.world, self._contexts[0], classes, self.relay)
+                self.run_wide = RunWideNodes(self.world, self._contexts[0], classes, self.relay, self.logs)
             self.exchange = LinkedExchange(self, list(self._nodes.values()), self._check_children)
             with InterruptWatch() as interrupts:
                 self._start_controllers(world_file, interrupts)
@@ -242,6 +246,8 @@ class MultiProcessHost(ControllersElsewhere):
         """The batch that opens ``tick``: the run-wide nodes' part of it, then what the robots sent
         during the tick before, in robot order (ros/run_wide.py)."""
         if self.run_wide is not None:
+            if self.logs is not None:
+                self.logs.tick = tick
             self.run_wide.start_tick(tick)
         return self.relay.take_outbox() + [m for i in sorted(sent) for m in sent[i]]
 
@@ -278,6 +284,8 @@ class MultiProcessHost(ControllersElsewhere):
         cmd = [sys.executable, "-m", "composed_sim.hosts.controller_process", "--world", str(world_file),
                "--robot", robot, "--domain", str(self.domains[robot]), "--executor", self.executor_kind,
                "--parent-pid", str(os.getpid()), "--report-fd", str(write_fd)]
+        if self.logs is not None and self.logs.settings.log_dir:
+            cmd += ["--log-dir", self.logs.settings.log_dir, "--log-level", str(self.logs.settings.console_level)]
         # Own process group: a terminal's Ctrl-C goes to the simulator only (which stops the run
         # at a tick boundary), and killpg reaches anything the child started. SIGINT blocked while
         # forking: one arriving before the child's setpgid stays pending until the child ignores it.
@@ -324,6 +332,10 @@ class MultiProcessHost(ControllersElsewhere):
         for p in self.processes:
             if p.popen.returncode is None and p.popen.poll() is not None:
                 self._nodes[p.domain].mark_failed(p.robot, died_reason(p))
+                failure = failure_from_output(p.tail(100_000)) if self.logs is not None else None
+                if failure is not None:
+                    label, kind, tick, text = failure
+                    self.logs.failure(p.robot, label, kind, tick, text)
 
     def _stop_failed(self, robot: str) -> None:
         """A robot failed by the simulator (hung, silent, too many violations): its process goes,

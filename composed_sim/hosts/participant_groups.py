@@ -30,6 +30,7 @@ from composed_sim.hosts.choices import ROBOTS_PER_PARTICIPANT
 from composed_sim.hosts.controllers import (HostError, answer_type, check_executor, create_robot_nodes, load_classes,
                                              make_executor, spin_until_shutdown)
 from composed_sim.hosts.lockstep import NodesExchange
+from composed_sim.hosts.node_logs import NodeLogs
 from composed_sim.hosts.run_wide_nodes import SETTLE_ROUNDS, RunWideNodes
 from composed_sim.ros import contract as c
 from composed_sim.ros.answer_subscription import cmd_vel_gids
@@ -56,9 +57,11 @@ class ParticipantGroups:
     A context manager; ``__exit__`` destroys the nodes before their contexts."""
 
     def __init__(self, world: World, start: int, stop: int, *, executor: str = "lockstep", domain_id: int = 0,
-                 robots_per_participant: int = ROBOTS_PER_PARTICIPANT, first_group: int = 0):
+                 robots_per_participant: int = ROBOTS_PER_PARTICIPANT, first_group: int = 0,
+                 logs: Optional[NodeLogs] = None):
         """``first_group``: the number of this block's first participant group in the run (the
-        block of robot 0 has group 0, which publishes /clock)."""
+        block of robot 0 has group 0, which publishes /clock). ``logs``: where the nodes' log lines
+        and the tracebacks of their failing callbacks go (hosts/node_logs.py)."""
         check_executor(executor)
         if robots_per_participant < 1:
             raise HostError(f"robots per participant must be at least 1, got {robots_per_participant}")
@@ -68,6 +71,7 @@ class ParticipantGroups:
         self.domain_id = domain_id
         self.robots_per_participant = robots_per_participant
         self.first_group = first_group
+        self.logs = logs
         self.contexts: list[Context] = []
         self.simulator_nodes: list[SimulatorNode] = []      # one per group, in robot order
         self.robot_nodes: list[list[Node]] = []             # per robot of the block: its nodes
@@ -96,6 +100,10 @@ class ParticipantGroups:
         ignore_participants_of_this_process()
         lockstep = world.lockstep
         self.guard = CallbackGuard(lockstep.watchdog_s, lockstep.unresponsive_s)
+        logs = self.logs
+        if logs is not None:
+            self.guard.on_exception = lambda robot, node, error: logs.exception(
+                robot, type(node), node.get_logger().name, error, skip="hosts/callback_guard.py")
         names, groups = world.robot_names(), world.group_of_robot()
         robots = frozenset(names)
         for k, first in enumerate(range(self.start, self.stop, self.robots_per_participant)):
@@ -106,13 +114,13 @@ class ParticipantGroups:
             self.contexts.append(context)
             group = self.first_group + k
             if group == 0 and world.nodes:    # first: they are delivered to before the robots
-                self.run_wide = RunWideNodes(world, context, classes, self.relay)
+                self.run_wide = RunWideNodes(world, context, classes, self.relay, logs)
             # The nodes first: the simulator node subscribes to each robot's cmd_vel with the
             # type its nodes publish (one participant allows one type per topic).
             first_robot = len(self.robot_nodes)
             for i in block:
                 built = create_robot_nodes(world, groups[i], names[i], context, classes=classes, relay=self.relay,
-                                           origin=i, robots=robots)
+                                           origin=i, robots=robots, logs=logs)
                 self.robot_nodes.append(built.nodes)
                 self.controllers += built.nodes
                 self._tick_timers += built.tick_timers
@@ -157,6 +165,8 @@ class ParticipantGroups:
         the tick's time, and the run-wide messages of the batch reach their subscribers."""
         now_ns = tick * self.world.tick_ns
         self._calls_at_open = dict(self.guard.calls_of)
+        if self.logs is not None:
+            self.logs.tick = tick
         for timers in self._tick_timers:
             timers.advance_to(now_ns)
         if batch:
@@ -168,6 +178,8 @@ class ParticipantGroups:
         """After a tick's answers: the run-wide nodes' part of ``next_tick`` (their timers due by
         then, and what they have to handle), then what this process published on run-wide topics."""
         if self.run_wide is not None:
+            if self.logs is not None:
+                self.logs.tick = next_tick
             self.run_wide.start_tick(next_tick)
         return self.relay.take_outbox()
 

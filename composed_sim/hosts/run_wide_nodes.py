@@ -21,9 +21,10 @@ SETTLE_ROUNDS = 1000        # bound on the walks that run what is left to do (a 
 
 
 class RunWideNodes:
-    def __init__(self, world: World, context: Context, classes: dict[str, type[Node]], relay: RunWideRelay):
+    def __init__(self, world: World, context: Context, classes: dict[str, type[Node]], relay: RunWideRelay,
+                 logs=None):
         self._tick_ns = world.tick_ns
-        self._built = create_run_wide_nodes(world, context, classes=classes, relay=relay)
+        self._built = create_run_wide_nodes(world, context, classes=classes, relay=relay, logs=logs)
         self._executor = LockstepExecutor(context=context)
         for node in self._built.nodes:
             node.get_clock()._set_ros_time_is_active(True)

@@ -13,7 +13,8 @@
     worker → main   ("ready", nodes, messages)     discovery done: tick 0 can start; what its nodes
                                                    published on run-wide topics while being built
                     ("error", kind, message, field) the block could not be built
-                    ("answers", TickAnswers)       the tick's commands, LEDs, payloads, violations
+                    ("answers", TickAnswers)       the tick's commands, LEDs, payloads, violations,
+                                                   and its nodes' console lines (hosts/node_logs.py)
 
 Inside, a tick is exactly the single-process host's: its simulator node publishes the block's
 sensors, the executor runs the controllers' callbacks until every robot answered or the watchdog
@@ -47,6 +48,7 @@ class WorkerSetup:
     domain_id: int
     participant_prefix: bytes  # the GUID prefix of the worker's one participant (ros/participants.py)
     scratch_dir: str           # where the worker may write its Fast DDS profile
+    logs: Optional[object] = None   # node_logs.LogSettings: its robots' log files are written here
 
 
 @dataclass
@@ -61,6 +63,7 @@ class TickAnswers:
     run_wide: list = field(default_factory=list)       # (topic, type, bytes) for the next tick's batch
     peak_rss_kb: int = 0                               # the worker's own peak resident memory so far
     another_simulator: Optional[str] = None            # NodesExchange.another_simulator, this tick
+    logs: tuple = ()                                   # NodeLogs.drain(): console lines, failures, /rosout
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -85,15 +88,20 @@ def main(argv: list[str] | None = None) -> int:
 
     from composed_sim import plugins
     from composed_sim.hosts.controllers import HostError
+    from composed_sim.hosts.node_logs import NodeLogs
     from composed_sim.hosts.participant_groups import ParticipantGroups
     from composed_sim.ros.taps import TapBuffer
 
     world = setup.world
+    # The robots' log files are written here; the main process gets the console's part.
+    logs = NodeLogs(setup.logs, world.tick_ns, forward=True) if setup.logs is not None else None
     groups = ParticipantGroups(world, setup.start, setup.stop, executor=setup.executor, domain_id=setup.domain_id,
-                               robots_per_participant=setup.stop - setup.start, first_group=setup.index)
+                               robots_per_participant=setup.stop - setup.start, first_group=setup.index, logs=logs)
     try:
         groups.__enter__()
     except (plugins.PluginError, HostError) as e:
+        if logs is not None:
+            logs.flush()
         conn.send(("error", type(e).__name__, str(e), getattr(e, "field", ())))
         return EXIT_SETUP
     conn.send(("ready", groups.nodes, groups.close_run_wide(0)))
@@ -128,6 +136,8 @@ def main(argv: list[str] | None = None) -> int:
                 answers.run_wide = groups.close_run_wide(frame.tick + 1)
                 answers.peak_rss_kb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
                 answers.another_simulator = exchange.another_simulator()
+                if logs is not None:
+                    answers.logs = logs.drain()
                 conn.send(("answers", answers))
             elif message[0] == "clock":
                 exchange.publish_clock(message[1])
@@ -137,7 +147,9 @@ def main(argv: list[str] | None = None) -> int:
             elif message[0] == "stop":
                 break
     # Destroying hundreds of nodes one by one takes long (each republishes its participant's
-    # graph): nothing is left to write here, so the process just ends.
+    # graph): nothing is left to write here but the logs, so the process just ends.
+    if logs is not None:
+        logs.flush()
     sys.stdout.flush()
     sys.stderr.flush()
     os._exit(0)

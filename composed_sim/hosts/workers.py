@@ -93,8 +93,9 @@ class WorkersExchange:
     """The ``Exchange`` over the worker processes: a tick's frame goes out in blocks, the answers
     come back as arrays; the per-node violation lists keep the single-process order."""
 
-    def __init__(self, workers: list[Worker], names: list[str], lockstep):
+    def __init__(self, workers: list[Worker], names: list[str], lockstep, logs=None):
         self.workers = workers
+        self.logs = logs             # NodeLogs: the workers' console lines merge here
         self._names = names
         self._violations: list[list[Violation]] = [[] for _ in workers]   # per worker, as they happened
         self._failed = np.zeros(len(names), dtype=bool)
@@ -158,6 +159,8 @@ class WorkersExchange:
                 w.peak_rss_kb = answers.peak_rss_kb
                 self.run_wide[w.index] = answers.run_wide
                 self._violations[w.index].extend(Violation(*v) for v in answers.violations)
+                if self.logs is not None and answers.logs:
+                    self.logs.merge(answers.logs)
                 if self.tap is not None:
                     for topic, msgtype, data, stamp_ns in answers.tapped:
                         self.tap.write_serialized(topic, msgtype, data, stamp_ns)
@@ -201,8 +204,12 @@ class WorkerHost(ControllersElsewhere):
     """Context manager (``Host``): the simulation here, the controllers in ``workers`` processes;
     every worker stopped and reaped in ``__exit__``."""
 
-    def __init__(self, world: World, *, workers: int, executor: str = "lockstep", domain_id: int = 0):
+    def __init__(self, world: World, *, workers: int, executor: str = "lockstep", domain_id: int = 0,
+                 logs=None):
+        """``logs``: a ``NodeLogs`` (hosts/node_logs.py): the workers write their robots' log files
+        with its settings and send it what the console shows."""
         check_executor(executor)
+        self.logs = logs
         n = len(world.robot_names())
         if not 1 <= workers <= n:
             raise HostError(f"--workers {workers}: a worker hosts at least one of the {n} robots "
@@ -232,7 +239,7 @@ class WorkerHost(ControllersElsewhere):
             with InterruptWatch() as interrupts:
                 nodes, run_wide = self._wait_ready(lambda: interrupts.requested)
             self._startup_interrupted = interrupts.requested
-            self.exchange = WorkersExchange(self.workers, self.sim.names, self.world.lockstep)
+            self.exchange = WorkersExchange(self.workers, self.sim.names, self.world.lockstep, self.logs)
             self.exchange.run_wide = run_wide
         except BaseException:
             self.__exit__(None, None, None)
@@ -259,7 +266,7 @@ class WorkerHost(ControllersElsewhere):
         worker = Worker(index, start, stop, popen, conn, log)
         self.workers.append(worker)
         conn.send(("setup", WorkerSetup(self.world, start, stop, index, self.executor_kind, self.domain_id,
-                                        prefix, str(self._tmp))))
+                                        prefix, str(self._tmp), self.logs.settings if self.logs else None)))
 
     def _wait_ready(self, interrupted: Callable[[], bool]) -> tuple[int, list[list]]:
         """Every worker's nodes built and matched: how many nodes in all, and per worker what they

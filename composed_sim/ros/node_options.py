@@ -30,6 +30,9 @@ class HostedNodeOptions:
     parameters: Sequence[Parameter] = ()             # over those of the parameters file
     params_file: Optional[str] = None                # a ROS 2 parameters file (rcl reads it)
     remappings: Mapping[str, str] = field(default_factory=dict)
+    # The node's logger instead of rclpy's (hosts/node_logs.py), installed as soon as
+    # Node.__init__ returns, so that the rest of the constructor logs through it too.
+    logger: Optional[Callable[[Node], object]] = None
 
     def cli_args(self) -> list[str]:
         """The node's own ``--ros-args``, as ``ros2 run … --ros-args`` would pass them."""
@@ -66,9 +69,12 @@ def construct(cls: type[Node], options: HostedNodeOptions,
         # class's own signature. Only the node being built gets the host's options: a Node it
         # builds itself is built as it asks.
         nonlocal node
-        if self is node:
+        ours = self is node
+        if ours:
             kwargs, node = options.node_kwargs(kwargs), None
         plain(self, node_name, *args, **kwargs)
+        if ours and options.logger is not None:
+            self._logger = options.logger(self)      # what Node.get_logger() returns
 
     with _constructing:
         Node.__init__ = hosted_init
