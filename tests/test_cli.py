@@ -348,6 +348,6 @@ def test_the_run_names_the_files_it_wrote_and_no_other(tmp_path, no_picture):
     assert r.returncode == 0, r.stderr[-2000:]
     line = r.stdout.strip().splitlines()[-1].strip()
     assert line.startswith(f"results in {out}/ (") and line.endswith(")"), line
-    named = line[len(f"results in {out}/ ("):-1].split(", ")
+    named = [name.rstrip("/") for name in line[len(f"results in {out}/ ("):-1].split(", ")]
     assert sorted(named) == sorted(p.name for p in out.iterdir())
     assert ("arena.png" in named) is (not no_picture)

@@ -124,8 +124,15 @@ def cmd_run(args) -> int:
         claim.release()
         raise RunStopped(_disk_full_line(args, e)) from None
     claim.release()
-    print_summary(args, world, summary, files)
+    print_summary(args, world, summary, files + (["logs/"] if _kept(logs_dir) else []))
     return code
+
+
+def _kept(folder) -> bool:
+    """Did the run write anything into ``folder``? An empty one is removed."""
+    if folder.is_dir() and not any(folder.iterdir()):
+        folder.rmdir()
+    return folder.is_dir()
 
 
 # A write refused for lack of room: the disk or quota is full, or the file size limit reached.
@@ -226,7 +233,7 @@ def _run_and_write(args, world, host, finish, logs, fail_fast: FailFast) -> tupl
                     # republishes the participant's graph, docs/speed.md): with every result and
                     # the recording written, the process ends and the system reclaims the rest.
                     outputs.close()
-                    print_summary(args, world, summary, files)
+                    print_summary(args, world, summary, files + (["logs/"] if _kept(args.out / "logs") else []))
                     sys.stdout.flush()
                     sys.stderr.flush()
                     os._exit(code)
