@@ -53,7 +53,7 @@ class CallbackGuard:
         self._workers: dict[str, int] = {}             # robot → worker thread running its callback
         self._workers_lock = threading.Lock()
         self.calls = 0                                 # callbacks run: lets a waiter see progress
-        self.running = 0                               # callbacks running now, on any thread
+        self.running = 0                               # callbacks running now on worker threads
         self.calls_of: dict[str, int] = {}             # per robot: its callbacks run so far
         self._depth = threading.local()                # per thread: inside a guarded callback?
         self.on_exception: Optional[Callable[[str, Node, BaseException], None]] = None
@@ -72,33 +72,35 @@ class CallbackGuard:
               arity: int = 1) -> Callable:
         failed = sim_node.failed         # shared, read-only here
         row = sim_node.row_of(robot)
+        calls_of = self.calls_of
 
         def run(*args):
             if failed[row]:
                 return None
             in_main = threading.current_thread() is self._main
             started = time.monotonic()
-            if in_main:
+            if in_main:        # callbacks in this thread run one at a time: no lock needed
                 self._running, self._started = robot, started
-            else:
-                self._workers[robot] = threading.get_ident()
-            with self._workers_lock:
                 self.calls += 1
-                self.running += 1
-                self.calls_of[robot] = self.calls_of.get(robot, 0) + 1
+                calls_of[robot] = calls_of.get(robot, 0) + 1
+            else:
+                with self._workers_lock:
+                    self._workers[robot] = threading.get_ident()
+                    self.calls += 1
+                    self.running += 1
+                    calls_of[robot] = calls_of.get(robot, 0) + 1
             self._depth.inside = True
             try:
                 try:
                     result = callback(*args)
                 finally:
                     self._depth.inside = False
-                    with self._workers_lock:
-                        self.running -= 1
                     if in_main:
                         self._running = None
                     else:
                         with self._workers_lock:   # after this, stop_worker cannot reach us
                             self._workers.pop(robot, None)
+                            self.running -= 1
             except ControllerHung as e:
                 self._running = None
                 sim_node.mark_failed(robot, f"hung: callback still running after "

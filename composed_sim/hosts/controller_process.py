@@ -69,6 +69,7 @@ def main(argv: list[str] | None = None) -> int:
     from composed_sim.ros import contract as c
     from composed_sim.ros.answer_subscription import cmd_vel_gids
     from composed_sim.ros.run_wide import RunWideLink, RunWideRelay
+    from composed_sim.ros.sim_timers import before_each_tick
     from composed_sim.world.loader import load_world
 
     world = load_world(args.world)
@@ -87,9 +88,10 @@ def main(argv: list[str] | None = None) -> int:
     try:
         relay = RunWideRelay(names)
         try:
-            nodes = create_robot_nodes(world, group_index, args.robot, context, classes=load_classes(world),
+            built = create_robot_nodes(world, group_index, args.robot, context, classes=load_classes(world),
                                        relay=relay, origin=names.index(args.robot), use_sim_time=True,
-                                       logs=logs).nodes
+                                       logs=logs)
+            nodes = built.nodes
         except (plugins.PluginError, HostError) as e:
             print(e, file=sys.stderr)
             return EXIT_SETUP
@@ -102,10 +104,13 @@ def main(argv: list[str] | None = None) -> int:
             link = RunWideLink(context, args.robot, relay, receives=any(relay.subscriptions_of(n) for n in nodes),
                                sends=quiet or any(relay.topics_published_by(n) for n in nodes),
                                timeout_s=world.lockstep.watchdog_s)
-            sensors = {c.topic_name(args.robot, t) for t in c.SENSOR_TOPICS}
-            link.wrap_sensors([s for n in nodes for s in n.subscriptions if s.topic_name in sensors])
             link.watch_answers([p for n in nodes for p in n.publishers
                                 if p.topic_name == c.topic_name(args.robot, c.CMD_VEL)])
+        # Before the robot's first sensor callback of each tick: the tick's run-wide batch, and the
+        # timers of its nodes that read no sensors moved to the tick's time.
+        sensors = {c.topic_name(args.robot, t) for t in c.SENSOR_TOPICS}
+        before_each_tick([s for n in nodes for s in n.subscriptions if s.topic_name in sensors],
+                         lambda stamp: starting_tick(stamp, built.tick_timers, link))
         executor = make_executor(args.executor, context)
         for node in nodes:
             executor.add_node(node)
@@ -199,6 +204,13 @@ def spin(executor) -> None:
         executor.spin()
     except rclpy.executors.ExternalShutdownException:
         pass
+
+
+def starting_tick(stamp: int, tick_timers, link) -> None:
+    for timers in tick_timers:
+        timers.advance_to(stamp)
+    if link is not None:
+        link.before_tick(stamp)
 
 
 def run_until_idle(executor, rounds: int = 1000) -> None:

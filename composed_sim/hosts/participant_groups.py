@@ -265,8 +265,9 @@ class ParticipantGroups:
         deadline = time.monotonic() + timeout_s
         drain_left = 4 * len(self.controllers) + 16     # bounded: a busy timer cannot keep the tick open
         idle = 0
+        quiet_robots = any(node.when_published.any() for node in self.simulator_nodes)
         while not self.exchange.all_answered:
-            if self.exchange.waiting_on_quiet_robots and self._executor_idle() \
+            if quiet_robots and self.exchange.waiting_on_quiet_robots and self._executor_idle() \
                     and self.exchange.settle_idle(self._ran_since_open()):
                 continue
             if time.monotonic() < deadline:

@@ -34,6 +34,7 @@ from composed_sim.hosts.controllers import (HostError, check_executor, create_ro
                                              spin_until_shutdown)
 from composed_sim.hosts.robot_ranges import format_ranges
 from composed_sim.hosts.shard_announce import ShardAnnouncer, ShardInfo, world_fingerprint
+from composed_sim.ros.sim_timers import before_each_tick
 from composed_sim.ros import contract as c
 from composed_sim.ros.answer_subscription import cmd_vel_gids
 from composed_sim.world.schema import World
@@ -83,8 +84,12 @@ class ShardHost:
                 if self.should_stop():
                     break
                 group = groups[i]
-                nodes = create_robot_nodes(self.world, group, names[i], self.context, classes=classes,
-                                           robots=robot_names, clock_from_stamps=True).nodes
+                built = create_robot_nodes(self.world, group, names[i], self.context, classes=classes,
+                                           robots=robot_names, clock_from_stamps=True)
+                nodes = built.nodes
+                sensors = {c.topic_name(names[i], t) for t in c.SENSOR_TOPICS}
+                before_each_tick([s for n in nodes for s in n.subscriptions if s.topic_name in sensors],
+                                 lambda stamp, timers=built.tick_timers: [t.advance_to(stamp) for t in timers])
                 for node in nodes:
                     clock = node.get_clock()
                     clock._set_ros_time_is_active(True)    # as SimulatorNode.drive_clock_of

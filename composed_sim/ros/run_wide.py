@@ -221,7 +221,7 @@ def unpack(msg: UInt8MultiArray) -> tuple[int, list[Message], bool]:
 
 class RunWideLink:
     """A controller process's side of the run: it takes each tick's batch from the simulator
-    before the robot's first sensor callback of the tick (``wrap_sensors``) and sends what the
+    before the robot's first sensor callback of the tick (``before_tick``) and sends what the
     robot's nodes published once they are idle (``send``)."""
 
     def __init__(self, context, robot: str, relay: RunWideRelay, *, receives: bool, sends: bool,
@@ -244,20 +244,12 @@ class RunWideLink:
     def sends(self) -> bool:
         return self._outbox is not None
 
-    def wrap_sensors(self, subscriptions) -> None:
-        """Before a sensor callback of tick k: tick k's batch is delivered (waiting for it)."""
-        for sub in subscriptions:
-            callback, raw = sub.callback, sub.raw
-
-            def run(msg, *info, callback=callback, raw=raw):
-                stamp = cdr.stamp_ns(msg) if raw else msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
-                self.tick = max(self.tick, stamp)
-                if self._batches is not None:
-                    self._deliver_through(stamp)
-                return callback(msg, *info)
-            # rclpy picks a subscription's call signature from the callback's: keep the original's.
-            sub.callback = (lambda msg, info, run=run: run(msg, info)) \
-                if sub._callback_type is Subscription.CallbackType.WithMessageInfo else (lambda msg, run=run: run(msg))
+    def before_tick(self, stamp: int) -> None:
+        """Before the robot's first sensor callback of a tick (``sim_timers.before_each_tick``):
+        the tick's batch is delivered, waiting for it."""
+        self.tick = max(self.tick, stamp)
+        if self._batches is not None:
+            self._deliver_through(stamp)
 
     def watch_answers(self, publishers) -> None:
         """Note the ticks in which the robot's cmd_vel ``publishers`` publish (the simulator then

@@ -14,9 +14,11 @@ tick fires every k-th tick (the world file says so with ``answers_every_ticks``)
 the tick fires once per tick, at the tick's time (rcl skips the periods a time jump passed over).
 
 How: each timer runs on a clock of its own (a ``ROSClock`` in ROS-time mode, which only we set),
-advanced to tick k's time when the robot's last sensor callback of tick k has returned. So no
+advanced to tick k's time when the node's last sensor callback of tick k has returned. So no
 executor can fire a timer before the readings of its tick were handled, whichever ready entity it
-picks first. Callback-driven controllers (no timers) are not touched and pay nothing.
+picks first. A node that subscribes to none of its robot's sensors (a later node of a robot's
+chain, a run-wide node) has its timers moved to tick k's time by the host when the tick opens
+(``advance_to``). Callback-driven controllers (no timers) are not touched and pay nothing.
 """
 from __future__ import annotations
 
@@ -166,3 +168,22 @@ class SimTimers:
 
 def _whole(x: float) -> bool:
     return math.isclose(x, round(x), rel_tol=1e-9, abs_tol=1e-9)
+
+
+def before_each_tick(subscriptions, on_tick: Callable[[int], None]) -> None:
+    """Call ``on_tick(stamp ns)`` before the first of these sensor subscriptions' callbacks of each
+    tick (a process whose node clocks follow /clock: multi-process mode, shards), e.g. to move the
+    timers of a robot's nodes that read no sensors to the tick's time."""
+    last = [-1]
+    for sub in subscriptions:
+        callback, raw = sub.callback, sub.raw
+
+        def run(msg, *info, callback=callback, raw=raw):
+            stamp = cdr.stamp_ns(msg) if raw else msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+            if stamp > last[0]:
+                last[0] = stamp
+                on_tick(stamp)
+            return callback(msg, *info)
+        # rclpy picks a subscription's call signature from the callback's: keep the original's.
+        sub.callback = (lambda msg, info, run=run: run(msg, info)) \
+            if sub._callback_type is Subscription.CallbackType.WithMessageInfo else (lambda msg, run=run: run(msg))

@@ -111,3 +111,20 @@ def test_run_wide_messages_are_recorded_with_their_own_type(swarm_vote, tmp_path
     assert len(opinions) == 9 * 7
     assert {o.sender for o in opinions} == {f"bot{i}" for i in range(9)}
     assert commands == ["start"]
+
+
+def test_a_chain_with_a_timer_in_the_middle_runs_alike_in_every_mode(swarm_vote, domain_id, mp_domain):
+    # The pattern node reads no sensor of its robot and decides on a 0.1 s timer: its timer fires
+    # at each tick's time, after the ranges of the tick reached it, in every host mode.
+    world = load_world(ROOT / "tests" / "user_pkg" / "timed_pattern_world.yaml")
+    with ComposedHost(world, domain_id=domain_id) as host:
+        reference = host.run()
+    assert reference.violations == []
+    assert (steps(reference)[1:] > 1e-4).all()      # driving from tick 0's command on
+    for host in (WorkerHost(world, workers=2, domain_id=domain_id),
+                 MultiProcessHost(world, domain_id=mp_domain, robots_per_domain=3)):
+        with host:
+            result = host.run()
+        assert result.violations == [], (type(host).__name__, result.violations[:3])
+        np.testing.assert_array_equal(result.trajectories.positions, reference.trajectories.positions,
+                                      err_msg=type(host).__name__)

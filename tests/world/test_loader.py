@@ -240,7 +240,7 @@ def test_several_errors_give_one_message_with_a_line_each(tmp_path):
         f"  {file}:2: seed: must be >= 0 (got -1)",
         f"  {file}:3: ticks_per_second: must be a whole number (got \"fast\")",
         f"  {file}:7: robots[0].colour: unknown field (allowed here: model, count, name_prefix, "
-        f"controller, params, nodes, placement, heading, camera, devices, cmd_vel, answers_every_ticks) (got \"red\")"]
+        f"controller, params, nodes, placement, heading, camera, devices, cmd_vel, answers_every_ticks, answers) (got \"red\")"]
 
 
 def test_missing_required_fields(tmp_path):
