@@ -312,10 +312,13 @@ def _warn_unmatched_globs(globs: list[str], world, flag: str) -> None:
     """A topic glob that matches no topic of this run is a warning naming two that exist."""
     from composed_sim.ros import contract as c
     from composed_sim.ros.taps import TopicGlobs
+    from composed_sim.ros.run_wide import is_run_wide
     topics = [topic for topic, _ in _run_topics(world)] + [c.SWARM_MARKERS_TOPIC]
+    robots = frozenset(world.robot_names())
     for glob in globs:
         matcher = TopicGlobs([glob])
-        if not any(matcher.wants(t) for t in topics):
+        # A run-wide topic (/swarm_command) exists once a node publishes it: not known before.
+        if not any(matcher.wants(t) for t in topics) and not (glob.startswith("/") and is_run_wide(glob, robots)):
             print(f"composed-sim: warning: {flag} {glob!r} matches no topic of this run "
                   f"(its topics are like {topics[0]} and {topics[-2] if len(topics) > 1 else topics[0]})",
                   file=sys.stderr)

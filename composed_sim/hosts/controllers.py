@@ -168,12 +168,14 @@ def create_robot_nodes(world: World, group_index: int, name: str, context: Conte
             node.destroy_node()
         raise
     answers = answer_type(built.nodes, name, group.cmd_vel)
-    for node, timers in zip(built.nodes, timers_of):
+    # A robot that answers when published has no tick to miss: its timers' periods are its own.
+    every = group.answers_every_ticks if group.answers == "every_tick" else None
+    for node, timers, spec in zip(built.nodes, timers_of, group.node_specs):
         guard_publishers(node, name, robots, answers, built.nodes)
         timers.started(sensors)
         if not timers.follows_sensors:
             built.tick_timers.append(timers)
-        for warning in timers.period_warnings(group.label, group.answers_every_ticks):
+        for warning in timers.period_warnings(spec.node, every):
             warn_once(warning)
     return built
 

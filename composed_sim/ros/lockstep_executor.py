@@ -21,6 +21,7 @@ from __future__ import annotations
 
 from typing import Optional
 
+from rclpy.event_handler import EventHandler
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.subscription import Subscription
@@ -44,28 +45,43 @@ class LockstepExecutor(SingleThreadedExecutor):
         super().__init__(context=context)
         self._ordered_nodes: list[Node] = []
         self._entities: Optional[list[tuple]] = None   # rebuilt when entities change
+        self._covers_all: Optional[bool] = None
 
     def add_node(self, node: Node) -> bool:
         added = super().add_node(node)
         if added:
             self._ordered_nodes.append(node)
-            self._entities = None
+            self._entities = self._covers_all = None
         return added
 
     def remove_node(self, node: Node) -> None:
         super().remove_node(node)
         if node in self._ordered_nodes:
             self._ordered_nodes.remove(node)
-        self._entities = None
+        self._entities = self._covers_all = None
 
     def wake(self) -> None:
         # Nodes call this when they create or destroy an entity.
-        self._entities = None
+        self._entities = self._covers_all = None
         super().wake()
 
     def spin_once(self, timeout_sec: Optional[float] = None) -> None:
         if self.dispatch_ready() == 0:
             super().spin_once(timeout_sec)
+
+    @property
+    def walk_covers_all(self) -> bool:
+        """Does the walk see every entity its nodes have (no services, clients, guard conditions
+        or waitables it cannot take)? Then a walk that runs nothing means that nothing is ready.
+        (A QoS event handler, which rclpy gives most endpoints, only reports a mismatch: it can
+        wait for the next pass over the wait set.) Known afresh whenever the entities change."""
+        if self._covers_all is None:
+            self._covers_all = all(not any(True for _ in node.services) and not any(True for _ in node.clients)
+                                   and not any(True for _ in node.guards)
+                                   and all(hasattr(w, "dispatch_ready") or isinstance(w, EventHandler)
+                                           for w in node.waitables)
+                                   for node in self._ordered_nodes)
+        return self._covers_all
 
     def dispatch_ready(self) -> int:
         """Take and handle every message ready now, and fire every timer due now, in the fixed

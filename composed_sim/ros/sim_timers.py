@@ -147,9 +147,10 @@ class SimTimers:
         for clock, ahead in clocks:
             clock.set_ros_time_override(Time(nanoseconds=now_ns + ahead, clock_type=ClockType.ROS_TIME))
 
-    def period_warnings(self, controller: str, answers_every_ticks: int) -> list[str]:
+    def period_warnings(self, controller: str, answers_every_ticks: Optional[int]) -> list[str]:
         """Timers that will not answer the ticks as the world file expects. The messages name the
-        group's controller, not the robot, so that they are the same for every robot of a group."""
+        node's class, not the robot, so that they are the same for every robot of a group.
+        ``answers_every_ticks``: None for a robot that answers when published (no tick to miss)."""
         out = []
         tick_s = self._tick_ns * 1e-9
         for period in self.periods_s:
