@@ -66,7 +66,6 @@ class ControllerTranslator(AttributeReader):
             raise self.error(ref, "controller/config", f"no controller with this id in "
                              f"<controllers> (defined: {known})", config)
         node = definition.node
-        what = f'{definition.tag} id="{config}"'
         params = node.find("params")
         plugin = self.choose_plugin(definition, params)
         self.unknown(node, {"id", "library"}, definition.tag)

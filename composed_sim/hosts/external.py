@@ -138,7 +138,9 @@ class ExternalControllersHost(ControllersElsewhere):
         if missing:
             parts.append(f"no controller shard hosts robots {format_ranges(missing)} ({_names(names, missing)})")
         if unmatched:
-            parts.append(f"robots {format_ranges(unmatched)} are announced but their topics are not matched here")
+            seen = "; ".join(self.sim_node.connection_of(names[i]) for i in unmatched[:3])
+            parts.append(f"robots {format_ranges(unmatched)} are announced but their topics are not matched here "
+                         f"(seen: {seen}{'; …' if len(unmatched) > 3 else ''})")
         return (f"{' and '.join(parts)} after {self.discovery_timeout_s:g} s (shards found: {found}). Start "
                 f"`composed-sim host WORLD --robots {format_ranges(missing or unmatched)}` with the same world "
                 f"in ROS domain {self.domain_id}{'; discovery: ' + self.discovery if self.discovery else ''} "

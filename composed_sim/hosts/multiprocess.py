@@ -231,9 +231,10 @@ class MultiProcessHost(ControllersElsewhere):
                         last_progress = time.monotonic()
                 if time.monotonic() - last_progress > STALL_TIMEOUT_S:
                     missing = sorted(unmatched, key=self.sim.names.index)
+                    seen = "; ".join(self._nodes[self.domains[r]].connection_of(r) for r in missing[:3])
                     raise HostError(f"controllers of {', '.join(missing)} were not matched with the simulator "
                                     f"within {STALL_TIMEOUT_S:.0f} s (each must publish {c.CMD_VEL.name} and "
-                                    f"subscribe to a sensor); {len(waiting)} more not started")
+                                    f"subscribe to a sensor; seen: {seen}); {len(waiting)} more not started")
         for node in self._nodes.values():
             node.note_controllers({p.robot: p.gids for p in self.processes})
 

@@ -80,6 +80,7 @@ class ParticipantGroups:
         self.run_wide: Optional[RunWideNodes] = None        # the world's run-wide nodes (block of robot 0)
         self._tick_timers = []                              # SimTimers the host moves to each tick's time
         self._settle = False
+        self._quiet_robots = False                          # any robot that answers when published?
         self._calls_at_open: dict[str, int] = {}            # guard.calls_of when the tick opened
         self.exchange: Optional[NodesExchange] = None
         self.executor: Optional[Executor] = None
@@ -141,6 +142,7 @@ class ParticipantGroups:
                     self.guard.guard(node, names[i], sim_node, self.relay.subscriptions_of(node))
                     sim_node.drive_clock_of(node)
         self.exchange = NodesExchange(self.simulator_nodes)
+        self._quiet_robots = any(node.when_published.any() for node in self.simulator_nodes)
         self.executor = make_executor(self.executor_kind, self.contexts[0])
         # Simulator nodes last, so that the lockstep executor's one ordered pass runs every
         # controller on its sensors first and then collects the answers they just published.
@@ -164,7 +166,8 @@ class ParticipantGroups:
         """Before tick ``tick``'s sensors: the nodes' timers that do not wait for sensors move to
         the tick's time, and the run-wide messages of the batch reach their subscribers."""
         now_ns = tick * self.world.tick_ns
-        self._calls_at_open = dict(self.guard.calls_of)
+        if self._quiet_robots:
+            self._calls_at_open = dict(self.guard.calls_of)
         if self.logs is not None:
             self.logs.tick = tick
         for timers in self._tick_timers:
@@ -192,9 +195,11 @@ class ParticipantGroups:
         deadline = time.monotonic() + DISCOVERY_TIMEOUT_S
         while missing := self._unmatched():
             if time.monotonic() > deadline:
+                seen = "; ".join(node.connection_of(r) for node in self.simulator_nodes
+                                 for r in node.robots if r in missing[:3])
                 raise HostError(f"the controllers of {', '.join(missing[:5])}{' …' if len(missing) > 5 else ''} "
                                 f"were not connected within {DISCOVERY_TIMEOUT_S:.0f} s: each must publish "
-                                f"{c.CMD_VEL.name} and subscribe to at least one sensor topic")
+                                f"{c.CMD_VEL.name} and subscribe to at least one sensor topic (seen: {seen})")
             time.sleep(0.01)
 
     def _unmatched(self) -> list[str]:
@@ -222,12 +227,9 @@ class ParticipantGroups:
         """The multi-threaded executor's callbacks run on its threads: wait for every answer, then
         (when the tick's work may go on after an answer) for its threads to fall quiet."""
         deadline = time.monotonic() + timeout_s
-        while self.exchange.waiting_on_quiet_robots and time.monotonic() < deadline:
+        while self._quiet_robots and self.exchange.waiting_on_quiet_robots and time.monotonic() < deadline:
             if self._threads_quiet():
-                # Quiet callbacks have published everything; their answers may still wait to be
-                # taken by the executor's threads: taken here first, the rest keep their command.
-                for node in self.simulator_nodes:
-                    node.take_ready_answers()
+                self._take_ready_answers()
                 self.exchange.settle_idle(self._ran_since_open())
             else:
                 self.exchange.wait_for_answers(QUIET_CHECK_S)
@@ -235,6 +237,13 @@ class ParticipantGroups:
         if answered and self._settle:
             self._threads_quiet()
         return answered
+
+    def _take_ready_answers(self) -> None:
+        """Before robots are settled as idle: the callbacks are done and have published, but their
+        answers may still wait to be taken (by an executor's threads, or an events queue): taken
+        here first, so that only the robots that did not answer keep their command."""
+        for node in self.simulator_nodes:
+            node.take_ready_answers()
 
     def _ran_since_open(self) -> set[str]:
         """The robots that ran a callback since the tick opened: only those have had their tick's
@@ -265,11 +274,11 @@ class ParticipantGroups:
         deadline = time.monotonic() + timeout_s
         drain_left = 4 * len(self.controllers) + 16     # bounded: a busy timer cannot keep the tick open
         idle = 0
-        quiet_robots = any(node.when_published.any() for node in self.simulator_nodes)
         while not self.exchange.all_answered:
-            if quiet_robots and self.exchange.waiting_on_quiet_robots and time.monotonic() < deadline:
+            if self._quiet_robots and self.exchange.waiting_on_quiet_robots and time.monotonic() < deadline:
                 if not self._executor_idle():
                     continue            # it ran callbacks: look again
+                self._take_ready_answers()
                 if self.exchange.settle_idle(self._ran_since_open()):
                     continue
             if time.monotonic() < deadline:

@@ -28,7 +28,6 @@ from pathlib import Path
 from typing import Iterable, Optional
 
 from composed_sim.interfaces.compile import compile_package
-from composed_sim.interfaces.errors import InterfaceError
 from composed_sim.interfaces.generate import dependencies, generate_sources, translate
 from composed_sim.interfaces.package import read_package
 from composed_sim.interfaces.toolchain import find_compilers, find_toolchain

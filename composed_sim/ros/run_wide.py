@@ -33,7 +33,6 @@ from rclpy.serialization import deserialize_message, serialize_message
 from rclpy.subscription import Subscription
 from std_msgs.msg import UInt8MultiArray
 
-from composed_sim.devices.common import cdr
 from composed_sim.ros import contract as c
 from composed_sim.ros.robot_settings import quiet_node_options
 

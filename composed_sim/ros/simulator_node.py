@@ -425,6 +425,17 @@ class SimulatorNode(Node):
                 if self._cmd_subs[i] is None or self._cmd_subs[i].get_publisher_count() < 1
                 or not any(p.get_subscription_count() >= 1 for p in self._sensor_pubs[i])]
 
+    def connection_of(self, robot: str) -> str:
+        """What this node sees of ``robot``'s controller: its cmd_vel publisher and which of its
+        sensor topics have a subscriber, for a start-up error that says what is missing."""
+        i = self._index[robot]
+        cmd = self._cmd_subs[i]
+        answer = "a cmd_vel publisher" if cmd is not None and cmd.get_publisher_count() >= 1 else "no cmd_vel publisher"
+        heard = [p.topic_name for p in self._sensor_pubs[i] if p.get_subscription_count() >= 1]
+        return (f"{robot}: {answer}, "
+                + (f"subscribers on {', '.join(heard)}" if heard else "no subscriber on any of its sensors "
+                   f"({', '.join(p.topic_name for p in self._sensor_pubs[i])})"))
+
     def wait_for_answers(self, timeout_s: float) -> bool:
         return self._all_answered.wait(timeout_s)
 
