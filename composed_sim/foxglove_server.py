@@ -7,6 +7,8 @@ process and needs no ROS install: every channel carries ROS 2 messages as CDR by
   /swarm/markers   visualization_msgs/msg/MarkerArray  the scene, once per tick (ros/markers.py)
   /clock           rosgraph_msgs/msg/Clock             once per tick
   per-robot topics their contract types                 those matching ``--foxglove-topics``
+  run-wide topics  their nodes' types (users' own too)  those matching ``--foxglove-topics``, advertised
+                                                        once a node first publishes on them
 
 Every message is logged at its sim time (tick k at k * tick_s), as in a bag, and the server
 broadcasts that time, so the app's clock is the simulation's. The server (the ``foxglove-sdk``
@@ -120,6 +122,7 @@ class FoxgloveServer:
         self._clock_channel = self._channel(CLOCK_TOPIC, CLOCK_TYPE)
         self._robot_channels = {topic: self._channel(topic, msgtype) for topic, msgtype in topics.items()
                                 if self._globs.wants(topic)}
+        self._known = frozenset(topics)      # a topic outside them is a run-wide one (ros/run_wide.py)
 
     def _channel(self, topic: str, msgtype: str) -> foxglove.Channel:
         msgdef, _ = message_definition(msgtype)
@@ -144,10 +147,12 @@ class FoxgloveServer:
     # -- message tap (per-robot topics, from the simulator nodes or the workers) --
 
     def wants(self, topic: str) -> bool:
-        return topic in self._robot_channels
+        return topic in self._robot_channels or (topic not in self._known and self._globs.wants(topic))
 
     def write_serialized(self, topic: str, msgtype: str, data: bytes, stamp_ns: int) -> bool:
         channel = self._robot_channels.get(topic)
+        if channel is None and self.wants(topic):      # a run-wide topic's first message: advertised now
+            channel = self._robot_channels[topic] = self._channel(topic, msgtype)
         if channel is None or not self._subscriptions.watched(channel.id()):
             return False
         channel.log(bytes(data), log_time=int(stamp_ns))

@@ -128,3 +128,30 @@ def test_a_chain_with_a_timer_in_the_middle_runs_alike_in_every_mode(swarm_vote,
         assert result.violations == [], (type(host).__name__, result.violations[:3])
         np.testing.assert_array_equal(result.trajectories.positions, reference.trajectories.positions,
                                       err_msg=type(host).__name__)
+
+
+def test_a_viewer_gets_run_wide_topics_with_their_own_types(swarm_vote, tmp_path):
+    # --foxglove-topics '/opinions': the channel is advertised once a robot first publishes on it,
+    # with the package's own message definition; the viewer then gets every robot's opinions.
+    sys.path.insert(0, str(ROOT / "tests"))
+    from foxglove_client import channels, free_port, open_connection, receive_until_closed, subscribe
+    port = free_port()
+    run = subprocess.Popen([sys.executable, "-m", "composed_sim.cli", "run", str(WORLD), "--out", str(tmp_path / "out"),
+                            "--no-progress", "--no-picture", "--rate", "2", "--foxglove", f"127.0.0.1:{port}",
+                            "--foxglove-topics", "/opinions"], cwd=ROOT, stdout=subprocess.PIPE,
+                           stderr=subprocess.PIPE, text=True)
+    try:
+        with open_connection(port) as ws:
+            found = channels(ws, {"/opinions"})
+            assert found["/opinions"]["schemaName"] == "swarm_vote_interfaces/msg/Opinion"
+            assert "string sender" in found["/opinions"]["schema"]
+            subscribe(ws, [found["/opinions"]["id"]])
+            got = receive_until_closed(ws)
+        assert run.wait(timeout=120) == 0, run.stderr.read()[-2000:]
+    finally:
+        if run.poll() is None:
+            run.kill()
+    by_tick = {}
+    for log_time, payload in got[1]:
+        by_tick[log_time] = by_tick.get(log_time, 0) + 1
+    assert len(by_tick) >= 5 and set(list(by_tick.values())[1:]) == {9}    # all nine, every tick watched
