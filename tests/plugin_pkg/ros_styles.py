@@ -134,3 +134,39 @@ class EveryThirdTick(Node):
             out = Twist()
             out.linear.x, out.angular.z = 0.05, 0.3 * ((tick // 3) % 2 * 2 - 1)
             self.cmd.publish(out)
+
+
+class AsksThePlanner(Node):
+    """Asks its robot's planner (a service of another node of the robot) on each scan, and drives
+    as the response says: a client and a service between a robot's own nodes."""
+
+    def __init__(self):
+        super().__init__("asks_the_planner")
+        from std_srvs.srv import Trigger
+        self.cmd = self.create_publisher(Twist, "cmd_vel", 10)
+        self.client = self.create_client(Trigger, "plan")
+        self.create_subscription(LaserScan, "proximity", self.on_scan, 10)
+        self.request = Trigger.Request()
+
+    def on_scan(self, scan: LaserScan) -> None:
+        self.client.call_async(self.request).add_done_callback(self.on_plan)
+
+    def on_plan(self, future) -> None:
+        out = Twist()
+        out.linear.x, out.angular.z = 0.05, float(future.result().message)
+        self.cmd.publish(out)
+
+
+class Planner(Node):
+    """Answers ``plan`` with a turn rate that changes each call."""
+
+    def __init__(self):
+        super().__init__("planner")
+        from std_srvs.srv import Trigger
+        self.calls = 0
+        self.create_service(Trigger, "plan", self.on_plan)
+
+    def on_plan(self, request, response):
+        self.calls += 1
+        response.success, response.message = True, str(0.2 * ((self.calls // 4) % 3 - 1))
+        return response

@@ -23,7 +23,8 @@ from conftest import install_plugin  # noqa: E402
 
 STYLES = {"twist-on-scan": "TwistOnScan", "stamped-timer": "StampedTimer", "twist-timer": "TwistTimer",
           "no-options": "NoOptions", "string-commands": "StringCommands", "wrong-sensor": "WrongSensor",
-          "no-answer": "NoAnswer", "every-third-tick": "EveryThirdTick"}
+          "no-answer": "NoAnswer", "every-third-tick": "EveryThirdTick", "asks-the-planner": "AsksThePlanner",
+          "planner": "Planner"}
 
 
 @pytest.fixture
@@ -188,4 +189,24 @@ def test_a_robot_that_answers_when_published_keeps_its_last_command_in_every_mod
     assert (step > 0.003).all()              # moving on every tick, commands or none
     for name, result in runs.items():
         assert result.violations == [], (name, result.violations[:3])     # never the watchdog
+        np.testing.assert_array_equal(result.trajectories.positions, reference.trajectories.positions, err_msg=name)
+
+
+def test_a_service_between_a_robots_own_nodes_answers_within_the_tick(styles, domain_id, mp_domain):
+    # The robot's answer comes from a service response: the request and the response are handled
+    # inside the tick, the same in every executor and mode.
+    from composed_sim.world.schema import NodeSpec
+    world = one_group(None, count=3, nodes=[NodeSpec(node="asks-the-planner"), NodeSpec(node="planner")])
+    world = world.model_copy(update={"length_ticks": 12})
+    runs = {executor: composed(world, domain_id, executor) for executor in EXECUTORS}
+    for host in (WorkerHost(world, workers=2, domain_id=domain_id), MultiProcessHost(world, domain_id=mp_domain)):
+        with host:
+            runs[type(host).__name__] = host.run()
+    reference = runs["lockstep"]
+    turning = np.diff(reference.trajectories.headings, axis=0)
+    # the planner's rates: -0.2 rad/s on ticks 0-2, 0 on ticks 3-6 (tick 3 still turns a little: the body
+    # follows its wheels through joints)
+    assert (np.abs(turning[:3]) > 1e-2).all() and (np.abs(turning[4:7]) < 1e-9).all()
+    for name, result in runs.items():
+        assert result.violations == [], (name, result.violations[:3])
         np.testing.assert_array_equal(result.trajectories.positions, reference.trajectories.positions, err_msg=name)
