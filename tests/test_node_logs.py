@@ -75,12 +75,12 @@ def test_a_raising_node_shows_its_traceback_once_and_every_robot_keeps_its_log(t
             assert f"[INFO] [sim {tick / 10:.3f} s, tick {tick}] [{robot}.chatty]: scan {tick} of {robot}" in lines
         assert f"[WARN] [sim 0.300 s, tick 3] [{robot}.chatty]: battery low on {robot}" in lines
     assert "scan 3 of" not in err
-    if mode != "multi-process":     # a controller process's warnings stay in its robot's log
-        # The warning once (per node class and call site), its repeats counted at the end.
-        assert len(re.findall(r"\[WARN\] \[bot\d\.chatty\] \(chatty:Chatty, sim 0\.300 s, tick 3\): battery low", err)) == 1
-        # bot0 and bot3 warn at ticks 3 … 11, bot1 and bot2 at 3 … 5: 24 in all, one shown.
-        assert re.search(rf"\[WARN\] chatty:Chatty at chatty\.py:{WARNING_LINE}: 23 more times from 4 robots after "
-                         r"'battery low on bot\d'", err), err
+    # The warning once (per node class and call site), its repeats counted at the end (a
+    # controller process sends its part with its robot's part of the tick).
+    assert len(re.findall(r"\[WARN\] \[bot\d\.chatty\] \(chatty:Chatty, sim 0\.300 s, tick 3\): battery low", err)) == 1
+    # bot0 and bot3 warn at ticks 3 … 11, bot1 and bot2 at 3 … 5: 24 in all, one shown.
+    assert re.search(rf"\[WARN\] chatty:Chatty at chatty\.py:{WARNING_LINE}: 23 more times from 4 robots after "
+                     r"'battery low on bot\d'", err), err
 
 
 def test_fail_fast_stops_at_the_first_failure_with_exit_1(tmp_path):
@@ -96,11 +96,13 @@ def test_fail_fast_stops_at_the_first_failure_with_exit_1(tmp_path):
     assert f'chatty.py", line {RAISING_LINE}' in (out / "logs" / "bot2.log").read_text()
 
 
-def test_log_level_debug_and_rosout_in_the_recording(tmp_path):
+@pytest.mark.parametrize("mode", ["workers", "multi-process"])
+def test_log_level_debug_and_rosout_in_the_recording(tmp_path, mode, mp_domain):
     out, bag = tmp_path / "out", tmp_path / "bag"
     world = chat_world(tmp_path, robots=2, ticks=4, child=True, warn_from=2)
-    run = cli("run", world, "--out", out, "--no-progress", "--no-picture", "--workers", "2", "--log-level", "debug",
-              "--record", bag)
+    domain = ["--domain-id", str(mp_domain)] if mode == "multi-process" else []
+    run = cli("run", world, "--out", out, "--no-progress", "--no-picture", *MODES[mode], *domain, "--log-level",
+              "debug", "--record", bag)
     assert run.returncode == 0, run.stderr
     # The console shows each call site once per node class, debug included (child loggers too).
     assert len(re.findall(r"\[DEBUG\] \[bot\d\.chatty\.planner\] \(chatty:Chatty, sim 0\.000 s, tick 0\): planning 0",

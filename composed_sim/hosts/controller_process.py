@@ -40,6 +40,7 @@ def parse(argv: list[str] | None) -> argparse.Namespace:
     p.add_argument("--parent-pid", type=int, default=None)
     p.add_argument("--log-dir", default=None, help="write the nodes' log lines to LOG_DIR/<robot>.log")
     p.add_argument("--log-level", type=int, default=30, help="the nodes' console level (a LoggingSeverity)")
+    p.add_argument("--rosout", action="store_true", help="send the nodes' log lines for /rosout to the simulator")
     p.add_argument("--report-fd", type=int, default=None,
                    help="pipe for start-up reports: 'created type:<type>', then 'ready <topics> gid:<hex>…'")
     return p.parse_args(argv)
@@ -83,7 +84,9 @@ def main(argv: list[str] | None = None) -> int:
     nodes, executor, spinner, link = [], None, None, None
     # The robot's log file is written here; this process's console is a file nobody reads, so
     # only a failure's traceback goes there (after FAILURE_MARK, for the host to show).
-    logs = NodeLogs(LogSettings(args.log_dir, args.log_level), world.tick_ns,
+    # The console's part and the /rosout lines go to the simulator with the robot's part of each
+    # tick (ros/run_wide.py's link).
+    logs = NodeLogs(LogSettings(args.log_dir, args.log_level, rosout=args.rosout), world.tick_ns, forward=True,
                     console=Console(open(os.devnull, "w"))) if args.log_dir else None
     try:
         relay = RunWideRelay(names)
@@ -100,10 +103,11 @@ def main(argv: list[str] | None = None) -> int:
             logs.clock = lambda: clock.now().nanoseconds
         # The link also tells the simulator when a robot that answers when published is idle.
         quiet = world.robots[group_index].answers == "when_published"
-        if relay.in_use or quiet:
+        if relay.in_use or quiet or logs is not None:
             link = RunWideLink(context, args.robot, relay, receives=any(relay.subscriptions_of(n) for n in nodes),
-                               sends=quiet or any(relay.topics_published_by(n) for n in nodes),
-                               timeout_s=world.lockstep.watchdog_s)
+                               # /rosout lines belong to their tick in the bag: the simulator waits for them
+                               sends=quiet or args.rosout or any(relay.topics_published_by(n) for n in nodes),
+                               timeout_s=world.lockstep.watchdog_s, logs=logs)
             link.watch_answers([p for n in nodes for p in n.publishers
                                 if p.topic_name == c.topic_name(args.robot, c.CMD_VEL)])
         # Before the robot's first sensor callback of each tick: the tick's run-wide batch, and the
@@ -120,6 +124,7 @@ def main(argv: list[str] | None = None) -> int:
                     answer_type = published_answer_type(nodes, args.robot)   # None: its publisher comes later
                     words = ["created"] + ([f"{TYPE_PREFIX}{c.type_name(answer_type)}"] if answer_type else [])
                     words += [f"{RUN_WIDE_PREFIX}{e.topic_name}" for e in (link.endpoints if link else ())]
+                    words += [f"{RUN_WIDE_PREFIX}waited"] if link is not None and link.sends else []
                     report.write(" ".join(words) + "\n")
                     endpoints = contract_endpoints(nodes, args.robot) + (link.endpoints if link else [])
                     if not wait_until_matched(endpoints, args.robot, stop):
@@ -134,9 +139,13 @@ def main(argv: list[str] | None = None) -> int:
             # the EventsExecutor because its spin() in a thread hung in our probes (docs/architecture.md).
             while not stop.is_set():
                 executor.spin_once(timeout_sec=0.05)
-                if link is not None and link.sends and link.tick > link.sent:
+                if link is not None and link.tick > link.sent:
                     run_until_idle(executor)
-                    link.send()
+                    if link.sends:
+                        link.send()
+                    else:
+                        link.send_logs()
+                        link.sent = link.tick
         else:
             spinner = threading.Thread(target=spin, args=(executor,), daemon=True)
             spinner.start()
@@ -146,8 +155,11 @@ def main(argv: list[str] | None = None) -> int:
                 # go out once the robot's nodes are past the tick's sensors for one look (a
                 # threaded executor tells no one when it is idle).
                 time.sleep(0.002 if link is not None and link.sends else 0.1)
-                if link is not None and link.sends and link.tick > link.sent:
-                    if ticks_seen == link.tick:
+                if link is not None and link.tick > link.sent:
+                    if not link.sends:
+                        link.send_logs()
+                        link.sent = link.tick
+                    elif ticks_seen == link.tick:
                         link.send()
                     ticks_seen = link.tick
         return 0
@@ -165,6 +177,11 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         if logs is not None:
             logs.flush()
+        if link is not None and link.tick >= 0:
+            try:
+                link.send_logs()    # a failing robot's last lines: the simulator's console counts them
+            except Exception:       # noqa: BLE001 - its simulator may be gone: nothing to tell
+                pass
         # A bound on the clean-up: a DDS call that waits on a peer that died with the simulator
         # (its shared-memory port, say) must not keep this process alive. SIGALRM has no handler
         # here, so the kernel ends the process even while a C call holds the interpreter.

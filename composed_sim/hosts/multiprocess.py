@@ -222,7 +222,8 @@ class MultiProcessHost(ControllersElsewhere):
                 for p in unmatched.values():
                     if p.created and p.run_wide_topics and not p.linked:
                         endpoints[p.domain].update(self._link(p.domain).add_robot(
-                            self.sim.names.index(p.robot), p.robot, p.run_wide_topics))
+                            self.sim.names.index(p.robot), p.robot, p.run_wide_topics,
+                            waited="waited" in p.run_wide_topics))
                         p.linked = True
                 for robot, p in list(unmatched.items()):
                     if p.topics is not None and self._nodes[p.domain].answer_subscription(robot) is not None and all(matched(endpoints[p.domain].get(t)) for t in p.topics):
@@ -240,7 +241,8 @@ class MultiProcessHost(ControllersElsewhere):
 
     def _link(self, domain: int) -> SimulatorLink:
         if domain not in self._links:
-            self._links[domain] = SimulatorLink(self._nodes[domain].context, f"composed_sim_run_wide_d{domain}")
+            self._links[domain] = SimulatorLink(self._nodes[domain].context, f"composed_sim_run_wide_d{domain}",
+                                                self.logs)
         return self._links[domain]
 
     def run_wide_batch(self, tick: int, sent: dict[int, list]) -> list:
@@ -287,6 +289,7 @@ class MultiProcessHost(ControllersElsewhere):
                "--parent-pid", str(os.getpid()), "--report-fd", str(write_fd)]
         if self.logs is not None and self.logs.settings.log_dir:
             cmd += ["--log-dir", self.logs.settings.log_dir, "--log-level", str(self.logs.settings.console_level)]
+            cmd += ["--rosout"] if self.logs.settings.rosout else []
         # Own process group: a terminal's Ctrl-C goes to the simulator only (which stops the run
         # at a tick boundary), and killpg reaches anything the child started. SIGINT blocked while
         # forking: one arriving before the child's setpgid stays pending until the child ignores it.
@@ -439,5 +442,6 @@ class LinkedExchange(NodesExchange):
         super().close_tick(fallback, previous, commands)
         sent = {}
         for link in self._host._links.values():
+            link.take_logs()
             sent.update(link.collect())
         self._batch = self._host.run_wide_batch(self._stamp // self._host.world.tick_ns + 1, sent)

@@ -200,6 +200,11 @@ class NodeLogs:
             entry[0] += 1
             entry[1].add(owner)
 
+    @property
+    def forwarding(self) -> bool:
+        """Has a forwarding process anything for the main process (``drain``)?"""
+        return bool(self._first or self._repeats or self.rosout)
+
     def drain(self) -> tuple:
         """A worker's part for the main process since the last drain: (first lines, repeats, rosout)."""
         out = (self._first, [(k, n, owners) for k, (n, owners) in self._repeats.items()], self.rosout)

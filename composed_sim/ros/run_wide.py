@@ -208,28 +208,33 @@ def outbox_topic(robot: str) -> str:
     return f"/{robot}/_composed_sim/run_wide"
 
 
-def pack(stamp_ns: int, messages: list[Message], answered: bool = False) -> UInt8MultiArray:
-    """``answered``: a robot's part says whether its nodes published cmd_vel in the tick."""
-    return UInt8MultiArray(data=array("B", pickle.dumps((stamp_ns, messages, answered),
+def pack(stamp_ns: int, messages: list[Message], answered: bool = False, logs: tuple = ()) -> UInt8MultiArray:
+    """``answered``: a robot's part says whether its nodes published cmd_vel in the tick; ``logs``:
+    what its log lines give the simulator's console and /rosout (``NodeLogs.drain``)."""
+    return UInt8MultiArray(data=array("B", pickle.dumps((stamp_ns, messages, answered, logs),
                                                         protocol=pickle.HIGHEST_PROTOCOL)))
 
 
-def unpack(msg: UInt8MultiArray) -> tuple[int, list[Message], bool]:
+def unpack(msg: UInt8MultiArray) -> tuple[int, list[Message], bool, tuple]:
     return pickle.loads(bytes(msg.data))
 
 
 class RunWideLink:
     """A controller process's side of the run: it takes each tick's batch from the simulator
     before the robot's first sensor callback of the tick (``before_tick``) and sends what the
-    robot's nodes published once they are idle (``send``)."""
+    robot's nodes published once they are idle (``send``): every tick if ``sends`` (the simulator
+    waits for it), else only when its log lines have something for the simulator's console or
+    /rosout (``logs``, a forwarding ``NodeLogs``)."""
 
     def __init__(self, context, robot: str, relay: RunWideRelay, *, receives: bool, sends: bool,
-                 timeout_s: float):
-        self._relay, self._timeout_s = relay, timeout_s
+                 timeout_s: float, logs=None):
+        self._relay, self._timeout_s, self._logs = relay, timeout_s, logs
+        self.sends = sends
         self.node = Node("run_wide_link", namespace=f"/{robot}", context=context, **quiet_node_options())
         self._batches = self.node.create_subscription(UInt8MultiArray, BATCH_TOPIC, lambda msg: None, LINK_QOS) \
             if receives else None
-        self._outbox = self.node.create_publisher(UInt8MultiArray, outbox_topic(robot), LINK_QOS) if sends else None
+        self._outbox = self.node.create_publisher(UInt8MultiArray, outbox_topic(robot), LINK_QOS) \
+            if sends or logs is not None else None
         self.delivered = -1         # stamp of the last batch delivered
         self.tick = -1              # stamp of the last tick whose sensors arrived
         self.sent = -1              # stamp of the last tick whose messages went out
@@ -238,10 +243,6 @@ class RunWideLink:
     @property
     def endpoints(self) -> list:
         return [e for e in (self._batches, self._outbox) if e is not None]
-
-    @property
-    def sends(self) -> bool:
-        return self._outbox is not None
 
     def before_tick(self, stamp: int) -> None:
         """Before the robot's first sensor callback of a tick (``sim_timers.before_each_tick``):
@@ -271,14 +272,20 @@ class RunWideLink:
                     return          # the simulator is gone or stopped: the tick goes on without
                 time.sleep(0.0002)
                 continue
-            batch_stamp, batch, _ = unpack(taken[0])
+            batch_stamp, batch, _, _ = unpack(taken[0])
             self._relay.deliver(batch)
             self.delivered = batch_stamp
 
     def send(self) -> None:
         """What the robot's nodes published in the tick of the last sensors, to the simulator."""
-        self._outbox.publish(pack(self.tick, self._relay.take_outbox(), self.answered == self.tick))
+        logs = self._logs.drain() if self._logs is not None else ()
+        self._outbox.publish(pack(self.tick, self._relay.take_outbox(), self.answered == self.tick, logs))
         self.sent = self.tick
+
+    def send_logs(self) -> None:
+        """A robot whose part the simulator does not wait for: its log lines' part, if any."""
+        if self._logs is not None and self._logs.forwarding:
+            self._outbox.publish(pack(self.tick, [], False, self._logs.drain()))
 
     def destroy(self) -> None:
         self.node.destroy_node()
@@ -288,8 +295,11 @@ class SimulatorLink:
     """The simulator's side of the run-wide relay in one ROS domain (multi-process mode): it
     publishes each tick's batch there and takes what each robot of the domain sent."""
 
-    def __init__(self, context, name: str):
+    def __init__(self, context, name: str, logs=None):
+        """``logs``: the simulator's ``NodeLogs``, into which the robots' log lines' parts go."""
         self.node = Node(name, context=context, **quiet_node_options())
+        self._logs = logs
+        self._log_senders: dict[int, object] = {}     # robots whose parts carry only their logs
         self._batches = self.node.create_publisher(UInt8MultiArray, BATCH_TOPIC, LINK_QOS)
         self._receivers = 0
         self._outboxes: dict[int, object] = {}       # robot index in the run → its subscription
@@ -297,16 +307,17 @@ class SimulatorLink:
         self._done: set[int] = set()                  # robots whose messages of the open tick are in
         self.answered: set[int] = set()               # … of which those that published cmd_vel in it
 
-    def add_robot(self, index: int, robot: str, topics: Collection[str]) -> dict[str, object]:
+    def add_robot(self, index: int, robot: str, topics: Collection[str], waited: bool = True) -> dict[str, object]:
         """A controller process reported its link's topics: its endpoints on this side, by topic
-        (each answers ``get_*_count() >= 1`` once matched, as the start-up check asks)."""
+        (each answers ``get_*_count() >= 1`` once matched, as the start-up check asks). ``waited``:
+        its part comes every tick and closes it; else it carries only log lines, now and then."""
         endpoints = {}
         if BATCH_TOPIC in topics:
             self._receivers += 1
             endpoints[BATCH_TOPIC] = _AllReceivers(self._batches, self._receivers)
         if outbox_topic(robot) in topics:
             sub = self.node.create_subscription(UInt8MultiArray, outbox_topic(robot), lambda msg: None, LINK_QOS)
-            self._outboxes[index] = sub
+            (self._outboxes if waited else self._log_senders)[index] = sub
             endpoints[outbox_topic(robot)] = sub
         return endpoints
 
@@ -327,12 +338,27 @@ class SimulatorLink:
                     taken = sub.handle.take_message(UInt8MultiArray, False)
                 if taken is None:
                     break
-                stamp, messages, answered = unpack(taken[0])
+                stamp, messages, answered, logs = unpack(taken[0])
+                self._merge_logs(logs)
                 self._pending.setdefault(index, []).extend(messages)
                 if stamp >= stamp_ns:
                     self._done.add(index)
                     if answered:
                         self.answered.add(index)
+
+    def take_logs(self) -> None:
+        """What the robots that send only their log lines sent so far."""
+        for sub in self._log_senders.values():
+            while True:
+                with sub.handle:
+                    taken = sub.handle.take_message(UInt8MultiArray, False)
+                if taken is None:
+                    break
+                self._merge_logs(unpack(taken[0])[3])
+
+    def _merge_logs(self, logs: tuple) -> None:
+        if logs and self._logs is not None:
+            self._logs.merge(logs)
 
     def done(self, index: int) -> bool:
         return index in self._done
