@@ -8,7 +8,8 @@ class Safety(Node):
     def __init__(self):
         super().__init__('safety')
         self.max_speed = self.declare_parameter('max_speed', 0.05).value
-        self.publisher = self.create_publisher(Twist, 'cmd_vel', 10)
+        # An absolute name built from the namespace, as many swarm packages write it.
+        self.publisher = self.create_publisher(Twist, self.get_namespace() + '/cmd_vel', 10)
         self.create_subscription(Twist, 'drive_command', self.on_command, 10)
 
     def on_command(self, msg):
