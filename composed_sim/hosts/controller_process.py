@@ -69,7 +69,8 @@ def main(argv: list[str] | None = None) -> int:
     from composed_sim.hosts.node_logs import FAILURE_MARK, Console, LogSettings, NodeLogs, node_label, raising_node
     from composed_sim.ros import contract as c
     from composed_sim.ros.answer_subscription import cmd_vel_gids
-    from composed_sim.ros.run_wide import RunWideLink, RunWideRelay
+    from composed_sim.ros.run_wide import RunWideRelay
+    from composed_sim.ros.run_wide_link import RunWideLink
     from composed_sim.ros.sim_timers import before_each_tick
     from composed_sim.world.loader import load_world
 
@@ -85,7 +86,7 @@ def main(argv: list[str] | None = None) -> int:
     # The robot's log file is written here; this process's console is a file nobody reads, so
     # only a failure's traceback goes there (after FAILURE_MARK, for the host to show).
     # The console's part and the /rosout lines go to the simulator with the robot's part of each
-    # tick (ros/run_wide.py's link).
+    # tick (ros/run_wide_link.py).
     logs = NodeLogs(LogSettings(args.log_dir, args.log_level, rosout=args.rosout), world.tick_ns, forward=True,
                     console=Console(open(os.devnull, "w"))) if args.log_dir else None
     try:

@@ -43,7 +43,8 @@ from composed_sim.hosts.run_wide_nodes import RunWideNodes
 from composed_sim.ros import contract as c
 from composed_sim.ros.lockstep_executor import LockstepExecutor
 from composed_sim.ros.robot_settings import robot_settings
-from composed_sim.ros.run_wide import RunWideRelay, SimulatorLink
+from composed_sim.ros.run_wide import RunWideRelay
+from composed_sim.ros.run_wide_link import SimulatorLink
 from composed_sim.ros.simulator_node import AnswerTypeError, SimulatorNode
 from composed_sim.world.loader import dump_world
 from composed_sim.world.schema import World
@@ -386,7 +387,7 @@ class MultiProcessHost(ControllersElsewhere):
 
 class LinkedExchange(NodesExchange):
     """The per-domain simulator nodes, and the run-wide relay between the controller processes
-    (ros/run_wide.py): each tick's batch goes to every domain before the tick's sensors, and a
+    (ros/run_wide_link.py): each tick's batch goes to every domain before the tick's sensors, and a
     tick closes once every robot that publishes run-wide messages has sent its part."""
 
     def __init__(self, host: MultiProcessHost, nodes: list[SimulatorNode], check):

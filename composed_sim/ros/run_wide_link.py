@@ -1,0 +1,204 @@
+"""The run-wide relay across processes (multi-process mode; ros/run_wide.py is the relay itself).
+
+A controller process has a relay of its own. Its robot's messages of tick k go to the simulator
+on /<robot>/_composed_sim/run_wide, once the robot's nodes have nothing left to do in the tick;
+the simulator publishes each tick's batch on /_composed_sim/run_wide in every domain before the
+tick's sensors, and a controller process delivers it before the first sensor callback of the tick
+runs. Both carry (stamp ns, messages, …), pickled, in a std_msgs/UInt8MultiArray. The robot's part
+also says whether its nodes answered the tick (for a robot that answers when published) and
+carries its log lines' part for the simulator's console and /rosout.
+"""
+from __future__ import annotations
+
+import pickle
+import time
+from array import array
+from typing import Collection
+
+from rclpy.node import Node
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from std_msgs.msg import UInt8MultiArray
+
+from composed_sim.ros.robot_settings import quiet_node_options
+from composed_sim.ros.run_wide import Message, RunWideRelay
+
+BATCH_TOPIC = "/_composed_sim/run_wide"
+LINK_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
+
+
+def outbox_topic(robot: str) -> str:
+    return f"/{robot}/_composed_sim/run_wide"
+
+
+def pack(stamp_ns: int, messages: list[Message], answered: bool = False, logs: tuple = ()) -> UInt8MultiArray:
+    """``answered``: a robot's part says whether its nodes published cmd_vel in the tick; ``logs``:
+    what its log lines give the simulator's console and /rosout (``NodeLogs.drain``)."""
+    return UInt8MultiArray(data=array("B", pickle.dumps((stamp_ns, messages, answered, logs),
+                                                        protocol=pickle.HIGHEST_PROTOCOL)))
+
+
+def unpack(msg: UInt8MultiArray) -> tuple[int, list[Message], bool, tuple]:
+    return pickle.loads(bytes(msg.data))
+
+
+class RunWideLink:
+    """A controller process's side of the run: it takes each tick's batch from the simulator
+    before the robot's first sensor callback of the tick (``before_tick``) and sends what the
+    robot's nodes published once they are idle (``send``): every tick if ``sends`` (the simulator
+    waits for it), else only when its log lines have something for the simulator's console or
+    /rosout (``logs``, a forwarding ``NodeLogs``)."""
+
+    def __init__(self, context, robot: str, relay: RunWideRelay, *, receives: bool, sends: bool,
+                 timeout_s: float, logs=None):
+        self._relay, self._timeout_s, self._logs = relay, timeout_s, logs
+        self.sends = sends
+        self.node = Node("run_wide_link", namespace=f"/{robot}", context=context, **quiet_node_options())
+        self._batches = self.node.create_subscription(UInt8MultiArray, BATCH_TOPIC, lambda msg: None, LINK_QOS) \
+            if receives else None
+        self._outbox = self.node.create_publisher(UInt8MultiArray, outbox_topic(robot), LINK_QOS) \
+            if sends or logs is not None else None
+        self.delivered = -1         # stamp of the last batch delivered
+        self.tick = -1              # stamp of the last tick whose sensors arrived
+        self.sent = -1              # stamp of the last tick whose messages went out
+        self.answered = -1          # stamp of the last tick the robot's nodes published cmd_vel in
+
+    @property
+    def endpoints(self) -> list:
+        return [e for e in (self._batches, self._outbox) if e is not None]
+
+    def before_tick(self, stamp: int) -> None:
+        """Before the robot's first sensor callback of a tick (``sim_timers.before_each_tick``):
+        the tick's batch is delivered, waiting for it."""
+        self.tick = max(self.tick, stamp)
+        if self._batches is not None:
+            self._deliver_through(stamp)
+
+    def watch_answers(self, publishers) -> None:
+        """Note the ticks in which the robot's cmd_vel ``publishers`` publish (the simulator then
+        waits for the answer itself, not only for the sign that the robot is idle)."""
+        for publisher in publishers:
+            publish = publisher.publish
+
+            def noting(msg, publish=publish):
+                self.answered = self.tick
+                return publish(msg)
+            publisher.publish = noting
+
+    def _deliver_through(self, stamp: int) -> None:
+        deadline = time.monotonic() + self._timeout_s
+        while self.delivered < stamp:
+            with self._batches.handle:
+                taken = self._batches.handle.take_message(UInt8MultiArray, False)
+            if taken is None:
+                if time.monotonic() > deadline:
+                    return          # the simulator is gone or stopped: the tick goes on without
+                time.sleep(0.0002)
+                continue
+            batch_stamp, batch, _, _ = unpack(taken[0])
+            self._relay.deliver(batch)
+            self.delivered = batch_stamp
+
+    def send(self) -> None:
+        """What the robot's nodes published in the tick of the last sensors, to the simulator."""
+        logs = self._logs.drain() if self._logs is not None else ()
+        self._outbox.publish(pack(self.tick, self._relay.take_outbox(), self.answered == self.tick, logs))
+        self.sent = self.tick
+
+    def send_logs(self) -> None:
+        """A robot whose part the simulator does not wait for: its log lines' part, if any."""
+        if self._logs is not None and self._logs.forwarding:
+            self._outbox.publish(pack(self.tick, [], False, self._logs.drain()))
+
+    def destroy(self) -> None:
+        self.node.destroy_node()
+
+
+class SimulatorLink:
+    """The simulator's side of the run-wide relay in one ROS domain (multi-process mode): it
+    publishes each tick's batch there and takes what each robot of the domain sent."""
+
+    def __init__(self, context, name: str, logs=None):
+        """``logs``: the simulator's ``NodeLogs``, into which the robots' log lines' parts go."""
+        self.node = Node(name, context=context, **quiet_node_options())
+        self._logs = logs
+        self._log_senders: dict[int, object] = {}     # robots whose parts carry only their logs
+        self._batches = self.node.create_publisher(UInt8MultiArray, BATCH_TOPIC, LINK_QOS)
+        self._receivers = 0
+        self._outboxes: dict[int, object] = {}       # robot index in the run → its subscription
+        self._pending: dict[int, list[Message]] = {}  # what a robot sent for the open tick so far
+        self._done: set[int] = set()                  # robots whose messages of the open tick are in
+        self.answered: set[int] = set()               # … of which those that published cmd_vel in it
+
+    def add_robot(self, index: int, robot: str, topics: Collection[str], waited: bool = True) -> dict[str, object]:
+        """A controller process reported its link's topics: its endpoints on this side, by topic
+        (each answers ``get_*_count() >= 1`` once matched, as the start-up check asks). ``waited``:
+        its part comes every tick and closes it; else it carries only log lines, now and then."""
+        endpoints = {}
+        if BATCH_TOPIC in topics:
+            self._receivers += 1
+            endpoints[BATCH_TOPIC] = _AllReceivers(self._batches, self._receivers)
+        if outbox_topic(robot) in topics:
+            sub = self.node.create_subscription(UInt8MultiArray, outbox_topic(robot), lambda msg: None, LINK_QOS)
+            (self._outboxes if waited else self._log_senders)[index] = sub
+            endpoints[outbox_topic(robot)] = sub
+        return endpoints
+
+    @property
+    def senders(self) -> list[int]:
+        return list(self._outboxes)
+
+    def publish(self, stamp_ns: int, batch: list[Message]) -> None:
+        if self._receivers:
+            self._batches.publish(pack(stamp_ns, batch))
+
+    def take(self, stamp_ns: int, waiting: Collection[int]) -> None:
+        """Take what arrived from the robots ``waiting`` (indices) for ticks up to ``stamp_ns``."""
+        for index in waiting:
+            sub = self._outboxes[index]
+            while index not in self._done:
+                with sub.handle:
+                    taken = sub.handle.take_message(UInt8MultiArray, False)
+                if taken is None:
+                    break
+                stamp, messages, answered, logs = unpack(taken[0])
+                self._merge_logs(logs)
+                self._pending.setdefault(index, []).extend(messages)
+                if stamp >= stamp_ns:
+                    self._done.add(index)
+                    if answered:
+                        self.answered.add(index)
+
+    def take_logs(self) -> None:
+        """What the robots that send only their log lines sent so far."""
+        for sub in self._log_senders.values():
+            while True:
+                with sub.handle:
+                    taken = sub.handle.take_message(UInt8MultiArray, False)
+                if taken is None:
+                    break
+                self._merge_logs(unpack(taken[0])[3])
+
+    def _merge_logs(self, logs: tuple) -> None:
+        if logs and self._logs is not None:
+            self._logs.merge(logs)
+
+    def done(self, index: int) -> bool:
+        return index in self._done
+
+    def collect(self) -> dict[int, list[Message]]:
+        """What the robots sent for the tick, by robot index; the next tick starts empty."""
+        out, self._pending, self._done, self.answered = self._pending, {}, set(), set()
+        return out
+
+    def destroy(self) -> None:
+        self.node.destroy_node()
+
+
+class _AllReceivers:
+    """The batch publisher counts as matched once it has matched every receiving process so far."""
+
+    def __init__(self, publisher, receivers: int):
+        self._publisher, self._receivers = publisher, receivers
+
+    def get_subscription_count(self) -> int:
+        return int(self._publisher.get_subscription_count() >= self._receivers)
