@@ -106,8 +106,8 @@ def main(argv: list[str] | None = None) -> int:
         quiet = world.robots[group_index].answers == "when_published"
         if relay.in_use or quiet or logs is not None:
             link = RunWideLink(context, args.robot, relay, receives=any(relay.subscriptions_of(n) for n in nodes),
-                               # /rosout lines belong to their tick in the bag: the simulator waits for them
-                               sends=quiet or args.rosout or any(relay.topics_published_by(n) for n in nodes),
+                               # the log lines' part too: each tick's lines reach the console and the bag
+                               sends=quiet or logs is not None or any(relay.topics_published_by(n) for n in nodes),
                                timeout_s=world.lockstep.watchdog_s, logs=logs)
             link.watch_answers([p for n in nodes for p in n.publishers
                                 if p.topic_name == c.topic_name(args.robot, c.CMD_VEL)])
@@ -125,7 +125,6 @@ def main(argv: list[str] | None = None) -> int:
                     answer_type = published_answer_type(nodes, args.robot)   # None: its publisher comes later
                     words = ["created"] + ([f"{TYPE_PREFIX}{c.type_name(answer_type)}"] if answer_type else [])
                     words += [f"{RUN_WIDE_PREFIX}{e.topic_name}" for e in (link.endpoints if link else ())]
-                    words += [f"{RUN_WIDE_PREFIX}waited"] if link is not None and link.sends else []
                     report.write(" ".join(words) + "\n")
                     endpoints = contract_endpoints(nodes, args.robot) + (link.endpoints if link else [])
                     if not wait_until_matched(endpoints, args.robot, stop):
@@ -140,13 +139,9 @@ def main(argv: list[str] | None = None) -> int:
             # the EventsExecutor because its spin() in a thread hung in our probes (docs/architecture.md).
             while not stop.is_set():
                 executor.spin_once(timeout_sec=0.05)
-                if link is not None and link.tick > link.sent:
+                if link is not None and link.sends and link.tick > link.sent:
                     run_until_idle(executor)
-                    if link.sends:
-                        link.send()
-                    else:
-                        link.send_logs()
-                        link.sent = link.tick
+                    link.send()
         else:
             spinner = threading.Thread(target=spin, args=(executor,), daemon=True)
             spinner.start()
@@ -156,11 +151,8 @@ def main(argv: list[str] | None = None) -> int:
                 # go out once the robot's nodes are past the tick's sensors for one look (a
                 # threaded executor tells no one when it is idle).
                 time.sleep(0.002 if link is not None and link.sends else 0.1)
-                if link is not None and link.tick > link.sent:
-                    if not link.sends:
-                        link.send_logs()
-                        link.sent = link.tick
-                    elif ticks_seen == link.tick:
+                if link is not None and link.sends and link.tick > link.sent:
+                    if ticks_seen == link.tick:
                         link.send()
                     ticks_seen = link.tick
         return 0

@@ -223,8 +223,7 @@ class MultiProcessHost(ControllersElsewhere):
                 for p in unmatched.values():
                     if p.created and p.run_wide_topics and not p.linked:
                         endpoints[p.domain].update(self._link(p.domain).add_robot(
-                            self.sim.names.index(p.robot), p.robot, p.run_wide_topics,
-                            waited="waited" in p.run_wide_topics))
+                            self.sim.names.index(p.robot), p.robot, p.run_wide_topics))
                         p.linked = True
                 for robot, p in list(unmatched.items()):
                     if p.topics is not None and self._nodes[p.domain].answer_subscription(robot) is not None and all(matched(endpoints[p.domain].get(t)) for t in p.topics):
@@ -443,6 +442,7 @@ class LinkedExchange(NodesExchange):
         super().close_tick(fallback, previous, commands)
         sent = {}
         for link in self._host._links.values():
-            link.take_logs()
+            # A robot failed in the tick may have sent its last part (its last log lines) as it ended.
+            link.take(self._stamp, [i for i in link.senders if self._failed(i)])
             sent.update(link.collect())
         self._batch = self._host.run_wide_batch(self._stamp // self._host.world.tick_ns + 1, sent)

@@ -43,10 +43,10 @@ def unpack(msg: UInt8MultiArray) -> tuple[int, list[Message], bool, tuple]:
 
 class RunWideLink:
     """A controller process's side of the run: it takes each tick's batch from the simulator
-    before the robot's first sensor callback of the tick (``before_tick``) and sends what the
-    robot's nodes published once they are idle (``send``): every tick if ``sends`` (the simulator
-    waits for it), else only when its log lines have something for the simulator's console or
-    /rosout (``logs``, a forwarding ``NodeLogs``)."""
+    before the robot's first sensor callback of the tick (``before_tick``) and, with ``sends``,
+    sends what the robot's nodes published once they are idle (``send``) every tick: the simulator
+    waits for it. ``logs``: a forwarding ``NodeLogs``, whose part for the simulator's console and
+    /rosout goes along."""
 
     def __init__(self, context, robot: str, relay: RunWideRelay, *, receives: bool, sends: bool,
                  timeout_s: float, logs=None):
@@ -55,8 +55,7 @@ class RunWideLink:
         self.node = Node("run_wide_link", namespace=f"/{robot}", context=context, **quiet_node_options())
         self._batches = self.node.create_subscription(UInt8MultiArray, BATCH_TOPIC, lambda msg: None, LINK_QOS) \
             if receives else None
-        self._outbox = self.node.create_publisher(UInt8MultiArray, outbox_topic(robot), LINK_QOS) \
-            if sends or logs is not None else None
+        self._outbox = self.node.create_publisher(UInt8MultiArray, outbox_topic(robot), LINK_QOS) if sends else None
         self.delivered = -1         # stamp of the last batch delivered
         self.tick = -1              # stamp of the last tick whose sensors arrived
         self.sent = -1              # stamp of the last tick whose messages went out
@@ -105,8 +104,8 @@ class RunWideLink:
         self.sent = self.tick
 
     def send_logs(self) -> None:
-        """A robot whose part the simulator does not wait for: its log lines' part, if any."""
-        if self._logs is not None and self._logs.forwarding:
+        """A failing robot's last log lines' part, if any, as its process ends."""
+        if self._outbox is not None and self._logs is not None and self._logs.forwarding:
             self._outbox.publish(pack(self.tick, [], False, self._logs.drain()))
 
     def destroy(self) -> None:
@@ -121,7 +120,6 @@ class SimulatorLink:
         """``logs``: the simulator's ``NodeLogs``, into which the robots' log lines' parts go."""
         self.node = Node(name, context=context, **quiet_node_options())
         self._logs = logs
-        self._log_senders: dict[int, object] = {}     # robots whose parts carry only their logs
         self._batches = self.node.create_publisher(UInt8MultiArray, BATCH_TOPIC, LINK_QOS)
         self._receivers = 0
         self._outboxes: dict[int, object] = {}       # robot index in the run → its subscription
@@ -129,17 +127,16 @@ class SimulatorLink:
         self._done: set[int] = set()                  # robots whose messages of the open tick are in
         self.answered: set[int] = set()               # … of which those that published cmd_vel in it
 
-    def add_robot(self, index: int, robot: str, topics: Collection[str], waited: bool = True) -> dict[str, object]:
+    def add_robot(self, index: int, robot: str, topics: Collection[str]) -> dict[str, object]:
         """A controller process reported its link's topics: its endpoints on this side, by topic
-        (each answers ``get_*_count() >= 1`` once matched, as the start-up check asks). ``waited``:
-        its part comes every tick and closes it; else it carries only log lines, now and then."""
+        (each answers ``get_*_count() >= 1`` once matched, as the start-up check asks)."""
         endpoints = {}
         if BATCH_TOPIC in topics:
             self._receivers += 1
             endpoints[BATCH_TOPIC] = _AllReceivers(self._batches, self._receivers)
         if outbox_topic(robot) in topics:
             sub = self.node.create_subscription(UInt8MultiArray, outbox_topic(robot), lambda msg: None, LINK_QOS)
-            (self._outboxes if waited else self._log_senders)[index] = sub
+            self._outboxes[index] = sub
             endpoints[outbox_topic(robot)] = sub
         return endpoints
 
@@ -167,16 +164,6 @@ class SimulatorLink:
                     self._done.add(index)
                     if answered:
                         self.answered.add(index)
-
-    def take_logs(self) -> None:
-        """What the robots that send only their log lines sent so far."""
-        for sub in self._log_senders.values():
-            while True:
-                with sub.handle:
-                    taken = sub.handle.take_message(UInt8MultiArray, False)
-                if taken is None:
-                    break
-                self._merge_logs(unpack(taken[0])[3])
 
     def _merge_logs(self, logs: tuple) -> None:
         if logs and self._logs is not None:
