@@ -24,6 +24,7 @@ from composed_sim.ros.lockstep_executor import LockstepExecutor
 from composed_sim.ros.node_options import HostedNodeOptions, construct
 from composed_sim.ros.run_wide import RUN_WIDE_ORIGIN, RunWideRelay
 from composed_sim.ros.sim_timers import SimTimers
+from composed_sim.world.loader import format_path
 from composed_sim.world.schema import NodeSpec, RobotGroup, World
 
 
@@ -118,7 +119,7 @@ def node_field(group: RobotGroup, group_index: int, node_index: int) -> tuple:
 def _describe(field: tuple, spec: NodeSpec) -> str:
     """How messages name a node: ``robots[0].controller: controller plugin 'x'`` or
     ``robots[0].nodes[2]: node 'pkg.mod:Class'``."""
-    path = "".join(f"[{p}]" if isinstance(p, int) else f".{p}" for p in field).lstrip(".")
+    path = format_path(field)
     return f"{path}: controller plugin {spec.node!r}" if field[-1] == "controller" else f"{path}: node {spec.node!r}"
 
 
@@ -234,8 +235,7 @@ def _construct(cls: type[Node], spec: NodeSpec, field: tuple, owner: str, option
         node.destroy_node()
         where = field[:-1] + ("params",) if field[-1] == "controller" else field + ("parameters",)
         what = f"controller {spec.node!r}" if field[-1] == "controller" else f"node {spec.node!r}"
-        path = "".join(f"[{p}]" if isinstance(p, int) else f".{p}" for p in where).lstrip(".")
-        raise plugins.PluginError(f"{path}: {what} has no parameter {', '.join(map(repr, unknown))} "
+        raise plugins.PluginError(f"{format_path(where)}: {what} has no parameter {', '.join(map(repr, unknown))} "
                                   f"(it declares: {', '.join(declared) or 'none'})", where)
     return node
 

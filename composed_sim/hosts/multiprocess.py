@@ -393,13 +393,14 @@ class LinkedExchange(NodesExchange):
         super().__init__(nodes, check)
         self._host = host
         self._batch: Optional[list] = None
+        self._tick = 0
         self._stamp = 0
 
     def publish_tick(self, frame) -> None:
         host = self._host
         if self._batch is None:               # tick 0: what the run-wide nodes publish at its start
             self._batch = host.run_wide_batch(frame.tick, {})
-        self._stamp = frame.tick * host.world.tick_ns
+        self._tick, self._stamp = frame.tick, frame.tick * host.world.tick_ns
         host.relay.deliver(self._batch)       # the run-wide nodes' subscriptions
         if self._batch:
             self.nodes[0].mirror_run_wide(self._batch, self._stamp)
@@ -445,4 +446,4 @@ class LinkedExchange(NodesExchange):
             # A robot failed in the tick may have sent its last part (its last log lines) as it ended.
             link.take(self._stamp, [i for i in link.senders if self._failed(i)])
             sent.update(link.collect())
-        self._batch = self._host.run_wide_batch(self._stamp // self._host.world.tick_ns + 1, sent)
+        self._batch = self._host.run_wide_batch(self._tick + 1, sent)

@@ -317,17 +317,8 @@ class ParticipantGroups:
     def _run_until_idle(self) -> None:
         """Run what is ready until nothing is (bounded): every robot has answered, but a chain of
         its nodes may go on, and what it publishes belongs to this tick."""
-        if isinstance(self.executor, LockstepExecutor):
-            for _ in range(SETTLE_ROUNDS):
-                if self.executor.dispatch_ready() == 0:
-                    return
-            return
-        idle = 0
         for _ in range(SETTLE_ROUNDS):
-            before = self.guard.calls
-            self.executor.spin_once(timeout_sec=0)
-            idle = idle + 1 if self.guard.calls == before else 0
-            if idle >= 2:
+            if self._executor_idle():
                 return
 
     def __exit__(self, *exc) -> None:

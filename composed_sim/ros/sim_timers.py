@@ -116,17 +116,14 @@ class SimTimers:
         node_clock = self._node.get_clock()
 
         def run(msg, *info):
-            stamp = cdr.stamp_ns(msg) if raw else msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+            stamp = sensor_stamp(msg, raw)
             if self._follow_stamps and node_clock.now().nanoseconds < stamp:
                 node_clock.set_ros_time_override(Time(nanoseconds=stamp, clock_type=ClockType.ROS_TIME))
             try:
                 return callback(msg, *info)
             finally:
                 self._handled(stamp)
-        # rclpy picks a subscription's call signature from the callback's: keep the original's.
-        if sub._callback_type is Subscription.CallbackType.WithMessageInfo:
-            return lambda msg, info: run(msg, info)
-        return lambda msg: run(msg)
+        return with_signature_of(sub, run)
 
     # --- per tick ------------------------------------------------------------------------------
 
@@ -180,11 +177,22 @@ def before_each_tick(subscriptions, on_tick: Callable[[int], None]) -> None:
         callback, raw = sub.callback, sub.raw
 
         def run(msg, *info, callback=callback, raw=raw):
-            stamp = cdr.stamp_ns(msg) if raw else msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+            stamp = sensor_stamp(msg, raw)
             if stamp > last[0]:
                 last[0] = stamp
                 on_tick(stamp)
             return callback(msg, *info)
-        # rclpy picks a subscription's call signature from the callback's: keep the original's.
-        sub.callback = (lambda msg, info, run=run: run(msg, info)) \
-            if sub._callback_type is Subscription.CallbackType.WithMessageInfo else (lambda msg, run=run: run(msg))
+        sub.callback = with_signature_of(sub, run)
+
+
+def sensor_stamp(msg, raw: bool) -> int:
+    """A sensor message's stamp in ns, from its bytes (``raw``) or its header."""
+    return cdr.stamp_ns(msg) if raw else msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+
+
+def with_signature_of(sub: Subscription, run: Callable) -> Callable:
+    """``run(msg, *info)`` as a callback of ``sub``: rclpy picks a subscription's call signature
+    from its callback's, so it keeps the original's."""
+    if sub._callback_type is Subscription.CallbackType.WithMessageInfo:
+        return lambda msg, info: run(msg, info)
+    return lambda msg: run(msg)
