@@ -21,6 +21,7 @@ import resource
 from collections import Counter
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
+from typing import Optional
 
 import numpy as np
 
@@ -73,6 +74,8 @@ def summarize(world: World, result: LoopResult, *, setup_s: float, mode: str, ex
         "real_time_factor": sim_time_s / wall if wall > 0 else None,
         "per_robot_tick_us": 1e6 * wall / (t.ticks_done * len(t.names)) if t.ticks_done and t.names else None,
         "phases_s": {**phases, "ros_exchange_s": result.times.ros_exchange_s},
+        "phases_per_tick_ms": phase_table(result.times, t.ticks_done),
+        **host_cost(result.times, t.ticks_done * len(t.names), in_host=mode == "composed"),
         "violations": len(result.violations),
         "violations_by_robot": dict(Counter(v.robot for v in result.violations).most_common()),
         "failed_robots": sorted({v.robot for v in result.violations if v.reason.startswith(FAILED)},
@@ -86,6 +89,26 @@ def summarize(world: World, result: LoopResult, *, setup_s: float, mode: str, ex
         "metrics": {"initial": result.metrics[0], "final": result.metrics[-1]} if result.metrics else {},
         "versions": versions(),
     }
+
+
+def phase_table(times, ticks: int) -> dict[str, float]:
+    """The main process's wall time per tick, by phase (hosts/lockstep.py's PHASES), in ms;
+    ``serial``: all but ``waiting``, the part that more cores do not share."""
+    if not ticks:
+        return {}
+    table = {phase: round(1e3 * s / ticks, 3) for phase, s in times.phases_s.items()}
+    table["serial"] = round(sum(v for k, v in table.items() if k != "waiting"), 3)
+    return table
+
+
+def host_cost(times, robot_ticks: int, *, in_host: bool) -> dict[str, Optional[float]]:
+    """Per robot-tick: the nodes' own code, and everything else the run's processes spent CPU on
+    (the host's cost). Only where the host runs every node (composed mode): elsewhere the
+    controllers' processes are not measured."""
+    if not (robot_ticks and in_host):
+        return {"node_code_per_robot_tick_us": None, "host_cost_per_robot_tick_us": None}
+    return {"node_code_per_robot_tick_us": round(1e6 * times.node_code_s / robot_ticks, 2),
+            "host_cost_per_robot_tick_us": round(1e6 * (times.cpu_s - times.node_code_s) / robot_ticks, 2)}
 
 
 def write_results(out_dir: Path, world: World, result: LoopResult, summary: dict,

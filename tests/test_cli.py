@@ -351,3 +351,25 @@ def test_the_run_names_the_files_it_wrote_and_no_other(tmp_path, no_picture):
     named = [name.rstrip("/") for name in line[len(f"results in {out}/ ("):-1].split(", ")]
     assert sorted(named) == sorted(p.name for p in out.iterdir())
     assert ("arena.png" in named) is (not no_picture)
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_the_summary_says_where_the_main_process_spends_a_tick_and_what_the_host_costs(tmp_path, workers):
+    """summary.json's phase table adds up to the tick's wall time; the nodes' own code and the
+    host's cost per robot-tick add up to the CPU the run spent."""
+    out = tmp_path / "out"
+    r = cli("run", FLOCKING, "--robots", 8, "--ticks", 20, "--workers", workers, "--no-progress", "--no-picture",
+            "--out", out)
+    assert r.returncode == 0, r.stderr[-2000:]
+    s = json.loads((out / "summary.json").read_text())
+    table = s["phases_per_tick_ms"]
+    phases = {"physics", "sensing", "sending_frames", "waiting", "gathering_answers", "loop_functions",
+              "recording", "other"}
+    assert set(table) == phases | {"serial"}
+    per_tick_ms = 1e3 * s["ticks_wall_s"] / s["ticks"]
+    assert sum(table[p] for p in phases) == pytest.approx(per_tick_ms, rel=0.01)
+    assert table["serial"] == pytest.approx(per_tick_ms - table["waiting"], rel=0.01, abs=0.01)
+    assert all(table[p] >= 0 for p in phases - {"other"}) and table["physics"] > 0 and table["sensing"] > 0
+    # The flocking controller's own arithmetic runs every robot-tick; the host costs something too.
+    assert s["node_code_per_robot_tick_us"] > 0 and s["host_cost_per_robot_tick_us"] > 0
+    assert "per tick (ms): " in r.stdout and "per robot-tick: host " in r.stdout

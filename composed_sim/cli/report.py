@@ -104,17 +104,27 @@ def _workers_text(s: dict) -> str:
     return f" in {s['workers']} worker processes" + (" (auto)" if s.get("workers_requested") == "auto" else "")
 
 
+def _phase_line(s: dict) -> str:
+    """The main process's tick, by phase (summary.json's phases_per_tick_ms), biggest first."""
+    table = dict(s.get("phases_per_tick_ms") or {})
+    serial = table.pop("serial", None)
+    parts = ", ".join(f"{phase.replace('_', ' ')} {ms:.1f}" for phase, ms in
+                      sorted(table.items(), key=lambda kv: -kv[1]) if ms >= 0.05)
+    line = f"  per tick (ms): {parts or '–'}" + (f"; serial {serial:.1f}" if serial is not None else "")
+    if s.get("host_cost_per_robot_tick_us") is not None:
+        line += (f"\n  per robot-tick: host {s['host_cost_per_robot_tick_us']:.1f} µs, "
+                 f"nodes' own code {s['node_code_per_robot_tick_us']:.1f} µs")
+    return line
+
+
 def _human_summary(s: dict, files: list[str], metric_lines: list[str] = ()) -> str:
-    ph = s["phases_s"]
     lines = [
         f"{s['world']}: {s['robots']} robots, {s['ticks']} ticks ({s['sim_time_s']:.1f} s sim time), "
         f"{s['mode']} mode{_workers_text(s)}, {s['executor']} executor"
         + ("  [interrupted]" if s["interrupted"] else ""),
         f"  setup {s['setup_s']:.2f} s, ticks {s['ticks_wall_s']:.2f} s wall, "
         f"real-time factor {s['real_time_factor'] or 0:.2f}, peak RSS {s['peak_rss_mb']:.0f} MB",
-        f"  per tick: physics {1e3 * ph['physics_s'] / max(s['ticks'], 1):.1f} ms, "
-        f"sensing {1e3 * ph['sensing_s'] / max(s['ticks'], 1):.1f} ms, "
-        f"ROS exchange {1e3 * ph['ros_exchange_s'] / max(s['ticks'], 1):.1f} ms",
+        _phase_line(s),
         f"  violations: {s['violations']}",
     ]
     if s.get("failed_robots"):      # one line: how many, why, where to look

@@ -35,6 +35,8 @@ from typing import Callable, Optional, Sequence
 from rclpy.node import Node
 from rclpy.subscription import Subscription
 
+from composed_sim.ros import node_time
+from composed_sim.ros.controller import SwarmController
 from composed_sim.ros.simulator_node import SimulatorNode
 
 
@@ -71,6 +73,8 @@ class CallbackGuard:
     def _wrap(self, callback: Callable, node: Node, robot: str, sim_node: SimulatorNode, with_info: bool,
               arity: int = 1) -> Callable:
         failed = sim_node.failed         # shared, read-only here
+        # The base class times its subclass's own code itself (ros/node_time.py).
+        own_time = not isinstance(node, SwarmController)
         row = sim_node.row_of(robot)
         calls_of = self.calls_of
 
@@ -114,6 +118,8 @@ class CallbackGuard:
                     self.on_exception(robot, node, e)
                 return None
             took = time.monotonic() - started
+            if own_time:
+                node_time.add(took)
             # Worker threads (multi-threaded executor) meet the tick's wall-clock deadline instead.
             if in_main and took > self._watchdog_s:
                 sim_node.reject_answer(robot, f"late: a callback took {took:.2f} s, more than "

@@ -17,6 +17,7 @@ from composed_sim.world.robot_models import display_colors
 from composed_sim.core.simulation import SensorFrame, Simulation
 from composed_sim.core.violations import Violation
 from composed_sim.loop_functions import LoopHooks
+from composed_sim.ros import node_time
 if TYPE_CHECKING:   # the tick loop itself needs no rclpy: the worker host's main process runs it without
     from composed_sim.ros.simulator_node import SimulatorNode
 
@@ -51,10 +52,36 @@ class Trajectories:
         return Trajectories(self.names, self.positions[:k], self.headings[:k], self.ticks_done, leds)
 
 
+# Where the main process's time goes in a tick (summary.json's ``phases_per_tick_ms``; every
+# phase but ``waiting`` is the serial part that more cores cannot share).
+PHASES = ("physics", "sensing", "sending_frames", "waiting", "gathering_answers", "loop_functions",
+          "recording", "other")
+
+
 @dataclass
 class LoopTimes:
     ros_exchange_s: float = 0.0    # publishing sensors, controllers' callbacks, collecting answers
     ticks_wall_s: float = 0.0
+    phases_s: dict = field(default_factory=lambda: dict.fromkeys(PHASES, 0.0))
+    cpu_s: float = 0.0             # CPU seconds of this process and the controllers' during the ticks
+    node_code_s: float = 0.0       # seconds inside the nodes' own code (ros/node_time.py), all processes
+
+
+class PhaseClock:
+    """Charges the wall time since the previous lap to a phase."""
+
+    def __init__(self, phases: dict):
+        self.phases = phases
+        self.started = self._last = time.perf_counter()
+
+    def lap(self, phase: str) -> None:
+        now = time.perf_counter()
+        self.phases[phase] += now - self._last
+        self._last = now
+
+    def skip(self) -> None:
+        """Charge nothing for the time since the previous lap (it was counted elsewhere)."""
+        self._last = time.perf_counter()
 
 
 @dataclass
@@ -94,6 +121,12 @@ class Exchange(Protocol):
     def take_rab_payloads(self) -> dict[int, np.ndarray]: ...
     def another_simulator(self) -> Optional[str]:
         """Another simulator in one of the run's ROS domains (``SimulatorNode.another_simulator``)."""
+    def gathering_s(self) -> float:
+        """Seconds spent so far inside ``wait_for_answers`` receiving and unpacking answers, not
+        waiting for them."""
+    def controllers_time_s(self) -> tuple[float, float]:
+        """(CPU seconds of the controllers' processes other than this one, seconds inside the
+        nodes' own code in every process), both since the first tick."""
 
 
 class AnotherSimulator(Exception):
@@ -140,6 +173,12 @@ class NodesExchange:
     def publish_tick(self, frame: SensorFrame) -> None:
         for node in self.nodes:
             node.publish_tick(frame)
+
+    def gathering_s(self) -> float:
+        return 0.0      # the answers arrive through the executor's callbacks, counted as waiting
+
+    def controllers_time_s(self) -> tuple[float, float]:
+        return 0.0, node_time.seconds()      # the nodes run in this process (composed mode)
 
     def publish_clock(self, tick: int) -> None:
         for node in self.nodes:
@@ -206,11 +245,20 @@ def run_lockstep(sim: Simulation, exchange: Exchange, wait_for_answers: Callable
     memory = [(0, resident_mb())]
     sample_every = max(1, ticks // MEMORY_SAMPLES)
     t_start = time.perf_counter()
+    cpu_start, controllers_start = time.process_time(), exchange.controllers_time_s()
+    phases = times.phases_s
 
     def so_far() -> LoopResult:
         """What was simulated until now, as an interrupted run's result."""
-        times.ticks_wall_s = time.perf_counter() - t_start
+        count_time()
         return LoopResult(traj.filled(), list(exchange.violations), times, True, memory, list(hooks.rows))
+
+    def count_time() -> None:
+        times.ticks_wall_s = time.perf_counter() - t_start
+        cpu_elsewhere, node_code = exchange.controllers_time_s()
+        times.cpu_s = time.process_time() - cpu_start + cpu_elsewhere - controllers_start[0]
+        times.node_code_s = node_code - controllers_start[1]
+        phases["other"] = times.ticks_wall_s - sum(v for k, v in phases.items() if k != "other")
 
     if checkpoint is not None:
         checkpoint(so_far())
@@ -219,27 +267,41 @@ def run_lockstep(sim: Simulation, exchange: Exchange, wait_for_answers: Callable
             if should_stop():
                 interrupted = True
                 break
-            t0 = time.perf_counter()
+            clock = PhaseClock(phases)
             exchange.publish_tick(frame)
+            clock.lap("sending_frames")
+            gathered = exchange.gathering_s()
             wait_for_answers(lockstep.watchdog_s)
             if (other := exchange.another_simulator()) is not None:
                 raise AnotherSimulator(
                     f"another simulator joined the run's ROS domain at tick {sim.tick}: {other} publishes "
                     f"/clock there too, so this run's robots hear its topics and the run stopped; give each "
                     f"run its own domain (leave --domain-id and ROS_DOMAIN_ID unset to pick a free one)")
+            clock.lap("waiting")
+            gathered = exchange.gathering_s() - gathered    # received while waiting: not waiting
+            phases["waiting"] -= gathered
+            phases["gathering_answers"] += gathered
             commands = (np.empty(sim.n), np.empty(sim.n))
             exchange.close_tick(lockstep.fallback, previous, commands)
             for robot, colors in exchange.take_led_commands().items():
                 sim.set_led_colors(robot, colors)
             for robot, payload in exchange.take_rab_payloads().items():
                 sim.set_rab_payload(robot, payload)
-            times.ros_exchange_s += time.perf_counter() - t0
+            times.ros_exchange_s += time.perf_counter() - clock.started
             sim.set_velocity_commands(*commands)
             previous = commands
+            clock.lap("gathering_answers")
             hooks.pre_step(sim)
+            clock.lap("loop_functions")
+            physics_s, sensing_s = sim.times.physics_s, sim.times.sensing_s
             frame = sim.step()
+            phases["physics"] += sim.times.physics_s - physics_s
+            phases["sensing"] += sim.times.sensing_s - sensing_s
+            clock.skip()        # charged above, as the simulation measured it
             traj.record(sim)
+            clock.lap("recording")
             finished = hooks.post_step(sim)
+            clock.lap("loop_functions")
             for observer in observers:
                 observer.on_tick(sim)
             if progress is not None:
@@ -248,6 +310,7 @@ def run_lockstep(sim: Simulation, exchange: Exchange, wait_for_answers: Callable
                 memory.append((sim.tick, resident_mb()))
             if checkpoint is not None and sim.tick % CHECKPOINT_EVERY == 0:
                 checkpoint(so_far())
+            clock.lap("recording")
             if finished:
                 break
         hooks.end(sim)
@@ -256,7 +319,7 @@ def run_lockstep(sim: Simulation, exchange: Exchange, wait_for_answers: Callable
         # Nothing is lost: whoever handles the error can still write what was simulated so far.
         e.partial_result = so_far()
         raise
-    times.ticks_wall_s = time.perf_counter() - t_start
+    count_time()
     if memory[-1][0] != sim.tick:
         memory.append((sim.tick, resident_mb()))
     return LoopResult(traj.filled(), list(exchange.violations), times, interrupted, memory, hooks.rows,

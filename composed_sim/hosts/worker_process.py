@@ -30,6 +30,7 @@ import os
 import resource
 import signal
 import sys
+import time
 from dataclasses import dataclass, field
 from typing import Optional
 
@@ -64,6 +65,8 @@ class TickAnswers:
     peak_rss_kb: int = 0                               # the worker's own peak resident memory so far
     another_simulator: Optional[str] = None            # NodesExchange.another_simulator, this tick
     logs: tuple = ()                                   # NodeLogs.drain(): console lines, failures, /rosout
+    cpu_s: float = 0.0                                 # the worker's CPU seconds since its first tick
+    node_code_s: float = 0.0                           # of which inside its nodes' own code (ros/node_time.py)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -90,6 +93,7 @@ def main(argv: list[str] | None = None) -> int:
     from composed_sim.hosts.controllers import HostError
     from composed_sim.hosts.node_logs import NodeLogs
     from composed_sim.hosts.participant_groups import ParticipantGroups
+    from composed_sim.ros import node_time
     from composed_sim.ros.taps import TapBuffer
 
     world = setup.world
@@ -113,6 +117,7 @@ def main(argv: list[str] | None = None) -> int:
     seen = 0                       # violations already sent
     tap = None
     wait, interrupting_hangs = groups.start_serving()
+    first_tick = None              # (CPU seconds, node code seconds) when the ticks began
     with interrupting_hangs:
         while True:
             try:
@@ -121,6 +126,8 @@ def main(argv: list[str] | None = None) -> int:
                 break
             if message[0] == "tick":
                 _, frame, batch = message
+                if first_tick is None:
+                    first_tick = (time.process_time(), node_time.seconds())
                 groups.open_tick(frame.tick, batch)
                 exchange.publish_tick(frame)
                 wait(lockstep.watchdog_s)
@@ -138,6 +145,8 @@ def main(argv: list[str] | None = None) -> int:
                 answers.another_simulator = exchange.another_simulator()
                 if logs is not None:
                     answers.logs = logs.drain()
+                answers.cpu_s = time.process_time() - first_tick[0]
+                answers.node_code_s = node_time.seconds() - first_tick[1]
                 conn.send(("answers", answers))
             elif message[0] == "clock":
                 exchange.publish_clock(message[1])

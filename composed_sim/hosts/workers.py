@@ -81,6 +81,7 @@ class Worker:
     answers: Optional[TickAnswers] = None
     dead: Optional[str] = None           # why it is gone (its robots are failed)
     peak_rss_kb: int = 0                 # as it last reported
+    last_times: tuple[float, float] = (0.0, 0.0)   # CPU and node-code seconds, as it last reported
 
     def tail(self, chars: int = 2000) -> str:
         try:
@@ -105,6 +106,15 @@ class WorkersExchange:
         # The run-wide messages that open the next tick (ros/run_wide.py): the workers' parts in
         # worker order, i.e. robot order, the run-wide nodes' (worker 0's) first.
         self.run_wide: list[list] = [[] for _ in workers]
+        self._gathering_s = 0.0
+
+    def gathering_s(self) -> float:
+        return self._gathering_s
+
+    def controllers_time_s(self) -> tuple[float, float]:
+        """The workers' CPU and node-code seconds since their first tick, as they last reported."""
+        reported = [w.last_times for w in self.workers]
+        return sum(cpu for cpu, _ in reported), sum(code for _, code in reported)
 
     @property
     def violations(self) -> list[Violation]:
@@ -150,6 +160,7 @@ class WorkersExchange:
                 break
             for conn in wait_for_connections(list(pending), timeout=left):
                 w = pending[conn]
+                started = time.perf_counter()
                 try:
                     _, answers = conn.recv()
                 except (EOFError, OSError):
@@ -157,6 +168,7 @@ class WorkersExchange:
                     continue
                 w.answers = answers
                 w.peak_rss_kb = answers.peak_rss_kb
+                w.last_times = answers.cpu_s, answers.node_code_s
                 self.run_wide[w.index] = answers.run_wide
                 self._violations[w.index].extend(Violation(*v) for v in answers.violations)
                 if self.logs is not None and answers.logs:
@@ -164,6 +176,7 @@ class WorkersExchange:
                 if self.tap is not None:
                     for topic, msgtype, data, stamp_ns in answers.tapped:
                         self.tap.write_serialized(topic, msgtype, data, stamp_ns)
+                self._gathering_s += time.perf_counter() - started
         return True
 
     def _lost(self, w: Worker, reason: Optional[str] = None) -> None:

@@ -5,6 +5,8 @@ answers each tick with a ``cmd_vel`` stamped like the sensors it answers works t
 """
 from __future__ import annotations
 
+import time
+
 import numpy as np
 from builtin_interfaces.msg import Time
 from rclpy.node import Node
@@ -13,7 +15,7 @@ from rclpy.parameter import Parameter
 from composed_sim.world.robot_models import RobotModel, get_model
 from composed_sim.core.seeding import robot_rng
 from composed_sim.devices.common import cdr
-from composed_sim.ros import contract as c
+from composed_sim.ros import contract as c, node_time
 from composed_sim.devices import BY_SENSOR_TOPIC, DEVICES
 
 # Parameters every hosted controller is given (a plain Node may ignore them).
@@ -112,7 +114,9 @@ class SwarmController(Node):
         tick = Tick(stamp=Time(sec=sec, nanosec=nanosec), time_s=sec + nanosec * 1e-9)
         for name, data in msgs.items():
             self._readers[name](data, tick)
+        started = time.perf_counter()
         linear, angular = self.on_tick(tick)
+        node_time.add(time.perf_counter() - started)    # the node's own code; the rest is the host's
         if self._leds_dirty:   # before the answer, so the change lands on the same tick
             self._led_pub.publish(c.led_message(self._leds))
             self._leds_dirty = False
