@@ -369,7 +369,9 @@ def test_the_summary_says_where_the_main_process_spends_a_tick_and_what_the_host
     per_tick_ms = 1e3 * s["ticks_wall_s"] / s["ticks"]
     assert sum(table[p] for p in phases) == pytest.approx(per_tick_ms, rel=0.01)
     assert table["serial"] == pytest.approx(per_tick_ms - table["waiting"], rel=0.01, abs=0.01)
-    assert all(table[p] >= 0 for p in phases - {"other"}) and table["physics"] > 0 and table["sensing"] > 0
+    assert all(table[p] >= 0 for p in phases - {"other"}) and table["physics"] > 0
+    # One process reads the sensors itself; worker processes read their own robots' (core/senses.py).
+    assert (table["sensing"] > 0) is (workers == 1)
     # The flocking controller's own arithmetic runs every robot-tick; the host costs something too.
     assert s["node_code_per_robot_tick_us"] > 0 and s["host_cost_per_robot_tick_us"] > 0
     assert "per tick (ms): " in r.stdout and "per robot-tick: host " in r.stdout

@@ -20,6 +20,7 @@ from typing import Optional
 
 import numpy as np
 
+from composed_sim.devices.common.noise import NoiseStream
 from composed_sim.devices.common.poses import wrap_angle
 
 
@@ -40,20 +41,25 @@ class WheelNoise:
 class WheelActuator:
     """Turns commanded wheel speeds into applied ones with the ARGoS noise model."""
 
-    def __init__(self, noise: WheelNoise, rng: np.random.Generator):
+    def __init__(self, noise: WheelNoise, rng):
+        """``rng``: a Generator, or a NoiseStream (devices/common/noise.py: draws per robot and tick)."""
         self.noise = noise
         self._rng = rng
         n = len(noise.bias_mean_mps)
         # Drawn once per robot and wheel, whether or not it ever moves (ARGoS: at Init).
-        self.bias_mps = (rng.normal(0.0, 1.0, (n, 2)) * noise.bias_std_mps[:, None]
+        self.bias_mps = (self._draws(-1, n).normal(0.0, 1.0, (n, 2)) * noise.bias_std_mps[:, None]
                          + noise.bias_mean_mps[:, None]) if not noise.is_exact else np.zeros((n, 2))
 
-    def apply(self, left_mps: np.ndarray, right_mps: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """[n] commanded → [n] applied speeds (the command itself when the noise is off)."""
+    def _draws(self, tick: int, n: int):
+        return self._rng.at(tick, np.arange(n)) if isinstance(self._rng, NoiseStream) else self._rng
+
+    def apply(self, left_mps: np.ndarray, right_mps: np.ndarray, tick: int = 0) -> tuple[np.ndarray, np.ndarray]:
+        """[n] commanded → [n] applied speeds (the command itself when the noise is off), for the
+        step after ``tick``."""
         if self.noise.is_exact:
             return left_mps, right_mps
         speeds = np.column_stack([left_mps, right_mps])                       # [n, 2]
-        factor = (self._rng.normal(0.0, 1.0, speeds.shape) * self.noise.factor_std[:, None]
+        factor = (self._draws(tick, len(speeds)).normal(0.0, 1.0, speeds.shape) * self.noise.factor_std[:, None]
                   + self.noise.factor_mean[:, None])
         noisy = np.where(speeds != 0.0, speeds * factor + self.bias_mps, 0.0)
         return noisy[:, 0].copy(), noisy[:, 1].copy()

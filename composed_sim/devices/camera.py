@@ -19,9 +19,10 @@ from scipy.spatial import cKDTree
 from composed_sim.devices.common import cdr
 from composed_sim.devices.common.device import Device, DevicePublisher, csr_take, reads_cloud_into
 from composed_sim.devices.common.geometry import StaticScene
+from composed_sim.devices.common.noise import entry_noise
 from composed_sim.devices.common.poses import wrap_angle
 from composed_sim.devices.common.sensing import SensedGroup, Sensing
-from composed_sim.devices.common.sensors import (_both_ways, _check_noise, _observer_rows, _pair_order, _ranges,
+from composed_sim.devices.common.sensors import (_check_noise, _observer_rows, _pair_order, _ranges, near_pairs,
                                                  _robots, blocked_by_robots)
 from composed_sim.devices.common.settings import DeviceSwitch, NonNegativeFloat
 from composed_sim.devices.common.topic import Topic, base_link
@@ -119,13 +120,10 @@ def blob_camera(positions, headings, radii, heights, camera_heights, half_window
     # Observer/owner pairs whose centres are close enough for a lit LED to be in the window.
     reach = np.abs(flat.take(own * n_leds + led, axis=0)[:, :2] - positions.take(own, axis=0)).max()
     tree = cKDTree(positions) if tree is None else tree
-    obs, owner = _both_ways(tree.query_pairs(half_windows.max() + reach, p=np.inf, output_type="ndarray"))
+    observers, row_of = _observer_rows(observers, n)
+    obs, owner = near_pairs(tree, positions, half_windows.max() + reach, observers, p=np.inf)
     if len(own) < n:
         keep = np.flatnonzero(n_lit[owner] > 0)
-        obs, owner = obs[keep], owner[keep]
-    observers, row_of = _observer_rows(observers, n)
-    if observers is not None:
-        keep = np.flatnonzero(row_of[obs] >= 0)
         obs, owner = obs[keep], owner[keep]
     n_out = n if observers is None else len(observers)
     if len(obs) == 0:
@@ -144,8 +142,9 @@ def blob_camera(positions, headings, radii, heights, camera_heights, half_window
     i, f, rx, ry = parts[0] if len(parts) == 1 else (np.concatenate(x) for x in zip(*parts))
 
     if noise_std > 0.0:
-        length = np.sqrt(rx * rx + ry * ry) * rng.normal(0.0, noise_std, len(rx))
-        direction = rng.uniform(0.0, 2.0 * math.pi, len(rx))
+        draws = entry_noise(rng, i, f)         # per observer and LED seen
+        length = np.sqrt(rx * rx + ry * ry) * draws.normal(0.0, noise_std, 0)
+        direction = draws.uniform(0.0, 2.0 * math.pi, 1)
         rx, ry = rx + length * np.cos(direction), ry + length * np.sin(direction)
     counts = np.bincount(i, minlength=n)
     offsets = np.zeros(n_out + 1, dtype=np.int64)
@@ -196,7 +195,7 @@ def _visible_leds(obs, owner, n_lit, first_lit, led, flat, positions, radii, hei
 def read(s: Sensing, group: SensedGroup, out) -> None:
     out.blobs = blob_camera(s.positions, s.headings, s.radii, s.heights, s.camera_heights, s.half_windows,
                             s.led_world, s.led_colors, s.scene, noise_std=group.settings.config(NAME).noise_std,
-                            rng=s.rngs[NAME], tree=s.tree, observers=s.observers(group))
+                            rng=s.noise(NAME, group), tree=s.tree, observers=s.observers(group))
 
 
 # --- its topic ------------------------------------------------------------------------------------

@@ -46,9 +46,9 @@ def ground_sensors(positions: np.ndarray, headings: np.ndarray, offsets: np.ndar
 
 
 def read(s: Sensing, group: SensedGroup, out) -> None:
-    out.ground = ground_sensors(s.positions[group.robots], s.headings[group.robots],
-                                np.asarray(group.model.ground.offsets_m), s.floor,
-                                noise=group.settings.config(NAME).noise, rng=s.rngs[NAME])
+    ids = s.observer_ids(group)
+    out.ground = ground_sensors(s.positions[ids], s.headings[ids], np.asarray(group.model.ground.offsets_m),
+                                s.floor, noise=group.settings.config(NAME).noise, rng=s.noise(NAME, group))
 
 
 # --- its topic ------------------------------------------------------------------------------------

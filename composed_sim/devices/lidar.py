@@ -96,7 +96,8 @@ def lidar_scan(positions: np.ndarray, headings: np.ndarray, radii: np.ndarray, h
     dist[dist > reach] = np.inf
     if noise_std_m > 0.0:
         finite = np.isfinite(dist)
-        dist[finite] = np.clip(dist[finite] + rng.normal(0.0, noise_std_m, int(finite.sum())),
+        # One draw per ray (a robot's r-th ray keeps its draw whatever the others hit).
+        dist[finite] = np.clip(dist[finite] + rng.normal(0.0, noise_std_m, dist.shape)[finite],
                                lidar.min_range_m, reach)
     dist[dist < lidar.min_range_m] = -np.inf
     return dist
@@ -156,8 +157,9 @@ def _robot_hits(dist, positions, radii, heights, observers, origins, h, rel, lid
 
 
 def read(s: Sensing, group: SensedGroup, out) -> None:
-    out.lidar = lidar_scan(s.positions, s.headings, s.radii, s.heights, group.ids, group.model.lidar, s.scene,
-                           noise_std_m=group.settings.config(NAME).noise_std_m, rng=s.rngs[NAME], tree=s.tree)
+    out.lidar = lidar_scan(s.positions, s.headings, s.radii, s.heights, s.observer_ids(group), group.model.lidar,
+                           s.scene, noise_std_m=group.settings.config(NAME).noise_std_m,
+                           rng=s.noise(NAME, group), tree=s.tree)
 
 
 # --- its topic ------------------------------------------------------------------------------------

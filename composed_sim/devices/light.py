@@ -89,7 +89,7 @@ def light_ring(positions, headings, radii, heights, ring: LightRing, lights: Seq
 
 def read(s: Sensing, group: SensedGroup, out) -> None:
     out.light = light_ring(s.positions, s.headings, s.radii, s.heights, group.model.light, s.lights, s.scene,
-                           noise=group.settings.config(NAME).noise, rng=s.rngs[NAME], tree=s.tree,
+                           noise=group.settings.config(NAME).noise, rng=s.noise(NAME, group), tree=s.tree,
                            observers=s.observers(group))
 
 

@@ -17,7 +17,7 @@ from composed_sim.devices.common import cdr
 from composed_sim.devices.common.device import Device, DevicePublisher, reads_into
 from composed_sim.devices.common.geometry import StaticScene, ray_circle_distance
 from composed_sim.devices.common.sensing import SensedGroup, Sensing
-from composed_sim.devices.common.sensors import _both_ways, _check_noise, _observer_rows, _robots, _uniform_noise
+from composed_sim.devices.common.sensors import _check_noise, _observer_rows, _robots, _uniform_noise, near_pairs
 from composed_sim.devices.common.settings import DeviceSwitch, NonNegativeFloat
 from composed_sim.devices.common.topic import Topic, base_link
 
@@ -112,11 +112,8 @@ def proximity_ring(positions, headings, radii, heights, ring: ProximityRing, sce
     if len(positions) > 1 and n:
         tree = cKDTree(positions) if tree is None else tree
         lever = radii.max() if ring.origins_m is None else float(np.hypot(*np.asarray(ring.origins_m).T).max())
-        obs, tgt = _both_ways(tree.query_pairs(lever + radii.max() + reach, output_type="ndarray"))
-        seen = heights[tgt] > elevation_m
-        if observers is not None:
-            seen &= row_of[obs] >= 0
-        seen = np.flatnonzero(seen)
+        obs, tgt = near_pairs(tree, positions, lever + radii.max() + reach, observers)
+        seen = np.flatnonzero(heights[tgt] > elevation_m)
         obs, tgt = obs[seen], tgt[seen]
         row = obs if observers is None else row_of[obs]
         # In the observer's frame (small numbers): ray origins vs the target's relative centre.
@@ -132,7 +129,7 @@ def read(s: Sensing, group: SensedGroup, out) -> None:
     """The group's readings into ``out`` (its GroupReadings)."""
     out.proximity_distances, out.proximity = proximity_ring(
         s.positions, s.headings, s.radii, s.heights, group.model.proximity, s.scene,
-        noise=group.settings.config(NAME).noise, rng=s.rngs[NAME], tree=s.tree,
+        noise=group.settings.config(NAME).noise, rng=s.noise(NAME, group), tree=s.tree,
         observers=s.observers(group))
 
 

@@ -34,6 +34,7 @@ from scipy.spatial import cKDTree
 from composed_sim.devices.common import cdr
 from composed_sim.devices.common.device import Device, DevicePublisher, csr_take, reads_cloud_into
 from composed_sim.devices.common.geometry import StaticScene
+from composed_sim.devices.common.noise import entry_noise
 from composed_sim.devices.common.poses import wrap_angle
 from composed_sim.devices.common.sensors import _pair_order, blocked_by_robots
 from composed_sim.devices.common.settings import DeviceSwitch, NonNegativeFloat, PositiveFloat, Probability
@@ -88,15 +89,17 @@ def range_and_bearing(positions: np.ndarray, headings: np.ndarray, radii: np.nda
                       mode: Mode = "local", check_occlusions: bool = True,
                       drop_probability: Optional[np.ndarray] = None,
                       noise_std_m: Optional[np.ndarray] = None,
-                      rng: Optional[np.random.Generator] = None,
-                      tree: Optional[cKDTree] = None) -> RangeAndBearingReadings:
+                      rng=None, tree: Optional[cKDTree] = None,
+                      receivers: Optional[slice] = None) -> RangeAndBearingReadings:
     """Route one tick's messages.
 
     positions [n, 2], headings [n], radii [n], heights [n] of all robots (all of them are
     bodies that can occlude); equipped [n] bool: the robot has a running RAB device;
     elevations [n] m: emitter height above the floor; ranges [n] m: each sender's range;
     payloads [n, B] uint8: what each robot sends; drop_probability [n] and noise_std_m [n]:
-    each receiver's packet-drop probability and position-noise σ (None: none).
+    each receiver's packet-drop probability and position-noise σ (None: none); ``rng``: a
+    Generator or a RowNoise (noise.py: each message's draws keyed by its receiver and sender);
+    ``receivers``: route only the messages to these robots (a worker's block; CSR over them).
     """
     positions = np.asarray(positions, dtype=np.float64)
     n = len(positions)
@@ -115,8 +118,9 @@ def range_and_bearing(positions: np.ndarray, headings: np.ndarray, radii: np.nda
         raise ValueError("packet drop or noise needs a random generator (rng=)")
     equipped = np.asarray(equipped, dtype=bool)
     members = np.flatnonzero(equipped)
+    rows = slice(0, n) if receivers is None else receivers
     if len(members) < 2:
-        return RangeAndBearingReadings.empty(n, payloads.shape[1])
+        return RangeAndBearingReadings.empty(rows.stop - rows.start, payloads.shape[1])
     emitters = np.column_stack([positions, np.asarray(elevations, dtype=np.float64)])   # [n, 3]
 
     if mode == "global":
@@ -129,7 +133,10 @@ def range_and_bearing(positions: np.ndarray, headings: np.ndarray, radii: np.nda
         reach = float(np.max(ranges[members]))
         pairs = tree.query_pairs(reach, output_type="ndarray").astype(np.intp)
         a, b = pairs[:, 0], pairs[:, 1]
-        both = np.flatnonzero(equipped[a] & equipped[b])
+        both = equipped[a] & equipped[b]
+        if receivers is not None:    # only pairs with a receiver in the block: less to test
+            both &= ((a >= rows.start) & (a < rows.stop)) | ((b >= rows.start) & (b < rows.stop))
+        both = np.flatnonzero(both)
         a, b = a[both], b[both]
         v = emitters[b] - emitters[a]
         d2 = np.einsum("ij,ij->i", v, v)
@@ -148,21 +155,26 @@ def range_and_bearing(positions: np.ndarray, headings: np.ndarray, radii: np.nda
         order = _pair_order(rx, tx, n)
         rx, tx = rx[order], tx[order]
 
+    if receivers is not None:        # sorted by receiver: the block's messages are contiguous
+        first, last = np.searchsorted(rx, [rows.start, rows.stop])
+        rx, tx = rx[first:last], tx[first:last]
+    draws = entry_noise(rng, rx, tx) if (dropping or noisy) else None     # per receiver and sender
     if dropping:
-        kept = rng.random(len(rx)) >= drop_probability[rx]
+        kept = draws.random(0) >= drop_probability[rx]
         rx, tx = rx[kept], tx[kept]
+        draws = entry_noise(rng, rx, tx) if noisy else None
     v = emitters[tx] - emitters[rx]                                   # [m, 3] world frame
     if noisy:
         # ARGoS: CVector3 from spherical (Gaussian length, uniform inclination, uniform azimuth).
-        length = rng.normal(0.0, 1.0, len(rx)) * noise_std_m[rx]
-        inclination = rng.uniform(0.0, math.pi, len(rx))
-        azimuth = rng.uniform(0.0, 2.0 * math.pi, len(rx))
+        length = draws.normal(0.0, 1.0, 1) * noise_std_m[rx]
+        inclination = draws.uniform(0.0, math.pi, 2)
+        azimuth = draws.uniform(0.0, 2.0 * math.pi, 3)
         v = v + (length * np.stack([np.sin(inclination) * np.cos(azimuth),
                                     np.sin(inclination) * np.sin(azimuth),
                                     np.cos(inclination)])).T
     planar = np.hypot(v[:, 0], v[:, 1])
-    offsets = np.zeros(n + 1, dtype=np.int64)
-    np.cumsum(np.bincount(rx, minlength=n), out=offsets[1:])
+    offsets = np.zeros(rows.stop - rows.start + 1, dtype=np.int64)
+    np.cumsum(np.bincount(rx - rows.start, minlength=rows.stop - rows.start), out=offsets[1:])
     return RangeAndBearingReadings(
         offsets=offsets, senders=tx.astype(np.intp),
         ranges=np.sqrt(planar * planar + v[:, 2] * v[:, 2]),

@@ -79,9 +79,10 @@ class PhaseClock:
         self.phases[phase] += now - self._last
         self._last = now
 
-    def skip(self) -> None:
-        """Charge nothing for the time since the previous lap (it was counted elsewhere)."""
-        self._last = time.perf_counter()
+    def recharge(self, charged: str, phase: str, seconds: float) -> None:
+        """Move ``seconds`` of a lap charged to ``charged`` to ``phase`` (e.g. sensing done on demand)."""
+        self.phases[charged] -= seconds
+        self.phases[phase] += seconds
 
 
 @dataclass
@@ -113,7 +114,12 @@ class Exchange(Protocol):
     or worker processes that hold them (hosts/workers.py)."""
     violations: list[Violation]
 
+    #: True: ``publish_state(sim)``, the exchange's processes read the sensors themselves
+    #: (core/senses.py); False: ``publish_tick(sim.frame)``.
+    senses_itself: bool
+
     def publish_tick(self, frame: SensorFrame) -> None: ...
+    def publish_state(self, sim: Simulation) -> None: ...
     def publish_clock(self, tick: int) -> None: ...
     def close_tick(self, fallback: str, previous: tuple[np.ndarray, np.ndarray],
                    commands: tuple[np.ndarray, np.ndarray]) -> None: ...
@@ -139,6 +145,7 @@ class NodesExchange:
     robots, writing into the shared (simulation-row) command arrays."""
 
     POLL_S = 0.01   # while waiting for answers, call ``check`` this often
+    senses_itself = False
 
     def __init__(self, nodes: Sequence["SimulatorNode"], check: Callable[[], None] = lambda: None):
         """``check``: looks for what can settle a robot besides an answer, e.g. a dead child
@@ -237,7 +244,7 @@ def run_lockstep(sim: Simulation, exchange: Exchange, wait_for_answers: Callable
     previous = (np.zeros(sim.n), np.zeros(sim.n))
     hooks = LoopHooks(sim)      # the world's loop functions (composed_sim/loop_functions.py)
     hooks.start(sim)
-    frame = sim.sense()
+    sim.sense()              # tick 0: the world as the loop functions' start left it
     hooks.at_tick_0(sim)
     for observer in observers:
         observer.on_tick(sim)
@@ -268,8 +275,13 @@ def run_lockstep(sim: Simulation, exchange: Exchange, wait_for_answers: Callable
                 interrupted = True
                 break
             clock = PhaseClock(phases)
-            exchange.publish_tick(frame)
+            sensed = sim.times.sensing_s
+            if exchange.senses_itself:
+                exchange.publish_state(sim)
+            else:
+                exchange.publish_tick(sim.frame)      # the frame is read here, on first use
             clock.lap("sending_frames")
+            clock.recharge("sending_frames", "sensing", sim.times.sensing_s - sensed)
             gathered = exchange.gathering_s()
             wait_for_answers(lockstep.watchdog_s)
             if (other := exchange.another_simulator()) is not None:
@@ -293,15 +305,14 @@ def run_lockstep(sim: Simulation, exchange: Exchange, wait_for_answers: Callable
             clock.lap("gathering_answers")
             hooks.pre_step(sim)
             clock.lap("loop_functions")
-            physics_s, sensing_s = sim.times.physics_s, sim.times.sensing_s
-            frame = sim.step()
-            phases["physics"] += sim.times.physics_s - physics_s
-            phases["sensing"] += sim.times.sensing_s - sensing_s
-            clock.skip()        # charged above, as the simulation measured it
+            sim.advance()
+            clock.lap("physics")
             traj.record(sim)
             clock.lap("recording")
+            sensed = sim.times.sensing_s
             finished = hooks.post_step(sim)
             clock.lap("loop_functions")
+            clock.recharge("loop_functions", "sensing", sim.times.sensing_s - sensed)   # sim.frame read
             for observer in observers:
                 observer.on_tick(sim)
             if progress is not None:

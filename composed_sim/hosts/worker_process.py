@@ -26,7 +26,9 @@ terminal's Ctrl-C is for the main process, which stops at a tick boundary and th
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import os
+import pickle
 import resource
 import signal
 import sys
@@ -93,6 +95,7 @@ def main(argv: list[str] | None = None) -> int:
     from composed_sim.hosts.controllers import HostError
     from composed_sim.hosts.node_logs import NodeLogs
     from composed_sim.hosts.participant_groups import ParticipantGroups
+    from composed_sim.core.senses import Senses
     from composed_sim.ros import node_time
     from composed_sim.ros.taps import TapBuffer
 
@@ -118,6 +121,8 @@ def main(argv: list[str] | None = None) -> int:
     tap = None
     wait, interrupting_hangs = groups.start_serving()
     first_tick = None              # (CPU seconds, node code seconds) when the ticks began
+    senses, block = Senses(world), slice(setup.start, setup.stop)     # this block's sensors are read here
+    kept: dict = {}                # the scene, floor and lights as last sent (core/senses.py)
     with interrupting_hangs:
         while True:
             try:
@@ -125,9 +130,12 @@ def main(argv: list[str] | None = None) -> int:
             except EOFError:       # the main process is gone
                 break
             if message[0] == "tick":
-                _, frame, batch = message
+                _, state, rows, batch = message
                 if first_tick is None:
                     first_tick = (time.process_time(), node_time.seconds())
+                inputs, changed = pickle.loads(state)
+                kept.update(changed)
+                frame = senses.frame(dataclasses.replace(inputs, **kept), rows, block)
                 groups.open_tick(frame.tick, batch)
                 exchange.publish_tick(frame)
                 wait(lockstep.watchdog_s)

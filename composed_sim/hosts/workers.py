@@ -22,8 +22,10 @@ for its robots only: they are failed (stopped, as any failed robot) and the run 
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
+import pickle
 import signal
 import socket
 import subprocess
@@ -37,7 +39,7 @@ from typing import Callable, Optional
 
 import numpy as np
 
-from composed_sim.core.simulation import SensorFrame, Simulation
+from composed_sim.core.simulation import Simulation
 from composed_sim.core.violations import FAILED, Violation
 from composed_sim.hosts.controllers import HostError, check_executor
 from composed_sim.hosts.host import ControllersElsewhere, SetupInfo
@@ -107,6 +109,7 @@ class WorkersExchange:
         # worker order, i.e. robot order, the run-wide nodes' (worker 0's) first.
         self.run_wide: list[list] = [[] for _ in workers]
         self._gathering_s = 0.0
+        self._sent: dict = {}        # the scene, floor and lights the workers have now
 
     def gathering_s(self) -> float:
         return self._gathering_s
@@ -121,14 +124,27 @@ class WorkersExchange:
         # Stable sort by tick over the workers in robot order: the single-process host's order.
         return sorted((v for per_worker in self._violations for v in per_worker), key=lambda v: v.tick)
 
-    def publish_tick(self, frame: SensorFrame) -> None:
-        self._tick = frame.tick
+    senses_itself = True
+
+    def publish_state(self, sim: Simulation) -> None:
+        """What the sensors read this tick, pickled once for all workers (each reads its block's
+        sensors from it), with each block's wheels and odometry and the run-wide batch."""
+        inputs = sim.sensing_inputs()
+        self._tick = inputs.tick
+        # What rarely changes (the scene without movable objects, the floor, the lights) is sent
+        # only when it did; a worker keeps the last it got.
+        changed = {name: value for name, value in (("scene", inputs.scene), ("floor", inputs.floor),
+                                                   ("lights", inputs.lights))
+                   if self._sent.get(name) is not value}
+        self._sent.update(changed)
+        state = pickle.dumps((dataclasses.replace(inputs, scene=None, floor=None, lights=None), changed),
+                             protocol=pickle.HIGHEST_PROTOCOL)
         batch = [m for part in self.run_wide for m in part]
         for w in self.workers:
             w.answers = None
             if w.dead is None:
                 try:
-                    w.conn.send(("tick", frame.rows(w.start, w.stop), batch))
+                    w.conn.send(("tick", state, sim.robot_rows(w.start, w.stop), batch))
                 except OSError:
                     self._lost(w)
 

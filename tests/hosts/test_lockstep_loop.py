@@ -23,6 +23,14 @@ class FakeExchange:
         self.violations: list[Violation] = []
         self.tick = -1
 
+    senses_itself = False
+
+    def gathering_s(self) -> float:
+        return 0.0
+
+    def controllers_time_s(self) -> tuple[float, float]:
+        return 0.0, 0.0
+
     def publish_tick(self, frame) -> None:
         self.tick = frame.tick
         if frame.tick == self.fail_at:

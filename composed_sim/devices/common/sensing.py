@@ -40,7 +40,7 @@ class Sensing:
     heights: np.ndarray                # [n] m
     scene: StaticScene
     tree: cKDTree
-    rngs: dict[str, np.random.Generator]    # one noise generator per device (core/seeding.device_rng)
+    noise_of: Callable[[str, np.ndarray], Any]   # (device, robots) → its RowNoise for those rows (noise.py)
     lights: Sequence[Any]              # the world's lights (position, height_m, intensity)
     floor: Optional[Floor]             # None unless some group runs the ground sensors
     camera_heights: np.ndarray         # [n] m
@@ -48,10 +48,24 @@ class Sensing:
     led_colors: np.ndarray             # [n, L, 3] uint8
     led_world_of: Callable[[], np.ndarray]   # → [n, L, 3] world-frame LED positions
     one_group: bool                    # the world has one robot group
+    block: Optional[slice] = None      # sense only these robots (a worker process's); None: all
 
     def observers(self, group: SensedGroup) -> Optional[np.ndarray]:
-        """A group's robots as a device's observers (None: every robot, in a one-group world)."""
-        return None if self.one_group else group.ids
+        """A group's robots that are sensed, as a device's observers (None: every robot)."""
+        if self.block is None:
+            return None if self.one_group else group.ids
+        return self.observer_ids(group)
+
+    def observer_ids(self, group: SensedGroup) -> np.ndarray:
+        """[m] the group's robots that are sensed (world indices), in order."""
+        if self.block is None:
+            return group.ids
+        lo, hi = max(group.robots.start, self.block.start), min(group.robots.stop, self.block.stop)
+        return np.arange(lo, max(lo, hi))
+
+    def noise(self, device: str, group: SensedGroup):
+        """The device's noise for the group's sensed robots this tick (rows in observer order)."""
+        return self.noise_of(device, self.observer_ids(group))
 
     @cached_property
     def led_world(self) -> np.ndarray:

@@ -63,6 +63,19 @@ def _uniform_noise(readings: np.ndarray, level: float, rng) -> np.ndarray:
     return np.clip(readings, 0.0, 1.0)
 
 
+def near_pairs(tree: cKDTree, positions: np.ndarray, radius: float, observers: Optional[np.ndarray] = None,
+               p: float = 2.0) -> tuple[np.ndarray, np.ndarray]:
+    """Ordered pairs (a, b), a ≠ b, of robots within ``radius`` (Minkowski ``p``) of each other,
+    a among ``observers`` (None: all robots). For a few observers (a worker's block) only their
+    neighbourhoods are searched, not every pair of the world."""
+    if observers is None:
+        return _both_ways(tree.query_pairs(radius, p=p, output_type="ndarray"))
+    found = cKDTree(positions[observers]).sparse_distance_matrix(tree, radius, p=p, output_type="ndarray")
+    a, b = observers[found["i"]].astype(np.intp), found["j"].astype(np.intp)
+    keep = a != b
+    return a[keep], b[keep]
+
+
 def _both_ways(pairs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """[p, 2] unordered pairs → (a, b) [2p] each, every pair in both orders."""
     return (np.concatenate([pairs[:, 0], pairs[:, 1]]).astype(np.intp),
