@@ -70,7 +70,8 @@ def plot_figures(doc: dict, out: Path) -> dict[tuple[str, str], Path]:
             ax.set_ylabel(ylabel)
             ax.set_title(f"{experiment}: {title}")
             ax.grid(True, which="both", alpha=0.3)
-            ax.legend(fontsize=7, loc="upper left")
+            if ax.get_legend_handles_labels()[0]:      # nothing to name when no run of it completed
+                ax.legend(fontsize=7, loc="upper left")
             fig.text(0.01, 0.005, footer, fontsize=5.5, color="dimgrey")
             fig.tight_layout(rect=(0, 0.03, 1, 1))
             path = out / figure_name(key, experiment, experiments)
