@@ -1,6 +1,9 @@
 """``composed-sim bench``: sweep swarm sizes, host modes and executors; measure each run's whole
 process tree; write CSV, JSON, figures and a markdown report side by side with the paper's results.
 
+``--experiments flocking,synchronization,plain-nodes`` sweeps several shipped worlds one after the
+other (rows and report grouped by experiment); ``--world`` sweeps a world file of yours.
+
 Each run is its own ``composed-sim run ... --json`` subprocess on a ROS domain (a block of domains
 in multi-process mode) that the previous run did not use, watched with psutil every ``SAMPLE_S``:
 
@@ -20,15 +23,18 @@ wall_time.png, cpu.png, memory.png (log-log against N, with the paper's means an
 line, like the paper's Figure 5). ``--report FILE.md`` also writes the report, its figures and
 raw rows in ``FILE's folder/figures/``. ``--replot runs.json`` redraws all that from stored rows.
 
-The package: ``arguments`` (the options), ``rules`` (the paper's figures, the skip rule, domains,
-aggregation), ``tree`` (measuring one process tree), ``sweep`` (running the grid) and ``report``
-(CSV, JSON, figures and the markdown report).
+The package: ``arguments`` (the options), ``experiments`` (the experiments --experiments names,
+each a shipped world), ``rules`` (the paper's figures, the skip rule, domains, aggregation), ``tree``
+(measuring one process tree), ``sweep`` (running the grid), ``report`` (CSV, JSON and the markdown
+report), ``figures``, ``sections`` (the report's per-tick phases, host cost and paper comparison) and
+``cells`` (its table cells).
 """
 from composed_sim.bench.arguments import add_arguments, command_line
-from composed_sim.bench.rules import (COLUMNS, SAFE_DOMAIN_MAX, DomainAllocator, domains_needed, load_paper_results,
-                                      paper_results_dir, skip_reason)
+from composed_sim.bench.experiments import EXPERIMENTS
+from composed_sim.bench.rules import (COLUMNS, PHASE_COLUMNS, PHASES, SAFE_DOMAIN_MAX, DomainAllocator, domains_needed,
+                                      load_paper_results, paper_results_dir, skip_reason)
 from composed_sim.bench.sweep import run
 from composed_sim.bench.tree import measure_tree, parse_summary
 
-__all__ = ["COLUMNS", "SAFE_DOMAIN_MAX", "DomainAllocator", "add_arguments", "command_line", "domains_needed",
+__all__ = ["COLUMNS", "EXPERIMENTS", "PHASES", "PHASE_COLUMNS", "SAFE_DOMAIN_MAX", "DomainAllocator", "add_arguments", "command_line", "domains_needed",
            "load_paper_results", "measure_tree", "paper_results_dir", "parse_summary", "run", "skip_reason"]

@@ -6,6 +6,7 @@ import shlex
 from pathlib import Path
 from typing import Callable
 
+from composed_sim.bench.experiments import DEFAULT_EXPERIMENT, EXPERIMENTS
 from composed_sim.bench.rules import DEFAULT_MEMORY_FRACTION, DEFAULT_TIMEOUT_S, PAPER_SIZES
 from composed_sim.world.schema import ROBOTS_PER_DOMAIN
 
@@ -69,8 +70,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--trials", type=_positive(int), default=3, help="runs per size, mode and executor (default: %(default)s)")
     parser.add_argument("--ticks", type=_positive(int), default=600,
                         help="ticks per run (default: %(default)s, one simulated minute as in the paper)")
+    parser.add_argument("--experiments", type=_choice_list(tuple(EXPERIMENTS)), default=None, metavar="NAME,…",
+                        help="experiments to sweep one after the other, each a shipped world file: "
+                             + ", ".join(f"{e.name} ({e.world})" for e in EXPERIMENTS.values())
+                             + f" (default: {DEFAULT_EXPERIMENT}, or --world)")
     parser.add_argument("--world", type=Path, default=None,
-                        help="world file (default: the shipped worlds/flocking.yaml, the paper's experiment)")
+                        help="a world file to sweep instead of --experiments (default: the shipped "
+                             "worlds/flocking.yaml, the paper's experiment)")
     parser.add_argument("--out", type=Path, default=Path("bench-results"),
                         help="folder for runs.csv, runs.json and the figures (default: %(default)s)")
     parser.add_argument("--timeout", type=_positive(float), default=DEFAULT_TIMEOUT_S, metavar="SECONDS",
@@ -98,6 +104,8 @@ def command_line(args) -> str:
              "--sizes", ",".join(map(str, args.sizes)), "--modes", ",".join(args.modes),
              "--executors", ",".join(args.executors), "--workers", ",".join(args.workers),
              "--trials", str(args.trials), "--ticks", str(args.ticks)]
+    if getattr(args, "experiments", None):
+        parts += ["--experiments", ",".join(args.experiments)]
     if args.world is not None:
         parts += ["--world", str(args.world)]
     if args.timeout != DEFAULT_TIMEOUT_S:

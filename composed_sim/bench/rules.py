@@ -23,18 +23,22 @@ PAPER_COLUMNS = ("Robots", "Repetition", "WallTime(s)", "CPU(%)", "MaxMem(kB)",
 OUR_COLUMNS = ("mode", "workers", "workers_used", "executor", "status", "ticks", "setup_s", "ticks_wall_s", "total_wall_s",
                "cpu_core_s", "real_time_factor", "per_robot_tick_us", "violations",
                "physics_s", "sensing_s", "ros_exchange_s", "processes", "other_load_cores", "domain_id",
-               "exit_code", "reason", "MaxPss(kB)", "Ros2Pss(kB)")
-COLUMNS = PAPER_COLUMNS + OUR_COLUMNS
+               "exit_code", "reason", "MaxPss(kB)", "Ros2Pss(kB)", "experiment",
+               "host_cost_per_robot_tick_us", "node_callbacks_per_robot_tick_us")
+# The main process's time per tick, by phase, as a run's summary.json gives it (phases_per_tick_ms);
+# serial = everything but waiting (for the nodes' answers). One column each: phase_<name>_ms.
+PHASES = ("physics", "sensing", "sending_frames", "waiting", "gathering_answers", "loop_functions", "recording",
+          "other", "serial")
+PHASE_COLUMNS = tuple(f"phase_{p}_ms" for p in PHASES)
+COLUMNS = PAPER_COLUMNS + OUR_COLUMNS + PHASE_COLUMNS
 # workers: composed mode's --workers as asked ("1", "auto", "4"), empty in multi-process mode;
 # workers_used: what the run used (auto's choice). Ros2Pss(kB): the PSS of every process but the root.
 # status: ok | skipped | failed (non-zero exit or no summary) | timeout | interrupted
+# experiment: the bench experiment (bench/experiments.py) or the --world file's stem; older sweeps'
+# rows have none (bench/experiments.experiment_name names them).
+# host_cost_per_robot_tick_us, node_callbacks_per_robot_tick_us: from the run's summary, when it has them.
 # other_load_cores: cores kept busy by everything outside the run's tree during it, on average (the
 # machine is shared: a run next to a busy neighbour is slower, and this says so).
-
-PAPER_VARIANTS = {          # key: (file, label)
-    "single": ("flocking.csv", "paper: ARGoS + ROS 2, 1 thread"),
-    "multi": ("flocking_mt.csv", "paper: ARGoS + ROS 2, 12 threads"),
-}
 
 DEFAULT_TIMEOUT_S = 3600.0
 DEFAULT_MEMORY_FRACTION = 0.8
@@ -42,6 +46,8 @@ FALLBACK_PROCESS_MB = 70.0       # docs/architecture.md: one rclpy process with 
 CALIBRATION_ROBOTS = 3           # dedicated multi-process run measuring the per-process cost …
 CALIBRATION_ABOVE = 10           # … when the sweep's first multi-process size is larger than this
 SAFE_DOMAIN_MAX = 101            # ROS 2 on Linux: domains 0..101 never reach the ephemeral ports
+
+SATURATED = 0.95   # share of the machine's cores busy (the run's + others') above which a run is flagged
 
 FIGURES = {"wall_time": "wall_time.png", "cpu": "cpu.png", "memory": "memory.png"}
 
@@ -121,6 +127,15 @@ class DomainAllocator:
         return start
 
 
+def saturated(rec: dict, cores: int) -> bool:
+    """Whether the machine's cores were all busy during a run (or the median of runs): its CPU % of
+    one core / 100 + the other load >= SATURATED × cores."""
+    cpu, other = as_number(rec.get("CPU(%)")), as_number(rec.get("other_load_cores"))
+    if cpu is None or other is None or cores < 1:
+        return False
+    return cpu / 100 + other >= SATURATED * cores
+
+
 def as_number(v) -> Optional[float]:
     if v is None or v == "":
         return None
@@ -132,26 +147,33 @@ def as_number(v) -> Optional[float]:
 
 
 MEDIAN_FIELDS = ("WallTime(s)", "CPU(%)", "MaxMem(kB)", "MaxPss(kB)", "workers_used", "setup_s", "ticks_wall_s", "total_wall_s",
-                 "cpu_core_s", "real_time_factor", "per_robot_tick_us", "processes", "other_load_cores")
+                 "cpu_core_s", "real_time_factor", "per_robot_tick_us", "processes", "other_load_cores",
+                 "host_cost_per_robot_tick_us", "node_callbacks_per_robot_tick_us") + PHASE_COLUMNS
 
 
-def aggregate(rows: Iterable[dict]) -> list[dict]:
-    """One record per (Robots, mode, workers, executor): medians over the ok trials, counts of all trials."""
+def aggregate(rows: Iterable[dict], settings: Optional[dict] = None) -> list[dict]:
+    """One record per (experiment, Robots, mode, workers, executor): medians over the ok trials,
+    counts of all trials; experiments in the order of their first row. ``settings``: the sweep's,
+    which names the experiment of rows from before experiments (see experiment_name)."""
+    from composed_sim.bench.experiments import experiment_name
     groups: dict[tuple, list[dict]] = {}
+    first_seen: dict[str, int] = {}
     for r in rows:
         workers = "" if r.get("workers") is None else str(r["workers"])
-        groups.setdefault((int(r["Robots"]), r["mode"], workers, r["executor"]), []).append(r)
+        experiment = experiment_name(r, settings or {})
+        first_seen.setdefault(experiment, len(first_seen))
+        groups.setdefault((experiment, int(r["Robots"]), r["mode"], workers, r["executor"]), []).append(r)
     out = []
     def order(key: tuple) -> tuple:
-        n, mode, workers, executor = key
-        return (n, MODES.index(mode) if mode in MODES else len(MODES),
+        experiment, n, mode, workers, executor = key
+        return (first_seen[experiment], n, MODES.index(mode) if mode in MODES else len(MODES),
                 (0, int(workers)) if workers.isdigit() else (1, 0),
                 EXECUTORS.index(executor) if executor in EXECUTORS else len(EXECUTORS), executor)
 
-    for (n, mode, workers, executor), recs in sorted(groups.items(), key=lambda kv: order(kv[0])):
+    for (experiment, n, mode, workers, executor), recs in sorted(groups.items(), key=lambda kv: order(kv[0])):
         ok = [r for r in recs if r["status"] == "ok"]
-        agg = {"Robots": n, "mode": mode, "workers": workers, "executor": executor, "trials": len(recs), "ok": len(ok),
-               "statuses": sorted({r["status"] for r in recs})}
+        agg = {"experiment": experiment, "Robots": n, "mode": mode, "workers": workers, "executor": executor,
+               "trials": len(recs), "ok": len(ok), "statuses": sorted({r["status"] for r in recs})}
         for k in MEDIAN_FIELDS:
             vals = [x for x in (as_number(r.get(k)) for r in ok) if x is not None]
             agg[k] = statistics.median(vals) if vals else None

@@ -15,9 +15,10 @@ from pathlib import Path
 from typing import Optional
 
 from composed_sim.bench.arguments import command_line
+from composed_sim.bench.experiments import DEFAULT_EXPERIMENT, EXPERIMENTS, experiment_of_world, shipped_world
 from composed_sim.bench.report import write_outputs
-from composed_sim.bench.rules import (CALIBRATION_ABOVE, CALIBRATION_ROBOTS, COLUMNS, FALLBACK_PROCESS_MB, DomainAllocator,
-                                      as_number, domains_needed, host_label, skip_reason)
+from composed_sim.bench.rules import (CALIBRATION_ABOVE, CALIBRATION_ROBOTS, COLUMNS, FALLBACK_PROCESS_MB, PHASE_COLUMNS,
+                                      PHASES, DomainAllocator, as_number, domains_needed, host_label, skip_reason)
 from composed_sim.bench.tree import LEFTOVER_GRACE_S, measure_tree, parse_summary, tail
 
 CHECKOUT = Path(__file__).resolve().parents[2]     # the repository, when run from a checkout
@@ -48,6 +49,7 @@ class MemoryEstimate:
 @dataclass
 class Sweep:
     world: Path
+    experiment: str                          # its rows' experiment (bench/experiments.py)
     ticks: int
     timeout_s: float
     robots_per_domain: Optional[int]         # given on the bench's command line, passed on
@@ -73,7 +75,8 @@ class Sweep:
             workers: Optional[str] = None) -> dict:
         ticks = ticks or self.ticks
         row = {c: None for c in COLUMNS}
-        row.update({"Robots": robots, "Repetition": trial, "mode": mode, "executor": executor, "ticks": ticks,
+        row.update({"experiment": self.experiment, "Robots": robots, "Repetition": trial, "mode": mode,
+                    "executor": executor, "ticks": ticks,
                     "workers": workers if mode == "composed" else None})
         if mode == "multi-process":
             available = available_memory_mb()
@@ -110,13 +113,7 @@ class Sweep:
                         "ArgosMem(kB)": max(m.peak_root_rss_kb, int(1024 * (as_number((summary or {}).get("peak_rss_mb")) or 0))),
                         "Ros2Mem(kB)": m.peak_others_rss_kb, "Ros2Pss(kB)": m.peak_others_pss_kb or None})
         if summary:
-            phases = summary.get("phases_s") or {}
-            row.update({k: _round(summary.get(k), 6) for k in ("setup_s", "ticks_wall_s")})
-            row["real_time_factor"] = _round(summary.get("real_time_factor"), 4)
-            row["workers_used"] = summary.get("workers") if mode == "composed" else None
-            row.update({"per_robot_tick_us": _round(summary.get("per_robot_tick_us"), 2),
-                        "violations": summary.get("violations"),
-                        **{k: _round(phases.get(k), 6) for k in ("physics_s", "sensing_s", "ros_exchange_s")}})
+            row.update(summary_columns(summary, mode))
         notes = []
         if m.interrupted:
             row["status"] = "interrupted"
@@ -152,6 +149,21 @@ class Sweep:
         """A small multi-process run that measures the per-process cost before bigger ones."""
         row = self.one(CALIBRATION_ROBOTS, "multi-process", executor, 0, ticks=min(self.ticks, 20))
         self.calibration.append(row)
+
+
+def summary_columns(summary: dict, mode: str) -> dict:
+    """A row's columns from the run's JSON summary; what an older composed-sim did not write is
+    None (an empty cell, "–" in the report)."""
+    phases = summary.get("phases_s") or {}
+    per_tick = summary.get("phases_per_tick_ms") or {}
+    return {**{k: _round(summary.get(k), 6) for k in ("setup_s", "ticks_wall_s")},
+            "real_time_factor": _round(summary.get("real_time_factor"), 4),
+            "workers_used": summary.get("workers") if mode == "composed" else None,
+            "per_robot_tick_us": _round(summary.get("per_robot_tick_us"), 2),
+            "violations": summary.get("violations"),
+            **{k: _round(phases.get(k), 6) for k in ("physics_s", "sensing_s", "ros_exchange_s")},
+            **{k: _round(summary.get(k), 3) for k in ("host_cost_per_robot_tick_us", "node_callbacks_per_robot_tick_us")},
+            **{col: _round(per_tick.get(p), 4) for p, col in zip(PHASES, PHASE_COLUMNS)}}
 
 
 def available_memory_mb() -> float:
@@ -222,21 +234,25 @@ def _git_commit() -> Optional[str]:
     return res.stdout.strip() or None if res.returncode == 0 else None
 
 
-def resolve_world(given: Optional[Path]) -> Path:
-    """The world to run: as given, else worlds/flocking.yaml of this package's checkout, else of
-    the current folder."""
+def resolve_worlds(args) -> dict[str, Path]:
+    """Experiment name → world file to sweep: --experiments' shipped worlds, else --world (named
+    after its experiment when it is a shipped one, else after its file), else flocking."""
     from composed_sim.command_line import UserError
-    if given is not None:
-        if not given.is_file():
-            raise UserError(f"--world {given}: no such file")
-        return given.resolve()
-    from composed_sim.world.loader import SHIPPED_WORLDS
-    candidates = [SHIPPED_WORLDS / "flocking.yaml", Path.cwd() / "worlds" / "flocking.yaml"]
-    for c in candidates:
-        if c.is_file():
-            return c
-    raise UserError("no default world found (looked for " + ", ".join(map(str, candidates)) +
-                    "); pass --world WORLD.yaml")
+    if args.world is not None and args.experiments:
+        raise UserError("--world and --experiments: give one of them (--world sweeps one world file of yours)")
+    if args.world is not None:
+        if not args.world.is_file():
+            raise UserError(f"--world {args.world}: no such file")
+        known = experiment_of_world(args.world)
+        return {known.name if known else args.world.stem: args.world.resolve()}
+    worlds = {}
+    for name in args.experiments or (DEFAULT_EXPERIMENT,):
+        path = shipped_world(EXPERIMENTS[name])
+        if not path.is_file():
+            raise UserError(f"--experiments {name}: its world file {path} is missing (a checkout's worlds/ folder "
+                            "holds the shipped worlds); pass --world WORLD.yaml")
+        worlds[name] = path
+    return worlds
 
 
 def run(args) -> int:
@@ -245,11 +261,12 @@ def run(args) -> int:
         return _replot(args)
 
     from composed_sim.world.loader import WorldFileError, load_world
-    world_path = resolve_world(args.world)
-    try:
-        world = load_world(world_path, ticks=args.ticks)
-    except WorldFileError as e:
-        raise UserError(str(e)) from None
+    worlds = {}
+    for name, path in resolve_worlds(args).items():
+        try:
+            worlds[name] = (path, load_world(path, ticks=args.ticks))
+        except WorldFileError as e:
+            raise UserError(str(e)) from None
     base = args.domain_id
     if base is None:
         text = os.environ.get("ROS_DOMAIN_ID", "0") or "0"
@@ -266,27 +283,36 @@ def run(args) -> int:
         check_writable(args.report.parent / "figures")
 
     machine = machine_info()
-    sweep = Sweep(world=world_path, ticks=args.ticks, timeout_s=args.timeout,
-                  robots_per_domain=args.robots_per_domain, memory_fraction=args.memory_fraction,
-                  domains=domains,
-                  world_robots_per_domain=getattr(getattr(world, "multi_process", None), "robots_per_domain", None))
-    plan = [(n, trial, mode, executor, workers) for n in args.sizes for trial in range(1, args.trials + 1)
-            for mode in args.modes for executor in args.executors
+    # One sweep per experiment; the domains, the memory estimate and its calibration runs are the
+    # whole bench's.
+    estimate, calibration = MemoryEstimate(), []
+    sweeps = {name: Sweep(world=path, experiment=name, ticks=args.ticks, timeout_s=args.timeout,
+                          robots_per_domain=args.robots_per_domain, memory_fraction=args.memory_fraction,
+                          domains=domains, estimate=estimate, calibration=calibration,
+                          world_robots_per_domain=getattr(getattr(world, "multi_process", None), "robots_per_domain", None))
+              for name, (path, world) in worlds.items()}
+    plan = [(name, n, trial, mode, executor, workers) for name in worlds for n in args.sizes
+            for trial in range(1, args.trials + 1) for mode in args.modes for executor in args.executors
             for workers in (args.workers if mode == "composed" else (None,))]
+    first_path, first_world = next(iter(worlds.values()))
     settings = {"sizes": list(args.sizes), "modes": list(args.modes), "executors": list(args.executors),
                 "workers": list(args.workers),
-                "trials": args.trials, "ticks": args.ticks, "world": str(world_path), "world_name": world.name,
-                "tick_s": world.tick_s, "timeout_s": args.timeout, "domain_base": base,
+                "trials": args.trials, "ticks": args.ticks, "world": str(first_path), "world_name": first_world.name,
+                "experiments": {name: {"world": str(path), "world_name": world.name, "tick_s": world.tick_s}
+                                for name, (path, world) in worlds.items()},
+                "tick_s": first_world.tick_s, "timeout_s": args.timeout, "domain_base": base,
                 "robots_per_domain": args.robots_per_domain, "memory_fraction": args.memory_fraction}
     command = command_line(args)
-    print(f"bench: {len(plan)} runs of {world_path.name} ({args.ticks} ticks each) → {args.out}/", file=sys.stderr)
+    print(f"bench: {len(plan)} runs of {', '.join(p.name for p, _ in worlds.values())} ({args.ticks} ticks each) "
+          f"→ {args.out}/", file=sys.stderr)
 
     rows: list[dict] = []
     interrupted = False
     t_start = time.perf_counter()
     old_term = _sigterm_interrupts()
     try:
-        for i, (n, trial, mode, executor, workers) in enumerate(plan, 1):
+        for i, (name, n, trial, mode, executor, workers) in enumerate(plan, 1):
+            sweep = sweeps[name]
             first_multi = mode == "multi-process" and not any(r["mode"] == mode for r in rows)
             if first_multi and n > CALIBRATION_ABOVE:
                 print(f"bench: calibrating the multi-process memory cost with {CALIBRATION_ROBOTS} robots",
@@ -313,9 +339,9 @@ def run(args) -> int:
 
     doc = {"command": command, "machine": machine, "settings": settings, "elapsed_s": round(elapsed, 1),
            "interrupted": interrupted,
-           "memory_estimate": {"per_process_mb": round(sweep.estimate.per_process_mb, 2),
-                               "base_mb": round(sweep.estimate.base_mb, 1), "source": sweep.estimate.source},
-           "calibration_runs": sweep.calibration, "columns": list(COLUMNS), "rows": rows}
+           "memory_estimate": {"per_process_mb": round(estimate.per_process_mb, 2),
+                               "base_mb": round(estimate.base_mb, 1), "source": estimate.source},
+           "calibration_runs": calibration, "columns": list(COLUMNS), "rows": rows}
     write_outputs(doc, args.out, args.report)
     bad = [r for r in rows if r["status"] not in ("ok", "skipped")]
     print(f"bench: {len(rows)} runs in {elapsed:.0f} s: "
@@ -338,7 +364,7 @@ def _sigterm_interrupts():
 
 
 def _progress_line(i: int, total: int, row: dict, trials: int) -> str:
-    head = (f"bench [{i}/{total}] N={row['Robots']} {host_label(row)} {row['executor']} "
+    head = (f"bench [{i}/{total}] {row['experiment']} N={row['Robots']} {host_label(row)} {row['executor']} "
             f"trial {row['Repetition']}/{trials}: {row['status']}")
     if row["WallTime(s)"] is not None:
         head += f", wall {row['WallTime(s)']:.1f} s"
