@@ -1,4 +1,5 @@
-"""Random streams: one run seed fixes everything, each consumer draws from its own stream.
+"""Random streams: one run seed fixes everything, each consumer draws from its own stream
+(the sensors' and wheels' noise: devices/common/noise.py, per robot and tick).
 
 Independent streams mean that adding noise to one device never shifts the placement or another
 device's draws, and a controller's draws never depend on callback order or executor threads.
@@ -10,7 +11,7 @@ import zlib
 import numpy as np
 
 STREAM_PLACEMENT = 0
-STREAM_NOISE = 1
+# (1 was the devices' noise: now drawn per robot and tick, devices/common/noise.py)
 STREAM_CONTROLLERS = 2
 STREAM_OBSTACLES = 3      # obstacles an ARGoS <distribute> places at import
 
@@ -24,6 +25,3 @@ def robot_rng(seed: int, robot: str) -> np.random.Generator:
     return np.random.default_rng([seed, STREAM_CONTROLLERS, zlib.crc32(robot.encode())])
 
 
-def device_rng(seed: int, device: str) -> np.random.Generator:
-    """A device's noise generator: its draws never shift another device's or the placement's."""
-    return np.random.default_rng([seed, STREAM_NOISE, zlib.crc32(device.encode())])

@@ -6,8 +6,11 @@
 
     main → worker   ("setup", WorkerSetup)         once, first
                     ("tap", [glob, …])             record these topics' messages (--record-topics)
-                    ("tick", SensorFrame, batch)   the block's readings of one tick, and the run-wide
-                                                   messages that open it (ros/run_wide.py)
+                    ("tick", state, rows, batch)   what the sensors read of the world (pickled
+                                                   SensingInputs, and what changed of the scene,
+                                                   floor and lights), the block's wheels and
+                                                   odometry (RobotRows), and the run-wide messages
+                                                   that open the tick (ros/run_wide.py)
                     ("clock", tick)                /clock alone, for the state after the last tick
                     ("stop",)                      end now
     worker → main   ("ready", nodes, messages)     discovery done: tick 0 can start; what its nodes
@@ -16,8 +19,8 @@
                     ("answers", TickAnswers)       the tick's commands, LEDs, payloads, violations,
                                                    and its nodes' console lines (hosts/node_logs.py)
 
-Inside, a tick is exactly the single-process host's: its simulator node publishes the block's
-sensors, the executor runs the controllers' callbacks until every robot answered or the watchdog
+Inside, a tick is exactly the single-process host's: the worker reads its block's sensors
+(core/senses.py), its simulator node publishes them, the executor runs the controllers' callbacks until every robot answered or the watchdog
 expired, and the simulator node's ``close_tick`` computes the commands with the fallbacks.
 
 The worker dies with the main process (PR_SET_PDEATHSIG, SIGKILL included) and ignores SIGINT: a

@@ -6,16 +6,18 @@ lives in a worker process (hosts/worker_process.py) with its participant groups 
 executor, exactly as the single-process host holds all of them, so every per-robot message stays
 inside one participant, through rclpy publish and take, visible to any outside process.
 
-    main process: clock, physics, sensing, world state, results, recording, observers
-       │  once per tick: each block's readings →     ← its commands, LEDs, payloads, violations
-       ├── worker 1: participant groups of robots 0 … b₁-1, their controllers, one executor
+    main process: clock, physics, wheels and odometry, world state, results, recording, observers
+       │  once per tick: the world's state →     ← its commands, LEDs, payloads, violations
+       ├── worker 1: reads the sensors of robots 0 … b₁-1; their participant group, controllers, executor
        └── worker K: …
 
 Only bulk arrays cross processes, once per tick each way, pickled over a socket pair
-(``multiprocessing.connection``): a block's SensorFrame (``SensorFrame.rows``) and its answers.
-The main process senses every robot: the sensors' noise draws then stay those of one process,
-so the same world and seed give the same trajectories for every K (docs/speed.md measures what
-sensing costs against the exchange).
+(``multiprocessing.connection``): what the sensors read of the world (core/senses.py's
+SensingInputs: every robot's pose and LEDs, pickled once for all workers) with the block's wheels
+and odometry, and the block's answers. Each worker reads its own robots' sensors, so the main
+process's serial part does not grow with the sensing; the noise is drawn per robot, tick and
+device (devices/common/noise.py), so the same world and seed give the same trajectories for
+every K (docs/speed.md, "The main process's tick").
 
 A worker that dies (a controller's segfault, ``os._exit``) or stops answering becomes violations
 for its robots only: they are failed (stopped, as any failed robot) and the run goes on.

@@ -197,3 +197,36 @@ def test_ctrl_c_stops_a_worker_run_at_a_tick_boundary_and_writes_everything(tmp_
     with np.load(tmp_path / "out" / "trajectories.npz") as t:
         assert t["positions"].shape == (summary["ticks"] + 1, 6, 2)
     assert _running(workers) == []
+
+
+def _with_noise(path: Path, tmp_path: Path, after: str, lines: str) -> Path:
+    """The shipped world with ``lines`` (noise settings) put after the line ``after``."""
+    text = path.read_text()
+    assert after in text
+    noisy = tmp_path / path.name
+    noisy.write_text(text.replace(after, after + lines, 1))
+    return noisy
+
+
+WHEELS = "      wheels: {factor_std: 0.1, bias_std_mps: 0.002}\n"
+
+
+@pytest.mark.parametrize("shipped, after, lines", [
+    (FLOCKING, "    heading:\n      method: uniform        # uniform in (-pi, pi]\n",
+     "    devices:\n      proximity: {noise: 0.05}\n      light: {noise: 0.05}\n      camera: {noise_std: 0.05}\n"
+     "      positioning: {position_noise_m: 0.01, yaw_noise_rad: 0.02}\n" + WHEELS),
+    (FIREFLY, "        range_m: 0.9         # grid neighbours (0.6 m) and diagonals (0.85 m), no further\n",
+     "        packet_drop_probability: 0.3\n        noise_std_m: 0.05\n" + WHEELS),
+])
+def test_noise_is_drawn_per_robot_so_every_worker_count_reads_the_same_noisy_sensors(shipped, after, lines, tmp_path,
+                                                                                      domain_id):
+    """Each worker reads its own robots' sensors, with every device's noise on: the draws depend
+    on the robot, the tick and the reading, not on which process reads them."""
+    world = load_world(_with_noise(shipped, tmp_path, after, lines), robots=12, ticks=40, seed=4)
+    quiet = load_world(shipped, robots=12, ticks=40, seed=4)
+    single, three, without = run(world, 1, domain_id), run(world, 3, domain_id), run(quiet, 1, domain_id)
+    assert single.violations == [] and three.violations == []
+    assert_same_run(single, three, f"{shipped.name} with noise, K=3")
+    # The noise acts: the foot-bots move otherwise, the fireflies (standing) flash otherwise.
+    assert any(not np.array_equal(getattr(single.trajectories, f), getattr(without.trajectories, f))
+               for f in ("positions", "led_colors"))
