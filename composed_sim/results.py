@@ -75,6 +75,9 @@ def summarize(world: World, result: LoopResult, *, setup_s: float, mode: str, ex
         "per_robot_tick_us": 1e6 * wall / (t.ticks_done * len(t.names)) if t.ticks_done and t.names else None,
         "phases_s": {**phases, "ros_exchange_s": result.times.ros_exchange_s},
         "phases_per_tick_ms": phase_table(result.times, t.ticks_done),
+        # CPU per tick: this process's (its serial part, without waiting for a core) and all of the run's.
+        "main_process_cpu_per_tick_ms": round(1e3 * result.times.main_cpu_s / t.ticks_done, 3) if t.ticks_done else None,
+        "cpu_per_tick_ms": round(1e3 * result.times.cpu_s / t.ticks_done, 3) if t.ticks_done else None,
         **host_cost(result.times, t.ticks_done * len(t.names), in_host=mode == "composed"),
         "violations": len(result.violations),
         "violations_by_robot": dict(Counter(v.robot for v in result.violations).most_common()),

@@ -138,7 +138,7 @@ def main(argv: list[str] | None = None) -> int:
             # Driven from this thread, as the composed host does: the lockstep executor by design,
             # the EventsExecutor because its spin() in a thread hung in our probes (docs/architecture.md).
             while not stop.is_set():
-                executor.spin_once(timeout_sec=0.05)
+                executor.spin_once(timeout_sec=IDLE_WAKE_S)
                 if link is not None and link.sends and link.tick > link.sent:
                     run_until_idle(executor)
                     link.send()
@@ -242,6 +242,13 @@ def contract_endpoints(nodes, robot: str) -> list:
     from composed_sim.ros import contract as c
     topics = {c.topic_name(robot, t) for t in c.SENSOR_TOPICS + c.ACTUATOR_TOPICS} | {c.CLOCK_TOPIC}
     return [e for node in nodes for e in list(node.publishers) + list(node.subscriptions) if e.topic_name in topics]
+
+
+# How often an idle controller process wakes (a message or a due timer ends the wait at once):
+# only to see a stop request. Every wake-up walks the executor and builds a wait set (~0.35 ms);
+# at 20 a second, hundreds of processes waiting for the others to start took whole cores
+# (docs/speed.md, "Multi-process start-up").
+IDLE_WAKE_S = 0.5
 
 
 def wait_until_matched(endpoints, robot: str, stop: StopRequest) -> bool:

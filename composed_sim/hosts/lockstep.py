@@ -64,6 +64,7 @@ class LoopTimes:
     ticks_wall_s: float = 0.0
     phases_s: dict = field(default_factory=lambda: dict.fromkeys(PHASES, 0.0))
     cpu_s: float = 0.0             # CPU seconds of this process and the controllers' during the ticks
+    main_cpu_s: float = 0.0        # of which this process's (all its threads)
     node_code_s: float = 0.0       # seconds inside the nodes' own code (ros/node_time.py), all processes
 
 
@@ -263,7 +264,8 @@ def run_lockstep(sim: Simulation, exchange: Exchange, wait_for_answers: Callable
     def count_time() -> None:
         times.ticks_wall_s = time.perf_counter() - t_start
         cpu_elsewhere, node_code = exchange.controllers_time_s()
-        times.cpu_s = time.process_time() - cpu_start + cpu_elsewhere - controllers_start[0]
+        times.main_cpu_s = time.process_time() - cpu_start
+        times.cpu_s = times.main_cpu_s + cpu_elsewhere - controllers_start[0]
         times.node_code_s = node_code - controllers_start[1]
         phases["other"] = times.ticks_wall_s - sum(v for k, v in phases.items() if k != "other")
 

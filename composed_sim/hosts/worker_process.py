@@ -6,17 +6,17 @@
 
     main → worker   ("setup", WorkerSetup)         once, first
                     ("tap", [glob, …])             record these topics' messages (--record-topics)
-                    ("tick", state, rows, batch)   what the sensors read of the world (pickled
-                                                   SensingInputs, and what changed of the scene,
-                                                   floor and lights), the block's wheels and
-                                                   odometry (RobotRows), and the run-wide messages
-                                                   that open the tick (ros/run_wide.py)
+                    ("tick", tick, routed, changed, batch)  a tick: the world's state is in the
+                                                   shared state (shared_state.py); what changed of
+                                                   the scene, floor and lights; the run-wide
+                                                   messages that open it (ros/run_wide.py)
                     ("clock", tick)                /clock alone, for the state after the last tick
                     ("stop",)                      end now
     worker → main   ("ready", nodes, messages)     discovery done: tick 0 can start; what its nodes
                                                    published on run-wide topics while being built
                     ("error", kind, message, field) the block could not be built
-                    ("answers", TickAnswers)       the tick's commands, LEDs, payloads, violations,
+                    ("answers", TickAnswers)       the tick's LEDs, payloads, violations (its
+                                                   commands: in the shared state),
                                                    and its nodes' console lines (hosts/node_logs.py)
 
 Inside, a tick is exactly the single-process host's: the worker reads its block's sensors
@@ -29,9 +29,7 @@ terminal's Ctrl-C is for the main process, which stops at a tick boundary and th
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import os
-import pickle
 import resource
 import signal
 import sys
@@ -54,14 +52,14 @@ class WorkerSetup:
     domain_id: int
     participant_prefix: bytes  # the GUID prefix of the worker's one participant (ros/participants.py)
     scratch_dir: str           # where the worker may write its Fast DDS profile
+    shared_state: str          # the name of the shared-memory block of the world's state (shared_state.py)
     logs: Optional[object] = None   # node_logs.LogSettings: its robots' log files are written here
 
 
 @dataclass
 class TickAnswers:
+    """A block's answers to a tick; its commands are in the shared state (shared_state.py)."""
     tick: int
-    linear: object                                     # [m] m/s, the block's robots
-    angular: object                                    # [m] rad/s
     leds: dict = field(default_factory=dict)           # row in the block → [L, 3] uint8
     rab: dict = field(default_factory=dict)            # row in the block → [B] uint8
     violations: list = field(default_factory=list)     # new ones since the last tick: (tick, robot, reason)
@@ -99,6 +97,7 @@ def main(argv: list[str] | None = None) -> int:
     from composed_sim.hosts.node_logs import NodeLogs
     from composed_sim.hosts.participant_groups import ParticipantGroups
     from composed_sim.core.senses import Senses
+    from composed_sim.hosts.shared_state import SharedState
     from composed_sim.ros import node_time
     from composed_sim.ros.taps import TapBuffer
 
@@ -125,6 +124,7 @@ def main(argv: list[str] | None = None) -> int:
     wait, interrupting_hangs = groups.start_serving()
     first_tick = None              # (CPU seconds, node code seconds) when the ticks began
     senses, block = Senses(world), slice(setup.start, setup.stop)     # this block's sensors are read here
+    shared = SharedState(senses, world.range_and_bearing.payload_bytes, setup.shared_state)
     kept: dict = {}                # the scene, floor and lights as last sent (core/senses.py)
     with interrupting_hangs:
         while True:
@@ -133,20 +133,19 @@ def main(argv: list[str] | None = None) -> int:
             except EOFError:       # the main process is gone
                 break
             if message[0] == "tick":
-                _, state, rows, batch = message
+                _, tick, route_messages, changed, batch = message
                 if first_tick is None:
                     first_tick = (time.process_time(), node_time.seconds())
-                inputs, changed = pickle.loads(state)
                 kept.update(changed)
-                frame = senses.frame(dataclasses.replace(inputs, **kept), rows, block)
+                frame = senses.frame(shared.inputs(tick, route_messages, **kept), shared.rows(block), block)
                 groups.open_tick(frame.tick, batch)
                 exchange.publish_tick(frame)
                 wait(lockstep.watchdog_s)
                 commands = (np.empty(m), np.empty(m))
                 exchange.close_tick(lockstep.fallback, previous, commands)
                 previous = commands
-                answers = TickAnswers(frame.tick, *commands, exchange.take_led_commands(),
-                                      exchange.take_rab_payloads())
+                shared.write_commands(block, *commands)
+                answers = TickAnswers(frame.tick, exchange.take_led_commands(), exchange.take_rab_payloads())
                 answers.violations = [(v.tick, v.robot, v.reason) for v in node.violations[seen:]]
                 seen = len(node.violations)
                 if tap is not None:

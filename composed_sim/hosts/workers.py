@@ -11,10 +11,11 @@ inside one participant, through rclpy publish and take, visible to any outside p
        ├── worker 1: reads the sensors of robots 0 … b₁-1; their participant group, controllers, executor
        └── worker K: …
 
-Only bulk arrays cross processes, once per tick each way, pickled over a socket pair
-(``multiprocessing.connection``): what the sensors read of the world (core/senses.py's
-SensingInputs: every robot's pose and LEDs, pickled once for all workers) with the block's wheels
-and odometry, and the block's answers. Each worker reads its own robots' sensors, so the main
+Once per tick the main process writes what the sensors read of the world (core/senses.py's
+SensingInputs: every robot's pose, LEDs and payload) and the wheels and odometry into shared
+memory (hosts/shared_state.py) and wakes each worker with a small message over its socket pair
+(``multiprocessing.connection``); each writes its robots' commands back there and sends the rest
+of its answers (LEDs, payloads, violations, logs), pickled. Each worker reads its own robots' sensors, so the main
 process's serial part does not grow with the sensing; the noise is drawn per robot, tick and
 device (devices/common/noise.py), so the same world and seed give the same trajectories for
 every K (docs/speed.md, "The main process's tick").
@@ -24,10 +25,8 @@ for its robots only: they are failed (stopped, as any failed robot) and the run 
 """
 from __future__ import annotations
 
-import dataclasses
 import math
 import os
-import pickle
 import signal
 import socket
 import subprocess
@@ -41,11 +40,13 @@ from typing import Callable, Optional
 
 import numpy as np
 
+from composed_sim.core.senses import Senses
 from composed_sim.core.simulation import Simulation
 from composed_sim.core.violations import FAILED, Violation
 from composed_sim.hosts.controllers import HostError, check_executor
 from composed_sim.hosts.host import ControllersElsewhere, SetupInfo
 from composed_sim.hosts.processes import InterruptWatch, exit_reason, last_words, reap, signal_group
+from composed_sim.hosts.shared_state import SharedState
 from composed_sim.hosts.worker_process import TickAnswers, WorkerSetup
 from composed_sim.ros.participants import run_prefix
 from composed_sim.world.schema import World
@@ -98,8 +99,9 @@ class WorkersExchange:
     """The ``Exchange`` over the worker processes: a tick's frame goes out in blocks, the answers
     come back as arrays; the per-node violation lists keep the single-process order."""
 
-    def __init__(self, workers: list[Worker], names: list[str], lockstep, logs=None):
+    def __init__(self, workers: list[Worker], names: list[str], lockstep, shared: SharedState, logs=None):
         self.workers = workers
+        self.shared = shared         # the world's state and the commands (shared_state.py)
         self.logs = logs             # NodeLogs: the workers' console lines merge here
         self._names = names
         self._violations: list[list[Violation]] = [[] for _ in workers]   # per worker, as they happened
@@ -129,24 +131,23 @@ class WorkersExchange:
     senses_itself = True
 
     def publish_state(self, sim: Simulation) -> None:
-        """What the sensors read this tick, pickled once for all workers (each reads its block's
-        sensors from it), with each block's wheels and odometry and the run-wide batch."""
+        """What the sensors read this tick and every robot's wheels and odometry, into the shared
+        state (each worker reads its block's sensors from it); a small message wakes each worker."""
         inputs = sim.sensing_inputs()
         self._tick = inputs.tick
+        self.shared.write(inputs, sim.robot_rows())
         # What rarely changes (the scene without movable objects, the floor, the lights) is sent
         # only when it did; a worker keeps the last it got.
         changed = {name: value for name, value in (("scene", inputs.scene), ("floor", inputs.floor),
                                                    ("lights", inputs.lights))
-                   if self._sent.get(name) is not value}
+                   if name not in self._sent or self._sent[name] is not value}
         self._sent.update(changed)
-        state = pickle.dumps((dataclasses.replace(inputs, scene=None, floor=None, lights=None), changed),
-                             protocol=pickle.HIGHEST_PROTOCOL)
-        batch = [m for part in self.run_wide for m in part]
+        message = ("tick", inputs.tick, inputs.route_messages, changed, [m for part in self.run_wide for m in part])
         for w in self.workers:
             w.answers = None
             if w.dead is None:
                 try:
-                    w.conn.send(("tick", state, sim.robot_rows(w.start, w.stop), batch))
+                    w.conn.send(message)
                 except OSError:
                     self._lost(w)
 
@@ -220,7 +221,8 @@ class WorkersExchange:
             if w.answers is None:           # gone: stopped, as any failed robot
                 commands[0][block], commands[1][block] = 0.0, 0.0
             else:
-                commands[0][block], commands[1][block] = w.answers.linear, w.answers.angular
+                commands[0][block], commands[1][block] = self.shared.views["linear"][block], \
+                    self.shared.views["angular"][block]
 
     def take_led_commands(self) -> dict[int, np.ndarray]:
         return {w.start + row: colors for w in self.workers if w.answers is not None
@@ -254,6 +256,7 @@ class WorkerHost(ControllersElsewhere):
         self.workers: list[Worker] = []
         self.exchange: Optional[WorkersExchange] = None
         self._tmp: Optional[Path] = None
+        self.shared: Optional[SharedState] = None
         self._startup_interrupted = False
         self._observer_context = None
         self._observer_node = None
@@ -262,6 +265,7 @@ class WorkerHost(ControllersElsewhere):
         t0 = time.perf_counter()
         try:
             self._tmp = Path(tempfile.mkdtemp(prefix="composed_sim_workers_"))
+            self.shared = SharedState(Senses(self.world), self.world.range_and_bearing.payload_bytes)
             prefix = run_prefix()
             for index, (start, stop) in enumerate(self.blocks):
                 self._spawn(index, start, stop, prefix + index.to_bytes(4, "little"))
@@ -270,7 +274,8 @@ class WorkerHost(ControllersElsewhere):
             with InterruptWatch() as interrupts:
                 nodes, run_wide = self._wait_ready(lambda: interrupts.requested)
             self._startup_interrupted = interrupts.requested
-            self.exchange = WorkersExchange(self.workers, self.sim.names, self.world.lockstep, self.logs)
+            self.exchange = WorkersExchange(self.workers, self.sim.names, self.world.lockstep, self.shared,
+                                            self.logs)
             self.exchange.run_wide = run_wide
         except BaseException:
             self.__exit__(None, None, None)
@@ -297,7 +302,8 @@ class WorkerHost(ControllersElsewhere):
         worker = Worker(index, start, stop, popen, conn, log)
         self.workers.append(worker)
         conn.send(("setup", WorkerSetup(self.world, start, stop, index, self.executor_kind, self.domain_id,
-                                        prefix, str(self._tmp), self.logs.settings if self.logs else None)))
+                                        prefix, str(self._tmp), self.shared.name,
+                                        self.logs.settings if self.logs else None)))
 
     def _wait_ready(self, interrupted: Callable[[], bool]) -> tuple[int, list[list]]:
         """Every worker's nodes built and matched: how many nodes in all, and per worker what they
@@ -368,6 +374,9 @@ class WorkerHost(ControllersElsewhere):
             self._observer_node.destroy_node()
             rclpy.shutdown(context=self._observer_context)
             self._observer_node = self._observer_context = None
+        if self.shared is not None:      # after the workers: none maps it any more
+            self.shared.close()
+            self.shared = None
         if self._tmp is not None:
             import shutil
             shutil.rmtree(self._tmp, ignore_errors=True)

@@ -1,0 +1,82 @@
+"""The world's state and the commands, shared between the main process and its workers.
+
+Each tick the main process writes what the sensors read (every robot's pose, LEDs and
+range-and-bearing payload: core/senses.py's SensingInputs) and every robot's wheels and odometry
+into one shared-memory block, then wakes each worker with a small message; each worker reads its
+block's sensors from it in place and writes its robots' commands back into it. Nothing of that
+is pickled or copied through a socket. The lockstep order makes it safe without locks: the main
+process writes only while every worker waits for the next tick, a worker writes only its own
+rows, and the main process reads the commands only once every worker has answered.
+"""
+from __future__ import annotations
+
+from multiprocessing import resource_tracker, shared_memory
+from typing import Optional
+
+import numpy as np
+
+from composed_sim.core.odometry import WheelReadings
+from composed_sim.core.senses import RobotRows, SensingInputs, Senses
+
+
+def _layout(n: int, leds: int, payload_bytes: int) -> list[tuple[str, tuple, np.dtype]]:
+    f8, u1 = np.dtype(np.float64), np.dtype(np.uint8)
+    return [("positions", (n, 2), f8), ("headings", (n,), f8), ("led_colors", (n, leds, 3), u1),
+            ("rab_payloads", (n, payload_bytes), u1),
+            ("wheel_velocities", (n, 2), f8), ("wheel_distances", (n, 2), f8), ("axis_lengths", (n,), f8),
+            ("odometry", (n, 3), f8), ("odometry_twist", (n, 2), f8),
+            ("linear", (n,), f8), ("angular", (n,), f8)]          # the commands, written by the workers
+
+
+class SharedState:
+    """Numpy views over one shared-memory block (``create``: the main process's, which unlinks it)."""
+
+    def __init__(self, senses: Senses, payload_bytes: int, name: Optional[str] = None):
+        layout = _layout(senses.n, senses.n_leds, payload_bytes)
+        size = sum(int(np.prod(shape)) * dtype.itemsize for _, shape, dtype in layout)
+        self.owner = name is None
+        self._shm = shared_memory.SharedMemory(name=name, create=self.owner, size=max(size, 1))
+        if not self.owner:
+            # Attaching registers the block with this process's resource tracker, which would
+            # unlink it when this worker ends: it is the main process's to remove.
+            resource_tracker.unregister(self._shm._name, "shared_memory")
+        self.name = self._shm.name
+        self.views: dict[str, np.ndarray] = {}
+        offset = 0
+        for key, shape, dtype in layout:
+            count = int(np.prod(shape))
+            self.views[key] = np.ndarray(shape, dtype, buffer=self._shm.buf, offset=offset)
+            offset += count * dtype.itemsize
+
+    # --- the main process ---------------------------------------------------------------------
+
+    def write(self, inputs: SensingInputs, rows: RobotRows) -> None:
+        v = self.views
+        v["positions"][:], v["headings"][:] = inputs.positions, inputs.headings
+        v["led_colors"][:], v["rab_payloads"][:] = inputs.led_colors, inputs.rab_payloads
+        v["wheel_velocities"][:], v["wheel_distances"][:] = rows.wheels.velocities_mps, rows.wheels.distances_m
+        v["axis_lengths"][:] = rows.wheels.axis_length_m
+        v["odometry"][:], v["odometry_twist"][:] = rows.odometry, rows.odometry_twist
+
+    # --- a worker -------------------------------------------------------------------------------
+
+    def inputs(self, tick: int, route_messages: bool, scene, floor, lights) -> SensingInputs:
+        v = self.views
+        return SensingInputs(tick, v["positions"], v["headings"], v["led_colors"], v["rab_payloads"], scene,
+                             floor, lights, route_messages)
+
+    def rows(self, block: slice) -> RobotRows:
+        """The block's wheels and odometry, copied: its frame may outlive the tick."""
+        v = self.views
+        return RobotRows(WheelReadings(v["wheel_velocities"][block].copy(), v["wheel_distances"][block].copy(),
+                                       v["axis_lengths"][block].copy()),
+                         v["odometry"][block].copy(), v["odometry_twist"][block].copy())
+
+    def write_commands(self, block: slice, linear: np.ndarray, angular: np.ndarray) -> None:
+        self.views["linear"][block], self.views["angular"][block] = linear, angular
+
+    def close(self) -> None:
+        self.views = {}
+        self._shm.close()
+        if self.owner:
+            self._shm.unlink()
