@@ -114,9 +114,9 @@ class SwarmController(Node):
         tick = Tick(stamp=Time(sec=sec, nanosec=nanosec), time_s=sec + nanosec * 1e-9)
         for name, data in msgs.items():
             self._readers[name](data, tick)
-        started = time.perf_counter()
+        started = time.thread_time()
         linear, angular = self.on_tick(tick)
-        node_time.add(time.perf_counter() - started)    # the node's own code; the rest is the host's
+        node_time.add(time.thread_time() - started)    # the node's own code; the rest is the host's
         if self._leds_dirty:   # before the answer, so the change lands on the same tick
             self._led_pub.publish(c.led_message(self._leds))
             self._leds_dirty = False
