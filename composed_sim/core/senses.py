@@ -12,7 +12,6 @@ from dataclasses import dataclass
 from typing import Optional, Sequence
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from composed_sim.core.frames import GroupReadings, SensorFrame
 from composed_sim.core.odometry import WheelReadings, positioning
@@ -22,6 +21,7 @@ from composed_sim.devices.common.floor import Floor
 from composed_sim.devices.common.geometry import StaticScene
 from composed_sim.devices.common.noise import NoiseStream
 from composed_sim.devices.common.sensing import SensedGroup, Sensing
+from composed_sim.devices.common.sensors import kd_tree
 from composed_sim.devices.range_and_bearing import RangeAndBearingReadings, range_and_bearing
 from composed_sim.world.robot_models import POSITIONING, RANGE_AND_BEARING, get_model
 from composed_sim.world.schema import World
@@ -102,7 +102,7 @@ class Senses:
         wheels and odometry, as the main process integrated them."""
         block = slice(0, self.n) if block is None else block
         p, h = inputs.positions, inputs.headings
-        tree = cKDTree(p)       # one neighbour index per tick, shared by every sensor
+        tree = kd_tree(p)       # one neighbour index per tick, shared by every sensor
         tick = inputs.tick
         sensing = Sensing(p, h, self.radii, self.heights, inputs.scene, tree,
                           lambda device, robots: self.streams[device].at(tick, robots), inputs.lights,

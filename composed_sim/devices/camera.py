@@ -11,10 +11,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Optional, Sequence
+from typing import TYPE_CHECKING, Optional, Sequence
 
 import numpy as np
-from scipy.spatial import cKDTree
+
+if TYPE_CHECKING:
+    from scipy.spatial import cKDTree
 
 from composed_sim.devices.common import cdr
 from composed_sim.devices.common.device import Device, DevicePublisher, csr_take, reads_cloud_into
@@ -22,7 +24,7 @@ from composed_sim.devices.common.geometry import StaticScene
 from composed_sim.devices.common.noise import entry_noise
 from composed_sim.devices.common.poses import wrap_angle
 from composed_sim.devices.common.sensing import SensedGroup, Sensing
-from composed_sim.devices.common.sensors import (_check_noise, _observer_rows, _pair_order, _ranges, near_pairs,
+from composed_sim.devices.common.sensors import (_check_noise, _observer_rows, _pair_order, _ranges, kd_tree, near_pairs,
                                                  _robots, blocked_by_robots)
 from composed_sim.devices.common.settings import DeviceSwitch, NonNegativeFloat
 from composed_sim.devices.common.topic import Topic, base_link
@@ -119,7 +121,7 @@ def blob_camera(positions, headings, radii, heights, camera_heights, half_window
     flat = led_world.reshape(-1, 3)                             # [n * L, 3]
     # Observer/owner pairs whose centres are close enough for a lit LED to be in the window.
     reach = np.abs(flat.take(own * n_leds + led, axis=0)[:, :2] - positions.take(own, axis=0)).max()
-    tree = cKDTree(positions) if tree is None else tree
+    tree = kd_tree(positions) if tree is None else tree
     observers, row_of = _observer_rows(observers, n)
     obs, owner = near_pairs(tree, positions, half_windows.max() + reach, observers, p=np.inf)
     if len(own) < n:

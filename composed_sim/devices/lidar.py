@@ -18,16 +18,18 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Optional
+from typing import TYPE_CHECKING, Optional
 
 import numpy as np
-from scipy.spatial import cKDTree
+
+if TYPE_CHECKING:
+    from scipy.spatial import cKDTree
 
 from composed_sim.devices.common import cdr
 from composed_sim.devices.common.device import Device, DevicePublisher, reads_into
 from composed_sim.devices.common.geometry import StaticScene
 from composed_sim.devices.common.sensing import SensedGroup, Sensing
-from composed_sim.devices.common.sensors import _both_ways, _ranges
+from composed_sim.devices.common.sensors import _both_ways, _ranges, kd_tree
 from composed_sim.devices.common.settings import DeviceSwitch, NonNegativeFloat
 from composed_sim.devices.common.topic import Topic, base_scan
 
@@ -113,7 +115,7 @@ def _robot_hits(dist, positions, radii, heights, observers, origins, h, rel, lid
     n, m, r = len(positions), len(observers), lidar.n_rays
     row_of = np.full(n, -1, dtype=np.intp)
     row_of[observers] = np.arange(m)
-    tree = cKDTree(positions) if tree is None else tree
+    tree = kd_tree(positions) if tree is None else tree
     mount_offset = math.hypot(lidar.mount_m[0], lidar.mount_m[1])
     a, b = _both_ways(tree.query_pairs(lidar.max_range_m + mount_offset + radii.max(), output_type="ndarray"))
     keep = np.flatnonzero((row_of[a] >= 0) & (heights[b] > lidar.mount_m[2]))

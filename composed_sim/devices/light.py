@@ -8,17 +8,20 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any, Optional, Sequence
+from typing import TYPE_CHECKING, Any, Optional, Sequence
 
 import numpy as np
-from scipy.spatial import cKDTree
+
+if TYPE_CHECKING:
+    from scipy.spatial import cKDTree
 
 from composed_sim.devices.common import cdr
 from composed_sim.devices.common.device import Device, DevicePublisher, reads_into
 from composed_sim.devices.common.geometry import StaticScene
 from composed_sim.devices.common.poses import wrap_angle
 from composed_sim.devices.common.sensing import SensedGroup, Sensing
-from composed_sim.devices.common.sensors import _check_noise, _observer_rows, _robots, _uniform_noise, blocked_by_robots
+from composed_sim.devices.common.sensors import (_check_noise, _observer_rows, _robots, _uniform_noise, blocked_by_robots,
+                                                 kd_tree)
 from composed_sim.devices.common.settings import DeviceSwitch, NonNegativeFloat
 from composed_sim.devices.common.topic import Topic, base_link
 
@@ -63,7 +66,7 @@ def light_ring(positions, headings, radii, heights, ring: LightRing, lights: Seq
     lights = [lt for lt in lights if lt.intensity > 0.0]
     if n == 0 or not lights:
         return _uniform_noise(out, noise, rng)
-    tree = cKDTree(positions) if tree is None else tree
+    tree = kd_tree(positions) if tree is None else tree
     origin = np.column_stack([positions[everyone], np.zeros(n)])                         # [m, 3]
     obs_head = headings if observers is None else headings[everyone]
     for light in lights:

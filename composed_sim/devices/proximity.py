@@ -8,16 +8,18 @@ ARGoS's reading in [0, 1]. A controller's Tick: ``proximity`` and ``proximity_di
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal, Optional
+from typing import TYPE_CHECKING, Literal, Optional
 
 import numpy as np
-from scipy.spatial import cKDTree
+
+if TYPE_CHECKING:
+    from scipy.spatial import cKDTree
 
 from composed_sim.devices.common import cdr
 from composed_sim.devices.common.device import Device, DevicePublisher, reads_into
 from composed_sim.devices.common.geometry import StaticScene, ray_circle_distance
 from composed_sim.devices.common.sensing import SensedGroup, Sensing
-from composed_sim.devices.common.sensors import _check_noise, _observer_rows, _robots, _uniform_noise, near_pairs
+from composed_sim.devices.common.sensors import _check_noise, _observer_rows, _robots, _uniform_noise, kd_tree, near_pairs
 from composed_sim.devices.common.settings import DeviceSwitch, NonNegativeFloat
 from composed_sim.devices.common.topic import Topic, base_link
 
@@ -110,7 +112,7 @@ def proximity_ring(positions, headings, radii, heights, ring: ProximityRing, sce
         origins = (obs_pos[:, None, :] + rim).reshape(-1, 2)
         dist = scene.ray_distance(origins, dirs.reshape(-1, 2), reach, min_height=elevation_m).reshape(n, k)
     if len(positions) > 1 and n:
-        tree = cKDTree(positions) if tree is None else tree
+        tree = kd_tree(positions) if tree is None else tree
         lever = radii.max() if ring.origins_m is None else float(np.hypot(*np.asarray(ring.origins_m).T).max())
         obs, tgt = near_pairs(tree, positions, lever + radii.max() + reach, observers)
         seen = np.flatnonzero(heights[tgt] > elevation_m)

@@ -26,17 +26,19 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass
-from typing import Literal, Optional
+from typing import TYPE_CHECKING, Literal, Optional
 
 import numpy as np
-from scipy.spatial import cKDTree
+
+if TYPE_CHECKING:
+    from scipy.spatial import cKDTree
 
 from composed_sim.devices.common import cdr
 from composed_sim.devices.common.device import Device, DevicePublisher, csr_take, reads_cloud_into
 from composed_sim.devices.common.geometry import StaticScene
 from composed_sim.devices.common.noise import entry_noise
 from composed_sim.devices.common.poses import wrap_angle
-from composed_sim.devices.common.sensors import _pair_order, blocked_by_robots
+from composed_sim.devices.common.sensors import _pair_order, blocked_by_robots, kd_tree
 from composed_sim.devices.common.settings import DeviceSwitch, NonNegativeFloat, PositiveFloat, Probability
 from composed_sim.devices.common.topic import Topic, base_link
 
@@ -128,7 +130,7 @@ def range_and_bearing(positions: np.ndarray, headings: np.ndarray, radii: np.nda
         keep = rx != tx
         rx, tx = rx[keep], tx[keep]
     else:
-        tree = cKDTree(positions) if tree is None else tree
+        tree = kd_tree(positions) if tree is None else tree
         # Planar pairs within the longest range; the 3D test below is exact (emitters differ in height).
         reach = float(np.max(ranges[members]))
         pairs = tree.query_pairs(reach, output_type="ndarray").astype(np.intp)

@@ -17,7 +17,6 @@ import zlib
 from typing import Optional, Union
 
 import numpy as np
-from scipy.special import ndtri
 
 _MASK = (1 << 64) - 1
 _GOLDEN = 0x9E3779B97F4A7C15          # 2^64 / φ: spreads consecutive counters over the 64 bits
@@ -41,6 +40,12 @@ def _mix(x: np.ndarray) -> np.ndarray:
     x *= np.uint64(0x94D049BB133111EB)
     x ^= x >> np.uint64(31)
     return x
+
+
+def _ndtri(u: np.ndarray) -> np.ndarray:
+    """The standard normal's quantile function (scipy loaded on first use, as in sensors.kd_tree)."""
+    from scipy.special import ndtri
+    return ndtri(u)
 
 
 def _unit(bits: np.ndarray) -> np.ndarray:
@@ -82,7 +87,7 @@ class RowNoise:
         return low + (high - low) * self.random(size)
 
     def normal(self, loc, scale, size) -> np.ndarray:
-        return loc + scale * ndtri(self.random(size))
+        return loc + scale * _ndtri(self.random(size))
 
     def entries(self, robots: np.ndarray, slots: np.ndarray) -> "EntryNoise":
         """Draws per entry: entry e belongs to robot ``robots[e]`` (a world index), and is numbered
@@ -110,7 +115,7 @@ class EntryNoise:
         return low + (high - low) * self.random(draw)
 
     def normal(self, loc, scale, draw: int) -> np.ndarray:
-        return loc + scale * ndtri(self.random(draw))
+        return loc + scale * _ndtri(self.random(draw))
 
 
 class _GeneratorEntries:
