@@ -88,6 +88,7 @@ def main(argv: list[str] | None = None) -> int:
 
     from composed_sim import plugins
     from composed_sim.hosts.controllers import HostError
+    from composed_sim.hosts.lockstep import acted_commands
     from composed_sim.hosts.node_logs import NodeLogs
     from composed_sim.hosts.participant_groups import ParticipantGroups
     from composed_sim.ros.taps import TapBuffer
@@ -126,7 +127,7 @@ def main(argv: list[str] | None = None) -> int:
                 wait(lockstep.watchdog_s)
                 commands = (np.empty(m), np.empty(m))
                 exchange.close_tick(lockstep.fallback, previous, commands)
-                previous = commands
+                previous = acted_commands(frame.tick, commands)     # what the main process acts on
                 answers = TickAnswers(frame.tick, *commands, exchange.take_led_commands(),
                                       exchange.take_rab_payloads())
                 answers.violations = [(v.tick, v.robot, v.reason) for v in node.violations[seen:]]
