@@ -57,6 +57,10 @@ class RobotModel:
     led_positions_m: tuple[tuple[float, float, float], ...] = field(default=())
     # Devices a group of this model runs when its world file says nothing about them.
     default_devices: frozenset[str] = frozenset()
+    # A second body the 2D engine ties rigidly to the robot's (the foot-bot's gripper body):
+    # its mass and moment of inertia add to the robot's when it accelerates.
+    carried_mass_kg: float = 0.0
+    carried_moment_kg_m2: float = 0.0
 
     def __post_init__(self):
         for name, layout in self.layouts.items():
@@ -105,6 +109,12 @@ FOOTBOT = RobotModel.of(
     body_radius_m=0.085036758,          # footbot_entity.cpp BODY_RADIUS
     body_height_m=0.146899733,          # BODY_HEIGHT
     mass_kg=1.6,                        # dynamics2d_footbot_model.cpp
+    # dynamics2d_footbot_model.cpp also creates the gripper's body, cpBodyNew(m / 20,
+    # cpMomentForCircle(m, 0, R + R)), pinned to the base at its centre and geared to it: the
+    # drive accelerates 1.68 kg and twice the base's moment (measured: from rest at 10 cm/s ARGoS's
+    # foot-bot covers 8.8928 mm in its first tick, 1.6 kg alone 8.9375 mm).
+    carried_mass_kg=1.6 / 20.0,
+    carried_moment_kg_m2=1.6 * (2.0 * 0.085036758) ** 2 / 2.0,
     wheel_separation_m=0.14,            # INTERWHEEL_DISTANCE
     wheel_radius_m=0.029112741,         # WHEEL_RADIUS
     max_wheel_speed_mps=0.10,           # argos3-examples flocking: max_speed 10 cm/s
@@ -120,8 +130,9 @@ FOOTBOT = RobotModel.of(
                                     (0.063, -0.0116))),
     # docs/architecture.md "Range and bearing": 0.1 m above the origin, 3 m default range.
     range_and_bearing=RangeAndBearingDevice(elevation_m=0.1, range_m=3.0),
-    # docs/architecture.md: 12 ring LEDs at r = 0.090 m, 15° + 30°·i, z = 0.085; beacon at z = 0.1742.
-    led_positions_m=_led_ring(0.090, 15.0, 12, 0.085) + ((0.0, 0.0, 0.1742),),
+    # footbot_entity.cpp: 12 ring LEDs at r = R + 5 mm, 15° + 30°·i, z = 0.085; the beacon at
+    # z = 0.174249733.
+    led_positions_m=_led_ring(0.085036758 + 0.005, 15.0, 12, 0.085) + ((0.0, 0.0, 0.174249733),),
     # The flocking experiments' sensor set; the others cost time and are switched on per world.
     default_devices=frozenset({PROXIMITY, LIGHT, CAMERA}),
 )
@@ -202,8 +213,9 @@ THYMIO2 = RobotModel.of(
     max_torque_nm=1.5,
     friction=0.7,
     # Enki Thymio2: 5 front and 2 back horizontal IR sensors at these body points and
-    # directions, about 14 cm range, at the body's mid height. The reading follows ARGoS's
-    # generic proximity sensor (exp(-d)), which the ARGoS Thymio plugin uses as is.
+    # directions, about 14 cm range, at the body's mid height. The reading is ARGoS's generic
+    # proximity sensor's (exp(-d)). (The community ARGoS Thymio plugin, resilient-swarms/thymio,
+    # has other offsets, a 1 m range and a reading that saturates at 1 within it: not this model.)
     proximity=ProximityRing(angles_rad=tuple(a for _, a in _THYMIO_IR), range_m=0.14,
                             elevation_m=0.03, origins_m=tuple(p for p, _ in _THYMIO_IR),
                             calibration="generic"),

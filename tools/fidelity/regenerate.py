@@ -30,7 +30,7 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parents[1]
 sys.path.insert(0, str(ROOT))
-from tests.fidelity.reference import EXPERIMENTS, HELD_OUT, SEEDS, pack  # noqa: E402
+from tests.fidelity.reference import EXPERIMENTS, pack, seeds_of  # noqa: E402
 
 
 def compile_logger(args, out_dir: Path) -> Path:
@@ -95,7 +95,7 @@ def main(argv=None) -> int:
             if experiment.startswith("kheperaiv") and not args.kheperaiv_controller:
                 print(f"{experiment}: skipped (no --kheperaiv-controller)")
                 continue
-            seeds = SEEDS + HELD_OUT.get(experiment, ())
+            seeds = seeds_of(experiment)
             runs = [run(args, logger, experiment, seed, work) for seed in seeds]
             pack(out / f"{experiment}.npz", seeds, runs)
             print(f"{experiment}: {len(seeds)} seeds, {runs[0]['poses'].shape[1]} robots, "
