@@ -29,19 +29,6 @@ def _ring_angles(first_deg: float, step_deg: float, count: int) -> tuple[float, 
     return tuple(math.radians(first_deg + step_deg * i) for i in range(count))
 
 
-def _argos_ring(start_rad: float, count: int) -> tuple[float, ...]:
-    """ARGoS's ring of ``count`` (AddSensorRing, AddLEDRing): start + i·2π/count, each brought into
-    (-π, π] as CRadians::SignedNormalize does, in ARGoS's arithmetic (the same doubles)."""
-    two_pi = 2.0 * math.pi
-    out = []
-    for i in range(count):
-        angle = start_rad + i * (two_pi / count)
-        while angle > math.pi:
-            angle -= two_pi
-        out.append(angle)
-    return tuple(out)
-
-
 # The devices' names, as world files and sensor frames spell them (each defined in its module).
 PROXIMITY, LIGHT, CAMERA, GROUND = proximity.NAME, light.NAME, camera.NAME, ground.NAME
 RANGE_AND_BEARING, LIDAR = range_and_bearing.NAME, lidar.NAME
@@ -134,9 +121,9 @@ FOOTBOT = RobotModel.of(
     max_force_n=15.0,                   # dynamics2d differential steering control: max force
     max_torque_nm=150.0,                # ... and max torque
     friction=0.7,
-    proximity=ProximityRing(angles_rad=_argos_ring(math.pi / 24.0, 24), range_m=0.10,
+    proximity=ProximityRing(angles_rad=_ring_angles(7.5, 15.0, 24), range_m=0.10,
                             elevation_m=0.06),           # footbot_entity.cpp: proximity sensors at 6 cm
-    light=LightRing(angles_rad=_argos_ring(math.pi / 24.0, 24), elevation_m=0.06, model="foot-bot"),
+    light=LightRing(angles_rad=_ring_angles(7.5, 15.0, 24), elevation_m=0.06, model="foot-bot"),
     camera=BlobCamera(height_m=0.288699733, aperture_rad=math.radians(70.0)),
     # docs/architecture.md "Motor ground sensor": the foot-bot's four sensors under the body.
     ground=GroundSensors(offsets_m=((0.063, 0.0116), (-0.063, 0.0116), (-0.063, -0.0116),
@@ -176,7 +163,7 @@ EPUCK = RobotModel.of(
                             elevation_m=0.06, calibration="e-puck"),
     # epuck_entity.cpp: the light sensors are the evenly spaced ring, π/8 + 45°·i, on the rim at
     # 6 cm. ARGoS has no e-puck light sensor of its own: the generic ``light`` reads them.
-    light=LightRing(angles_rad=_argos_ring(math.pi / 8.0, 8), elevation_m=0.06, model="generic"),
+    light=LightRing(angles_rad=_ring_angles(22.5, 45.0, 8), elevation_m=0.06, model="generic"),
     ground=GroundSensors(offsets_m=((0.03, -0.009), (0.03, 0.0), (0.03, 0.009))),   # epuck_entity.cpp
     # epuck_entity.cpp: RAB at the LED ring's elevation, default rab_range 0.8 m.
     range_and_bearing=RangeAndBearingDevice(elevation_m=0.086, range_m=0.8),
@@ -249,10 +236,10 @@ KHEPERAIV = RobotModel.of(
     max_torque_nm=1.5,
     friction=0.7,
     # 8 IR sensors on the rim from the front, 45° apart, 14.5 mm up, 12 cm range, their own curve.
-    proximity=ProximityRing(angles_rad=_argos_ring(0.0, 8), range_m=0.12,
+    proximity=ProximityRing(angles_rad=_ring_angles(0.0, 45.0, 8), range_m=0.12,
                             elevation_m=0.0145, calibration="kheperaiv"),
     # The same IR ring; its own sensor, kheperaiv_light (kheperaiv_light_rotzonly_sensor.cpp).
-    light=LightRing(angles_rad=_argos_ring(0.0, 8), elevation_m=0.0145, model="kheperaiv"),
+    light=LightRing(angles_rad=_ring_angles(0.0, 45.0, 8), elevation_m=0.0145, model="kheperaiv"),
     ground=GroundSensors(offsets_m=((0.0614, 0.01), (0.0206, 0.059), (0.0206, -0.059),
                                     (0.0614, -0.01))),
     range_and_bearing=RangeAndBearingDevice(elevation_m=0.0577, range_m=3.0),

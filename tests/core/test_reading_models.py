@@ -97,10 +97,3 @@ ARGOS = """<argos-configuration>
 def test_the_importer_gives_each_argos_sensor_element_its_model(tag, model):
     world, _ = loads_argos(ARGOS.format(tag=tag))
     assert world.robots[0].devices.proximity.model == model
-
-
-def test_footbot_rings_are_argos_doubles():
-    # footbot_entity.cpp: π/24 + i·π/12, brought into (-π, π]
-    angles = np.asarray(FOOTBOT.proximity.angles_rad)
-    np.testing.assert_allclose(np.degrees(angles[:12]), 7.5 + 15.0 * np.arange(12))
-    np.testing.assert_allclose(np.degrees(angles[12:]), 7.5 + 15.0 * np.arange(12, 24) - 360.0)
