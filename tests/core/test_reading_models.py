@@ -12,7 +12,7 @@ from composed_sim.argos_import import loads_argos
 from composed_sim.core.scene import static_scene
 from composed_sim.core.simulation import Simulation
 from composed_sim.devices.light import light_ring
-from composed_sim.world.robot_models import EPUCK, FOOTBOT, KHEPERAIV
+from composed_sim.world.robot_models import EPUCK, KHEPERAIV
 from composed_sim.world.schema import Box, Light, World
 
 

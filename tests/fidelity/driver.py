@@ -46,7 +46,8 @@ def world_from_argos(name: str, ref: dict, run: int, *, edit: Callable[[World], 
     (group,) = world.robots
     poses = ref["initial"][run]
     group = group.model_copy(update={
-        "placement": group.placement.model_copy(update={"method": "explicit", "positions": [tuple(p) for p in poses[:, :2]]}),
+        "placement": group.placement.model_copy(update={"method": "explicit",
+                                                        "positions": [tuple(p) for p in poses[:, :2]]}),
         "heading": group.heading.model_copy(update={"method": "explicit", "values_rad": list(poses[:, 2])}),
     })
     obstacles = [Box(position=(b[0], b[1]), yaw_rad=b[2], size=(b[3], b[4]), height_m=b[5]) for b in ref["boxes"][run]]

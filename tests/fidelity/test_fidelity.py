@@ -11,7 +11,6 @@ tools/fidelity/experiments/ started from ARGoS's tick-0 poses and obstacle place
 """
 from __future__ import annotations
 
-import numpy as np
 import pytest
 
 from tests.fidelity import reference

@@ -15,15 +15,12 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
-import numpy as np
-
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 from composed_sim.hosts import lockstep  # noqa: E402
 from composed_sim.world import robot_models  # noqa: E402
 from tests.fidelity import reference  # noqa: E402
 from tests.fidelity.compare import compare  # noqa: E402
-from tests.fidelity.metrics import METRICS  # noqa: E402
 
 
 def as_before() -> None:
@@ -38,8 +35,9 @@ def as_before() -> None:
 
 def own_calibration(world):
     (group,) = world.robots
-    devices = group.devices.model_copy(update={"proximity": group.devices.proximity.model_copy(update={"model": None})}) \
-        if group.devices.proximity is not None else group.devices
+    proximity = group.devices.proximity
+    devices = (group.devices.model_copy(update={"proximity": proximity.model_copy(update={"model": None})})
+               if proximity is not None else group.devices)
     data = world.model_dump()
     data["robots"][0]["devices"] = devices.model_dump()
     return type(world).model_validate(data)
@@ -65,7 +63,8 @@ def main() -> int:
             result = compare(name, seeds, edit=edit)
             rows = list(result.rows())
             for tick, metric, theirs, ours, gap in rows:
-                print(f"| {name} | {label} {seeds[0]}–{seeds[-1]} | {metric} | {tick} | {theirs:.4g} | {ours:.4g} | {gap:.2f} |")
+                print(f"| {name} | {label} {seeds[0]}–{seeds[-1]} | {metric} | {tick} | {theirs:.4g} | "
+                      f"{ours:.4g} | {gap:.2f} |")
             worst = max(rows, key=lambda r: r[-1])
             worst_rows.append((name, label, worst))
             sys.stdout.flush()
