@@ -52,7 +52,7 @@ def test_unknown_plugin(tmp_path):
     assert fails(w, "--out", tmp_path / "o") == (
         f"composed-sim: error: {w}:{line_of(w, 'controller')}: robots[0].controller: unknown controller plugin "
         f"'nosuch' (installed: aggregation, diffusion, epuck-obstacle-avoidance, firefly, flocking, foraging, "
-        f"obstacle-avoidance, turtlebot-flocking); a plugin is an "
+        f"kheperaiv-diffusion, obstacle-avoidance, turtlebot-flocking); a plugin is an "
         f"entry point in the group 'composed_sim.controllers', or name a class as module:Class")
 
 

@@ -33,6 +33,15 @@ SENSORS: dict[str, tuple[str, dict[str, tuple[str, float]]]] = {
     "positioning": ("positioning", {}),
     "differential_steering": ("differential_steering", {}),
 }
+# ARGoS sensor tag → the reading model of its device: each ARGoS sensor element computes its own
+# readings over the robot's ring (devices/proximity.py, devices/light.py), so the generic
+# ``proximity`` on an e-puck reads exp(-d), not the e-puck's calibration. ARGoS has no
+# ``epuck_light``: the e-puck's light sensors are read by the generic ``light``.
+SENSOR_MODELS: dict[str, str] = {
+    "footbot_proximity": "foot-bot", "epuck_proximity": "e-puck", "kheperaiv_proximity": "kheperaiv",
+    "proximity": "generic",
+    "footbot_light": "foot-bot", "kheperaiv_light": "kheperaiv", "light": "generic", "epuck_light": "generic",
+}
 # ARGoS actuator tag → our device (None: every robot has it, nothing to switch).
 ACTUATORS: dict[str, str | None] = {"differential_steering": None, "leds": None,
                                     "range_and_bearing": "range_and_bearing"}
@@ -52,6 +61,8 @@ def device_settings(reader: AttributeReader, sensors: tuple[XmlElement, ...],
             continue
         device, attrs = SENSORS[node.tag]
         settings: dict[str, Any] = out.setdefault(device, {})
+        if node.tag in SENSOR_MODELS:
+            settings["model"] = SENSOR_MODELS[node.tag]
         for name in node.attrib:
             if name in attrs:
                 field, factor = attrs[name]

@@ -84,8 +84,10 @@ class PhysicsWorld:
         for model, (x, y), a in zip(models, positions.tolist(), headings.tolist()):
             # dynamics2d_footbot_model.cpp: cpBodyNew(m, cpMomentForCircle(m, 0, R + R, 0)) —
             # ARGoS passes the diameter as the radius, so I = 2 m R^2; copied as is.
-            body = pymunk.Body(model.mass_kg,
-                               pymunk.moment_for_circle(model.mass_kg, 0.0, 2.0 * model.body_radius_m))
+            # A carried body (the foot-bot's gripper) is rigidly tied to it: its mass and moment add.
+            body = pymunk.Body(model.mass_kg + model.carried_mass_kg,
+                               pymunk.moment_for_circle(model.mass_kg, 0.0, 2.0 * model.body_radius_m)
+                               + model.carried_moment_kg_m2)
             body.position = (x, y)
             body.angle = a
             shape = pymunk.Circle(body, model.body_radius_m)

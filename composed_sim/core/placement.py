@@ -70,14 +70,17 @@ def _place_group(gi: int, group: RobotGroup, radius: float, others: np.ndarray,
     fixed = _fixed_layout(p, group.count)
     # Grid and explicit layouts give the same positions on every draw: one trial says all.
     trials = 1 if fixed is not None else p.max_trials
+    # Explicit poses are taken as given (e.g. another simulator's, whose bodies may touch): only
+    # a real overlap is refused. Drawn ones keep a margin.
+    clearance = 0.0 if p.method == "explicit" else CLEARANCE_M
     placed, placed_radii = others, other_radii
     for _ in range(trials):
         if todo.size == 0:
             break
         cand = fixed[todo] if fixed is not None else _draw(p, group.count, todo.size, rng)
-        fits = statics.clear(cand, radius + CLEARANCE_M)
-        fits &= ~_overlaps(cand, radius, placed, placed_radii)
-        fits &= _first_of_each_clash(cand, radius, fits)
+        fits = statics.clear(cand, radius + clearance)
+        fits &= ~_overlaps(cand, radius, placed, placed_radii, clearance)
+        fits &= _first_of_each_clash(cand, radius, fits, clearance)
         out[todo[fits]] = cand[fits]
         placed = np.concatenate([placed, cand[fits]])
         placed_radii = np.concatenate([placed_radii, np.full(fits.sum(), radius)])
@@ -124,20 +127,21 @@ def _draw(p: Placement, count: int, k: int, rng: np.random.Generator) -> np.ndar
 
 
 def _overlaps(cand: np.ndarray, radius: float, placed: np.ndarray,
-              placed_radii: np.ndarray) -> np.ndarray:
+              placed_radii: np.ndarray, clearance: float = CLEARANCE_M) -> np.ndarray:
     """[k] bool: candidate closer than radius + r_j + clearance to some placed robot j."""
     hit = np.zeros(len(cand), dtype=bool)
     if len(cand) == 0 or len(placed) == 0:
         return hit
-    reach = radius + placed_radii.max() + CLEARANCE_M
+    reach = radius + placed_radii.max() + clearance
     pairs = cKDTree(cand).sparse_distance_matrix(cKDTree(placed), reach, output_type="ndarray")
     # Exact per-pair test: the tree used the largest radius, robots may differ in size.
-    close = pairs["v"] < radius + placed_radii[pairs["j"]] + CLEARANCE_M
+    close = pairs["v"] < radius + placed_radii[pairs["j"]] + clearance
     hit[pairs["i"][close]] = True
     return hit
 
 
-def _first_of_each_clash(cand: np.ndarray, radius: float, fits: np.ndarray) -> np.ndarray:
+def _first_of_each_clash(cand: np.ndarray, radius: float, fits: np.ndarray,
+                         clearance: float = CLEARANCE_M) -> np.ndarray:
     """[k] bool: False for a fitting candidate that clashes with an earlier kept one.
 
     Keeping the earlier of each clashing pair, as placing one robot after the other does.
@@ -147,7 +151,7 @@ def _first_of_each_clash(cand: np.ndarray, radius: float, fits: np.ndarray) -> n
     idx = np.flatnonzero(fits)
     if idx.size < 2:
         return keep
-    reach = 2 * radius + CLEARANCE_M
+    reach = 2 * radius + clearance
     pairs = cKDTree(cand[idx]).query_pairs(reach, output_type="ndarray")    # i < j
     if pairs.size == 0:
         return keep
@@ -253,6 +257,8 @@ def _draw_headings(group: RobotGroup, rng: np.random.Generator) -> np.ndarray:
         return np.pi - rng.uniform(0.0, 2 * np.pi, size=k)     # uniform in (-pi, pi]
     if h.method == "gaussian":
         return wrap_angle(rng.normal(h.value_rad, h.std_rad, size=k))
+    if h.method == "explicit":
+        return wrap_angle(np.asarray(h.values_rad, dtype=np.float64))
     return wrap_angle(np.full(k, h.value_rad))
 
 

@@ -1,13 +1,19 @@
 """Proximity: the IR ring, ARGoS's ``footbot_proximity_default_sensor.cpp`` and
 ``proximity_default_sensor.cpp`` (docs/architecture.md, "Proximity ring"), over all robots at once.
 
+The ring (where the rays are) belongs to the robot; how a ray's distance becomes a reading is the
+sensor's, as in ARGoS, where each sensor element (``footbot_proximity``, ``epuck_proximity``,
+``kheperaiv_proximity``, the generic ``proximity``) has its own ``CalculateReading`` over the same
+rays. A world file picks it with ``devices: {proximity: {model: generic}}``; without one the
+robot's own sensor's (``ProximityRing.calibration``) reads.
+
 ``/<r>/proximity``, sensor_msgs/LaserScan in base_link: one ray per sensor at the ring's angles;
 ranges = the nearest hit's distance from the rim (m, +inf: nothing within range), intensities =
 ARGoS's reading in [0, 1]. A controller's Tick: ``proximity`` and ``proximity_distances``.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Literal, Optional
 
 import numpy as np
@@ -25,8 +31,12 @@ from composed_sim.devices.common.topic import Topic, base_link
 
 NAME = "proximity"
 
-# How a proximity ray's distance becomes a reading; one calibration per robot family.
-ProximityCalibration = Literal["foot-bot", "e-puck", "exponential", "kheperaiv"]
+# How a proximity ray's distance becomes a reading: ARGoS's sensor elements, each its own model.
+#   foot-bot   footbot_proximity (footbot_proximity_default_sensor.cpp)
+#   e-puck     epuck_proximity (epuck_proximity_default_sensor.cpp)
+#   kheperaiv  kheperaiv_proximity (the Khepera IV plugin's kheperaiv_proximity_default_sensor.cpp)
+#   generic    proximity (proximity_default_sensor.cpp: exp(-d)), which any robot with a ring can run
+ProximityCalibration = Literal["foot-bot", "e-puck", "generic", "kheperaiv"]
 
 
 @dataclass(frozen=True)
@@ -42,6 +52,13 @@ class ProximityRing:
 
 class ProximityConfig(DeviceSwitch):
     noise: NonNegativeFloat = 0.0        # uniform(-noise, noise) on each reading
+    # The reading model (which ARGoS sensor element reads the ring); None: the robot's own.
+    model: Optional[ProximityCalibration] = None
+
+
+def ring_for(ring: ProximityRing, model: Optional[str]) -> ProximityRing:
+    """The ring read by the reading model ``model`` (None: its own)."""
+    return ring if model is None or model == ring.calibration else replace(ring, calibration=model)
 
 
 def footbot_proximity_reading(distances: np.ndarray) -> np.ndarray:
@@ -57,7 +74,7 @@ def epuck_proximity_reading(distances: np.ndarray) -> np.ndarray:
     return np.clip(value, 0.0, 1.0)
 
 
-def exponential_proximity_reading(distances: np.ndarray) -> np.ndarray:
+def generic_proximity_reading(distances: np.ndarray) -> np.ndarray:
     """[...] distance (m, inf = nothing) → [...] exp(-d), 0 for no hit: ARGoS's generic
     proximity_default_sensor.cpp CalculateReading."""
     return np.exp(-distances)
@@ -74,7 +91,7 @@ def kheperaiv_proximity_reading(distances: np.ndarray) -> np.ndarray:
 
 PROXIMITY_READINGS = {"foot-bot": footbot_proximity_reading, "e-puck": epuck_proximity_reading,
                       "kheperaiv": kheperaiv_proximity_reading,
-                      "exponential": exponential_proximity_reading}
+                      "generic": generic_proximity_reading}
 
 
 def proximity_ring(positions, headings, radii, heights, ring: ProximityRing, scene: StaticScene, *,
@@ -130,7 +147,8 @@ def proximity_ring(positions, headings, radii, heights, ring: ProximityRing, sce
 def read(s: Sensing, group: SensedGroup, out) -> None:
     """The group's readings into ``out`` (its GroupReadings)."""
     out.proximity_distances, out.proximity = proximity_ring(
-        s.positions, s.headings, s.radii, s.heights, group.model.proximity, s.scene,
+        s.positions, s.headings, s.radii, s.heights,
+        ring_for(group.model.proximity, group.settings.config(NAME).model), s.scene,
         noise=group.settings.config(NAME).noise, rng=s.noise(NAME, group), tree=s.tree,
         observers=s.observers(group))
 

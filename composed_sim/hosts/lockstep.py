@@ -227,6 +227,21 @@ class NodesExchange:
         return out
 
 
+def acted_commands(tick: int, commands: tuple[np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """The wheel commands that act in the step after ``tick``: ARGoS's tick order.
+
+    ARGoS's step is act, physics, media, then sense and control, so its first step applies the
+    actuators' initial zero command and its controllers first decide on the state after one step.
+    Here the controllers also answer tick 0 (the state before any step: their LEDs and payloads
+    act, as an ARGoS controller's ``Init`` settings do), but the first step drives no wheel; from
+    then on the answer to tick t acts in step t + 1, as in ARGoS. So a run's tick t is ARGoS's tick
+    t for the same file (docs/fidelity.md, "Tick order"), not its tick t + 1.
+    """
+    if tick == 0:
+        return np.zeros_like(commands[0]), np.zeros_like(commands[1])
+    return commands
+
+
 CHECKPOINT_EVERY = 100   # ticks between two checkpoints (docs/faults.md gives what one costs)
 
 
@@ -302,6 +317,7 @@ def run_lockstep(sim: Simulation, exchange: Exchange, wait_for_answers: Callable
             for robot, payload in exchange.take_rab_payloads().items():
                 sim.set_rab_payload(robot, payload)
             times.ros_exchange_s += time.perf_counter() - clock.started
+            commands = acted_commands(sim.tick, commands)
             sim.set_velocity_commands(*commands)
             previous = commands
             clock.lap("gathering_answers")

@@ -7,10 +7,14 @@ block's sensors from it in place and writes its robots' commands back into it. N
 is pickled or copied through a socket. The lockstep order makes it safe without locks: the main
 process writes only while every worker waits for the next tick, a worker writes only its own
 rows, and the main process reads the commands only once every worker has answered.
+
+The block is an anonymous memory file (``memfd_create``) whose descriptor the workers inherit:
+it has no name to leak, and goes away with the last process that maps it, a killed one included.
 """
 from __future__ import annotations
 
-from multiprocessing import resource_tracker, shared_memory
+import mmap
+import os
 from typing import Optional
 
 import numpy as np
@@ -29,24 +33,22 @@ def _layout(n: int, leds: int, payload_bytes: int) -> list[tuple[str, tuple, np.
 
 
 class SharedState:
-    """Numpy views over one shared-memory block (``create``: the main process's, which unlinks it)."""
+    """Numpy views over one shared memory file: the main process makes it (``fd`` None) and
+    passes ``fd`` on to the workers, which map the same file."""
 
-    def __init__(self, senses: Senses, payload_bytes: int, name: Optional[str] = None):
+    def __init__(self, senses: Senses, payload_bytes: int, fd: Optional[int] = None):
         layout = _layout(senses.n, senses.n_leds, payload_bytes)
-        size = sum(int(np.prod(shape)) * dtype.itemsize for _, shape, dtype in layout)
-        self.owner = name is None
-        self._shm = shared_memory.SharedMemory(name=name, create=self.owner, size=max(size, 1))
-        if not self.owner:
-            # Attaching registers the block with this process's resource tracker, which would
-            # unlink it when this worker ends: it is the main process's to remove.
-            resource_tracker.unregister(self._shm._name, "shared_memory")
-        self.name = self._shm.name
+        size = max(sum(int(np.prod(shape)) * dtype.itemsize for _, shape, dtype in layout), 1)
+        if fd is None:
+            fd = os.memfd_create("composed_sim_state", 0)     # not inherited but where passed on
+            os.ftruncate(fd, size)
+        self.fd = fd
+        self._map = mmap.mmap(fd, size)
         self.views: dict[str, np.ndarray] = {}
         offset = 0
         for key, shape, dtype in layout:
-            count = int(np.prod(shape))
-            self.views[key] = np.ndarray(shape, dtype, buffer=self._shm.buf, offset=offset)
-            offset += count * dtype.itemsize
+            self.views[key] = np.ndarray(shape, dtype, buffer=self._map, offset=offset)
+            offset += int(np.prod(shape)) * dtype.itemsize
 
     # --- the main process ---------------------------------------------------------------------
 
@@ -77,6 +79,5 @@ class SharedState:
 
     def close(self) -> None:
         self.views = {}
-        self._shm.close()
-        if self.owner:
-            self._shm.unlink()
+        self._map.close()
+        os.close(self.fd)

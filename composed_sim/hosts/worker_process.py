@@ -52,7 +52,7 @@ class WorkerSetup:
     domain_id: int
     participant_prefix: bytes  # the GUID prefix of the worker's one participant (ros/participants.py)
     scratch_dir: str           # where the worker may write its Fast DDS profile
-    shared_state: str          # the name of the shared-memory block of the world's state (shared_state.py)
+    shared_state: int          # the descriptor of the world's state in shared memory (shared_state.py)
     logs: Optional[object] = None   # node_logs.LogSettings: its robots' log files are written here
 
 
@@ -94,6 +94,7 @@ def main(argv: list[str] | None = None) -> int:
 
     from composed_sim import plugins
     from composed_sim.hosts.controllers import HostError
+    from composed_sim.hosts.lockstep import acted_commands
     from composed_sim.hosts.node_logs import NodeLogs
     from composed_sim.hosts.participant_groups import ParticipantGroups
     from composed_sim.core.senses import Senses
@@ -143,7 +144,7 @@ def main(argv: list[str] | None = None) -> int:
                 wait(lockstep.watchdog_s)
                 commands = (np.empty(m), np.empty(m))
                 exchange.close_tick(lockstep.fallback, previous, commands)
-                previous = commands
+                previous = acted_commands(frame.tick, commands)     # what the main process acts on
                 shared.write_commands(block, *commands)
                 answers = TickAnswers(frame.tick, exchange.take_led_commands(), exchange.take_rab_payloads())
                 answers.violations = [(v.tick, v.robot, v.reason) for v in node.violations[seen:]]

@@ -294,7 +294,7 @@ class WorkerHost(ControllersElsewhere):
         try:
             with open(log, "wb") as out:
                 popen = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=out, stderr=subprocess.STDOUT,
-                                         pass_fds=(theirs.fileno(),), process_group=0)
+                                         pass_fds=(theirs.fileno(), self.shared.fd), process_group=0)
         finally:
             signal.pthread_sigmask(signal.SIG_SETMASK, mask)
             theirs.close()
@@ -302,7 +302,7 @@ class WorkerHost(ControllersElsewhere):
         worker = Worker(index, start, stop, popen, conn, log)
         self.workers.append(worker)
         conn.send(("setup", WorkerSetup(self.world, start, stop, index, self.executor_kind, self.domain_id,
-                                        prefix, str(self._tmp), self.shared.name,
+                                        prefix, str(self._tmp), self.shared.fd,
                                         self.logs.settings if self.logs else None)))
 
     def _wait_ready(self, interrupted: Callable[[], bool]) -> tuple[int, list[list]]:

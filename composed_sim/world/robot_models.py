@@ -57,6 +57,10 @@ class RobotModel:
     led_positions_m: tuple[tuple[float, float, float], ...] = field(default=())
     # Devices a group of this model runs when its world file says nothing about them.
     default_devices: frozenset[str] = frozenset()
+    # A second body the 2D engine ties rigidly to the robot's (the foot-bot's gripper body):
+    # its mass and moment of inertia add to the robot's when it accelerates.
+    carried_mass_kg: float = 0.0
+    carried_moment_kg_m2: float = 0.0
 
     def __post_init__(self):
         for name, layout in self.layouts.items():
@@ -105,6 +109,12 @@ FOOTBOT = RobotModel.of(
     body_radius_m=0.085036758,          # footbot_entity.cpp BODY_RADIUS
     body_height_m=0.146899733,          # BODY_HEIGHT
     mass_kg=1.6,                        # dynamics2d_footbot_model.cpp
+    # dynamics2d_footbot_model.cpp also creates the gripper's body, cpBodyNew(m / 20,
+    # cpMomentForCircle(m, 0, R + R)), pinned to the base at its centre and geared to it: the
+    # drive accelerates 1.68 kg and twice the base's moment (measured: from rest at 10 cm/s ARGoS's
+    # foot-bot covers 8.8928 mm in its first tick, 1.6 kg alone 8.9375 mm).
+    carried_mass_kg=1.6 / 20.0,
+    carried_moment_kg_m2=1.6 * (2.0 * 0.085036758) ** 2 / 2.0,
     wheel_separation_m=0.14,            # INTERWHEEL_DISTANCE
     wheel_radius_m=0.029112741,         # WHEEL_RADIUS
     max_wheel_speed_mps=0.10,           # argos3-examples flocking: max_speed 10 cm/s
@@ -113,20 +123,26 @@ FOOTBOT = RobotModel.of(
     friction=0.7,
     proximity=ProximityRing(angles_rad=_ring_angles(7.5, 15.0, 24), range_m=0.10,
                             elevation_m=0.06),           # footbot_entity.cpp: proximity sensors at 6 cm
-    light=LightRing(angles_rad=_ring_angles(7.5, 15.0, 24)),
+    light=LightRing(angles_rad=_ring_angles(7.5, 15.0, 24), elevation_m=0.06, model="foot-bot"),
     camera=BlobCamera(height_m=0.288699733, aperture_rad=math.radians(70.0)),
     # docs/architecture.md "Motor ground sensor": the foot-bot's four sensors under the body.
     ground=GroundSensors(offsets_m=((0.063, 0.0116), (-0.063, 0.0116), (-0.063, -0.0116),
                                     (0.063, -0.0116))),
     # docs/architecture.md "Range and bearing": 0.1 m above the origin, 3 m default range.
     range_and_bearing=RangeAndBearingDevice(elevation_m=0.1, range_m=3.0),
-    # docs/architecture.md: 12 ring LEDs at r = 0.090 m, 15° + 30°·i, z = 0.085; beacon at z = 0.1742.
-    led_positions_m=_led_ring(0.090, 15.0, 12, 0.085) + ((0.0, 0.0, 0.1742),),
+    # footbot_entity.cpp: 12 ring LEDs at r = R + 5 mm, 15° + 30°·i, z = 0.085; the beacon at
+    # z = 0.174249733.
+    led_positions_m=_led_ring(0.085036758 + 0.005, 15.0, 12, 0.085) + ((0.0, 0.0, 0.174249733),),
     # The flocking experiments' sensor set; the others cost time and are switched on per world.
     default_devices=frozenset({PROXIMITY, LIGHT, CAMERA}),
 )
 
 # --- e-puck (ARGoS 3 core, plugins/robots/e-puck/simulator) --------------------------
+# epuck_entity.cpp's sensor_angle[0..7]: π divided by float constants (hence float32), each
+# normalised to (-π, π].
+EPUCK_PROXIMITY_ANGLES_RAD = tuple(
+    math.remainder(math.pi / float(np.float32(divisor)), 2.0 * math.pi)
+    for divisor in (10.5884, 3.5999, 2.0, 1.2, 0.8571, 0.6667, 0.5806, 0.5247))
 # Not in docs/architecture.md; numbers from ARGoS's own e-puck, as the reference's other robots.
 EPUCK = RobotModel.of(
     name="e-puck",
@@ -139,16 +155,20 @@ EPUCK = RobotModel.of(
     max_force_n=1.5,                    # dynamics2d_epuck_model.cpp EPUCK_MAX_FORCE
     max_torque_nm=1.5,                  # EPUCK_MAX_TORQUE
     friction=0.7,                       # dynamics2d_epuck_model.cpp: u = 0.7
-    # epuck_entity.cpp: 8 sensors on the rim from π/16, 45° apart, at 6 cm, 10 cm range;
-    # epuck_proximity_default_sensor.cpp: its own calibration (see sensors.proximity_reading).
-    proximity=ProximityRing(angles_rad=_ring_angles(22.5, 45.0, 8), range_m=0.10,
+    # epuck_entity.cpp: 8 sensors on the rim at 6 cm, 10 cm range, at the angles its active code
+    # lists one by one (π/10.5884, π/3.5999, π/2, π/1.2, …: about ±17°, ±50°, ±90°, ±150°, like the
+    # real robot's); its evenly spaced ring (22.5° + 45°·i) is commented out there.
+    # epuck_proximity_default_sensor.cpp: its own calibration (devices/proximity.py).
+    proximity=ProximityRing(angles_rad=EPUCK_PROXIMITY_ANGLES_RAD, range_m=0.10,
                             elevation_m=0.06, calibration="e-puck"),
-    light=LightRing(angles_rad=_ring_angles(22.5, 45.0, 8)),   # epuck_entity.cpp: same ring
+    # epuck_entity.cpp: the light sensors are the evenly spaced ring, π/8 + 45°·i, on the rim at
+    # 6 cm. ARGoS has no e-puck light sensor of its own: the generic ``light`` reads them.
+    light=LightRing(angles_rad=_ring_angles(22.5, 45.0, 8), elevation_m=0.06, model="generic"),
     ground=GroundSensors(offsets_m=((0.03, -0.009), (0.03, 0.0), (0.03, 0.009))),   # epuck_entity.cpp
     # epuck_entity.cpp: RAB at the LED ring's elevation, default rab_range 0.8 m.
     range_and_bearing=RangeAndBearingDevice(elevation_m=0.086, range_m=0.8),
-    # epuck_entity.cpp: 8 red ring LEDs at r = R + 7 mm from π/16, z = 0.086.
-    led_positions_m=_led_ring(0.035 + 0.007, 22.5, 8, 0.086),
+    # epuck_entity.cpp: 8 ring LEDs at r = R + 7 mm from π/16 (11.25°), 45° apart, z = 0.086.
+    led_positions_m=_led_ring(0.035 + 0.007, 11.25, 8, 0.086),
     default_devices=frozenset({PROXIMITY, GROUND}),
 )
 
@@ -193,11 +213,12 @@ THYMIO2 = RobotModel.of(
     max_torque_nm=1.5,
     friction=0.7,
     # Enki Thymio2: 5 front and 2 back horizontal IR sensors at these body points and
-    # directions, about 14 cm range, at the body's mid height. The reading follows ARGoS's
-    # generic proximity sensor (exp(-d)), which the ARGoS Thymio plugin uses as is.
+    # directions, about 14 cm range, at the body's mid height. The reading is ARGoS's generic
+    # proximity sensor's (exp(-d)). (The community ARGoS Thymio plugin, resilient-swarms/thymio,
+    # has other offsets, a 1 m range and a reading that saturates at 1 within it: not this model.)
     proximity=ProximityRing(angles_rad=tuple(a for _, a in _THYMIO_IR), range_m=0.14,
                             elevation_m=0.03, origins_m=tuple(p for p, _ in _THYMIO_IR),
-                            calibration="exponential"),
+                            calibration="generic"),
     ground=GroundSensors(offsets_m=((0.072, 0.012), (0.072, -0.012))),   # Enki Thymio2 ground sensors
     default_devices=frozenset({PROXIMITY, GROUND}),
 )
@@ -217,7 +238,8 @@ KHEPERAIV = RobotModel.of(
     # 8 IR sensors on the rim from the front, 45° apart, 14.5 mm up, 12 cm range, their own curve.
     proximity=ProximityRing(angles_rad=_ring_angles(0.0, 45.0, 8), range_m=0.12,
                             elevation_m=0.0145, calibration="kheperaiv"),
-    light=LightRing(angles_rad=_ring_angles(0.0, 45.0, 8)),      # the same IR ring
+    # The same IR ring; its own sensor, kheperaiv_light (kheperaiv_light_rotzonly_sensor.cpp).
+    light=LightRing(angles_rad=_ring_angles(0.0, 45.0, 8), elevation_m=0.0145, model="kheperaiv"),
     ground=GroundSensors(offsets_m=((0.0614, 0.01), (0.0206, 0.059), (0.0206, -0.059),
                                     (0.0614, -0.01))),
     range_and_bearing=RangeAndBearingDevice(elevation_m=0.0577, range_m=3.0),

@@ -188,11 +188,20 @@ class Placement(Strict):
 
 
 class Heading(Strict):
-    method: Literal["uniform", "constant", "gaussian"] = "uniform"
+    method: Literal["uniform", "constant", "gaussian", "explicit"] = "uniform"
     value_rad: float = 0.0      # constant, and the gaussian's mean
     std_rad: NonNegativeFloat = 0.5
     # uniform: over [low, high] rad (an ARGoS <orientation method="uniform"> range); None: the full circle
     range_rad: Optional[tuple[float, float]] = None
+    # explicit: exactly `count` headings, one per robot (e.g. the poses another simulator logged)
+    values_rad: Optional[list[float]] = None
+
+    @model_validator(mode="after")
+    def _explicit_values(self) -> Heading:
+        if (self.method == "explicit") != (self.values_rad is not None):
+            raise _invalid([(("values_rad",), "explicit headings need a `values_rad` list, and only "
+                             "method: explicit reads one", self.values_rad)])
+        return self
 
 
 class CameraConfig(Strict):
@@ -361,6 +370,10 @@ class RobotGroup(Strict):
         if positions is not None and len(positions) != self.count:
             raise _invalid([(("placement", "positions"), f"must list exactly count = "
                              f"{self.count} positions, lists {len(positions)}", positions)])
+        values = self.heading.values_rad
+        if values is not None and len(values) != self.count:
+            raise _invalid([(("heading", "values_rad"), f"must list exactly count = "
+                             f"{self.count} headings, lists {len(values)}", values)])
         model = MODELS[self.model]
         problems = [(("devices", name), f"the {self.model} has no {name} device (it has: "
                      f"{', '.join(d for d in model.devices if d in WITH_LAYOUT) or 'none'})",

@@ -198,3 +198,24 @@ def test_core_imports_no_ros():
     code = ("import sys, composed_sim.core.placement, composed_sim.world; "
             "assert not {'rclpy', 'matplotlib'} & set(sys.modules)")
     subprocess.run([sys.executable, "-c", code], check=True)
+
+
+def test_explicit_poses_are_taken_as_given_touching_but_not_overlapping():
+    # Another simulator's poses (ARGoS's, tests/fidelity): bodies may touch; only an overlap is refused.
+    touching = [[0.0, 0.0], [2 * R, 0.0]]
+    w = world({"count": 2, "placement": {"method": "explicit", "positions": touching},
+               "heading": {"method": "explicit", "values_rad": [0.5, 4.0]}},
+              obstacles=[{"type": "cylinder", "position": [-R - 0.1, 0.0], "radius_m": 0.1}])
+    pos, head = place_robots(w, rng())
+    assert pos.tolist() == touching
+    np.testing.assert_allclose(head, [0.5, 4.0 - 2 * math.pi])      # brought into (-π, π]
+    overlapping = world({"count": 2, "placement": {"method": "explicit", "positions": [[0, 0], [2 * R - 1e-4, 0]]}})
+    with pytest.raises(PlacementError):
+        place_robots(overlapping, rng())
+
+
+def test_explicit_headings_need_one_per_robot():
+    with pytest.raises(Exception, match="values_rad"):
+        world({"count": 3, "heading": {"method": "explicit", "values_rad": [0.0, 1.0]}})
+    with pytest.raises(Exception, match="values_rad"):
+        world({"count": 2, "heading": {"method": "explicit"}})

@@ -28,16 +28,26 @@ def test_epuck_calibration_is_argos_quadratic_clamped():
     assert epuck_proximity_reading(np.array([0.03]))[0] == pytest.approx(0.2440679, abs=1e-7)
 
 
+def test_epuck_ring_is_argos_active_layout():
+    # epuck_entity.cpp's active code: π / 10.5884, π / 3.5999, π/2, π/1.2, π/0.8571, π/0.6667,
+    # π/0.5806, π/0.5247 (normalised): about 17°, 50°, 90°, 150°, -150°, -90°, -50°, -17°.
+    degrees = np.degrees(EPUCK.proximity.angles_rad)
+    np.testing.assert_allclose(degrees, [17.0, 50.0, 90.0, 150.0, -150.0, -90.0, -50.0, -17.0], atol=0.06)
+    assert degrees[0] == pytest.approx(180.0 / 10.5884, rel=1e-6)
+
+
 def test_epuck_ring_sees_a_wall_with_its_front_sensors():
-    # e-puck at the origin facing +x; wall face 4 cm in front of the rim. Sensors at ±22.5°.
+    # e-puck at the origin facing +x; wall face 4 cm in front of the rim. The sensors at about
+    # ±17° and ±50° reach it within their 10 cm; the side (±90°) and back (±150°) ones do not.
     dist, read = proximity_ring(np.zeros((1, 2)), np.zeros(1), np.array([EPUCK.body_radius_m]),
                                 np.array([EPUCK.body_height_m]), EPUCK.proximity,
                                 wall_at_x(EPUCK.body_radius_m + 0.04))
-    a = math.radians(22.5)
-    along = (EPUCK.body_radius_m + 0.04 - EPUCK.body_radius_m * math.cos(a)) / math.cos(a)
-    np.testing.assert_allclose(dist[0, [0, 7]], along)
-    np.testing.assert_allclose(read[0, [0, 7]], epuck_proximity_reading(np.array([along, along])))
-    assert np.isinf(dist[0, 1:7]).all() and not read[0, 1:7].any()
+    a = np.abs(np.asarray(EPUCK.proximity.angles_rad)[[0, 1, 6, 7]])
+    along = (EPUCK.body_radius_m + 0.04 - EPUCK.body_radius_m * np.cos(a)) / np.cos(a)
+    assert along[0] == pytest.approx(0.0434, abs=1e-4) and along[1] == pytest.approx(0.0817, abs=1e-4)
+    np.testing.assert_allclose(dist[0, [0, 1, 6, 7]], along)
+    np.testing.assert_allclose(read[0, [0, 1, 6, 7]], epuck_proximity_reading(along))
+    assert np.isinf(dist[0, 2:6]).all() and not read[0, 2:6].any()
 
 
 def test_thymio_sensors_start_at_their_body_points():

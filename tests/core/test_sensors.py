@@ -332,9 +332,10 @@ def beacons(n, color=RED):
 def test_led_world_positions():
     p = led_world_positions(np.array([[1.0, 2.0]]), np.array([math.pi / 2]), LEDS)
     assert p.shape == (1, 13, 3)
-    np.testing.assert_allclose(p[0, 12], [1, 2, 0.1742])
+    np.testing.assert_allclose(p[0, 12], [1, 2, 0.174249733])
     a = math.radians(15 + 90)
-    np.testing.assert_allclose(p[0, 0], [1 + 0.09 * math.cos(a), 2 + 0.09 * math.sin(a), 0.085], atol=1e-12)
+    r = 0.085036758 + 0.005      # footbot_entity.cpp: the body radius + 5 mm
+    np.testing.assert_allclose(p[0, 0], [1 + r * math.cos(a), 2 + r * math.sin(a), 0.085], atol=1e-12)
 
 
 def test_blob_square_window_not_circle():
@@ -363,7 +364,8 @@ def test_blob_angles_distances_order_own_and_black_leds():
     assert angles[1] == pytest.approx(-math.pi / 4) and dist[1] == pytest.approx(math.sqrt(2))
     assert angles[2] == pytest.approx(math.pi / 2) and dist[2] == pytest.approx(0.5)
     a7 = math.radians(15 + 30 * 7)
-    led7 = (1 + 0.09 * math.cos(a7), 1 + 0.09 * math.sin(a7))
+    r = 0.085036758 + 0.005                   # footbot_entity.cpp: the ring LEDs' radius
+    led7 = (1 + r * math.cos(a7), 1 + r * math.sin(a7))
     assert dist[0] == pytest.approx(math.hypot(*led7))
     assert angles[0] == pytest.approx(math.atan2(led7[1], led7[0]) - math.pi / 2)
     # Robot 1 sees robot 0's beacon and the ring LEDs on the side facing it: as in ARGoS, robot
@@ -375,7 +377,7 @@ def test_blob_angles_distances_order_own_and_black_leds():
         centre_dist = math.hypot(*centre)
         assert any(math.isclose(seen_dist[k], centre_dist) for k in green)   # the beacon
         # Nothing beyond the LEDs abreast of the centre (distance² = d² + r²): the far side is hidden.
-        assert seen_dist[green].max() <= math.hypot(centre_dist, 0.09) + 1e-9
+        assert seen_dist[green].max() <= math.hypot(centre_dist, r) + 1e-9
         assert seen_dist[green].min() < centre_dist - 0.05                   # the facing side is seen
     # robot 1 does not see robot 2's beacon: dx = -1.5 exactly, not < 1.5
     assert RED not in [tuple(c) for c in b.of(1)[2]]
@@ -395,11 +397,12 @@ def test_ring_led_hidden_by_a_robot_in_between_while_the_beacon_stays_visible():
     # beacon: the camera→beacon segment stays above C (z ≈ 0.19 > 0.147 over C)
     assert any(d == pytest.approx(1.0) for d in seen[1])
     # the ring LEDs facing A (165° and 195°, at x ≈ 0.913) are hidden by C
-    near = math.hypot(1.0 + 0.09 * math.cos(math.radians(165)), 0.09 * math.sin(math.radians(165)))
+    r = 0.085036758 + 0.005                   # footbot_entity.cpp: the ring LEDs' radius
+    near = math.hypot(1.0 + r * math.cos(math.radians(165)), r * math.sin(math.radians(165)))
     assert not any(d == pytest.approx(near, abs=1e-9) for d in seen[1])
     without_c = camera([(0, 0), (1.0, 0), (5, 5)], np.zeros(3), colors, half_w=1.5).of(0)
     # B's own body hides its far-side ring LEDs (as in ARGoS); the beacon and near side remain.
-    assert 3 <= len(without_c[1]) < 13 and max(without_c[1]) <= math.hypot(1.0, 0.09) + 1e-9
+    assert 3 <= len(without_c[1]) < 13 and max(without_c[1]) <= math.hypot(1.0, r) + 1e-9
     assert len(seen[1]) < 13
 
 

@@ -75,10 +75,13 @@ def test_a_tick_publishes_waits_closes_then_acts_and_the_physics_follows_the_com
     assert exchange.calls[-1] == ("clock", 6)         # the state after the last tick, on /clock alone
     assert result.trajectories.positions.shape == (7, 4, 2) and not result.interrupted
     assert [(v.tick, v.robot) for v in result.violations] == [(3, "bot0")]
-    # The same commands given to a Simulation directly give the same trajectories, bit for bit.
+    # The same commands given to a Simulation directly give the same trajectories, bit for bit; the
+    # first step applies the initial zero command, as ARGoS's (hosts/lockstep.acted_commands).
+    assert (result.trajectories.positions[1] == result.trajectories.positions[0]).all()
     alone = Simulation(w)
     for t in range(6):
-        alone.set_velocity_commands(0.05 * np.arange(4) / 4, np.full(4, 0.2))
+        scale = 0.0 if t == 0 else 1.0
+        alone.set_velocity_commands(scale * 0.05 * np.arange(4) / 4, np.full(4, 0.2 * scale))
         if t == 2:
             alone.set_led_colors(1, np.tile([0, 0, 255], (13, 1)).astype(np.uint8))
         alone.step()

@@ -212,7 +212,7 @@ WHEELS = "      wheels: {factor_std: 0.1, bias_std_mps: 0.002}\n"
 
 
 @pytest.mark.parametrize("shipped, after, lines", [
-    (FLOCKING, "    heading:\n      method: uniform        # uniform in (-pi, pi]\n",
+    (FLOCKING, "      aperture_deg: 80.0\n",
      "    devices:\n      proximity: {noise: 0.05}\n      light: {noise: 0.05}\n      camera: {noise_std: 0.05}\n"
      "      positioning: {position_noise_m: 0.01, yaw_noise_rad: 0.02}\n" + WHEELS),
     (FIREFLY, "        range_m: 0.9         # grid neighbours (0.6 m) and diagonals (0.85 m), no further\n",
