@@ -33,7 +33,9 @@ from composed_sim.hosts.lockstep import NodesExchange
 from composed_sim.hosts.node_logs import NodeLogs
 from composed_sim.hosts.run_wide_nodes import SETTLE_ROUNDS, RunWideNodes
 from composed_sim.ros import contract as c
-from composed_sim.ros.answer_subscription import cmd_vel_gids
+from composed_sim.ros.answer_subscription import cmd_vel_gids, publisher_gid
+from composed_sim.ros import in_process
+from composed_sim.ros.in_process import Link, link_answers, link_subscriptions
 from composed_sim.ros.lockstep_executor import LockstepExecutor
 from composed_sim.ros.participants import ignore_participants_of_this_process
 from composed_sim.ros.robot_settings import robot_settings
@@ -83,6 +85,7 @@ class ParticipantGroups:
         self._quiet_robots = False                          # any robot that answers when published?
         self._calls_at_open: dict[str, int] = {}            # guard.calls_of when the tick opened
         self.exchange: Optional[NodesExchange] = None
+        self.links: list[Link] = []                         # in-process paths (ros/in_process.py)
         self.executor: Optional[Executor] = None
         self.guard: Optional[CallbackGuard] = None
         self._spin_thread: Optional[threading.Thread] = None
@@ -107,6 +110,7 @@ class ParticipantGroups:
                 robot, type(node), node.get_logger().name, error, skip="hosts/callback_guard.py")
         names, groups = world.robot_names(), world.group_of_robot()
         robots = frozenset(names)
+        first_robots = []                    # per group: the index of its first robot in robot_nodes
         for k, first in enumerate(range(self.start, self.stop, self.robots_per_participant)):
             block = range(first, min(self.stop, first + self.robots_per_participant))
             context = Context()
@@ -119,6 +123,7 @@ class ParticipantGroups:
             # The nodes first: the simulator node subscribes to each robot's cmd_vel with the
             # type its nodes publish (one participant allows one type per topic).
             first_robot = len(self.robot_nodes)
+            first_robots.append(first_robot)
             for i in block:
                 built = create_robot_nodes(world, groups[i], names[i], context, classes=classes, relay=self.relay,
                                            origin=i, robots=robots, logs=logs)
@@ -159,6 +164,23 @@ class ParticipantGroups:
                 for i, nodes in zip(range(self.start, self.stop), self.robot_nodes)}
         for sim_node in self.simulator_nodes:
             sim_node.note_controllers(gids)
+        self._link_in_process(first_robots)
+
+    def _link_in_process(self, first_robots: list[int]) -> None:
+        """With the lockstep executor, which takes from inboxes: each group's sensor messages go
+        straight to its robots' nodes while nothing else listens (ros/in_process.py)."""
+        if not (isinstance(self.executor, LockstepExecutor) and in_process.enabled()):
+            return
+        for sim_node, first, end in zip(self.simulator_nodes, first_robots, [*first_robots[1:], len(self.robot_nodes)]):
+            subscriptions = [s for nodes in self.robot_nodes[first:end] for node in nodes for s in node.subscriptions]
+            self.links += link_subscriptions(sim_node.sensor_publishers(), subscriptions)
+            for robot, nodes in zip(sim_node.robots, self.robot_nodes[first:end]):
+                answers = sim_node.answer_subscription(robot)
+                if answers is not None:
+                    cmd_vel = c.topic_name(robot, c.CMD_VEL)
+                    self.links += link_answers([p for node in nodes for p in node.publishers if p.topic_name == cmd_vel],
+                                               answers, publisher_gid)
+        self.executor.wake()     # its walk picks the inboxes up
 
     # --- run-wide topics, at the tick's edges (ros/run_wide.py) --------------------------------
 

@@ -219,6 +219,10 @@ class SimulatorNode(Node):
         host before tick 0: the only publishers whose answers move the robot (docs/faults.md)."""
         self._controllers.set([frozenset(gids[name]) if gids.get(name) else None for name in self._names])
 
+    def sensor_publishers(self) -> list:
+        """Every robot's sensor publishers, robot by robot."""
+        return [p for pubs in self._sensor_pubs for p in pubs]
+
     def answer_subscription(self, robot: str) -> Optional[AnswerSubscription]:
         """``robot``'s cmd_vel subscription (None until its answer type is known)."""
         return self._cmd_subs[self._index[robot]]

@@ -1,0 +1,155 @@
+"""In-process delivery: a hosted publisher hands its message straight to the hosted subscriptions
+of its topic while nothing outside them listens; DDS carries it as soon as anything else does.
+
+Inside one participant, a message costs an rclpy ``publish`` (serialize, write into the DDS
+history, deliver to each matched reader) and a ``take`` per subscription, all under the GIL: most
+of the host's cost per robot-tick (docs/speed.md, "Host cost per robot-tick"). A robot's sensor
+messages go from the simulator node to that robot's nodes, and its answers back, all in this
+process; when the publisher's matched subscriptions are exactly the linked ones, an inbox per
+subscription does the same job for a fraction of the cost.
+
+What a user sees through ROS does not change:
+
+- every publisher and subscription still exists on DDS; the graph, the matching and the matched
+  counts are DDS's own;
+- each ``publish`` asks DDS for the publisher's matched count (an O(1) call): once it exceeds the
+  linked subscriptions (a recorder, ``ros2 topic echo``, Foxglove, another hosted node that
+  subscribed later), or falls short of them (a linked one no longer matches), the message goes
+  through DDS as before, and the linked subscriptions take it from there; so an outside
+  listener hears every message published from its match on, as with DDS alone;
+- a subscription is linked only when DDS would deliver every message to it and its callback needs
+  nothing DDS adds: the publisher's type, a QoS that matches any volatile publisher of the topic
+  (volatile, no deadline, lifespan or manual liveliness), a callback of the message alone, a node
+  that the lockstep executor walks (which takes from the inbox as it takes from DDS, in the same
+  order: runs are identical either way). Its inbox keeps the last ``depth`` messages (keep-last),
+  as the subscription's DDS history does;
+- a linked subscription gets the published bytes (``raw=True``) or a message deserialized from
+  them: its own copy, as from DDS.
+"""
+from __future__ import annotations
+
+import os
+from collections import deque
+from typing import Callable, Iterable, Optional, Sequence
+
+from rclpy.publisher import Publisher
+from rclpy.qos import (DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSProfile,
+                       ReliabilityPolicy)
+from rclpy.serialization import deserialize_message, serialize_message
+from rclpy.subscription import Subscription
+
+# Set to 0 to send every hosted message through DDS (a comparison, or a suspected link).
+SWITCH_ENV = "COMPOSED_SIM_IN_PROCESS"
+_INBOX = "in_process_inbox"      # the attribute of a linked subscription that holds its Inbox
+_DEFAULT_DURATION = QoSProfile(depth=1).deadline  # "not set": no deadline, lifespan, lease
+
+
+class Inbox:
+    """A linked subscription's queue of serialized messages, keep-last ``depth`` (0: keep all)."""
+
+    __slots__ = ("queue", "take")
+
+    def __init__(self, depth: int, msg_type: Optional[type]):
+        self.queue: deque = deque(maxlen=depth or None)
+        popleft = self.queue.popleft
+        # What the subscription's callback gets: the bytes (raw), or its own message object.
+        self.take: Callable[[], object] = popleft if msg_type is None \
+            else (lambda: deserialize_message(popleft(), msg_type))
+
+
+def enabled() -> bool:
+    return os.environ.get(SWITCH_ENV, "1") != "0"
+
+
+def inbox_of(subscription) -> Optional[Inbox]:
+    """The subscription's inbox, if it is linked (the lockstep executor's walk asks once)."""
+    return getattr(subscription, _INBOX, None)
+
+
+def _plain_qos(qos: QoSProfile) -> bool:
+    """Matches every volatile publisher's offer (reliable or not), and adds nothing DDS would
+    enforce on the way: no deadline, lifespan or manual liveliness."""
+    return (qos.durability in (DurabilityPolicy.VOLATILE, DurabilityPolicy.SYSTEM_DEFAULT)
+            and qos.liveliness in (LivelinessPolicy.AUTOMATIC, LivelinessPolicy.SYSTEM_DEFAULT)
+            and qos.deadline == _DEFAULT_DURATION and qos.lifespan == _DEFAULT_DURATION)
+
+
+def _depth(qos: QoSProfile) -> int:
+    return 0 if qos.history == HistoryPolicy.KEEP_ALL else qos.depth
+
+
+def linkable(subscription: Subscription, publisher: Publisher) -> bool:
+    """Would DDS hand this subscription every message of ``publisher`` as the link does?"""
+    return subscription._callback_type is Subscription.CallbackType.MessageOnly \
+        and receives_all(subscription.msg_type, subscription.qos_profile, publisher)
+
+
+def receives_all(msg_type: type, qos: QoSProfile, publisher: Publisher) -> bool:
+    """Does a subscription of ``msg_type`` and ``qos`` get every message of ``publisher`` as
+    the link hands it over, with nothing DDS would add (a transient-local publisher's history
+    for a late outside subscriber, a deadline, a lifespan)?"""
+    if msg_type is not publisher.msg_type:
+        return False
+    offered = publisher.qos_profile
+    if offered.durability == DurabilityPolicy.TRANSIENT_LOCAL or not _plain_qos(offered):
+        return False
+    if offered.reliability == ReliabilityPolicy.BEST_EFFORT and qos.reliability != ReliabilityPolicy.BEST_EFFORT:
+        return False
+    return _plain_qos(qos)
+
+
+class Link:
+    """One publisher's in-process path to its topic's linked subscriptions: installed as the
+    publisher's ``publish``, it checks the matched count on every message (the rule above)."""
+
+    def __init__(self, publisher: Publisher, queues: Sequence[deque],
+                 wrap: Callable[[bytes], object] = lambda data: data):
+        """``queues``: the linked subscriptions' queues; ``wrap``: what goes into them of the
+        message's bytes (the answer subscription keeps the publisher's GID beside them)."""
+        self._through_dds = publisher.publish        # the original: rclpy's publish
+        self._matched = publisher.handle.get_subscription_count
+        self._msg_type = publisher.msg_type
+        self._queues = tuple(queues)
+        self._linked = len(self._queues)
+        self._wrap = wrap
+        self.in_process = 0                          # messages delivered in process (tests)
+        publisher.publish = self.publish
+
+    def publish(self, msg) -> None:
+        if self._matched() != self._linked:
+            self._through_dds(msg)
+            return
+        if isinstance(msg, self._msg_type):
+            msg = serialize_message(msg)
+        elif not isinstance(msg, bytes):
+            self._through_dds(msg)                   # rclpy's TypeError
+            return
+        item = self._wrap(msg)
+        for queue in self._queues:
+            queue.append(item)
+        self.in_process += 1
+
+
+def link_subscriptions(publishers: Iterable[Publisher], subscriptions: Iterable[Subscription]) -> list[Link]:
+    """Link each publisher to the subscriptions of its topic among ``subscriptions`` (nodes that a
+    lockstep executor walks), where every one of them is linkable; the others stay on DDS."""
+    by_topic: dict[str, list[Subscription]] = {}
+    for sub in subscriptions:
+        by_topic.setdefault(sub.topic_name, []).append(sub)
+    links = []
+    for publisher in publishers:
+        subs = by_topic.get(publisher.topic_name)
+        if not subs or not all(linkable(s, publisher) for s in subs):
+            continue
+        for sub in subs:
+            if inbox_of(sub) is None:
+                setattr(sub, _INBOX, Inbox(_depth(sub.qos_profile), None if sub.raw else sub.msg_type))
+        links.append(Link(publisher, [inbox_of(s).queue for s in subs]))
+    return links
+
+
+def link_answers(publishers: Iterable[Publisher], answers, gid_of: Callable[[Publisher], bytes]) -> list[Link]:
+    """Link a robot's cmd_vel ``publishers`` to the simulator node's answer subscription
+    (ros/answer_subscription.py), which takes (bytes, publisher GID) from its inbox first."""
+    return [Link(p, [answers.inbox], lambda data, gid=gid_of(p): (data, gid)) for p in publishers
+            if receives_all(answers.msg_type, answers.qos, p)]
