@@ -45,16 +45,29 @@ _DEFAULT_DURATION = QoSProfile(depth=1).deadline  # "not set": no deadline, life
 
 
 class Inbox:
-    """A linked subscription's queue of serialized messages, keep-last ``depth`` (0: keep all)."""
+    """A linked subscription's queue of serialized messages, keep-last ``depth`` (0: keep all),
+    and what tells whether DDS may hold messages for it too: a publisher that is not linked (one
+    in another process, say) or a linked one that went through DDS (someone else listens)."""
 
-    __slots__ = ("queue", "take")
+    __slots__ = ("queue", "take", "links", "via_dds", "_matched")
 
-    def __init__(self, depth: int, msg_type: Optional[type]):
+    def __init__(self, depth: int, msg_type: Optional[type], matched_publishers: Callable[[], int]):
+        """``matched_publishers``: the subscription's matched count (O(1), from DDS)."""
         self.queue: deque = deque(maxlen=depth or None)
         popleft = self.queue.popleft
         # What the subscription's callback gets: the bytes (raw), or its own message object.
         self.take: Callable[[], object] = popleft if msg_type is None \
             else (lambda: deserialize_message(popleft(), msg_type))
+        self.links = 0                 # publishers linked to it
+        self.via_dds = False           # a linked publisher sent through DDS since DDS was last empty
+        self._matched = matched_publishers
+
+    def dds_may_hold(self) -> bool:
+        """Must the subscription also take from DDS? Once a take finds nothing, ``emptied``."""
+        return self.via_dds or self._matched() != self.links
+
+    def emptied(self) -> None:
+        self.via_dds = False
 
 
 def enabled() -> bool:
@@ -102,21 +115,26 @@ class Link:
     """One publisher's in-process path to its topic's linked subscriptions: installed as the
     publisher's ``publish``, it checks the matched count on every message (the rule above)."""
 
-    def __init__(self, publisher: Publisher, queues: Sequence[deque],
+    def __init__(self, publisher: Publisher, inboxes: Sequence[Inbox],
                  wrap: Callable[[bytes], object] = lambda data: data):
-        """``queues``: the linked subscriptions' queues; ``wrap``: what goes into them of the
+        """``inboxes``: the linked subscriptions'; ``wrap``: what goes into them of the
         message's bytes (the answer subscription keeps the publisher's GID beside them)."""
         self._through_dds = publisher.publish        # the original: rclpy's publish
         self._matched = publisher.handle.get_subscription_count
         self._msg_type = publisher.msg_type
-        self._queues = tuple(queues)
-        self._linked = len(self._queues)
+        self._inboxes = tuple(inboxes)
+        self._queues = tuple(inbox.queue for inbox in self._inboxes)
+        self._linked = len(self._inboxes)
+        for inbox in self._inboxes:
+            inbox.links += 1
         self._wrap = wrap
         self.in_process = 0                          # messages delivered in process (tests)
         publisher.publish = self.publish
 
     def publish(self, msg) -> None:
         if self._matched() != self._linked:
+            for inbox in self._inboxes:
+                inbox.via_dds = True
             self._through_dds(msg)
             return
         if isinstance(msg, self._msg_type):
@@ -143,8 +161,9 @@ def link_subscriptions(publishers: Iterable[Publisher], subscriptions: Iterable[
             continue
         for sub in subs:
             if inbox_of(sub) is None:
-                setattr(sub, _INBOX, Inbox(_depth(sub.qos_profile), None if sub.raw else sub.msg_type))
-        links.append(Link(publisher, [inbox_of(s).queue for s in subs]))
+                setattr(sub, _INBOX, Inbox(_depth(sub.qos_profile), None if sub.raw else sub.msg_type,
+                                           sub.handle.get_publisher_count))
+        links.append(Link(publisher, [inbox_of(s) for s in subs]))
     return links
 
 

@@ -121,15 +121,17 @@ class LockstepExecutor(SingleThreadedExecutor):
             if inbox is not None and inbox.queue:     # linked: its callback takes the message alone
                 entity.callback(inbox.take())
                 handled += 1
-                if once:
-                    continue
-                while inbox.queue:
+                while not once and inbox.queue:
                     entity.callback(inbox.take())
                     handled += 1
+                if not inbox.dds_may_hold():
+                    continue
             while True:
                 with handle:
                     taken = handle.take_message(msg_type, raw)
                 if taken is None:
+                    if inbox is not None:
+                        inbox.emptied()
                     break
                 if message_only:
                     entity.callback(taken[0])
