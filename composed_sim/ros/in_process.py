@@ -119,8 +119,9 @@ class Link:
                  wrap: Callable[[bytes], object] = lambda data: data):
         """``inboxes``: the linked subscriptions'; ``wrap``: what goes into them of the
         message's bytes (the answer subscription keeps the publisher's GID beside them)."""
+        self.topic = publisher.topic_name
         self._through_dds = publisher.publish        # the original: rclpy's publish
-        self._matched = publisher.handle.get_subscription_count
+        self.matched = self._matched = publisher.handle.get_subscription_count
         self._msg_type = publisher.msg_type
         self._inboxes = tuple(inboxes)
         self._queues = tuple(inbox.queue for inbox in self._inboxes)
