@@ -8,7 +8,8 @@ then costs O(E²/K) instead of O(E²). Processes outside still discover every gr
 
 The single-process composed host holds every robot's groups; each worker process of the worker
 host holds its block's (hosts/workers.py). Either way, every per-robot message stays inside a
-participant and goes through rclpy publish and take, and the robots are numbered from the start
+participant (with the lockstep executor, a robot's sensors and answers are handed over in process
+while nothing else listens: ros/in_process.py), and the robots are numbered from the start
 of the block: the SensorFrame handed to ``exchange.publish_tick`` covers the block only.
 """
 from __future__ import annotations
@@ -35,7 +36,7 @@ from composed_sim.hosts.run_wide_nodes import SETTLE_ROUNDS, RunWideNodes
 from composed_sim.ros import contract as c
 from composed_sim.ros.answer_subscription import cmd_vel_gids, publisher_gid
 from composed_sim.ros import in_process
-from composed_sim.ros.in_process import Link, link_answers, link_subscriptions
+from composed_sim.ros.in_process import GraphWatch, Link, inbox_of, link_answers, link_subscriptions
 from composed_sim.ros.lockstep_executor import LockstepExecutor
 from composed_sim.ros.participants import ignore_participants_of_this_process
 from composed_sim.ros.robot_settings import robot_settings
@@ -86,6 +87,7 @@ class ParticipantGroups:
         self._calls_at_open: dict[str, int] = {}            # guard.calls_of when the tick opened
         self.exchange: Optional[NodesExchange] = None
         self.links: list[Link] = []                         # in-process paths (ros/in_process.py)
+        self._graph_watches: list[GraphWatch] = []          # per group: when to ask for matched counts
         self.executor: Optional[Executor] = None
         self.guard: Optional[CallbackGuard] = None
         self._spin_thread: Optional[threading.Thread] = None
@@ -173,13 +175,18 @@ class ParticipantGroups:
             return
         for sim_node, first, end in zip(self.simulator_nodes, first_robots, [*first_robots[1:], len(self.robot_nodes)]):
             subscriptions = [s for nodes in self.robot_nodes[first:end] for node in nodes for s in node.subscriptions]
-            self.links += link_subscriptions(sim_node.sensor_publishers(), subscriptions)
+            links = link_subscriptions(sim_node.sensor_publishers(), subscriptions)
+            inboxes = [inbox_of(s) for s in subscriptions if inbox_of(s) is not None]
             for robot, nodes in zip(sim_node.robots, self.robot_nodes[first:end]):
                 answers = sim_node.answer_subscription(robot)
                 if answers is not None:
                     cmd_vel = c.topic_name(robot, c.CMD_VEL)
-                    self.links += link_answers([p for node in nodes for p in node.publishers if p.topic_name == cmd_vel],
-                                               answers, publisher_gid)
+                    linked = link_answers([p for node in nodes for p in node.publishers if p.topic_name == cmd_vel],
+                                          answers, publisher_gid)
+                    links += linked
+                    inboxes += [answers.inbox] if linked else []
+            self.links += links
+            self._graph_watches.append(GraphWatch(sim_node, links, inboxes))
         self.executor.wake()     # its walk picks the inboxes up
 
     # --- run-wide topics, at the tick's edges (ros/run_wide.py) --------------------------------
@@ -188,6 +195,9 @@ class ParticipantGroups:
         """Before tick ``tick``'s sensors: the nodes' timers that do not wait for sensors move to
         the tick's time, and the run-wide messages of the batch reach their subscribers."""
         now_ns = tick * self.world.tick_ns
+        now = time.monotonic()
+        for watch in self._graph_watches:
+            watch.start_tick(now)
         if self._quiet_robots:
             self._calls_at_open = dict(self.guard.calls_of)
         if self.logs is not None:

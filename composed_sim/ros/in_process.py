@@ -38,6 +38,8 @@ from rclpy.qos import (DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSPro
 from rclpy.serialization import deserialize_message, serialize_message
 from rclpy.subscription import Subscription
 
+from composed_sim.ros.rcl_graph import guard_condition_poll
+
 # Set to 0 to send every hosted message through DDS (a comparison, or a suspected link).
 SWITCH_ENV = "COMPOSED_SIM_IN_PROCESS"
 _INBOX = "in_process_inbox"      # the attribute of a linked subscription that holds its Inbox
@@ -49,7 +51,7 @@ class Inbox:
     and what tells whether DDS may hold messages for it too: a publisher that is not linked (one
     in another process, say) or a linked one that went through DDS (someone else listens)."""
 
-    __slots__ = ("queue", "take", "links", "via_dds", "_matched")
+    __slots__ = ("queue", "take", "links", "via_dds", "checking", "_foreign", "_matched")
 
     def __init__(self, depth: int, msg_type: Optional[type], matched_publishers: Callable[[], int]):
         """``matched_publishers``: the subscription's matched count (O(1), from DDS)."""
@@ -60,11 +62,15 @@ class Inbox:
             else (lambda: deserialize_message(popleft(), msg_type))
         self.links = 0                 # publishers linked to it
         self.via_dds = False           # a linked publisher sent through DDS since DDS was last empty
+        self.checking = True           # ask DDS on every call (else: its last answer; ``GraphWatch``)
+        self._foreign = True
         self._matched = matched_publishers
 
     def dds_may_hold(self) -> bool:
         """Must the subscription also take from DDS? Once a take finds nothing, ``emptied``."""
-        return self.via_dds or self._matched() != self.links
+        if self.checking:
+            self._foreign = self._matched() != self.links
+        return self.via_dds or self._foreign
 
     def emptied(self) -> None:
         self.via_dds = False
@@ -130,10 +136,18 @@ class Link:
             inbox.links += 1
         self._wrap = wrap
         self.in_process = 0                          # messages delivered in process (tests)
+        self.checking = True                         # ask DDS on every message (else: its last answer)
+        self._direct = False
         publisher.publish = self.publish
 
+    def publish_check(self) -> None:
+        """Ask DDS now whether the next messages may go in process."""
+        self._direct = self._matched() == self._linked
+
     def publish(self, msg) -> None:
-        if self._matched() != self._linked:
+        if self.checking:
+            self._direct = self._matched() == self._linked
+        if not self._direct:
             for inbox in self._inboxes:
                 inbox.via_dds = True
             self._through_dds(msg)
@@ -166,6 +180,44 @@ def link_subscriptions(publishers: Iterable[Publisher], subscriptions: Iterable[
                                            sub.handle.get_publisher_count))
         links.append(Link(publisher, [inbox_of(s) for s in subs]))
     return links
+
+
+class GraphWatch:
+    """When may a link's matched counts have changed? Only when this participant's ROS graph did:
+    an endpoint of another process (or a new one of this process) was discovered or went away.
+    Asking DDS for the counts on every message cost about a sixth of the host's time at 1280
+    robots; the graph's guard condition, looked at once per tick, says when to ask. Discovery
+    reports an endpoint to the graph and matches it a moment apart (measured: up to a third of a
+    second, either order), so after each change the links ask on every message for SETTLE_S,
+    and then keep their last answer until the graph changes again."""
+
+    SETTLE_S = 2.0
+
+    def __init__(self, node, links: Sequence[Link], inboxes: Sequence[Inbox]):
+        """``node``: any node of the participant (its graph is the participant's)."""
+        self._changed = guard_condition_poll(node)
+        self._links, self._inboxes = list(links), list(inboxes)
+        self._until = -1.0               # asking on every message until then (monotonic s)
+        self._checking = True
+
+    def start_tick(self, now: float) -> None:
+        """Before a tick's messages: ask on every message while the graph may still settle."""
+        if self._changed():
+            self._until = now + self.SETTLE_S
+        checking = now < self._until
+        if checking != self._checking:
+            self._checking = checking
+            if not checking:             # one last look, then its answer holds
+                for link in self._links:
+                    link.publish_check()
+                for inbox in self._inboxes:
+                    inbox.checking = True
+                    inbox.dds_may_hold()
+            for item in (*self._links, *self._inboxes):
+                item.checking = checking
+
+
+
 
 
 def link_answers(publishers: Iterable[Publisher], answers, gid_of: Callable[[Publisher], bytes]) -> list[Link]:
