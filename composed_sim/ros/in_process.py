@@ -12,11 +12,16 @@ What a user sees through ROS does not change:
 
 - every publisher and subscription still exists on DDS; the graph, the matching and the matched
   counts are DDS's own;
-- each ``publish`` asks DDS for the publisher's matched count (an O(1) call): once it exceeds the
-  linked subscriptions (a recorder, ``ros2 topic echo``, Foxglove, another hosted node that
-  subscribed later), or falls short of them (a linked one no longer matches), the message goes
-  through DDS as before, and the linked subscriptions take it from there; so an outside
-  listener hears every message published from its match on, as with DDS alone;
+- a ``publish`` asks DDS for the publisher's matched count: once it exceeds the linked
+  subscriptions (a recorder, ``ros2 topic echo``, another hosted node that subscribed later), or
+  falls short of them (a linked one no longer matches), the message goes through DDS as before,
+  and the linked subscriptions take it from there. The count changes only with the ROS graph, so
+  it is asked on every message only while the graph may have changed (``GraphWatch``, once per
+  tick), and remembered otherwise: an outside listener hears every message from the tick after
+  its match on;
+- a subscription that DDS may also have messages for (from a publisher that is not linked, a
+  stray ``cmd_vel`` of another process, or a linked one that went through DDS) takes from DDS
+  too, after its inbox;
 - a subscription is linked only when DDS would deliver every message to it and its callback needs
   nothing DDS adds: the publisher's type, a QoS that matches any volatile publisher of the topic
   (volatile, no deadline, lifespan or manual liveliness), a callback of the message alone, a node
@@ -119,12 +124,14 @@ def receives_all(msg_type: type, qos: QoSProfile, publisher: Publisher) -> bool:
 
 class Link:
     """One publisher's in-process path to its topic's linked subscriptions: installed as the
-    publisher's ``publish``, it checks the matched count on every message (the rule above)."""
+    publisher's ``publish``, it checks the matched count (the rule above) on every message while
+    ``checking``, and keeps its last answer otherwise."""
 
     def __init__(self, publisher: Publisher, inboxes: Sequence[Inbox],
                  wrap: Callable[[bytes], object] = lambda data: data):
         """``inboxes``: the linked subscriptions'; ``wrap``: what goes into them of the
         message's bytes (the answer subscription keeps the publisher's GID beside them)."""
+        self.publisher = publisher
         self.topic = publisher.topic_name
         self._through_dds = publisher.publish        # the original: rclpy's publish
         self.matched = self._matched = publisher.handle.get_subscription_count

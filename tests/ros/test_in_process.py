@@ -6,7 +6,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from rclpy.duration import Duration
 from rclpy.node import Node
+from rclpy.serialization import deserialize_message
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String
 
@@ -34,6 +36,9 @@ def _run(domain, listen=None):
             while any(link.matched() < 2 for link in watched) and time.monotonic() < deadline:
                 time.sleep(0.01)
         result = host.run()
+        if listen is not None:     # the reliable writers' last samples reach it before they go
+            for link in watched:
+                assert link.publisher.wait_for_all_acked(Duration(seconds=30))
         delivered = {topic: link.in_process for topic, link in links.items()}
     return result.trajectories, delivered
 
@@ -117,3 +122,41 @@ def test_what_dds_would_treat_otherwise_is_not_linked(node):
         callback = (lambda msg, info: None) if with_info else (lambda msg: None)
         sub = node.create_subscription(String, f"t{k}", callback, requested)
         assert bool(in_process.link_subscriptions([publisher], [sub])) == linked, k
+
+
+def test_a_listener_that_comes_after_the_graph_settled_gets_every_tick_from_then_on(node, domain_id):
+    # The link keeps its last answer while the graph is quiet; a subscriber in another process
+    # changes the graph, and the links ask DDS again.
+    publisher = node.create_publisher(String, "chatter", 10)
+    got = []
+    sub = node.create_subscription(String, "chatter", got.append, 10)
+    links = in_process.link_subscriptions([publisher], [sub])
+    watch = in_process.GraphWatch(node, links, [in_process.inbox_of(sub)])
+    executor = LockstepExecutor(context=node.context)
+    executor.add_node(node)
+    clock = [0.0]                         # the watch's ticks, on a clock of the test's own
+
+    def tick(text):
+        clock[0] += 1.0
+        watch.start_tick(clock[0])
+        publisher.publish(String(data=text))
+        _spin(executor)
+
+    for k in range(4):                    # the graph settles: no more asking
+        tick(f"quiet {k}")
+    assert not links[0].checking and links[0].in_process == 4
+
+    listener = Listener(domain_id, ["/chatter=std_msgs/msg/String"])     # another process
+    listener.wait_matched()
+    deadline = time.monotonic() + 20
+    while publisher.get_subscription_count() < 2 and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert publisher.get_subscription_count() == 2
+    for k in range(3):
+        tick(f"heard {k}")
+    assert publisher.wait_for_all_acked(Duration(seconds=30))
+    heard = listener.stop()["got"]["/chatter=std_msgs/msg/String"]
+    assert [deserialize_message(bytes.fromhex(m), String).data for m in heard] == ["heard 0", "heard 1", "heard 2"]
+    assert links[0].in_process == 4          # the three went through DDS, to both
+    assert [m.data for m in got] == [f"quiet {k}" for k in range(4)] + ["heard 0", "heard 1", "heard 2"]
+    executor.shutdown()
