@@ -185,6 +185,11 @@ class ParticipantGroups:
                                           answers, publisher_gid)
                     links += linked
                     inboxes += [answers.inbox] if linked else []
+            # The LEDs and rab_tx, which the simulator drains: by publication time, as from DDS.
+            drained = sim_node.inbox_subscriptions()
+            links += link_subscriptions([p for nodes in self.robot_nodes[first:end] for node in nodes
+                                         for p in node.publishers], drained, timed=True)
+            inboxes += [inbox_of(s) for s in drained if inbox_of(s) is not None]
             self.links += links
             self._graph_watches.append(GraphWatch(sim_node, links, inboxes))
         self.executor.wake()     # its walk picks the inboxes up

@@ -34,6 +34,7 @@ What a user sees through ROS does not change:
 from __future__ import annotations
 
 import os
+import time
 from collections import deque
 from typing import Callable, Iterable, Optional, Sequence
 
@@ -58,13 +59,21 @@ class Inbox:
 
     __slots__ = ("queue", "take", "links", "via_dds", "checking", "_foreign", "_matched")
 
-    def __init__(self, depth: int, msg_type: Optional[type], matched_publishers: Callable[[], int]):
-        """``matched_publishers``: the subscription's matched count (O(1), from DDS)."""
+    def __init__(self, depth: int, msg_type: Optional[type], matched_publishers: Callable[[], int], *,
+                 timed: bool = False):
+        """``matched_publishers``: the subscription's matched count (O(1), from DDS); ``timed``:
+        its items are (bytes, publication time ns), ``take`` returns (message, time ns)."""
         self.queue: deque = deque(maxlen=depth or None)
         popleft = self.queue.popleft
         # What the subscription's callback gets: the bytes (raw), or its own message object.
-        self.take: Callable[[], object] = popleft if msg_type is None \
-            else (lambda: deserialize_message(popleft(), msg_type))
+        convert = (lambda data: data) if msg_type is None else (lambda data: deserialize_message(data, msg_type))
+        if timed:
+            def take_timed():
+                data, published_ns = popleft()
+                return convert(data), published_ns
+            self.take: Callable[[], object] = take_timed
+        else:
+            self.take = popleft if msg_type is None else (lambda: convert(popleft()))
         self.links = 0                 # publishers linked to it
         self.via_dds = False           # a linked publisher sent through DDS since DDS was last empty
         self.checking = True           # ask DDS on every call (else: its last answer; ``GraphWatch``)
@@ -170,9 +179,13 @@ class Link:
         self.in_process += 1
 
 
-def link_subscriptions(publishers: Iterable[Publisher], subscriptions: Iterable[Subscription]) -> list[Link]:
+def link_subscriptions(publishers: Iterable[Publisher], subscriptions: Iterable[Subscription], *,
+                       timed: bool = False) -> list[Link]:
     """Link each publisher to the subscriptions of its topic among ``subscriptions`` (nodes that a
-    lockstep executor walks), where every one of them is linkable; the others stay on DDS."""
+    lockstep executor walks, or an inbox the simulator drains), where every one of them is
+    linkable; the others stay on DDS. ``timed``: each message goes with the wall time it was
+    published at (ns), as DDS's source timestamp (the simulator's drained inboxes tell late
+    LEDs by it); the inbox's ``take`` then returns (message, time)."""
     by_topic: dict[str, list[Subscription]] = {}
     for sub in subscriptions:
         by_topic.setdefault(sub.topic_name, []).append(sub)
@@ -184,8 +197,9 @@ def link_subscriptions(publishers: Iterable[Publisher], subscriptions: Iterable[
         for sub in subs:
             if inbox_of(sub) is None:
                 setattr(sub, _INBOX, Inbox(_depth(sub.qos_profile), None if sub.raw else sub.msg_type,
-                                           sub.handle.get_publisher_count))
-        links.append(Link(publisher, [inbox_of(s) for s in subs]))
+                                           sub.handle.get_publisher_count, timed=timed))
+        links.append(Link(publisher, [inbox_of(s) for s in subs], (lambda data: (data, time.time_ns())) if timed
+                          else (lambda data: data)))
     return links
 
 
