@@ -209,7 +209,7 @@ class GraphWatch:
     Asking DDS for the counts on every message cost about a sixth of the host's time at 1280
     robots; the graph's guard condition, looked at once per tick, says when to ask. Discovery
     reports an endpoint to the graph and matches it a moment apart (measured: up to a third of a
-    second, either order), so after each change the links ask on every message for SETTLE_S,
+    second), so after each change the links ask on every message for SETTLE_S,
     and then keep their last answer until the graph changes again."""
 
     SETTLE_S = 2.0
