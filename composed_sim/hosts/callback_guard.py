@@ -57,7 +57,8 @@ class CallbackGuard:
         self.calls = 0                                 # callbacks run: lets a waiter see progress
         self.running = 0                               # callbacks running now on worker threads
         self.calls_of: dict[str, int] = {}             # per robot: its callbacks run so far
-        self._depth = threading.local()                # per thread: inside a guarded callback?
+        self._depth = threading.local()                # per worker thread: inside a guarded callback?
+        self._inside_main = False                      # … the main thread (cheaper than the local)
         self.on_exception: Optional[Callable[[str, Node, BaseException], None]] = None
 
     def guard(self, node: Node, robot: str, sim_node: SimulatorNode, relayed: Sequence = ()) -> None:
@@ -78,31 +79,36 @@ class CallbackGuard:
         row = sim_node.row_of(robot)
         calls_of = self.calls_of
 
+        main = self._main.ident
+        get_ident, monotonic = threading.get_ident, time.monotonic
+
         def run(*args):
             if failed[row]:
                 return None
-            in_main = threading.current_thread() is self._main
-            started = time.monotonic()
+            in_main = get_ident() == main
+            started = monotonic()
             if in_main:        # callbacks in this thread run one at a time: no lock needed
                 self._running, self._started = robot, started
                 self.calls += 1
                 calls_of[robot] = calls_of.get(robot, 0) + 1
+                self._inside_main = True
             else:
                 with self._workers_lock:
-                    self._workers[robot] = threading.get_ident()
+                    self._workers[robot] = get_ident()
                     self.calls += 1
                     self.running += 1
                     calls_of[robot] = calls_of.get(robot, 0) + 1
-            self._depth.inside = True
+                self._depth.inside = True
             cpu = time.thread_time() if own_time else 0.0
             try:
                 try:
                     result = callback(*args)
                 finally:
-                    self._depth.inside = False
                     if in_main:
                         self._running = None
+                        self._inside_main = False
                     else:
+                        self._depth.inside = False
                         with self._workers_lock:   # after this, stop_worker cannot reach us
                             self._workers.pop(robot, None)
                             self.running -= 1
@@ -118,7 +124,7 @@ class CallbackGuard:
                 if self.on_exception is not None:
                     self.on_exception(robot, node, e)
                 return None
-            took = time.monotonic() - started
+            took = monotonic() - started
             if own_time:
                 node_time.add(time.thread_time() - cpu)
             # Worker threads (multi-threaded executor) meet the tick's wall-clock deadline instead.
@@ -126,13 +132,14 @@ class CallbackGuard:
                 sim_node.reject_answer(robot, f"late: a callback took {took:.2f} s, more than "
                                               f"the watchdog's {self._watchdog_s} s")
             return result
-        # rclpy picks a subscription's call signature from the callback's: keep the original's.
-        if arity == 0:
-            return lambda: run()
-        return (lambda msg, info: run(msg, info)) if with_info else (lambda msg: run(msg))
+        # rclpy picks a subscription's call signature from the callback's: keep the original's
+        # (``run`` itself binds one argument, or none for a timer).
+        return (lambda msg, info: run(msg, info)) if with_info else run
 
     def in_callback(self) -> bool:
         """Is this thread running a guarded callback now?"""
+        if threading.get_ident() == self._main.ident:
+            return self._inside_main
         return getattr(self._depth, "inside", False)
 
     def stop_worker(self, robot: str) -> None:

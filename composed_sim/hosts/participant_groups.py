@@ -8,7 +8,8 @@ then costs O(E²/K) instead of O(E²). Processes outside still discover every gr
 
 The single-process composed host holds every robot's groups; each worker process of the worker
 host holds its block's (hosts/workers.py). Either way, every per-robot message stays inside a
-participant and goes through rclpy publish and take, and the robots are numbered from the start
+participant (with the lockstep executor, a robot's sensors and answers are handed over in process
+while nothing else listens: ros/in_process.py), and the robots are numbered from the start
 of the block: the SensorFrame handed to ``exchange.publish_tick`` covers the block only.
 """
 from __future__ import annotations
@@ -33,7 +34,9 @@ from composed_sim.hosts.lockstep import NodesExchange
 from composed_sim.hosts.node_logs import NodeLogs
 from composed_sim.hosts.run_wide_nodes import SETTLE_ROUNDS, RunWideNodes
 from composed_sim.ros import contract as c
-from composed_sim.ros.answer_subscription import cmd_vel_gids
+from composed_sim.ros.answer_subscription import cmd_vel_gids, publisher_gid
+from composed_sim.ros import in_process
+from composed_sim.ros.in_process import GraphWatch, Link, inbox_of, link_answers, link_subscriptions
 from composed_sim.ros.lockstep_executor import LockstepExecutor
 from composed_sim.ros.participants import ignore_participants_of_this_process
 from composed_sim.ros.robot_settings import robot_settings
@@ -83,6 +86,8 @@ class ParticipantGroups:
         self._quiet_robots = False                          # any robot that answers when published?
         self._calls_at_open: dict[str, int] = {}            # guard.calls_of when the tick opened
         self.exchange: Optional[NodesExchange] = None
+        self.links: list[Link] = []                         # in-process paths (ros/in_process.py)
+        self._graph_watches: list[GraphWatch] = []          # per group: when to ask for matched counts
         self.executor: Optional[Executor] = None
         self.guard: Optional[CallbackGuard] = None
         self._spin_thread: Optional[threading.Thread] = None
@@ -107,6 +112,7 @@ class ParticipantGroups:
                 robot, type(node), node.get_logger().name, error, skip="hosts/callback_guard.py")
         names, groups = world.robot_names(), world.group_of_robot()
         robots = frozenset(names)
+        first_robots = []                    # per group: the index of its first robot in robot_nodes
         for k, first in enumerate(range(self.start, self.stop, self.robots_per_participant)):
             block = range(first, min(self.stop, first + self.robots_per_participant))
             context = Context()
@@ -119,6 +125,7 @@ class ParticipantGroups:
             # The nodes first: the simulator node subscribes to each robot's cmd_vel with the
             # type its nodes publish (one participant allows one type per topic).
             first_robot = len(self.robot_nodes)
+            first_robots.append(first_robot)
             for i in block:
                 built = create_robot_nodes(world, groups[i], names[i], context, classes=classes, relay=self.relay,
                                            origin=i, robots=robots, logs=logs)
@@ -159,6 +166,33 @@ class ParticipantGroups:
                 for i, nodes in zip(range(self.start, self.stop), self.robot_nodes)}
         for sim_node in self.simulator_nodes:
             sim_node.note_controllers(gids)
+        self._link_in_process(first_robots)
+
+    def _link_in_process(self, first_robots: list[int]) -> None:
+        """With the lockstep executor, which takes from inboxes: each group's sensor messages go
+        straight to its robots' nodes while nothing else listens (ros/in_process.py)."""
+        if not (isinstance(self.executor, LockstepExecutor) and in_process.enabled()):
+            return
+        for sim_node, first, end in zip(self.simulator_nodes, first_robots, [*first_robots[1:], len(self.robot_nodes)]):
+            subscriptions = [s for nodes in self.robot_nodes[first:end] for node in nodes for s in node.subscriptions]
+            links = link_subscriptions(sim_node.sensor_publishers(), subscriptions)
+            inboxes = [inbox_of(s) for s in subscriptions if inbox_of(s) is not None]
+            for robot, nodes in zip(sim_node.robots, self.robot_nodes[first:end]):
+                answers = sim_node.answer_subscription(robot)
+                if answers is not None:
+                    cmd_vel = c.topic_name(robot, c.CMD_VEL)
+                    linked = link_answers([p for node in nodes for p in node.publishers if p.topic_name == cmd_vel],
+                                          answers, publisher_gid)
+                    links += linked
+                    inboxes += [answers.inbox] if linked else []
+            # The LEDs and rab_tx, which the simulator drains: by publication time, as from DDS.
+            drained = sim_node.inbox_subscriptions()
+            links += link_subscriptions([p for nodes in self.robot_nodes[first:end] for node in nodes
+                                         for p in node.publishers], drained, timed=True)
+            inboxes += [inbox_of(s) for s in drained if inbox_of(s) is not None]
+            self.links += links
+            self._graph_watches.append(GraphWatch(sim_node, links, inboxes))
+        self.executor.wake()     # its walk picks the inboxes up
 
     # --- run-wide topics, at the tick's edges (ros/run_wide.py) --------------------------------
 
@@ -166,6 +200,9 @@ class ParticipantGroups:
         """Before tick ``tick``'s sensors: the nodes' timers that do not wait for sensors move to
         the tick's time, and the run-wide messages of the batch reach their subscribers."""
         now_ns = tick * self.world.tick_ns
+        now = time.monotonic()
+        for watch in self._graph_watches:
+            watch.start_tick(now)
         if self._quiet_robots:
             self._calls_at_open = dict(self.guard.calls_of)
         if self.logs is not None:

@@ -28,6 +28,7 @@ from rclpy.type_support import check_is_valid_msg_type
 from rclpy.waitable import NumberOfEntities, Waitable
 
 from composed_sim.ros import contract as c
+from composed_sim.ros.in_process import Inbox
 
 _GID_BYTES = 16                      # RMW_GID_STORAGE_SIZE
 NODE_NAME_UNKNOWN = "_NODE_NAME_UNKNOWN_"  # the graph's node name for an endpoint whose node is not known yet
@@ -120,6 +121,9 @@ class AnswerSubscription(Waitable):
         with node.handle:
             self.handle = _rclpy.Subscription(node.handle, msg_type, topic, qos.get_c_qos_profile())
         self.topic_name = self.handle.get_topic_name()
+        self.msg_type, self.qos = msg_type, qos
+        # (bytes, GID) of answers its controller's publishers hand over in process (ros/in_process.py)
+        self.inbox = Inbox(qos.depth, None, self.handle.get_publisher_count)
         self._pointer = self.handle.pointer
         self._callback = callback
         self._message = _Bytes()
@@ -150,12 +154,20 @@ class AnswerSubscription(Waitable):
             return ctypes.string_at(message.buffer, message.buffer_length), ctypes.string_at(self._gid_at, _GID_BYTES)
 
     def dispatch_ready(self) -> int:
-        """Take one message, if any, and run the callback on it (the lockstep executor's walk)."""
+        """Take one message, if any, and run the callback on it (the lockstep executor's walk):
+        one handed over in process first, then, while DDS may hold one too, one from DDS."""
+        inbox, handled = self.inbox, 0
+        if inbox.queue:
+            self._callback(*inbox.queue.popleft())
+            handled = 1
+            if inbox.links and not inbox.dds_may_hold():
+                return handled
         taken = self.take()
         if taken is None:
-            return 0
+            inbox.emptied()
+            return handled
         self._callback(*taken)
-        return 1
+        return handled + 1
 
     def destroy(self, node: Node) -> None:
         node.remove_waitable(self)

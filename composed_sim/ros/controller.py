@@ -36,13 +36,34 @@ class Tick:
     m/s and m covered in the last tick)."""
 
     def __init__(self, stamp: Time, time_s: float):
-        self.stamp = stamp
+        self._stamp = stamp
         self.time_s = time_s
-        for name in _TICK_FIELDS:
-            setattr(self, name, None)
+
+    @classmethod
+    def at(cls, sec: int, nanosec: int) -> "Tick":
+        """The tick stamped ``sec``, ``nanosec``; its ``stamp`` message is built when first asked
+        for (most controllers read ``time_s`` or nothing, and a message costs microseconds)."""
+        tick = cls.__new__(cls)
+        tick._stamp, tick._sec, tick._nanosec = None, sec, nanosec
+        tick.time_s = sec + nanosec * 1e-9
+        return tick
+
+    @property
+    def stamp(self) -> Time:
+        if self._stamp is None:
+            self._stamp = Time(sec=self._sec, nanosec=self._nanosec)
+        return self._stamp
+
+    @stamp.setter
+    def stamp(self, stamp: Time) -> None:
+        self._stamp = stamp
 
 
 _TICK_FIELDS = tuple(name for d in DEVICES for name in d.tick_fields)
+# A reading the controller does not subscribe to is None: a class attribute, so that a tick sets
+# only the fields its readers fill (one attribute per field and tick cost a call each).
+for _name in _TICK_FIELDS:
+    setattr(Tick, _name, None)
 
 
 class SwarmController(Node):
@@ -111,7 +132,7 @@ class SwarmController(Node):
     def _answer(self) -> None:
         msgs, self._pending = self._pending, {}
         sec, nanosec = divmod(self._pending_key, 1_000_000_000)
-        tick = Tick(stamp=Time(sec=sec, nanosec=nanosec), time_s=sec + nanosec * 1e-9)
+        tick = Tick.at(sec, nanosec)
         for name, data in msgs.items():
             self._readers[name](data, tick)
         started = time.thread_time()

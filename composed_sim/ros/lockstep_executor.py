@@ -27,6 +27,7 @@ from rclpy.node import Node
 from rclpy.subscription import Subscription
 
 from composed_sim.ros import contract as c
+from composed_sim.ros.in_process import inbox_of
 
 _SENSOR_NAMES = frozenset(t.name for t in c.SENSOR_TOPICS)
 
@@ -94,14 +95,15 @@ class LockstepExecutor(SingleThreadedExecutor):
             # its answer is then taken by the simulator node later in the same walk, as an answer
             # published from a sensor callback is.
             message_only = Subscription.CallbackType.MessageOnly
+            # A subscription linked in process (ros/in_process.py) takes from its inbox first.
             entities = self._entities = [
                 entity for node in self._ordered_nodes
                 for entity in [(s, s.handle, s.msg_type, s.raw, s._callback_type is message_only,
-                                _once_per_tick(s.topic_name)) for s in node.subscriptions]
-                + [(w, None, _WAITABLE, None, None, True) for w in node.waitables if hasattr(w, "dispatch_ready")]
-                + [(t, t.handle, None, None, None, True) for t in node.timers]]
+                                _once_per_tick(s.topic_name), inbox_of(s)) for s in node.subscriptions]
+                + [(w, None, _WAITABLE, None, None, True, None) for w in node.waitables if hasattr(w, "dispatch_ready")]
+                + [(t, t.handle, None, None, None, True, None) for t in node.timers]]
         handled = 0
-        for entity, handle, msg_type, raw, message_only, once in entities:
+        for entity, handle, msg_type, raw, message_only, once, inbox in entities:
             if msg_type is _WAITABLE:
                 handled += entity.dispatch_ready()
                 continue
@@ -116,10 +118,20 @@ class LockstepExecutor(SingleThreadedExecutor):
             # One message per sensor subscription and walk: in a lockstep tick there is one, and
             # looking for a second would cost an empty take per subscription (any more are taken
             # by the next walk, in the same order). Every message queued on any other.
+            if inbox is not None and inbox.queue:     # linked: its callback takes the message alone
+                entity.callback(inbox.take())
+                handled += 1
+                while not once and inbox.queue:
+                    entity.callback(inbox.take())
+                    handled += 1
+                if not inbox.dds_may_hold():
+                    continue
             while True:
                 with handle:
                     taken = handle.take_message(msg_type, raw)
                 if taken is None:
+                    if inbox is not None:
+                        inbox.emptied()
                     break
                 if message_only:
                     entity.callback(taken[0])

@@ -25,6 +25,7 @@ if TYPE_CHECKING:   # only a type here: a controller process must not import the
 from composed_sim.devices.common import cdr
 from composed_sim.ros import contract as c, decoding
 from composed_sim.ros.topic import message_class
+from composed_sim.ros.in_process import inbox_of
 from composed_sim.ros.answer_subscription import (NODE_NAME_UNKNOWN, AnswerSubscription, ControllerPublishers, graph_gid,
                                                  publisher_gid, publisher_text)
 from composed_sim.devices import DEVICES
@@ -218,6 +219,14 @@ class SimulatorNode(Node):
         """The GIDs of each robot's controller's cmd_vel publishers (``cmd_vel_gids``), from the
         host before tick 0: the only publishers whose answers move the robot (docs/faults.md)."""
         self._controllers.set([frozenset(gids[name]) if gids.get(name) else None for name in self._names])
+
+    def inbox_subscriptions(self) -> list:
+        """The LED and rab_tx subscriptions, drained at the act phase (``take_led_commands``)."""
+        return [s for s in (*self._led_subs, *self._rab_subs) if s is not None]
+
+    def sensor_publishers(self) -> list:
+        """Every robot's sensor publishers, robot by robot."""
+        return [p for pubs in self._sensor_pubs for p in pubs]
 
     def answer_subscription(self, robot: str) -> Optional[AnswerSubscription]:
         """``robot``'s cmd_vel subscription (None until its answer type is known)."""
@@ -542,19 +551,30 @@ class SimulatorNode(Node):
         for i, sub in enumerate(subs):
             if sub is None:
                 continue
-            while (taken := sub.handle.take_message(sub.msg_type, sub.raw)) is not None:
-                msg, info = taken
-                if self.failed[i]:
+            inbox = inbox_of(sub)      # what the robot's nodes handed over in process (ros/in_process.py)
+            if inbox is not None:
+                while inbox.queue:
+                    self._drained(i, topic, late, decode, *inbox.take(), out)
+                if not inbox.dds_may_hold():
                     continue
-                self.tap_message(topic, i, msg, self._tick_key)
-                with self._lock:
-                    if self._opened_ns is not None and info["source_timestamp"] < self._opened_ns:
-                        self._record(self._current_tick, i, late)
-                    try:
-                        out[int(self.rows[i])] = decode(i, msg)
-                    except ValueError as e:
-                        self._record(self._current_tick, i, f"{topic.name}: {e}")
+            while (taken := sub.handle.take_message(sub.msg_type, sub.raw)) is not None:
+                self._drained(i, topic, late, decode, taken[0], taken[1]["source_timestamp"], out)
+            if inbox is not None:
+                inbox.emptied()
         return out
+
+    def _drained(self, i: int, topic: c.Topic, late: str, decode: Callable, msg, published_ns: int, out: dict) -> None:
+        """Robot i's message ``msg`` on an inbox topic, published at ``published_ns`` (wall)."""
+        if self.failed[i]:
+            return
+        self.tap_message(topic, i, msg, self._tick_key)
+        with self._lock:
+            if self._opened_ns is not None and published_ns < self._opened_ns:
+                self._record(self._current_tick, i, late)
+            try:
+                out[int(self.rows[i])] = decode(i, msg)
+            except ValueError as e:
+                self._record(self._current_tick, i, f"{topic.name}: {e}")
 
     def _record(self, tick: int, i: int, reason: str, counts: bool = True) -> None:
         """Called with the lock held. ``counts``: towards the robot's max_violations."""

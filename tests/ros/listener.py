@@ -8,7 +8,8 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
 
-# Listens on the given topics until a line on stdin; says "matched" once each has a publisher
+# Listens on the given topics (``/bot1/light=sensor_msgs/msg/LaserScan``: that type; tf's without
+# one) until a line on stdin; says "matched" once each has a publisher
 # matched; at the end prints what it got as JSON: per topic the list
 # of messages (tf as hex bytes, /clock as stamp nanoseconds), and every topic it saw published.
 SCRIPT = textwrap.dedent("""
@@ -18,6 +19,7 @@ SCRIPT = textwrap.dedent("""
     from rclpy.executors import SingleThreadedExecutor
     from rosgraph_msgs.msg import Clock
     from composed_sim.ros import contract as c
+    from composed_sim.ros.topic import message_class
     domain, topics = int(sys.argv[1]), sys.argv[2:]
     context = Context(); rclpy.init(context=context, domain_id=domain)
     node = Node("listener", context=context)
@@ -27,10 +29,11 @@ SCRIPT = textwrap.dedent("""
         if t == "/clock":
             subs.append(node.create_subscription(Clock, t, lambda m: got["/clock"].append(
                 m.clock.sec * 1_000_000_000 + m.clock.nanosec), 100))
-        else:
+        else:   # "/bot1/light=sensor_msgs/msg/LaserScan": that type; tf's otherwise
+            name, _, type_name = t.partition("=")
             qos = c.STATIC_QOS if t.endswith("tf_static") else c.QOS
-            subs.append(node.create_subscription(c.TF_MESSAGE, t, lambda data, t=t: got[t].append(data.hex()), qos,
-                                                 raw=True))
+            subs.append(node.create_subscription(message_class(type_name) if type_name else c.TF_MESSAGE, name,
+                                                 lambda data, t=t: got[t].append(data.hex()), qos, raw=True))
     executor = SingleThreadedExecutor(context=context); executor.add_node(node)
     seen, matched = set(), False
     print("listening", flush=True)

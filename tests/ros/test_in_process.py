@@ -1,0 +1,162 @@
+"""In-process delivery (ros/in_process.py): with the lockstep executor a robot's sensor messages
+and its answers skip DDS while nothing else listens, and go through DDS for a topic as soon as
+something does; the run is the same either way."""
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from rclpy.duration import Duration
+from rclpy.node import Node
+from rclpy.serialization import deserialize_message
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from std_msgs.msg import String
+
+from composed_sim.devices.common import cdr
+from composed_sim.hosts.composed import ComposedHost
+from composed_sim.ros import in_process
+from composed_sim.ros.lockstep_executor import LockstepExecutor
+from composed_sim.world.loader import load_world
+from listener import Listener
+
+FLOCKING = Path(__file__).resolve().parents[2] / "worlds" / "flocking.yaml"
+TICKS = 12
+
+
+def _run(domain, listen=None):
+    """Flocking, 4 robots; with ``listen`` (a Listener), tick 0 starts once the listener is matched
+    with bot1's light publisher and its controller's cmd_vel publisher."""
+    world = load_world(FLOCKING, robots=4, ticks=TICKS, seed=2)
+    with ComposedHost(world, domain_id=domain) as host:
+        links = {link.topic: link for link in host.groups.links}
+        if listen is not None:
+            listen.wait_matched()
+            watched = [links["/bot1/light"], links["/bot1/cmd_vel"]]
+            deadline = time.monotonic() + 30     # … on the run's side too (discovery is two-way)
+            while any(link.matched() < 2 for link in watched) and time.monotonic() < deadline:
+                time.sleep(0.01)
+        result = host.run()
+        if listen is not None:     # the reliable writers' last samples reach it before they go
+            for link in watched:
+                assert link.publisher.wait_for_all_acked(Duration(seconds=30))
+        delivered = {topic: link.in_process for topic, link in links.items()}
+    return result.trajectories, delivered
+
+
+def test_an_outside_listener_hears_every_tick_and_the_run_is_the_same(domain_id, monkeypatch):
+    alone, delivered = _run(domain_id)
+    # Nothing outside listens: every sensor message and answer of the run went in process.
+    assert delivered["/bot1/light"] == delivered["/bot1/cmd_vel"] == delivered["/bot0/blobs"] == TICKS
+
+    listener = Listener(domain_id, ["/bot1/light=sensor_msgs/msg/LaserScan",
+                                    "/bot1/cmd_vel=geometry_msgs/msg/TwistStamped"])
+    heard_run, delivered = _run(domain_id, listener)
+    got = listener.stop()["got"]
+    ticks = [t * 100_000_000 for t in range(TICKS)]
+    assert [cdr.stamp_ns(bytes.fromhex(m)) for m in got["/bot1/light=sensor_msgs/msg/LaserScan"]] == ticks
+    assert [cdr.stamp_ns(bytes.fromhex(m)) for m in got["/bot1/cmd_vel=geometry_msgs/msg/TwistStamped"]] == ticks
+    # bot1's two topics went through DDS; the others stayed in process
+    assert delivered["/bot1/light"] == delivered["/bot1/cmd_vel"] == 0
+    assert delivered["/bot1/blobs"] == delivered["/bot0/light"] == delivered["/bot0/cmd_vel"] == TICKS
+
+    monkeypatch.setenv(in_process.SWITCH_ENV, "0")
+    through_dds, delivered = _run(domain_id)
+    assert delivered == {}
+    for run in (heard_run, through_dds):
+        assert np.array_equal(run.positions, alone.positions) and np.array_equal(run.headings, alone.headings)
+        assert np.array_equal(run.led_colors, alone.led_colors)
+
+
+@pytest.fixture
+def node(ros_context):
+    node = Node("in_process_test", context=ros_context)
+    yield node
+    node.destroy_node()
+
+
+def _spin(executor, times=3):
+    for _ in range(times):
+        executor.dispatch_ready()
+
+
+def test_a_link_follows_the_matched_count_and_keeps_the_subscriptions_depth(node):
+    publisher = node.create_publisher(String, "chatter", 10)
+    got, other = [], []
+    sub = node.create_subscription(String, "chatter", got.append, QoSProfile(depth=2))
+    links = in_process.link_subscriptions([publisher], [sub])
+    executor = LockstepExecutor(context=node.context)
+    executor.add_node(node)
+    for text in "abc":
+        publisher.publish(String(data=text))
+    assert links[0].in_process == 3
+    _spin(executor)
+    assert [m.data for m in got] == ["b", "c"]            # keep-last 2, as its DDS history would
+    assert got[0] is not got[1]
+
+    # A second subscription that is not linked matches: DDS carries the messages to both.
+    node.create_subscription(String, "chatter", other.append, 10)
+    deadline = time.monotonic() + 10
+    while publisher.get_subscription_count() < 2 and time.monotonic() < deadline:
+        time.sleep(0.01)
+    got.clear()
+    publisher.publish(String(data="d"))
+    _spin(executor)
+    assert links[0].in_process == 3
+    assert [m.data for m in got] == ["d"] and [m.data for m in other] == ["d"]
+    executor.shutdown()
+
+
+def test_what_dds_would_treat_otherwise_is_not_linked(node):
+    latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    best_effort = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
+    cases = [  # (publisher QoS, subscription QoS, with message info, linked?)
+        (10, 10, False, True),
+        (10, best_effort, False, True),                  # best effort takes a reliable offer
+        (best_effort, 10, False, False),                 # … not the other way round
+        (latched, 10, False, False),                     # an outside late joiner expects the history
+        (10, QoSProfile(depth=3, history=HistoryPolicy.KEEP_ALL), False, True),
+        (10, 10, True, False),                           # its callback wants DDS's message info
+    ]
+    for k, (offered, requested, with_info, linked) in enumerate(cases):
+        publisher = node.create_publisher(String, f"t{k}", offered)
+        callback = (lambda msg, info: None) if with_info else (lambda msg: None)
+        sub = node.create_subscription(String, f"t{k}", callback, requested)
+        assert bool(in_process.link_subscriptions([publisher], [sub])) == linked, k
+
+
+def test_a_listener_that_comes_after_the_graph_settled_gets_every_tick_from_then_on(node, domain_id):
+    # The link keeps its last answer while the graph is quiet; a subscriber in another process
+    # changes the graph, and the links ask DDS again.
+    publisher = node.create_publisher(String, "chatter", 10)
+    got = []
+    sub = node.create_subscription(String, "chatter", got.append, 10)
+    links = in_process.link_subscriptions([publisher], [sub])
+    watch = in_process.GraphWatch(node, links, [in_process.inbox_of(sub)])
+    executor = LockstepExecutor(context=node.context)
+    executor.add_node(node)
+    clock = [0.0]                         # the watch's ticks, on a clock of the test's own
+
+    def tick(text):
+        clock[0] += 1.0
+        watch.start_tick(clock[0])
+        publisher.publish(String(data=text))
+        _spin(executor)
+
+    for k in range(4):                    # the graph settles: no more asking
+        tick(f"quiet {k}")
+    assert not links[0].checking and links[0].in_process == 4
+
+    listener = Listener(domain_id, ["/chatter=std_msgs/msg/String"])     # another process
+    listener.wait_matched()
+    deadline = time.monotonic() + 20
+    while publisher.get_subscription_count() < 2 and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert publisher.get_subscription_count() == 2
+    for k in range(3):
+        tick(f"heard {k}")
+    assert publisher.wait_for_all_acked(Duration(seconds=30))
+    heard = listener.stop()["got"]["/chatter=std_msgs/msg/String"]
+    assert [deserialize_message(bytes.fromhex(m), String).data for m in heard] == ["heard 0", "heard 1", "heard 2"]
+    assert links[0].in_process == 4          # the three went through DDS, to both
+    assert [m.data for m in got] == [f"quiet {k}" for k in range(4)] + ["heard 0", "heard 1", "heard 2"]
+    executor.shutdown()
