@@ -89,7 +89,7 @@ def test_synchronization_rows_give_the_paper_its_wall_time_and_the_speed_up(tmp_
 
 def test_phases_and_host_cost_show_where_summaries_have_them(tmp_path):
     phases = {f"phase_{p}_ms": float(i) for i, p in enumerate(bench.PHASES)}
-    new = _row("flocking", 80, host_cost_per_robot_tick_us=50.0, node_callbacks_per_robot_tick_us=100.0, **phases)
+    new = _row("flocking", 80, host_cost_per_robot_tick_us=50.0, node_code_per_robot_tick_us=100.0, **phases)
     old = _row("flocking", 160)
     multi = _row("flocking", 80, mode="multi-process", wall=40.0)
     text = _render([new, old, multi], tmp_path)
@@ -107,10 +107,10 @@ def test_phases_and_host_cost_show_where_summaries_have_them(tmp_path):
 
 def test_summary_fields_are_read_when_present_and_empty_when_not():
     newer = {"setup_s": 1.0, "ticks_wall_s": 2.0, "host_cost_per_robot_tick_us": 12.3456,
-             "node_callbacks_per_robot_tick_us": 40.0,
+             "node_code_per_robot_tick_us": 40.0,
              "phases_per_tick_ms": {"physics": 1.5, "waiting": 3.0, "serial": 4.5}}
     cols = summary_columns(newer, "composed")
-    assert cols["host_cost_per_robot_tick_us"] == 12.346 and cols["node_callbacks_per_robot_tick_us"] == 40.0
+    assert cols["host_cost_per_robot_tick_us"] == 12.346 and cols["node_code_per_robot_tick_us"] == 40.0
     assert (cols["phase_physics_ms"], cols["phase_waiting_ms"], cols["phase_serial_ms"]) == (1.5, 3.0, 4.5)
     assert cols["phase_sensing_ms"] is None
     older = summary_columns({"setup_s": 1.0, "ticks_wall_s": 2.0}, "composed")
@@ -118,10 +118,12 @@ def test_summary_fields_are_read_when_present_and_empty_when_not():
 
 
 def test_an_older_runs_json_replots_as_one_flocking_experiment(tmp_path):
-    old = json.loads((ROOT / "docs" / "figures" / "benchmarks_runs.json").read_text())
+    # A sweep's runs.json from before experiments existed (docs/figures' of 2026-11-23).
+    path = ROOT / "tests" / "bench_data" / "runs_before_experiments.json"
+    old = json.loads(path.read_text())
     assert "experiment" not in old["rows"][0] and "experiments" not in old["settings"]
     report = tmp_path / "docs" / "old.md"
-    assert main(["bench", "--replot", str(ROOT / "docs" / "figures" / "benchmarks_runs.json"),
+    assert main(["bench", "--replot", str(path),
                  "--out", str(tmp_path / "figs"), "--report", str(report)]) == 0
     text = report.read_text()
     assert text.count("\n## flocking") == 1 and "### Against the design budget" in text

@@ -24,7 +24,7 @@ OUR_COLUMNS = ("mode", "workers", "workers_used", "executor", "status", "ticks",
                "cpu_core_s", "real_time_factor", "per_robot_tick_us", "violations",
                "physics_s", "sensing_s", "ros_exchange_s", "processes", "other_load_cores", "domain_id",
                "exit_code", "reason", "MaxPss(kB)", "Ros2Pss(kB)", "experiment",
-               "host_cost_per_robot_tick_us", "node_callbacks_per_robot_tick_us")
+               "host_cost_per_robot_tick_us", "node_code_per_robot_tick_us")
 # The main process's time per tick, by phase, as a run's summary.json gives it (phases_per_tick_ms);
 # serial = everything but waiting (for the nodes' answers). One column each: phase_<name>_ms.
 PHASES = ("physics", "sensing", "sending_frames", "waiting", "gathering_answers", "loop_functions", "recording",
@@ -36,7 +36,7 @@ COLUMNS = PAPER_COLUMNS + OUR_COLUMNS + PHASE_COLUMNS
 # status: ok | skipped | failed (non-zero exit or no summary) | timeout | interrupted
 # experiment: the bench experiment (bench/experiments.py) or the --world file's stem; older sweeps'
 # rows have none (bench/experiments.experiment_name names them).
-# host_cost_per_robot_tick_us, node_callbacks_per_robot_tick_us: from the run's summary, when it has them.
+# host_cost_per_robot_tick_us, node_code_per_robot_tick_us: from the run's summary, when it has them.
 # other_load_cores: cores kept busy by everything outside the run's tree during it, on average (the
 # machine is shared: a run next to a busy neighbour is slower, and this says so).
 
@@ -148,7 +148,7 @@ def as_number(v) -> Optional[float]:
 
 MEDIAN_FIELDS = ("WallTime(s)", "CPU(%)", "MaxMem(kB)", "MaxPss(kB)", "workers_used", "setup_s", "ticks_wall_s", "total_wall_s",
                  "cpu_core_s", "real_time_factor", "per_robot_tick_us", "processes", "other_load_cores",
-                 "host_cost_per_robot_tick_us", "node_callbacks_per_robot_tick_us") + PHASE_COLUMNS
+                 "host_cost_per_robot_tick_us", "node_code_per_robot_tick_us") + PHASE_COLUMNS
 
 
 def aggregate(rows: Iterable[dict], settings: Optional[dict] = None) -> list[dict]:

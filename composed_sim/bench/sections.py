@@ -30,7 +30,7 @@ def host_cost_section(agg: list[dict]) -> list[str]:
     lines = ["", "### Host cost per robot-tick", "",
              "Microseconds per robot and tick: the whole tick (µs / robot-tick), the host's share (sensing, "
              "sending, gathering, everything but the nodes' callbacks: `host_cost_per_robot_tick_us`) and the "
-             "nodes' own callbacks (`node_callbacks_per_robot_tick_us`); host ÷ nodes below 1 means hosting "
+             "nodes' own code (`node_code_per_robot_tick_us`, CPU time); host ÷ nodes below 1 means hosting "
              "costs less than the controllers themselves.", ""]
     if not any(as_number(a.get("host_cost_per_robot_tick_us")) is not None for a in done):
         return lines + ["The runs' summaries have no host cost (a composed-sim from before it was recorded, "
@@ -38,7 +38,7 @@ def host_cost_section(agg: list[dict]) -> list[str]:
     lines += ["| N | host | executor | µs / robot-tick | host µs | nodes µs | host ÷ nodes |",
               "|---:|---|---|---:|---:|---:|---:|"]
     for a in done:
-        host, nodes = a.get("host_cost_per_robot_tick_us"), a.get("node_callbacks_per_robot_tick_us")
+        host, nodes = a.get("host_cost_per_robot_tick_us"), a.get("node_code_per_robot_tick_us")
         lines.append(f"| {a['Robots']} | {host_label(a)} | {a['executor']} | {number(a['per_robot_tick_us'], 0)} "
                      f"| {number(host, 1)} | {number(nodes, 1)} | {ratio(host, nodes)} |")
     return lines

@@ -162,7 +162,7 @@ def summary_columns(summary: dict, mode: str) -> dict:
             "per_robot_tick_us": _round(summary.get("per_robot_tick_us"), 2),
             "violations": summary.get("violations"),
             **{k: _round(phases.get(k), 6) for k in ("physics_s", "sensing_s", "ros_exchange_s")},
-            **{k: _round(summary.get(k), 3) for k in ("host_cost_per_robot_tick_us", "node_callbacks_per_robot_tick_us")},
+            **{k: _round(summary.get(k), 3) for k in ("host_cost_per_robot_tick_us", "node_code_per_robot_tick_us")},
             **{col: _round(per_tick.get(p), 4) for p, col in zip(PHASES, PHASE_COLUMNS)}}
 
 
