@@ -20,7 +20,7 @@ import numpy as np
 
 from composed_sim.core import world_edits
 from composed_sim.core.odometry import Odometry, WheelActuator, WheelNoise, WheelReadings, differential_steering
-from composed_sim.core.frames import GroupReadings, SensorFrame, csr_rows  # noqa: F401 (re-exported)
+from composed_sim.core.frames import SensorFrame
 from composed_sim.core.physics import PhysicsWorld
 from composed_sim.core.placement import place_robots
 from composed_sim.core.scene import static_scene
