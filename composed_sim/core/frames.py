@@ -1,8 +1,8 @@
 """A tick's sensor readings as the hosts publish them: per robot group, and per robot for the
-devices that read all robots at once; cut to a block of robots for a worker process."""
+devices that read all robots at once (for all robots, or a worker's block: core/senses.py)."""
 from __future__ import annotations
 
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass
 from typing import Optional
 
 import numpy as np
@@ -29,7 +29,7 @@ class GroupReadings:
             setattr(self, name, None)
 
 
-# GroupReadings' arrays with one row per robot, and its CSR readings (cut by csr_rows).
+# GroupReadings' arrays with one row per robot, and its CSR readings.
 _ROW_ARRAYS = tuple(name for d in DEVICES for name in d.readings)
 _CSR = tuple(name for d in DEVICES for name in d.csr_readings)
 
@@ -64,33 +64,6 @@ class SensorFrame:
     def blobs(self) -> BlobReadings:
         return self._only("blobs")
 
-    def rows(self, start: int, stop: int) -> "SensorFrame":
-        """The readings of robots ``start … stop-1`` only, renumbered from 0: what a worker process
-        serving that block of robots needs (hosts/workers.py), and nothing of the others'."""
-        groups = []
-        for g in self.groups:
-            # The group's robots inside the block; a group outside it keeps an empty slice.
-            lo = min(max(g.robots.start, start), g.robots.stop)
-            hi = max(lo, min(g.robots.stop, stop))
-            within = slice(lo - g.robots.start, hi - g.robots.start)
-            cut = GroupReadings(g.model, slice(max(lo - start, 0), max(hi - start, 0)))
-            for f in _ROW_ARRAYS:
-                value = getattr(g, f)
-                setattr(cut, f, None if value is None else value[within])
-            for f in _CSR:
-                value = getattr(g, f)
-                setattr(cut, f, None if value is None else csr_rows(value, within.start, within.stop))
-            groups.append(cut)
-        block = slice(start, stop)
-        return SensorFrame(self.tick, groups,
-                           PoseReadings(self.pose.positions[block], self.pose.yaws[block],
-                                        self.pose.quaternions[block]),
-                           WheelReadings(self.wheels.velocities_mps[block], self.wheels.distances_m[block],
-                                         self.wheels.axis_length_m[block]),
-                           self.odometry[block], self.odometry_twist[block],
-                           None if self.range_and_bearing is None
-                           else csr_rows(self.range_and_bearing, start, stop))
-
     def _only(self, device: str):
         if len(self.groups) != 1:
             raise ValueError(f"frame.{device} is for one-group worlds; this world has {len(self.groups)} "
@@ -100,10 +73,3 @@ class SensorFrame:
             raise ValueError(f"the {self.groups[0].model} robots do not run the {device.split('_')[0]} device")
         return value
 
-
-def csr_rows(readings, start: int, stop: int):
-    """A CSR readings dataclass (``offsets`` [n+1] and entry arrays [m, …]) cut to rows
-    ``start … stop-1``, renumbered from 0."""
-    first, last = int(readings.offsets[start]), int(readings.offsets[stop])
-    entries = {f.name: getattr(readings, f.name)[first:last] for f in fields(readings) if f.name != "offsets"}
-    return replace(readings, offsets=readings.offsets[start:stop + 1] - first, **entries)

@@ -113,7 +113,8 @@ class Senses:
         for g in self.groups:
             lo = min(max(g.robots.start, block.start), g.robots.stop)
             hi = max(lo, min(g.robots.stop, block.stop))
-            out = GroupReadings(g.model.name, slice(lo - block.start, hi - block.start))
+            # Rows within the block; a group outside it gets an empty slice.
+            out = GroupReadings(g.model.name, slice(max(lo - block.start, 0), max(hi - block.start, 0)))
             if hi > lo:
                 for device in g.running:           # devices/: each reads the group into its fields
                     if device in GROUP_READERS:

@@ -307,9 +307,8 @@ def run_lockstep(sim: Simulation, exchange: Exchange, wait_for_answers: Callable
                     f"/clock there too, so this run's robots hear its topics and the run stopped; give each "
                     f"run its own domain (leave --domain-id and ROS_DOMAIN_ID unset to pick a free one)")
             clock.lap("waiting")
-            gathered = exchange.gathering_s() - gathered    # received while waiting: not waiting
-            phases["waiting"] -= gathered
-            phases["gathering_answers"] += gathered
+            # What was received and unpacked while waiting was not waiting.
+            clock.recharge("waiting", "gathering_answers", exchange.gathering_s() - gathered)
             commands = (np.empty(sim.n), np.empty(sim.n))
             exchange.close_tick(lockstep.fallback, previous, commands)
             for robot, colors in exchange.take_led_commands().items():

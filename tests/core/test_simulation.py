@@ -219,9 +219,9 @@ def test_the_device_modules_import_neither_ros_nor_plotting_nor_imageio():
 
 
 @pytest.mark.parametrize("start, stop", [(0, 18), (0, 4), (4, 13), (12, 18), (17, 18)])
-def test_a_frame_cut_to_a_block_of_robots_holds_exactly_their_readings(tmp_path, start, stop):
-    """What a worker process gets (hosts/workers.py): every reading of robots start … stop-1, the
-    groups cut and renumbered, the CSR rows (blobs, range and bearing) intact."""
+def test_a_block_of_robots_reads_exactly_their_readings_in_the_whole_frame(tmp_path, start, stop):
+    """What a worker process reads (core/senses.py, hosts/workers.py): every reading of robots
+    start … stop-1, the groups cut and renumbered, the CSR rows (blobs, range and bearing) intact."""
     path = tmp_path / "mixed.yaml"
     path.write_text(HETEROGENEOUS_YAML)
     sim = Simulation(load_world(path))
@@ -231,7 +231,7 @@ def test_a_frame_cut_to_a_block_of_robots_holds_exactly_their_readings(tmp_path,
     for _ in range(3):
         sim.set_velocity_commands(np.full(sim.n, 0.05), np.full(sim.n, 0.3))
         frame = sim.step()
-    cut = frame.rows(start, stop)
+    cut = sim.senses.frame(sim.sensing_inputs(), sim.robot_rows(start, stop), slice(start, stop))
     assert cut.tick == frame.tick and len(cut.groups) == len(frame.groups)
     for robot in range(start, stop):
         local = robot - start
