@@ -113,23 +113,32 @@ def _fast_dds_host_id() -> bytes:
 # locked (flock) while it lives. A process that ends without destroying its participants (a run
 # that ends with os._exit, a worker or controller killed) leaves them behind: RAM on a tmpfs, and
 # error lines from later participants that trip over the dead ports. A run removes them first.
+#
+# Worse is a port file of size zero: its creator died between creating the file and sizing it
+# (killed during start-up). boost's open-or-create then waits for the segment to be initialised,
+# forever, inside rcl's participant creation, where Python's SIGTERM handler never runs: every
+# later participant whose port number falls on it hangs (measured: a node on a domain whose user
+# port has such a file never comes up; multi-process start-ups of 160 robots stalled on them). No
+# port of a live process stays empty for more than a moment, so an old empty one goes too.
 
 SHM_DIR = Path("/dev/shm")
 STALE_AFTER_S = 60.0     # younger files may belong to a participant being created right now
+EMPTY_PORT_AFTER_S = 10.0  # a port file is sized right after it is created
 
 
 def remove_stale_shared_memory(directory: Path = SHM_DIR, *, stale_after_s: float = STALE_AFTER_S) -> int:
     """Remove Fast DDS's shared-memory files whose owner is dead (their ``_el`` lock is free and
-    older than ``stale_after_s``); how many segments went. Files of live processes are never
-    touched: their lock is held."""
+    older than ``stale_after_s``) and port files left empty (older than ``EMPTY_PORT_AFTER_S``);
+    how many segments went. Files of live processes are never touched: their lock is held."""
     import fcntl
     import time
-    removed = 0
     now = time.time()
     try:
         locks = list(Path(directory).glob("fastrtps_*_el"))
+        ports = list(Path(directory).glob("fastrtps_port*[0-9]"))
     except OSError:
         return 0
+    removed = 0
     for lock in locks:
         try:
             if now - lock.stat().st_mtime < stale_after_s:
@@ -150,4 +159,12 @@ def remove_stale_shared_memory(directory: Path = SHM_DIR, *, stale_after_s: floa
             pass
         finally:
             os.close(fd)
+    for port in ports:
+        try:
+            status = port.stat()
+            if status.st_size == 0 and now - status.st_mtime >= EMPTY_PORT_AFTER_S:
+                port.unlink()
+                removed += 1
+        except OSError:
+            pass                # gone meanwhile, or another user's
     return removed

@@ -154,3 +154,20 @@ def test_shared_memory_of_dead_participants_is_removed_and_a_live_ones_kept(tmp_
         os.close(held)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["fastrtps_alive", "fastrtps_alive_el",
                                                          "fastrtps_young", "fastrtps_young_el"]
+
+
+def test_an_empty_port_file_left_by_a_killed_creator_is_removed(tmp_path):
+    """A port file of size zero hangs every participant that opens it; one older than a moment goes,
+    a fresh one (being sized by its creator) and a sized one without a lock file stay."""
+    import os
+    import time
+
+    from composed_sim.ros.participants import EMPTY_PORT_AFTER_S, remove_stale_shared_memory
+    (tmp_path / "fastrtps_port7411").write_bytes(b"")
+    (tmp_path / "fastrtps_port7413").write_bytes(b"")
+    (tmp_path / "fastrtps_port7415").write_bytes(b"x" * 100)
+    old = time.time() - EMPTY_PORT_AFTER_S - 1
+    for name in ("fastrtps_port7411", "fastrtps_port7415"):
+        os.utime(tmp_path / name, (old, old))
+    assert remove_stale_shared_memory(tmp_path) == 1
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["fastrtps_port7413", "fastrtps_port7415"]
