@@ -16,7 +16,6 @@ import numpy as np
 from composed_sim.core.frames import GroupReadings, SensorFrame
 from composed_sim.core.odometry import WheelReadings, positioning
 from composed_sim.devices import GROUP_READERS, WITH_LAYOUT
-from composed_sim.devices.camera import led_world_positions
 from composed_sim.devices.common.floor import Floor
 from composed_sim.devices.common.geometry import StaticScene
 from composed_sim.devices.common.noise import NoiseStream
@@ -71,11 +70,17 @@ class Senses:
         self.camera_heights = per_robot(lambda m: m.camera.height_m if m.camera else 0.0)
         apertures = np.radians([world.robots[g].camera.aperture_deg for g in world.group_of_robot()])
         self.half_windows = self.camera_heights * np.tan(apertures)   # [n] square window half-side
-        self.one_model = len({m.name for m in models}) <= 1
-        self.led_counts = per_robot(lambda m: m.n_leds, np.intp)         # [n]
         first = models[0] if models else get_model("foot-bot")
-        self.led_body = first.led_positions_array()     # [L, 3], every robot's in a one-model world
-        self.n_leds = int(self.led_counts.max()) if self.n else first.n_leds
+        self.n_leds = max((m.n_leds for m in models), default=first.n_leds)
+        # Every robot's LEDs in its body frame, [1, L, 3] when all robots share a model, else
+        # [n, L, 3] (a model with fewer LEDs padded at its centre: they are never lit).
+        if len({m.name for m in models}) <= 1:
+            self.led_bodies = first.led_positions_array()[None]
+        else:
+            self.led_bodies = np.zeros((self.n, self.n_leds, 3))
+            for g in self.groups:
+                body = g.model.led_positions_array()
+                self.led_bodies[g.robots, :len(body)] = body
 
         pos_cfg = [world.robots[g].devices.config(POSITIONING) for g in world.group_of_robot()]
         self.pose_noise = tuple(np.array([getattr(c, f) for c in pos_cfg], dtype=np.float64).reshape(self.n)
@@ -102,12 +107,14 @@ class Senses:
         wheels and odometry, as the main process integrated them."""
         block = slice(0, self.n) if block is None else block
         p, h = inputs.positions, inputs.headings
-        tree = kd_tree(p)       # one neighbour index per tick, shared by every sensor
+        # One neighbour index per tick, shared by every sensor. Unbalanced and not compacted, it
+        # builds 2.3× faster at 10 240 robots (each worker builds its own) and queries as fast.
+        tree = kd_tree(p, balanced_tree=False, compact_nodes=False)
         tick = inputs.tick
         sensing = Sensing(p, h, self.radii, self.heights, inputs.scene, tree,
                           lambda device, robots: self.streams[device].at(tick, robots), inputs.lights,
                           inputs.floor, self.camera_heights, self.half_windows, inputs.led_colors,
-                          lambda: self._led_world(inputs), one_group=len(self.groups) == 1,
+                          self._led_world(inputs), one_group=len(self.groups) == 1,
                           block=None if block == slice(0, self.n) else block)
         groups = []
         for g in self.groups:
@@ -136,16 +143,17 @@ class Senses:
                            yaw_noise_rad=self.pose_noise[1][block], rng=self.streams[POSITIONING].at(tick, ids))
         return SensorFrame(tick, groups, pose, rows.wheels, rows.odometry, rows.odometry_twist, rab)
 
-    def _led_world(self, inputs: SensingInputs) -> np.ndarray:
-        """[n, L, 3] world-frame LED positions of every robot (padding LEDs at the robot's centre)."""
-        if self.one_model:
-            return led_world_positions(inputs.positions, inputs.headings, self.led_body)
-        out = np.zeros(inputs.led_colors.shape, dtype=np.float64)
-        for g in self.groups:
-            body = g.model.led_positions_array()
-            if len(body):
-                out[g.robots, :len(body)] = led_world_positions(inputs.positions[g.robots],
-                                                                inputs.headings[g.robots], body)
-            out[g.robots, len(body):, :2] = inputs.positions[g.robots, None, :]
-        return out
+    def _led_world(self, inputs: SensingInputs):
+        """(robots [l], leds [l]) → [l, 3]: where those LEDs are in the world frame. Only the LEDs
+        a camera asks for (the lit ones) are placed: a worker's block reads a few hundred robots'
+        cameras, and placing every LED of 10 000 robots would cost it more than its own sensing."""
+        x, y = inputs.positions[:, 0], inputs.positions[:, 1]
+        bodies = self.led_bodies
 
+        def at(robots: np.ndarray, leds: np.ndarray) -> np.ndarray:
+            body = bodies[robots if len(bodies) > 1 else 0, leds]               # [l, 3]
+            # cos and sin of every heading, then taken: each value as the whole swarm's arrays give it
+            c, s = np.cos(inputs.headings).take(robots), np.sin(inputs.headings).take(robots)
+            return np.stack([x.take(robots) + c * body[:, 0] - s * body[:, 1],
+                             y.take(robots) + s * body[:, 0] + c * body[:, 1], body[:, 2]], axis=-1)
+        return at

@@ -88,7 +88,8 @@ def blob_camera(positions, headings, radii, heights, camera_heights, half_window
 
     positions [n, 2], headings [n], radii [n], heights [n], camera_heights [n] m,
     half_windows [n] m (= height · tan(aperture)), led_world [n, L, 3] world-frame LED
-    positions, led_colors [n, L, 3] uint8. LED l of robot j is a blob of robot i when it is
+    positions, or a function (robots [l], leds [l]) → [l, 3] of those LEDs (only the lit ones
+    are asked for), led_colors [n, L, 3] uint8. LED l of robot j is a blob of robot i when it is
     lit (not black), j != i, |dx| and |dy| (world axes) are both below half_windows[i], it is
     lower than the camera, and the segment camera(i) → LED is not blocked by a robot other
     than i (the LED's owner included, as in ARGoS) nor by a static body. Blobs of a robot are ordered by owner, then LED index.
@@ -99,28 +100,29 @@ def blob_camera(positions, headings, radii, heights, camera_heights, half_window
     n = len(positions)
     camera_heights = np.asarray(camera_heights, dtype=np.float64)
     half_windows = np.asarray(half_windows, dtype=np.float64)
-    led_world = np.asarray(led_world, dtype=np.float64)
     led_colors = np.asarray(led_colors)
     for name, a in (("camera_heights", camera_heights), ("half_windows", half_windows)):
         if a.shape != (n,):
             raise ValueError(f"{name} must have shape ({n},), got {a.shape}")
-    if led_world.ndim != 3 or led_world.shape[::2] != (n, 3):
-        raise ValueError(f"led_world must have shape ({n}, L, 3), got {led_world.shape}")
-    if led_colors.shape != led_world.shape:
-        raise ValueError(f"led_colors must have shape {led_world.shape}, got {led_colors.shape}")
+    if led_colors.ndim != 3 or led_colors.shape[::2] != (n, 3):
+        raise ValueError(f"led_colors must have shape ({n}, L, 3), got {led_colors.shape}")
+    if not callable(led_world):
+        led_world = np.asarray(led_world, dtype=np.float64)
+        if led_world.shape != led_colors.shape:
+            raise ValueError(f"led_world must have the shape of led_colors {led_colors.shape}, got {led_world.shape}")
     _check_noise("noise_std", noise_std, rng)
 
     # Most LEDs are off: the work below follows the lit ones only.
-    n_leds = led_world.shape[1]
+    n_leds = led_colors.shape[1]
     rgb = led_colors.astype(np.uint8, copy=False)
     own, led = np.nonzero(rgb[..., 0] | rgb[..., 1] | rgb[..., 2])   # sorted by owner, then LED
     if n < 2 or len(own) == 0:
         return BlobReadings.empty(n if observers is None else len(observers))
     n_lit = np.bincount(own, minlength=n)
     first_lit = np.cumsum(n_lit) - n_lit
-    flat = led_world.reshape(-1, 3)                             # [n * L, 3]
+    lit = led_world(own, led) if callable(led_world) else led_world[own, led]   # [l, 3], as own and led
     # Observer/owner pairs whose centres are close enough for a lit LED to be in the window.
-    reach = np.abs(flat.take(own * n_leds + led, axis=0)[:, :2] - positions.take(own, axis=0)).max()
+    reach = np.abs(lit[:, :2] - positions.take(own, axis=0)).max()
     tree = kd_tree(positions) if tree is None else tree
     observers, row_of = _observer_rows(observers, n)
     obs, owner = near_pairs(tree, positions, half_windows.max() + reach, observers, p=np.inf)
@@ -138,8 +140,8 @@ def blob_camera(positions, headings, radii, heights, camera_heights, half_window
     parts, start, done = [], 0, 0
     while start < len(obs):
         stop = max(start + 1, int(np.searchsorted(ends, done + _BLOB_CHUNK, "right")))
-        parts.append(_visible_leds(obs[start:stop], owner[start:stop], n_lit, first_lit, led, flat, positions,
-                                   radii, heights, camera_heights, half_windows, scene, tree))
+        parts.append(_visible_leds(obs[start:stop], owner[start:stop], n_lit, first_lit, led, n_leds, lit,
+                                   positions, radii, heights, camera_heights, half_windows, scene, tree))
         start, done = stop, ends[stop - 1]
     i, f, rx, ry = parts[0] if len(parts) == 1 else (np.concatenate(x) for x in zip(*parts))
 
@@ -158,23 +160,23 @@ def blob_camera(positions, headings, radii, heights, camera_heights, half_window
                         colors=rgb.reshape(-1, 3).take(f, axis=0))
 
 
-def _visible_leds(obs, owner, n_lit, first_lit, led, flat, positions, radii, heights, camera_heights,
+def _visible_leds(obs, owner, n_lit, first_lit, led, n_leds, lit, positions, radii, heights, camera_heights,
                   half_windows, scene, tree):
     """The lit LEDs of `owner` [p] that `obs` [p] sees → (observer, flat LED index, dx, dy) [m] each.
 
     n_lit [n], first_lit [n]: each robot's count of lit LEDs and where they start in `led` [l];
-    flat [n * L, 3] the LED positions, robot-major.
+    lit [l, 3] where those LEDs are; a flat LED index is owner · n_leds + LED.
     """
-    n_leds = len(flat) // len(positions)
     if n_lit.max() == 1:                                # e.g. flocking: only the beacon is lit
         i, j = obs, owner
-        f = j * n_leds + led[first_lit[j]]              # flat LED index
+        k = first_lit[j]                                # index into the lit LEDs
     else:
         rows, within = _ranges(n_lit[owner])
         i, j = obs[rows], owner[rows]
-        f = j * n_leds + led[first_lit[j] + within]
+        k = first_lit[j] + within
+    f = j * n_leds + led[k]
     # One 1-D array per coordinate: fancy indexing [m, 2]/[m, 3] arrays is far slower.
-    tx, ty, tz = flat[:, 0].take(f), flat[:, 1].take(f), flat[:, 2].take(f)
+    tx, ty, tz = lit[:, 0].take(k), lit[:, 1].take(k), lit[:, 2].take(k)
     rx, ry = tx - positions[:, 0].take(i), ty - positions[:, 1].take(i)
     hw, cz = half_windows[i], camera_heights[i]
     shown = (np.abs(rx) < hw) & (np.abs(ry) < hw) & (tz < cz)

@@ -7,7 +7,6 @@ neighbour index of the robot centres per tick.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import cached_property
 from typing import TYPE_CHECKING, Any, Callable, Optional, Sequence
 
 import numpy as np
@@ -48,7 +47,7 @@ class Sensing:
     camera_heights: np.ndarray         # [n] m
     half_windows: np.ndarray           # [n] m, the camera's square window half-side
     led_colors: np.ndarray             # [n, L, 3] uint8
-    led_world_of: Callable[[], np.ndarray]   # → [n, L, 3] world-frame LED positions
+    led_world: Callable[[np.ndarray, np.ndarray], np.ndarray]   # (robots [l], leds [l]) → [l, 3] world-frame LEDs
     one_group: bool                    # the world has one robot group
     block: Optional[slice] = None      # sense only these robots (a worker process's); None: all
 
@@ -69,7 +68,3 @@ class Sensing:
         """The device's noise for the group's sensed robots this tick (rows in observer order)."""
         return self.noise_of(device, self.observer_ids(group))
 
-    @cached_property
-    def led_world(self) -> np.ndarray:
-        """[n, L, 3] world-frame LED positions, computed once per tick for every camera."""
-        return self.led_world_of()
