@@ -85,6 +85,34 @@ def test_replot_redraws_from_the_stored_rows(tiny_sweep, tmp_path):
     assert "| 5 | composed, workers auto (1) | events | 1/1 |" in report.read_text()
 
 
+def test_replot_joins_sweeps_run_apart_and_refuses_different_tick_counts(tiny_sweep, tmp_path, capsys):
+    _, out, _ = tiny_sweep
+    doc = json.loads((out / "runs.json").read_text())
+    parts = []
+    for executor in ("multi-threaded", "events"):      # as if each executor had been swept apart
+        part = {**doc, "command": f"composed-sim bench --executors {executor}",
+                "settings": {**doc["settings"], "executors": [executor]},
+                "rows": [r for r in doc["rows"] if r["executor"] == executor]}
+        parts.append(tmp_path / f"{executor}.json")
+        parts[-1].write_text(json.dumps(part))
+    report = tmp_path / "joined.md"
+    assert main(["bench", "--replot", *map(str, parts), "--out", str(tmp_path / "figs"), "--report", str(report)]) == 0
+    text = report.read_text()
+    assert "composed-sim bench --executors multi-threaded\ncomposed-sim bench --executors events" in text
+    assert "| 5 | composed, workers auto (1) | multi-threaded | 1/1 |" in text
+    assert "| 3 | composed, workers auto (1) | events | 1/1 |" in text
+    joined = json.loads((tmp_path / "figs" / "runs.json").read_text())
+    assert len(joined["rows"]) == len(doc["rows"]) and joined["settings"]["executors"] == ["multi-threaded", "events"]
+
+    capsys.readouterr()
+    other = json.loads(parts[1].read_text())
+    other["settings"]["ticks"] = 600
+    parts[1].write_text(json.dumps(other))
+    assert main(["bench", "--replot", *map(str, parts), "--out", str(tmp_path / "figs2")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "different tick counts (20, 600)" in err[0]
+
+
 def test_a_run_that_cannot_start_is_a_failed_row_not_a_crash(tmp_path, domain_id, capsys):
     bad = tmp_path / "bad.yaml"
     bad.write_text(textwrap.dedent("""\

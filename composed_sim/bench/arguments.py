@@ -93,9 +93,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--memory-fraction", type=_fraction, default=DEFAULT_MEMORY_FRACTION,
                         help="multi-process runs whose predicted memory exceeds this fraction of the "
                              "available memory are skipped (default: %(default)s)")
-    parser.add_argument("--replot", type=Path, default=None, metavar="RUNS.json",
-                        help="run nothing: redraw the figures (into --out) and the --report from a "
-                             "runs.json written by an earlier sweep")
+    parser.add_argument("--replot", type=Path, nargs="+", default=None, metavar="RUNS.json",
+                        help="run nothing: redraw the figures (into --out) and the --report from the "
+                             "runs.json of an earlier sweep, or of several sweeps of the same tick "
+                             "count run apart (their rows together, each command listed)")
 
 
 def command_line(args) -> str:
