@@ -190,6 +190,7 @@ def _run_and_write(args, world, host, finish, logs, fail_fast: FailFast) -> tupl
     from composed_sim.hosts.composed import ComposedHost
     from composed_sim.hosts.controllers import HostError
     from composed_sim.hosts.lockstep import AnotherSimulator
+    from composed_sim.hosts.multiprocess import MultiProcessHost
     from composed_sim.hosts.workers import WorkerHost, usable_cores
 
     with Interrupts() as interrupts, contextlib.ExitStack() as outputs:
@@ -226,9 +227,11 @@ def _run_and_write(args, world, host, finish, logs, fail_fast: FailFast) -> tupl
                           f"{result.trajectories.ticks_done}, results so far in {args.out}/", file=sys.stderr)
                 for line in logs.console.closing_lines():
                     print(line, file=sys.stderr)
-                if args.exit_when_done and isinstance(host, (ComposedHost, WorkerHost)):
+                if args.exit_when_done and isinstance(host, (ComposedHost, WorkerHost, MultiProcessHost)):
                     if isinstance(host, WorkerHost):
                         host.__exit__(None, None, None)     # quick: the workers write their logs and end
+                    elif isinstance(host, MultiProcessHost):
+                        host.stop_processes()
                     # Destroying thousands of nodes one by one takes minutes (each destruction
                     # republishes the participant's graph, docs/speed.md): with every result and
                     # the recording written, the process ends and the system reclaims the rest.

@@ -349,8 +349,18 @@ class MultiProcessHost(ControllersElsewhere):
 
     # --- shutdown ---------------------------------------------------------------------------
 
-    def __exit__(self, *exc) -> None:
+    def stop_processes(self) -> None:
+        """End every controller process and remove their files: all a run that ends its own
+        process next needs. Destroying the simulator's nodes as well can hang there: a controller
+        killed while it held its shared-memory port's lock leaves the lock held, and the graph
+        update each destruction sends to that port waits for it forever."""
         self._stop_children()
+        if self._tmp is not None:
+            shutil.rmtree(self._tmp, ignore_errors=True)
+            self._tmp = None
+
+    def __exit__(self, *exc) -> None:
+        self.stop_processes()
         for executor in self._executors:
             executor.shutdown()
         for thread in self._threads:
@@ -369,9 +379,6 @@ class MultiProcessHost(ControllersElsewhere):
             if context.ok():
                 rclpy.shutdown(context=context)
         self._contexts = []
-        if self._tmp is not None:
-            shutil.rmtree(self._tmp, ignore_errors=True)
-            self._tmp = None
 
     def _stop_children(self) -> None:
         """SIGTERM to every child's group, SIGKILL to whatever is left after TERM_GRACE_S, reap

@@ -152,7 +152,9 @@ def remove_stale_shared_memory(directory: Path = SHM_DIR, *, stale_after_s: floa
             os.close(fd)        # held: its owner lives
             continue
         try:
-            Path(str(lock)[:-len("_el")]).unlink(missing_ok=True)
+            segment = Path(str(lock)[:-len("_el")])
+            segment.unlink(missing_ok=True)
+            _port_mutex(segment).unlink(missing_ok=True)
             lock.unlink(missing_ok=True)
             removed += 1
         except OSError:
@@ -164,7 +166,15 @@ def remove_stale_shared_memory(directory: Path = SHM_DIR, *, stale_after_s: floa
             status = port.stat()
             if status.st_size == 0 and now - status.st_mtime >= EMPTY_PORT_AFTER_S:
                 port.unlink()
+                _port_mutex(port).unlink(missing_ok=True)
                 removed += 1
         except OSError:
             pass                # gone meanwhile, or another user's
     return removed
+
+
+def _port_mutex(segment: Path) -> Path:
+    """A port's named mutex (``sem.fastrtps_port<N>_mutex``): a process killed while holding it
+    leaves it locked, and the next owner of that port number would wait for it forever. A
+    participant's own segment has none (the path names no file)."""
+    return segment.parent / f"sem.{segment.name}_mutex"

@@ -146,6 +146,7 @@ def test_shared_memory_of_dead_participants_is_removed_and_a_live_ones_kept(tmp_
     old = time.time() - 120
     for name in ("fastrtps_dead", "fastrtps_port7411", "fastrtps_alive"):
         os.utime(tmp_path / f"{name}_el", (old, old))
+    (tmp_path / "sem.fastrtps_port7411_mutex").write_bytes(b"x" * 32)     # a dead port's named mutex
     held = os.open(tmp_path / "fastrtps_alive_el", os.O_RDWR)
     fcntl.flock(held, fcntl.LOCK_EX)            # as a live participant holds its own
     try:
@@ -166,8 +167,11 @@ def test_an_empty_port_file_left_by_a_killed_creator_is_removed(tmp_path):
     (tmp_path / "fastrtps_port7411").write_bytes(b"")
     (tmp_path / "fastrtps_port7413").write_bytes(b"")
     (tmp_path / "fastrtps_port7415").write_bytes(b"x" * 100)
+    for name in ("fastrtps_port7411", "fastrtps_port7413"):
+        (tmp_path / f"sem.{name}_mutex").write_bytes(b"x" * 32)
     old = time.time() - EMPTY_PORT_AFTER_S - 1
     for name in ("fastrtps_port7411", "fastrtps_port7415"):
         os.utime(tmp_path / name, (old, old))
     assert remove_stale_shared_memory(tmp_path) == 1
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["fastrtps_port7413", "fastrtps_port7415"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["fastrtps_port7413", "fastrtps_port7415",
+                                                         "sem.fastrtps_port7413_mutex"]
