@@ -434,8 +434,10 @@ class LinkedExchange(NodesExchange):
                         host._nodes[host.domains[name]].settle_idle([name])
             if (self.all_answered and not waiting) or time.monotonic() > deadline:
                 return self.all_answered
-            if not self.all_answered:
-                unanswered = next(n for n in self.nodes if not n.all_answered)
+            # The domains' nodes take their answers in threads of their own: the last one may come
+            # in between the look above and this one.
+            unanswered = next((n for n in self.nodes if not n.all_answered), None)
+            if unanswered is not None:
                 if not unanswered.wait_for_answers(min(self.POLL_S, max(0.0, deadline - time.monotonic()))):
                     self._check()
             else:
