@@ -191,7 +191,7 @@ class ParticipantGroups:
                                          for p in node.publishers], drained, timed=True)
             inboxes += [inbox_of(s) for s in drained if inbox_of(s) is not None]
             self.links += links
-            self._graph_watches.append(GraphWatch(sim_node, links, inboxes, sim_node.device_publishers))
+            self._graph_watches.append(GraphWatch(sim_node, links, inboxes))
         self.executor.wake()     # its walk picks the inboxes up
 
     # --- run-wide topics, at the tick's edges (ros/run_wide.py) --------------------------------

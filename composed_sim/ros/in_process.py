@@ -204,8 +204,7 @@ def link_subscriptions(publishers: Iterable[Publisher], subscriptions: Iterable[
 
 
 class GraphWatch:
-    """When may a link's matched counts (or whether anyone reads a topic the simulator does not
-    publish yet) have changed? Only when this participant's ROS graph did:
+    """When may a link's matched counts have changed? Only when this participant's ROS graph did:
     an endpoint of another process (or a new one of this process) was discovered or went away.
     Asking DDS for the counts on every message cost about a sixth of the host's time at 1280
     robots; the graph's guard condition, looked at once per tick, says when to ask. Discovery
@@ -215,12 +214,10 @@ class GraphWatch:
 
     SETTLE_S = 2.0
 
-    def __init__(self, node, links: Sequence[Link], inboxes: Sequence[Inbox], device_publishers: Sequence = ()):
-        """``node``: any node of the participant (its graph is the participant's);
-        ``device_publishers``: the simulator node's, which ask whether anyone reads a topic they
-        do not publish yet (devices/common/device.py)."""
+    def __init__(self, node, links: Sequence[Link], inboxes: Sequence[Inbox]):
+        """``node``: any node of the participant (its graph is the participant's)."""
         self._changed = guard_condition_poll(node)
-        self._links, self._inboxes = [*links, *device_publishers], list(inboxes)
+        self._links, self._inboxes = list(links), list(inboxes)
         self._until = -1.0               # asking on every message until then (monotonic s)
         self._checking = True
 

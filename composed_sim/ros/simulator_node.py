@@ -266,18 +266,12 @@ class SimulatorNode(Node):
         clock._set_ros_time_is_active(True)
         self._driven_clocks.append(clock)
 
-    @property
-    def device_publishers(self) -> list[DevicePublisher]:
-        return self._device_publishers
-
     def set_message_tap(self, tap: "MessageTap") -> None:
         """Hand every per-robot message the tap wants (sensors out, answers in) to it, e.g. a bag."""
         self._tap_lock = threading.Lock()
         self._tap = tap
         self._tapped = {topic.name: [tap.wants(c.topic_name(name, topic)) for name in self._names]
                         for topic in c.TOPICS.values()}
-        for publisher in self._device_publishers:     # a recorded topic is published from now on
-            publisher.publish_check()
 
     def taps(self, topic: c.Topic, i: int) -> bool:
         """Is robot i's ``topic`` recorded?"""

@@ -160,36 +160,3 @@ def test_a_listener_that_comes_after_the_graph_settled_gets_every_tick_from_then
     assert links[0].in_process == 4          # the three went through DDS, to both
     assert [m.data for m in got] == [f"quiet {k}" for k in range(4)] + ["heard 0", "heard 1", "heard 2"]
     executor.shutdown()
-
-
-def test_a_topic_nobody_reads_is_asked_about_only_while_the_graph_may_change(domain_id):
-    # The flocking controllers do not read proximity: the simulator does not publish it, and asks
-    # DDS for a subscriber on every tick only while its participant's graph may change.
-    from types import SimpleNamespace
-    world = load_world(FLOCKING, robots=4, ticks=TICKS, seed=2)
-    with ComposedHost(world, domain_id=domain_id) as host:
-        (watch,) = host.groups._graph_watches
-        (sim,) = host.groups.simulator_nodes
-        proximity = next(p for p in sim.device_publishers if p.topic.name == "proximity")
-        out = SimpleNamespace(failed=[False] * 4)
-        clock = time.monotonic()
-        for _ in range(50):                # quiet for longer than the watch's settling time
-            clock += 2 * watch.SETTLE_S
-            watch.start_tick(clock)
-            if not proximity.checking:
-                break
-        assert not proximity.checking
-        asked = []
-        bot1 = proximity.pubs[1]
-        bot1.get_subscription_count = lambda: asked.append(1) or 0
-        assert not proximity.wanted(1, out) and asked == []
-        del bot1.get_subscription_count
-
-        listener = Listener(domain_id, ["/bot1/proximity=sensor_msgs/msg/LaserScan"])    # another process
-        listener.wait_matched()
-        deadline = time.monotonic() + 20
-        while bot1.get_subscription_count() < 1 and time.monotonic() < deadline:
-            time.sleep(0.01)
-        watch.start_tick(clock + 1)        # the graph changed: asking again
-        assert proximity.checking and proximity.wanted(1, out) and not proximity.wanted(2, out)
-        listener.stop()

@@ -100,26 +100,16 @@ class DevicePublisher:
     def finish_tick(self, out: Outgoing) -> None:
         """After every group of a tick (tf's one /tf message of the node)."""
 
-    #: Ask DDS each tick whether a topic nobody read so far has a subscriber now. The host's
-    #: graph watch (ros/in_process.GraphWatch) clears it while the ROS graph stays as it was.
-    checking = True
-
     def wanted(self, i: int, out: Outgoing) -> bool:
         """Publish robot i's message this tick? Never once it failed. Every tick once a subscriber
         has matched (a subscriber that comes later gets every tick from its match on, as with any
-        volatile topic); until then each tick asks DDS (while ``checking``), a call instead of a
-        message nobody reads. A recorded topic is always published."""
+        volatile topic); until then each tick asks DDS, a call instead of a message nobody reads.
+        A recorded topic is always published."""
         if out.failed[i]:
             return False
-        if not self._read[i] and self.checking:
+        if not self._read[i]:
             self._read[i] = self.pubs[i].get_subscription_count() > 0 or self.node.taps(self.topic, i)
         return self._read[i]
-
-    def publish_check(self) -> None:
-        """Ask DDS now, for every robot whose topic nobody has read yet."""
-        for i, pub in enumerate(self.pubs):
-            if pub is not None and not self._read[i]:
-                self._read[i] = pub.get_subscription_count() > 0 or self.node.taps(self.topic, i)
 
     def send(self, i: int, msg, out: Outgoing) -> None:
         """Publish robot i's message bytes; the caller asked ``wanted`` first."""
