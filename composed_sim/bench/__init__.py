@@ -21,7 +21,8 @@ Outputs in --out: runs.csv (one row per run; the paper's nine columns first, the
 (the same rows, the machine, the exact command, the memory estimate of the skip rule), and
 wall_time.png, cpu.png, memory.png (log-log against N, with the paper's means and the real-time
 line, like the paper's Figure 5). ``--report FILE.md`` also writes the report, its figures and
-raw rows in ``FILE's folder/figures/``. ``--replot runs.json …`` redraws all that from the stored rows of one or several sweeps.
+raw rows in ``FILE's folder/figures/``. ``--replot runs.json …`` redraws all that from the stored
+rows of one or several sweeps.
 
 The package: ``arguments`` (the options), ``experiments`` (the experiments --experiments names,
 each a shipped world), ``rules`` (the paper's figures, the skip rule, domains, aggregation), ``tree``
