@@ -107,9 +107,9 @@ class Senses:
         wheels and odometry, as the main process integrated them."""
         block = slice(0, self.n) if block is None else block
         p, h = inputs.positions, inputs.headings
-        # One neighbour index per tick, shared by every sensor. Unbalanced and not compacted, it
-        # builds 2.3× faster at 10 240 robots (each worker builds its own) and queries as fast.
-        tree = kd_tree(p, balanced_tree=False, compact_nodes=False)
+        # One neighbour index per tick, shared by every sensor. (Unbalanced, it builds 2.3× faster
+        # at 10 240 robots, but finds all pairs within 3.7 m, a LiDAR's reach, 9× slower.)
+        tree = kd_tree(p)
         tick = inputs.tick
         sensing = Sensing(p, h, self.radii, self.heights, inputs.scene, tree,
                           lambda device, robots: self.streams[device].at(tick, robots), inputs.lights,

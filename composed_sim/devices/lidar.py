@@ -29,7 +29,7 @@ from composed_sim.devices.common import cdr
 from composed_sim.devices.common.device import Device, DevicePublisher, reads_into
 from composed_sim.devices.common.geometry import StaticScene
 from composed_sim.devices.common.sensing import SensedGroup, Sensing
-from composed_sim.devices.common.sensors import _both_ways, _ranges, kd_tree
+from composed_sim.devices.common.sensors import _ranges, kd_tree, near_pairs
 from composed_sim.devices.common.settings import DeviceSwitch, NonNegativeFloat
 from composed_sim.devices.common.topic import Topic, base_scan
 
@@ -117,7 +117,8 @@ def _robot_hits(dist, positions, radii, heights, observers, origins, h, rel, lid
     row_of[observers] = np.arange(m)
     tree = kd_tree(positions) if tree is None else tree
     mount_offset = math.hypot(lidar.mount_m[0], lidar.mount_m[1])
-    a, b = _both_ways(tree.query_pairs(lidar.max_range_m + mount_offset + radii.max(), output_type="ndarray"))
+    # From the scanners only when they are a few (a worker's block): not every pair of the swarm.
+    a, b = near_pairs(tree, positions, lidar.max_range_m + mount_offset + radii.max(), None if m == n else observers)
     keep = np.flatnonzero((row_of[a] >= 0) & (heights[b] > lidar.mount_m[2]))
     rows, tgt = row_of[a[keep]], b[keep]
     rel_c = positions[tgt] - origins[rows]                        # [p, 2] target centre from the mount
