@@ -8,6 +8,7 @@ readings are the same whoever reads them.
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from typing import Optional, Sequence
 
@@ -16,6 +17,7 @@ import numpy as np
 from composed_sim.core.frames import GroupReadings, SensorFrame
 from composed_sim.core.odometry import WheelReadings, positioning
 from composed_sim.devices import GROUP_READERS, WITH_LAYOUT
+from composed_sim.devices.camera import leds_at
 from composed_sim.devices.common.floor import Floor
 from composed_sim.devices.common.geometry import StaticScene
 from composed_sim.devices.common.noise import NoiseStream
@@ -147,13 +149,4 @@ class Senses:
         """(robots [l], leds [l]) → [l, 3]: where those LEDs are in the world frame. Only the LEDs
         a camera asks for (the lit ones) are placed: a worker's block reads a few hundred robots'
         cameras, and placing every LED of 10 000 robots would cost it more than its own sensing."""
-        x, y = inputs.positions[:, 0], inputs.positions[:, 1]
-        bodies = self.led_bodies
-
-        def at(robots: np.ndarray, leds: np.ndarray) -> np.ndarray:
-            body = bodies[robots if len(bodies) > 1 else 0, leds]               # [l, 3]
-            # cos and sin of every heading, then taken: each value as the whole swarm's arrays give it
-            c, s = np.cos(inputs.headings).take(robots), np.sin(inputs.headings).take(robots)
-            return np.stack([x.take(robots) + c * body[:, 0] - s * body[:, 1],
-                             y.take(robots) + s * body[:, 0] + c * body[:, 1], body[:, 2]], axis=-1)
-        return at
+        return functools.partial(leds_at, inputs.positions, inputs.headings, self.led_bodies)

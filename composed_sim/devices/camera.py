@@ -70,13 +70,23 @@ class BlobReadings:
 def led_world_positions(positions: np.ndarray, headings: np.ndarray, led_body: np.ndarray) -> np.ndarray:
     """positions [n, 2], headings [n], led_body [L, 3] body-frame → [n, L, 3] world-frame LEDs."""
     positions = np.asarray(positions, dtype=np.float64)
-    headings = np.asarray(headings, dtype=np.float64)
     led_body = np.asarray(led_body, dtype=np.float64).reshape(-1, 3)
-    c, s = np.cos(headings)[:, None], np.sin(headings)[:, None]
-    bx, by = led_body[None, :, 0], led_body[None, :, 1]
-    return np.stack([positions[:, 0:1] + c * bx - s * by,
-                     positions[:, 1:2] + s * bx + c * by,
-                     np.broadcast_to(led_body[:, 2], (len(positions), len(led_body)))], axis=-1)
+    n, n_leds = len(positions), len(led_body)
+    robots, leds = np.repeat(np.arange(n), n_leds), np.tile(np.arange(n_leds), n)
+    return leds_at(positions, headings, led_body[None], robots, leds).reshape(n, n_leds, 3)
+
+
+def leds_at(positions: np.ndarray, headings: np.ndarray, led_bodies: np.ndarray, robots: np.ndarray,
+            leds: np.ndarray) -> np.ndarray:
+    """World-frame position [l, 3] of LED ``leds[k]`` of robot ``robots[k]``: positions [n, 2],
+    headings [n], led_bodies [n, L, 3] every robot's LEDs in its body frame, or [1, L, 3] when all
+    robots share them. Only these LEDs are placed (a worker's cameras need the lit ones)."""
+    body = np.asarray(led_bodies, dtype=np.float64)[robots if len(led_bodies) > 1 else 0, leds]   # [l, 3]
+    headings = np.asarray(headings, dtype=np.float64)
+    # cos and sin of every heading, then taken: each value as the whole swarm's arrays give it
+    c, s = np.cos(headings).take(robots), np.sin(headings).take(robots)
+    x, y = positions[:, 0].take(robots), positions[:, 1].take(robots)
+    return np.stack([x + c * body[:, 0] - s * body[:, 1], y + s * body[:, 0] + c * body[:, 1], body[:, 2]], axis=-1)
 
 
 def blob_camera(positions, headings, radii, heights, camera_heights, half_windows, led_world,
