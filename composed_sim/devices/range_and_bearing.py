@@ -38,7 +38,7 @@ from composed_sim.devices.common.device import Device, DevicePublisher, csr_take
 from composed_sim.devices.common.geometry import StaticScene
 from composed_sim.devices.common.noise import entry_noise
 from composed_sim.devices.common.poses import wrap_angle
-from composed_sim.devices.common.sensors import _pair_order, blocked_by_robots, kd_tree
+from composed_sim.devices.common.sensors import _pair_order, blocked_by_robots, kd_tree, near_pairs
 from composed_sim.devices.common.settings import DeviceSwitch, NonNegativeFloat, PositiveFloat, Probability
 from composed_sim.devices.common.topic import Topic, base_link
 
@@ -133,12 +133,14 @@ def range_and_bearing(positions: np.ndarray, headings: np.ndarray, radii: np.nda
         tree = kd_tree(positions) if tree is None else tree
         # Planar pairs within the longest range; the 3D test below is exact (emitters differ in height).
         reach = float(np.max(ranges[members]))
-        pairs = tree.query_pairs(reach, output_type="ndarray").astype(np.intp)
-        a, b = pairs[:, 0], pairs[:, 1]
-        both = equipped[a] & equipped[b]
-        if receivers is not None:    # only pairs with a receiver in the block: less to test
-            both &= ((a >= rows.start) & (a < rows.stop)) | ((b >= rows.start) & (b < rows.stop))
-        both = np.flatnonzero(both)
+        if receivers is None:
+            pairs = tree.query_pairs(reach, output_type="ndarray").astype(np.intp)
+            a, b = pairs[:, 0], pairs[:, 1]
+        else:    # only the pairs with a receiver in the block, found from the block (a worker's)
+            a, b = near_pairs(tree, positions, reach, np.arange(rows.start, rows.stop))
+            once = (a < b) | (b < rows.start) | (b >= rows.stop)       # a pair inside the block once
+            a, b = np.minimum(a[once], b[once]), np.maximum(a[once], b[once])   # lower index first, as above
+        both = np.flatnonzero(equipped[a] & equipped[b])
         a, b = a[both], b[both]
         v = emitters[b] - emitters[a]
         d2 = np.einsum("ij,ij->i", v, v)
