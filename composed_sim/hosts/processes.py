@@ -13,6 +13,7 @@ import threading
 import time
 
 PR_SET_PDEATHSIG = 1
+PR_SET_CHILD_SUBREAPER = 36
 # Words of a controller process's start-up reports (hosts/controller_process.py):
 TYPE_PREFIX = "type:"   # of "created": the type its cmd_vel publisher has (geometry_msgs/msg/Twist)
 GID_PREFIX = "gid:"     # of "ready": one cmd_vel publisher's GID, in hex
@@ -28,6 +29,47 @@ def die_with_parent(parent_pid: int | None, sig: int = signal.SIGTERM) -> None:
             print(f"prctl(PR_SET_PDEATHSIG) failed: errno {ctypes.get_errno()}", file=sys.stderr)
     if parent_pid is not None and os.getppid() != parent_pid:
         sys.exit(0)
+
+
+def become_subreaper() -> None:
+    """This process adopts its orphaned descendants (Linux's PR_SET_CHILD_SUBREAPER): the worker
+    processes, forked by a launcher that then exits, become its children, to be waited for and
+    signalled like any child (``AdoptedChild``)."""
+    libc = ctypes.CDLL(None, use_errno=True)
+    if libc.prctl(PR_SET_CHILD_SUBREAPER, 1, 0, 0, 0) != 0:
+        raise OSError(ctypes.get_errno(), "prctl(PR_SET_CHILD_SUBREAPER) failed")
+
+
+class AdoptedChild:
+    """A child this process did not start itself (forked by a launcher, then adopted: see
+    ``become_subreaper``), with the part of ``subprocess.Popen`` the hosts use: ``pid``,
+    ``returncode``, ``poll``, ``wait``."""
+
+    def __init__(self, pid: int):
+        self.pid = pid
+        self.returncode: int | None = None
+
+    def poll(self) -> int | None:
+        if self.returncode is None:
+            pid, status = os.waitpid(self.pid, os.WNOHANG)
+            if pid:
+                self.returncode = os.waitstatus_to_exitcode(status)
+        return self.returncode
+
+    def wait(self, timeout: float | None = None) -> int:
+        if timeout is None:
+            if self.returncode is None:
+                self.returncode = os.waitstatus_to_exitcode(os.waitpid(self.pid, 0)[1])
+            return self.returncode
+        deadline = time.monotonic() + timeout
+        delay = 0.0005
+        while self.poll() is None:      # as Popen.wait(timeout) does: no waitpid with a timeout
+            left = deadline - time.monotonic()
+            if left <= 0:
+                raise subprocess.TimeoutExpired(f"pid {self.pid}", timeout)
+            time.sleep(min(delay, left))
+            delay = min(delay * 2, 0.05)
+        return self.returncode
 
 
 def exit_reason(code: int) -> str:

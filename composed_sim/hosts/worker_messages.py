@@ -1,0 +1,38 @@
+"""The messages between the main process and a worker process (hosts/worker_process.py has the
+protocol), in a module of their own that both import without the worker's heavy imports."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Optional
+
+EXIT_SETUP = 3          # the block could not be built; the reason went to the main process
+
+
+@dataclass
+class WorkerSetup:
+    world: object             # schema World
+    start: int                # the block: robots start … stop-1
+    stop: int
+    index: int                # the worker's number; its participant group has the same
+    executor: str
+    domain_id: int
+    participant_prefix: bytes  # the GUID prefix of the worker's one participant (ros/participants.py)
+    scratch_dir: str           # where the worker may write its Fast DDS profile
+    shared_state: int          # the descriptor of the world's state in shared memory (shared_state.py)
+    logs: Optional[object] = None   # node_logs.LogSettings: its robots' log files are written here
+
+
+@dataclass
+class TickAnswers:
+    """A block's answers to a tick; its commands are in the shared state (shared_state.py)."""
+    tick: int
+    leds: dict = field(default_factory=dict)           # row in the block → [L, 3] uint8
+    rab: dict = field(default_factory=dict)            # row in the block → [B] uint8
+    violations: list = field(default_factory=list)     # new ones since the last tick: (tick, robot, reason)
+    tapped: list = field(default_factory=list)         # (topic, type, bytes, stamp ns)
+    run_wide: list = field(default_factory=list)       # (topic, type, bytes) for the next tick's batch
+    peak_rss_kb: int = 0                               # the worker's own peak resident memory so far
+    another_simulator: Optional[str] = None            # NodesExchange.another_simulator, this tick
+    logs: tuple = ()                                   # NodeLogs.drain(): console lines, failures, /rosout
+    cpu_s: float = 0.0                                 # the worker's CPU seconds since its first tick
+    node_code_s: float = 0.0                           # of which inside its nodes' own code (ros/node_time.py)

@@ -1,0 +1,112 @@
+"""A worker's life after its launch (hosts/worker_process.py): its block of robots built in one
+participant group, then one tick after another, as the main process sends them.
+
+Everything a worker needs is imported here, at the top: the launcher imports this module once,
+before it forks the workers, so that none of them pays for the imports (numpy, scipy, rclpy,
+pydantic: about 0.6 s of CPU each).
+"""
+from __future__ import annotations
+
+import os
+import resource
+import sys
+import time
+from multiprocessing.connection import Connection
+
+import numpy as np
+
+from composed_sim import plugins
+from composed_sim.core.senses import Senses
+from composed_sim.hosts.controllers import HostError
+from composed_sim.hosts.lockstep import acted_commands
+from composed_sim.hosts.node_logs import NodeLogs
+from composed_sim.hosts.participant_groups import ParticipantGroups
+from composed_sim.hosts.shared_state import SharedState
+from composed_sim.hosts.worker_messages import EXIT_SETUP, TickAnswers
+from composed_sim.ros import node_time
+from composed_sim.ros.participants import use_worker_prefix
+from composed_sim.ros.taps import TapBuffer
+
+
+def serve(fd: int) -> int:
+    """Build the block the main process asks for over the socket ``fd``, then answer its ticks
+    until it says stop or is gone; the exit code (EXIT_SETUP: the block could not be built)."""
+    conn = Connection(fd)
+    try:
+        kind, setup = conn.recv()
+    except EOFError:        # the main process gave up before this worker's turn to build
+        return 0
+    assert kind == "setup", kind
+
+    use_worker_prefix(setup.participant_prefix, setup.scratch_dir)
+    world = setup.world
+    # The robots' log files are written here; the main process gets the console's part.
+    logs = NodeLogs(setup.logs, world.tick_ns, forward=True) if setup.logs is not None else None
+    groups = ParticipantGroups(world, setup.start, setup.stop, executor=setup.executor, domain_id=setup.domain_id,
+                               robots_per_participant=setup.stop - setup.start, first_group=setup.index, logs=logs)
+    try:
+        groups.__enter__()
+    except (plugins.PluginError, HostError) as e:
+        if logs is not None:
+            logs.flush()
+        conn.send(("error", type(e).__name__, str(e), getattr(e, "field", ())))
+        return EXIT_SETUP
+    conn.send(("ready", groups.nodes, groups.close_run_wide(0)))
+
+    m = setup.stop - setup.start
+    (node,), exchange = groups.simulator_nodes, groups.exchange    # one participant group, one simulator node
+    lockstep = world.lockstep
+    previous = (np.zeros(m), np.zeros(m))
+    seen = 0                       # violations already sent
+    tap = None
+    wait, interrupting_hangs = groups.start_serving()
+    first_tick = None              # (CPU seconds, node code seconds) when the ticks began
+    senses, block = Senses(world), slice(setup.start, setup.stop)     # this block's sensors are read here
+    shared = SharedState(senses, world.range_and_bearing.payload_bytes, setup.shared_state)
+    kept: dict = {}                # the scene, floor and lights as last sent (core/senses.py)
+    with interrupting_hangs:
+        while True:
+            try:
+                message = conn.recv()
+            except EOFError:       # the main process is gone
+                break
+            if message[0] == "tick":
+                _, tick, route_messages, changed, batch = message
+                if first_tick is None:
+                    first_tick = (time.process_time(), node_time.seconds())
+                kept.update(changed)
+                frame = senses.frame(shared.inputs(tick, route_messages, **kept), shared.rows(block), block)
+                groups.open_tick(frame.tick, batch)
+                exchange.publish_tick(frame)
+                wait(lockstep.watchdog_s)
+                commands = (np.empty(m), np.empty(m))
+                exchange.close_tick(lockstep.fallback, previous, commands)
+                previous = acted_commands(frame.tick, commands)     # what the main process acts on
+                shared.write_commands(block, *commands)
+                answers = TickAnswers(frame.tick, exchange.take_led_commands(), exchange.take_rab_payloads())
+                answers.violations = [(v.tick, v.robot, v.reason) for v in node.violations[seen:]]
+                seen = len(node.violations)
+                if tap is not None:
+                    answers.tapped = tap.drain()
+                answers.run_wide = groups.close_run_wide(frame.tick + 1)
+                answers.peak_rss_kb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+                answers.another_simulator = exchange.another_simulator()
+                if logs is not None:
+                    answers.logs = logs.drain()
+                answers.cpu_s = time.process_time() - first_tick[0]
+                answers.node_code_s = node_time.seconds() - first_tick[1]
+                conn.send(("answers", answers))
+            elif message[0] == "clock":
+                exchange.publish_clock(message[1])
+            elif message[0] == "tap":
+                tap = TapBuffer(message[1])
+                node.set_message_tap(tap)
+            elif message[0] == "stop":
+                break
+    # Destroying hundreds of nodes one by one takes long (each republishes its participant's
+    # graph): nothing is left to write here but the logs, so the process just ends.
+    if logs is not None:
+        logs.flush()
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(0)
