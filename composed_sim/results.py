@@ -18,6 +18,7 @@ import json
 import os
 import platform
 import resource
+import zipfile
 from collections import Counter
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
@@ -114,6 +115,20 @@ def host_cost(times, robot_ticks: int, *, in_host: bool) -> dict[str, Optional[f
             "host_cost_per_robot_tick_us": round(1e6 * (times.cpu_s - times.node_code_s) / robot_ticks, 2)}
 
 
+def _save_npz(f, compress: bool, **arrays: np.ndarray) -> None:
+    """``np.savez`` into ``f``, with the arrays that shrink compressed (LED colours, names) and the
+    floats stored as they are. Poses barely compress (16.3 instead of 18.5 MB for 1280 robots ×
+    600 ticks) and deflating them took 0.45 s of the run's end (3.6 s at 10 240 robots); a
+    checkpoint, written often and replaced, is not compressed at all."""
+    with zipfile.ZipFile(f, "w", allowZip64=True) as z:
+        for name, array in arrays.items():
+            method = zipfile.ZIP_DEFLATED if compress and array.dtype.kind not in "fc" else zipfile.ZIP_STORED
+            info = zipfile.ZipInfo(f"{name}.npy")
+            info.compress_type = method
+            with z.open(info, "w", force_zip64=True) as member:
+                np.lib.format.write_array(member, np.asanyarray(array), allow_pickle=False)
+
+
 def write_results(out_dir: Path, world: World, result: LoopResult, summary: dict,
                   picture: bool = True, checkpoint: bool = False) -> list[str]:
     """Write every file of a run; each file is complete on its own, the picture last. Each file
@@ -126,12 +141,9 @@ def write_results(out_dir: Path, world: World, result: LoopResult, summary: dict
         f.write(dump_world(world).encode())
     t = result.trajectories
     extra = {} if t.led_colors is None else {"led_colors": t.led_colors}
-    # A checkpoint is written often and replaced: uncompressed (milliseconds); the final file is
-    # compressed.
-    save = np.savez if checkpoint else np.savez_compressed
     with _replacing(out_dir / TRAJECTORIES) as f:
-        save(f, positions=t.positions, headings=t.headings, names=np.asarray(t.names), tick_s=world.tick_s,
-             **extra)
+        _save_npz(f, compress=not checkpoint, positions=t.positions, headings=t.headings,
+                  names=np.asarray(t.names), tick_s=np.asarray(world.tick_s), **extra)
     with _replacing(out_dir / VIOLATIONS) as f:
         text = io.TextIOWrapper(f, newline="")
         w = csv.writer(text)
