@@ -124,6 +124,27 @@ def test_blocks_are_even_and_the_auto_rule_follows_cores_and_size():
     assert auto_workers(1280, cores=1) >= 2 and auto_workers(10240, cores=1) >= auto_workers(1280, cores=1)
 
 
+def test_the_workers_are_forked_by_one_launcher_adopted_here_and_reaped(domain_id, monkeypatch):
+    """One launcher imports the workers' code once and forks them; this process adopts them
+    (they are its children, each in a process group of its own, each with its own log) and
+    reaps every one at the end. One core: the workers build their nodes one after the other."""
+    monkeypatch.setattr("composed_sim.hosts.workers.usable_cores", lambda: 1)
+    world = load_world(FLOCKING, robots=9, ticks=5, seed=3)
+    this = psutil.Process()
+    with WorkerHost(world, workers=3, domain_id=domain_id) as host:
+        pids = [w.popen.pid for w in host.workers]
+        children = {p.pid: p for p in this.children()}
+        assert set(pids) <= set(children), (pids, children)
+        assert len({os.getpgid(pid) for pid in pids}) == 3 and all(os.getpgid(pid) == pid for pid in pids)
+        assert all("composed_sim.hosts.worker_process" in " ".join(children[pid].cmdline()) for pid in pids)
+        assert len({w.log for w in host.workers}) == 3 and all(w.log.exists() for w in host.workers)
+        result = host.run()
+    assert result.violations == [] and result.trajectories.ticks_done == 5
+    for pid in pids:            # reaped: not even a zombie is left
+        with pytest.raises(ProcessLookupError):
+            os.kill(pid, 0)
+
+
 def test_more_workers_than_robots_is_a_clear_error():
     world = load_world(FLOCKING, robots=2, ticks=5)
     with pytest.raises(HostError, match="--workers 3: a worker hosts at least one of the 2 robots"):
