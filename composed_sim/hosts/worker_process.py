@@ -36,6 +36,7 @@ then stops the workers. Its stdout and stderr go to ``worker<i>.log`` in ``--log
 from __future__ import annotations
 
 import argparse
+import gc
 import os
 import signal
 import sys
@@ -57,6 +58,10 @@ def main(argv: list[str] | None = None) -> int:
     fds = [int(fd) for fd in args.fds.split(",")]
 
     from composed_sim.hosts.worker_serving import serve     # the imports, shared by every fork
+    # The imported objects out of the collector's reach: its passes would write to every one of
+    # them in every worker, copying the pages they share (1280 robots in 8 workers: peak PSS 1267
+    # -> 1162 MB).
+    gc.freeze()
     sys.stdout.flush()
     sys.stderr.flush()
     pids = []
