@@ -10,6 +10,11 @@ composed host split into self-contained shards (a simulator node and its robots'
 participant) pays O(E²/K). Other processes still discover every participant, so ``ros2 topic
 echo /bot7/light`` or a recorder elsewhere sees every topic as before.
 
+The same profile (data/fastdds_participants.xml) starts every DataWriter's and DataReader's
+history with room for one sample instead of Fast DDS's 100, grown when needed: a robot's endpoints
+took 0.7 MB, 0.3 MB of it those unused samples (1280 flocking robots in one process: peak RSS 994
+-> 599 MB, trajectories identical, ticks no slower in 6 alternated pairs).
+
 Fast DDS reads its default profile when the process creates its first participant, from the file
 named by ``FASTRTPS_DEFAULT_PROFILES_FILE``.
 """
@@ -45,23 +50,16 @@ def ignore_participants_of_this_process() -> bool:
 # last 4 are the worker's number. The workers then skip one another's discovery as the
 # participants of one process do (their topics never overlap), and any other process, whose
 # prefix differs, discovers every worker. Without this, every endpoint of one worker would be
-# matched against every endpoint of the others: set-up O(E²) again.
+# matched against every endpoint of the others: set-up O(E²) again. The worker's profile is ours
+# (data/fastdds_participants.xml) with the prefix added.
 
-_PREFIX_PROFILE = """<?xml version="1.0" encoding="UTF-8" ?>
-<!-- composed_sim worker: written by composed_sim/ros/participants.py for one run -->
-<profiles xmlns="http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles">
-  <participant profile_name="composed_sim_worker" is_default_profile="true">
-    <rtps>
-      <prefix>{prefix}</prefix>
-      <builtin>
-        <discovery_config>
-          <ignoreParticipantFlags>FILTER_SAME_PROCESS</ignoreParticipantFlags>
-        </discovery_config>
-      </builtin>
-    </rtps>
-  </participant>
-</profiles>
-"""
+
+def _with_prefix(profile: str, prefix: str) -> str:
+    """Our profile, its participant's GUID prefix set (``01.0f.….``)."""
+    participant = '<participant profile_name="composed_sim_participant" is_default_profile="true">\n    <rtps>'
+    if participant not in profile:
+        raise ValueError(f"{PROFILE} has no participant profile to give a prefix")
+    return profile.replace(participant, f"{participant}\n      <prefix>{prefix}</prefix>")
 
 
 def run_prefix() -> bytes:
@@ -82,7 +80,7 @@ def use_worker_prefix(prefix: bytes, directory: Path) -> bool:
     for v in PROFILE_VARIABLES:
         os.environ.pop(v, None)
     path = Path(directory) / f"fastdds_worker_{prefix.hex()}.xml"
-    path.write_text(_PREFIX_PROFILE.format(prefix=".".join(f"{b:02x}" for b in prefix)))
+    path.write_text(_with_prefix(PROFILE.read_text(), ".".join(f"{b:02x}" for b in prefix)))
     os.environ[PROFILE_VARIABLES[0]] = str(path)
     return True
 
