@@ -41,7 +41,9 @@ import os
 import signal
 import sys
 import time
+
 from composed_sim.hosts.processes import die_with_parent
+
 
 def main(argv: list[str] | None = None) -> int:
     """The launcher: import what a worker needs once, fork the K workers, tell the main process

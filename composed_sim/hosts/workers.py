@@ -317,8 +317,11 @@ class WorkerHost(ControllersElsewhere):
 
     def _adopt(self) -> None:
         """The workers' pids, from the launcher once it forked them all and exited."""
+        try:
+            out, _ = self._launcher.communicate(timeout=STARTUP_TIMEOUT_S)
+        except subprocess.TimeoutExpired:
+            raise HostError(f"the workers' launcher did not fork them within {STARTUP_TIMEOUT_S:.0f} s") from None
         launcher, self._launcher = self._launcher, None
-        out, _ = launcher.communicate()
         pids = out.split()
         if launcher.returncode != 0 or len(pids) != len(self.workers):
             log = (self._tmp / "launcher.log").read_text(errors="replace")[-2000:]
