@@ -40,7 +40,6 @@ import gc
 import os
 import signal
 import sys
-import time
 
 from composed_sim.hosts.processes import die_with_parent
 
@@ -73,8 +72,8 @@ def main(argv: list[str] | None = None) -> int:
             code = 1
             try:
                 _become_worker(index, fd, fds, args)
-                code = serve(fd)
-            except SystemExit as e:     # die_with_parent: the main process is gone already
+                code = serve(fd, lambda: die_with_parent(args.parent_pid, signal.SIGKILL))
+            except SystemExit as e:     # die_with_parent: the main process was gone already
                 code = e.code if isinstance(e.code, int) else 1
             except BaseException:
                 import traceback
@@ -95,8 +94,9 @@ def main(argv: list[str] | None = None) -> int:
 def _become_worker(index: int, fd: int, fds: list[int], args) -> None:
     """In a freshly forked worker: its own process group (the main process signals a worker's
     group), its own log as stdout and stderr, none of the other workers' sockets (a worker's
-    death must close its socket), and, once the launcher has exited and the main process adopted
-    it, death with the main process."""
+    death must close its socket). Its death with the main process is set once it is the main
+    process's child (``serve``'s ``adopted``); until then a main process that dies closes its
+    socket, which ends it."""
     os.setpgid(0, 0)
     log = os.open(os.path.join(args.logs, f"worker{index}.log"), os.O_WRONLY | os.O_CREAT | os.O_APPEND, 0o644)
     os.dup2(log, 1)
@@ -105,10 +105,6 @@ def _become_worker(index: int, fd: int, fds: list[int], args) -> None:
     for other in fds:
         if other != fd:
             os.close(other)
-    launcher = os.getppid()
-    while os.getppid() == launcher:     # it exits as soon as every worker is forked
-        time.sleep(0.001)
-    die_with_parent(args.parent_pid, signal.SIGKILL)
 
 
 if __name__ == "__main__":

@@ -12,6 +12,7 @@ import resource
 import sys
 import time
 from multiprocessing.connection import Connection
+from typing import Callable
 
 import numpy as np
 
@@ -28,15 +29,18 @@ from composed_sim.ros.participants import use_worker_prefix
 from composed_sim.ros.taps import TapBuffer
 
 
-def serve(fd: int) -> int:
+def serve(fd: int, adopted: Callable[[], None]) -> int:
     """Build the block the main process asks for over the socket ``fd``, then answer its ticks
-    until it says stop or is gone; the exit code (EXIT_SETUP: the block could not be built)."""
+    until it says stop or is gone; the exit code (EXIT_SETUP: the block could not be built).
+    ``adopted()`` runs when the block arrives: the main process sends it only once the launcher
+    has exited, so this worker is the main process's child by then."""
     conn = Connection(fd)
     try:
         kind, setup = conn.recv()
-    except EOFError:        # the main process gave up before this worker's turn to build
+    except EOFError:        # the main process is gone, or gave up before this worker's turn
         return 0
     assert kind == "setup", kind
+    adopted()
 
     use_worker_prefix(setup.participant_prefix, setup.scratch_dir)
     world = setup.world

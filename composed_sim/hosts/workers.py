@@ -340,14 +340,13 @@ class WorkerHost(ControllersElsewhere):
         # At most one worker per core builds its nodes at a time: more would only take turns on
         # the cores and thrash their caches (1280 robots in 8 workers on 2 cores, all at once:
         # 1.26 s of CPU per worker of 160 robots; two at a time: 0.78 s).
-        unsent = list(self.workers)
-        building = 0
+        cores, sent = usable_cores(), 0
         deadline = time.monotonic() + STARTUP_TIMEOUT_S
         while len(ready) < len(self.workers) and not interrupted():
-            while unsent and building < usable_cores():
-                self._send_setup(unsent.pop(0))
-                building += 1
-            waiting = {w.conn: w for w in self.workers[:len(self.workers) - len(unsent)] if w.index not in ready}
+            while sent < len(self.workers) and sent - len(ready) < cores:     # sent, not ready: building
+                self._send_setup(self.workers[sent])
+                sent += 1
+            waiting = {w.conn: w for w in self.workers[:sent] if w.index not in ready}
             if time.monotonic() > deadline:
                 raise HostError(f"worker {next(iter(waiting.values())).index} was not ready after "
                                 f"{STARTUP_TIMEOUT_S:.0f} s")
@@ -365,7 +364,6 @@ class WorkerHost(ControllersElsewhere):
                         raise plugins.PluginError(text, field)
                     raise HostError(text)
                 _, ready[w.index], run_wide[w.index] = message
-                building -= 1
         return sum(ready.values()), [run_wide.get(w.index, []) for w in self.workers]
 
     def workers_peak_rss_mb(self) -> list[float]:
