@@ -286,8 +286,7 @@ class Blobs:
 
     def of_color(self, rgb: Sequence[int]) -> "Blobs":
         if self.rgb is not None:
-            r, g, b = (int(v) for v in rgb)
-            keep = self.rgb == ((r << 16) | (g << 8) | b)
+            keep = self.rgb == ((int(rgb[0]) << 16) | (int(rgb[1]) << 8) | int(rgb[2]))
         else:
             keep = np.all(self.colors == np.asarray(rgb, dtype=np.uint8), axis=1)
         if keep.all():      # the common case in a swarm of one beacon colour: no copies

@@ -49,7 +49,7 @@ class CallbackGuard:
     def __init__(self, watchdog_s: float, unresponsive_s: float):
         self._watchdog_s = watchdog_s
         self._unresponsive_s = unresponsive_s
-        self._running: Optional[str] = None            # robot whose callback runs in the main thread
+        self._running: Optional[str] = None            # robot whose callback runs in the main thread, if any
         self._started = 0.0
         self._main = threading.main_thread()
         self._workers: dict[str, int] = {}             # robot → worker thread running its callback
@@ -58,7 +58,6 @@ class CallbackGuard:
         self.running = 0                               # callbacks running now on worker threads
         self.calls_of: dict[str, int] = {}             # per robot: its callbacks run so far
         self._depth = threading.local()                # per worker thread: inside a guarded callback?
-        self._inside_main = False                      # … the main thread (cheaper than the local)
         self.on_exception: Optional[Callable[[str, Node, BaseException], None]] = None
 
     def guard(self, node: Node, robot: str, sim_node: SimulatorNode, relayed: Sequence = ()) -> None:
@@ -91,7 +90,6 @@ class CallbackGuard:
                 self._running, self._started = robot, started
                 self.calls += 1
                 calls_of[robot] = calls_of.get(robot, 0) + 1
-                self._inside_main = True
             else:
                 with self._workers_lock:
                     self._workers[robot] = get_ident()
@@ -99,14 +97,13 @@ class CallbackGuard:
                     self.running += 1
                     calls_of[robot] = calls_of.get(robot, 0) + 1
                 self._depth.inside = True
-            cpu = time.thread_time() if own_time else 0.0
+            cpu = node_time.start() if own_time else -1.0
             try:
                 try:
                     result = callback(*args)
                 finally:
                     if in_main:
                         self._running = None
-                        self._inside_main = False
                     else:
                         self._depth.inside = False
                         with self._workers_lock:   # after this, stop_worker cannot reach us
@@ -126,7 +123,7 @@ class CallbackGuard:
                 return None
             took = monotonic() - started
             if own_time:
-                node_time.add(time.thread_time() - cpu)
+                node_time.stop(cpu)
             # Worker threads (multi-threaded executor) meet the tick's wall-clock deadline instead.
             if in_main and took > self._watchdog_s:
                 sim_node.reject_answer(robot, f"late: a callback took {took:.2f} s, more than "
@@ -139,7 +136,7 @@ class CallbackGuard:
     def in_callback(self) -> bool:
         """Is this thread running a guarded callback now?"""
         if threading.get_ident() == self._main.ident:
-            return self._inside_main
+            return self._running is not None
         return getattr(self._depth, "inside", False)
 
     def stop_worker(self, robot: str) -> None:

@@ -191,7 +191,9 @@ class ParticipantGroups:
                                          for p in node.publishers], drained, timed=True)
             inboxes += [inbox_of(s) for s in drained if inbox_of(s) is not None]
             self.links += links
-            self._graph_watches.append(GraphWatch(sim_node, links, inboxes))
+            # The device publishers ask DDS for readers of a topic nobody reads yet only while the
+            # graph may change, as the links ask for their matched counts.
+            self._graph_watches.append(GraphWatch(sim_node, [*links, *sim_node.device_publishers()], inboxes))
         self.executor.wake()     # its walk picks the inboxes up
 
     # --- run-wide topics, at the tick's edges (ros/run_wide.py) --------------------------------

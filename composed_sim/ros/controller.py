@@ -5,7 +5,7 @@ answers each tick with a ``cmd_vel`` stamped like the sensors it answers works t
 """
 from __future__ import annotations
 
-import time
+import functools
 
 import numpy as np
 from builtin_interfaces.msg import Time
@@ -97,7 +97,7 @@ class SwarmController(Node):
         self._readers = {name: BY_SENSOR_TOPIC[name].reader(self.model) for name in self.sensors}
         for name in self.sensors:
             topic = c.TOPICS[name]
-            self.create_subscription(c.msg_type(topic), topic.name, lambda data, name=name: self._on_sensor(name, data),
+            self.create_subscription(c.msg_type(topic), topic.name, functools.partial(self._on_sensor, name),
                                      c.QOS, raw=True, event_callbacks=c.SUBSCRIPTION_EVENTS)
         self._cmd_pub = self.create_publisher(c.msg_type(c.CMD_VEL), c.CMD_VEL.name, c.QOS,
                                               event_callbacks=c.PUBLISHER_EVENTS)
@@ -135,9 +135,9 @@ class SwarmController(Node):
         tick = Tick.at(sec, nanosec)
         for name, data in msgs.items():
             self._readers[name](data, tick)
-        started = time.thread_time()
+        started = node_time.start()
         linear, angular = self.on_tick(tick)
-        node_time.add(time.thread_time() - started)    # the node's own code; the rest is the host's
+        node_time.stop(started)    # the node's own code; the rest is the host's
         if self._leds_dirty:   # before the answer, so the change lands on the same tick
             self._led_pub.publish(c.led_message(self._leds))
             self._leds_dirty = False

@@ -10,7 +10,7 @@ from composed_sim.devices.common import cdr
 
 def decode_answer_cdr(data: bytes) -> tuple[int, float, float]:
     """TwistStamped cmd_vel bytes → (stamp ns, linear.x, angular.z)."""
-    return (cdr.stamp_ns(data), *cdr.decode_twist(data))
+    return cdr.decode_twist_stamped(data)
 
 
 def decode_unstamped_answer_cdr(data: bytes) -> tuple[float, float]:

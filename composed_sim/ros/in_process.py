@@ -57,7 +57,7 @@ class Inbox:
     and what tells whether DDS may hold messages for it too: a publisher that is not linked (one
     in another process, say) or a linked one that went through DDS (someone else listens)."""
 
-    __slots__ = ("queue", "take", "links", "via_dds", "checking", "_foreign", "_matched")
+    __slots__ = ("queue", "take", "links", "via_dds", "checking", "foreign", "_matched")
 
     def __init__(self, depth: int, msg_type: Optional[type], matched_publishers: Callable[[], int], *,
                  timed: bool = False):
@@ -77,14 +77,16 @@ class Inbox:
         self.links = 0                 # publishers linked to it
         self.via_dds = False           # a linked publisher sent through DDS since DDS was last empty
         self.checking = True           # ask DDS on every call (else: its last answer; ``GraphWatch``)
-        self._foreign = True
+        self.foreign = True            # DDS matched a publisher that is not linked (last asked)
         self._matched = matched_publishers
 
     def dds_may_hold(self) -> bool:
-        """Must the subscription also take from DDS? Once a take finds nothing, ``emptied``."""
+        """Must the subscription also take from DDS? Once a take finds nothing, ``emptied``.
+        (Where every message counts, callers test ``checking or via_dds or foreign`` first:
+        when all three are false, the answer is no without a call.)"""
         if self.checking:
-            self._foreign = self._matched() != self.links
-        return self.via_dds or self._foreign
+            self.foreign = self._matched() != self.links
+        return self.via_dds or self.foreign
 
     def emptied(self) -> None:
         self.via_dds = False
@@ -137,9 +139,10 @@ class Link:
     ``checking``, and keeps its last answer otherwise."""
 
     def __init__(self, publisher: Publisher, inboxes: Sequence[Inbox],
-                 wrap: Callable[[bytes], object] = lambda data: data):
+                 wrap: Optional[Callable[[bytes], object]] = None):
         """``inboxes``: the linked subscriptions'; ``wrap``: what goes into them of the
-        message's bytes (the answer subscription keeps the publisher's GID beside them)."""
+        message's bytes (the answer subscription keeps the publisher's GID beside them; None:
+        the bytes alone)."""
         self.publisher = publisher
         self.topic = publisher.topic_name
         self._through_dds = publisher.publish        # the original: rclpy's publish
@@ -168,12 +171,12 @@ class Link:
                 inbox.via_dds = True
             self._through_dds(msg)
             return
-        if isinstance(msg, self._msg_type):
+        if msg.__class__ is not bytes:
+            if not isinstance(msg, self._msg_type):
+                self._through_dds(msg)               # rclpy's TypeError
+                return
             msg = serialize_message(msg)
-        elif not isinstance(msg, bytes):
-            self._through_dds(msg)                   # rclpy's TypeError
-            return
-        item = self._wrap(msg)
+        item = msg if self._wrap is None else self._wrap(msg)
         for queue in self._queues:
             queue.append(item)
         self.in_process += 1
@@ -199,7 +202,7 @@ def link_subscriptions(publishers: Iterable[Publisher], subscriptions: Iterable[
                 setattr(sub, _INBOX, Inbox(_depth(sub.qos_profile), None if sub.raw else sub.msg_type,
                                            sub.handle.get_publisher_count, timed=timed))
         links.append(Link(publisher, [inbox_of(s) for s in subs], (lambda data: (data, time.time_ns())) if timed
-                          else (lambda data: data)))
+                          else None))
     return links
 
 
@@ -214,8 +217,11 @@ class GraphWatch:
 
     SETTLE_S = 2.0
 
-    def __init__(self, node, links: Sequence[Link], inboxes: Sequence[Inbox]):
-        """``node``: any node of the participant (its graph is the participant's)."""
+    def __init__(self, node, links: Sequence, inboxes: Sequence[Inbox]):
+        """``node``: any node of the participant (its graph is the participant's); ``links``:
+        what asks DDS for matched counts while ``checking`` and takes one last look
+        (``publish_check``) before it keeps its answers: the ``Link``s, and the simulator's
+        device publishers (devices/common/device.py), which ask whether a robot's topic is read."""
         self._changed = guard_condition_poll(node)
         self._links, self._inboxes = list(links), list(inboxes)
         self._until = -1.0               # asking on every message until then (monotonic s)

@@ -124,7 +124,7 @@ class LockstepExecutor(SingleThreadedExecutor):
                 while not once and inbox.queue:
                     entity.callback(inbox.take())
                     handled += 1
-                if not inbox.dds_may_hold():
+                if not (inbox.checking or inbox.via_dds or inbox.foreign) or not inbox.dds_may_hold():
                     continue
             while True:
                 with handle:

@@ -5,6 +5,7 @@ hands it a SensorFrame to publish and reads back the commands as arrays.
 """
 from __future__ import annotations
 
+import functools
 import math
 import threading
 import time
@@ -104,7 +105,7 @@ class SimulatorNode(Node):
         self._clock_gid = publisher_gid(self._clock_pub) if publish_clock else None
         self._next_clock_watch = 0.0
         self._other_seen_at: dict[bytes, float] = {}     # another /clock publisher's GID → first seen, not named
-        self._driven_clocks = []
+        self._driven_clock_handles = []
         self._tap: Optional[MessageTap] = None
         self._run_wide_publishers: dict[str, object] = {}    # topic → its publisher (mirror_run_wide)
 
@@ -165,7 +166,7 @@ class SimulatorNode(Node):
         on_answer = self._on_cmd_vel if msg_type is c.msg_type(c.CMD_VEL) else self._on_unstamped_cmd_vel
         self._answer_types[i] = msg_type
         self._cmd_subs[i] = AnswerSubscription(self, msg_type, c.topic_name(self._names[i], c.CMD_VEL), c.QOS,
-                                               lambda data, gid, i=i: on_answer(i, data, gid))
+                                               functools.partial(on_answer, i))
 
     def detect_answer_types(self, robots: Optional[Collection[str]] = None) -> None:
         """Subscribe to the cmd_vel of each robot (of ``robots``, or all) whose answer type is not
@@ -228,6 +229,10 @@ class SimulatorNode(Node):
         """Every robot's sensor publishers, robot by robot."""
         return [p for pubs in self._sensor_pubs for p in pubs]
 
+    def device_publishers(self) -> list[DevicePublisher]:
+        """The publishers of each device's topics, which ask DDS for readers while ``checking``."""
+        return list(self._device_publishers)
+
     def answer_subscription(self, robot: str) -> Optional[AnswerSubscription]:
         """``robot``'s cmd_vel subscription (None until its answer type is known)."""
         return self._cmd_subs[self._index[robot]]
@@ -264,7 +269,7 @@ class SimulatorNode(Node):
         without its own /clock subscription (N deliveries per tick); /clock is still published."""
         clock = node.get_clock()
         clock._set_ros_time_is_active(True)
-        self._driven_clocks.append(clock)
+        self._driven_clock_handles.append(clock.handle)
 
     def set_message_tap(self, tap: "MessageTap") -> None:
         """Hand every per-robot message the tap wants (sensors out, answers in) to it, e.g. a bag."""
@@ -272,6 +277,8 @@ class SimulatorNode(Node):
         self._tap = tap
         self._tapped = {topic.name: [tap.wants(c.topic_name(name, topic)) for name in self._names]
                         for topic in c.TOPICS.values()}
+        for publisher in self._device_publishers:     # a recorded topic is published from now on
+            publisher.publish_check()
 
     def taps(self, topic: c.Topic, i: int) -> bool:
         """Is robot i's ``topic`` recorded?"""
@@ -286,6 +293,12 @@ class SimulatorNode(Node):
             with self._tap_lock:   # answers may arrive on executor worker threads
                 self._tap.write_serialized(c.topic_name(self._names[i], topic), c.type_name(msg_type) if msg_type else topic.type_name,
                                            data, stamp_ns)
+
+    def tap_messages(self, topic: c.Topic, rows: Sequence[int], messages: Sequence, stamp_ns: int) -> None:
+        """``tap_message`` for each of robots ``rows`` (``messages[j]`` robot ``rows[j]``'s)."""
+        if self._tap is not None:
+            for i, data in zip(rows, messages):
+                self.tap_message(topic, i, data, stamp_ns)
 
     def mirror_run_wide(self, batch, stamp_ns: int) -> None:
         """A tick's run-wide messages (ros/run_wide.py) on the wire, for processes outside the run
@@ -396,9 +409,12 @@ class SimulatorNode(Node):
         if self._clock_pub is not None:
             self._clock_msg.clock = stamp
             self._clock_pub.publish(self._clock_msg)
-        now = RosTime.from_msg(stamp)
-        for clock in self._driven_clocks:
-            clock.set_ros_time_override(now)
+        # Through the clocks' handles: rclpy's ``set_ros_time_override`` checks the type and
+        # takes the handle's guard on each call (0.5 µs against 0.13 per hosted node and tick);
+        # the driven nodes live as long as this node serves them, and this thread drives them.
+        now = RosTime.from_msg(stamp)._time_handle
+        for handle in self._driven_clock_handles:
+            handle.set_ros_time_override(now)
         out = Outgoing(stamp.sec, stamp.nanosec, self._current_key, cdr.stamp_bytes(stamp.sec, stamp.nanosec),
                        self.failed.tolist())
         for plan in self._plans if self._plans is not None else self._make_plans(frame):
@@ -488,7 +504,8 @@ class SimulatorNode(Node):
             return
         if self.answered[i]:
             return  # a second answer to the same tick, or one already rejected: the first counts
-        self.tap_message(c.CMD_VEL, i, data, key, self._answer_types[i])
+        if self._tap is not None:
+            self.tap_message(c.CMD_VEL, i, data, key, self._answer_types[i])
         if not (math.isfinite(linear) and math.isfinite(angular)):
             self.rejected[i] = True
             self._record(self._current_tick, i, f"non-finite velocity command rejected "

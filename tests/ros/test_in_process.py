@@ -160,3 +160,34 @@ def test_a_listener_that_comes_after_the_graph_settled_gets_every_tick_from_then
     assert links[0].in_process == 4          # the three went through DDS, to both
     assert [m.data for m in got] == [f"quiet {k}" for k in range(4)] + ["heard 0", "heard 1", "heard 2"]
     executor.shutdown()
+
+
+def test_a_topic_nobody_read_is_published_once_a_listener_comes_after_the_graph_settled(domain_id):
+    # The flocking controllers do not read their proximity rings: the simulator publishes nothing
+    # there, and stops asking DDS for readers once the graph is quiet; a listener in another
+    # process changes the graph, and from then on it hears every tick.
+    world = load_world(FLOCKING, robots=4, ticks=TICKS, seed=2)
+    with ComposedHost(world, domain_id=domain_id) as host:
+        proximity = next(p for node in host.simulator_nodes for p in node.device_publishers()
+                         if p.topic.name == "proximity")
+        deadline = time.monotonic() + 30
+        while proximity.checking and time.monotonic() < deadline:     # the graph settles
+            host.run(1)
+        assert not proximity.checking and not any(proximity.wanted(i, _outgoing(4)) for i in range(4))
+
+        listener = Listener(domain_id, ["/bot1/proximity=sensor_msgs/msg/LaserScan"])
+        listener.wait_matched()
+        deadline = time.monotonic() + 30
+        while proximity.pubs[1].get_subscription_count() < 1 and time.monotonic() < deadline:
+            time.sleep(0.01)
+        host.run(TICKS)
+        assert proximity.pubs[1].wait_for_all_acked(Duration(seconds=30))
+        assert not proximity.wanted(0, _outgoing(4))     # bot0's ring is still read by nobody
+        heard = listener.stop()["got"]["/bot1/proximity=sensor_msgs/msg/LaserScan"]
+    stamps = [cdr.stamp_ns(bytes.fromhex(m)) for m in heard]
+    assert len(stamps) == TICKS and np.all(np.diff(stamps) == world.tick_ns)
+
+
+def _outgoing(robots):
+    from composed_sim.devices.common.device import Outgoing
+    return Outgoing(0, 0, 0, cdr.stamp_bytes(0, 0), [False] * robots)

@@ -217,12 +217,11 @@ class CloudEncoder:
         self._point_step = cloud_layout(data).point_step
         self._dense = data[-1:]                               # is_dense, after the empty data
         self._head = bytearray(data[:-5])                     # up to the data's length field
-        self._stamp = np.frombuffer(self._head, dtype="<u4", count=2, offset=HEADER)
         self._width_at = align(after_header(self._head), 4) + 4          # after height
         self._row_step_at = len(self._head) - 4
 
     def encode(self, sec: int, nanosec: int, points: bytes, width: int) -> bytes:
-        self._stamp[0], self._stamp[1] = sec, nanosec
+        _STAMP.pack_into(self._head, HEADER, sec, nanosec)
         _U32.pack_into(self._head, self._width_at, width)
         _U32.pack_into(self._head, self._row_step_at, width * self._point_step)
         return b"".join((self._head, _U32.pack(len(points)), points, self._dense))
@@ -302,6 +301,18 @@ def decode_twist(data) -> tuple[float, float]:
     """TwistStamped bytes → (linear.x, angular.z)."""
     pos = align(after_header(data), 8)
     return _F64.unpack_from(data, pos)[0], _F64.unpack_from(data, pos + 40)[0]
+
+
+_STAMP_AND_LENGTH = struct.Struct("<iII")     # header.stamp, then frame_id's length
+
+
+def decode_twist_stamped(data) -> tuple[int, float, float]:
+    """TwistStamped bytes → (header.stamp ns, linear.x, angular.z), in as few steps as the
+    simulator can afford for every answer of every tick."""
+    sec, nanosec, length = _STAMP_AND_LENGTH.unpack_from(data, HEADER)
+    pos = HEADER + 12 + length
+    pos += -(pos - HEADER) % 8
+    return sec * 1_000_000_000 + nanosec, _F64.unpack_from(data, pos)[0], _F64.unpack_from(data, pos + 40)[0]
 
 
 def decode_unstamped_twist(data) -> tuple[float, float]:

@@ -65,7 +65,7 @@ class PublishingNode(Protocol):
     def create_robot_publisher(self, robot: str, topic: Topic) -> Any: ...
     def create_topic_publisher(self, name: str, topic: Topic) -> Any: ...
     def taps(self, topic: Topic, i: int) -> bool: ...
-    def tap_message(self, topic: Topic, i: int, data, stamp_ns: int) -> None: ...
+    def tap_messages(self, topic: Topic, rows: Sequence[int], messages: Sequence, stamp_ns: int) -> None: ...
 
 
 class DevicePublisher:
@@ -82,6 +82,7 @@ class DevicePublisher:
         self.pubs: list = [None] * n
         self.encoders: list = [None] * n
         self._read = [False] * n
+        self.checking = True           # ask DDS for readers on every tick (else: its last answers)
         for i in self.own_topics(robots):
             self.pubs[i] = node.create_robot_publisher(robots.names[i], self.topic)
             self.encoders[i] = self.template(robots, i)
@@ -103,30 +104,56 @@ class DevicePublisher:
     def wanted(self, i: int, out: Outgoing) -> bool:
         """Publish robot i's message this tick? Never once it failed. Every tick once a subscriber
         has matched (a subscriber that comes later gets every tick from its match on, as with any
-        volatile topic); until then each tick asks DDS, a call instead of a message nobody reads.
-        A recorded topic is always published."""
+        volatile topic); until then DDS is asked, a call instead of a message nobody reads, on
+        every tick while ``checking`` (the ROS graph may have changed) and kept otherwise, as
+        the in-process links keep theirs (ros/in_process.py, ``GraphWatch``). A recorded topic
+        is always published."""
         if out.failed[i]:
             return False
-        if not self._read[i]:
+        if not self._read[i] and self.checking:
             self._read[i] = self.pubs[i].get_subscription_count() > 0 or self.node.taps(self.topic, i)
         return self._read[i]
 
+    def publish_check(self) -> None:
+        """Ask DDS now which robots' topics have a reader (before ``checking`` goes off, and after
+        the node's recording changed)."""
+        for i, pub in enumerate(self.pubs):
+            if pub is not None and not self._read[i]:
+                self._read[i] = pub.get_subscription_count() > 0 or self.node.taps(self.topic, i)
+
+    def to_send(self, plan: GroupPlan, out: Outgoing) -> tuple[list[int], list[int]]:
+        """The robots of the plan ``wanted`` this tick: (their places k in the plan, their indices
+        i in the node). Once every robot of the topic has a reader, only the failed are left out."""
+        failed, read, wanted, checking = out.failed, self._read, self.wanted, self.checking
+        pairs = [(k, i) for k, i in enumerate(plan.local.tolist())
+                 if not failed[i] and (read[i] or checking and wanted(i, out))]
+        return [k for k, _ in pairs], [i for _, i in pairs]
+
     def send(self, i: int, msg, out: Outgoing) -> None:
         """Publish robot i's message bytes; the caller asked ``wanted`` first."""
-        self.pubs[i].publish(msg)
-        self.node.tap_message(self.topic, i, msg, out.stamp_ns)
+        self.send_all([i], [msg], out)
+
+    def send_all(self, rows: Sequence[int], messages: Sequence, out: Outgoing) -> None:
+        """Publish each robot's message bytes (robot ``rows[j]``: ``messages[j]``), the robots
+        ``to_send`` chose. One loop over the robots, the fewest Python calls per message: at
+        thousands of robots this loop is a good part of the simulator's tick."""
+        pubs = self.pubs
+        for i, msg in zip(rows, messages):
+            pubs[i].publish(msg)
+        self.node.tap_messages(self.topic, rows, messages, out.stamp_ns)
 
     def send_scans(self, plan: GroupPlan, out: Outgoing, ranges: Optional[np.ndarray],
                    intensities: np.ndarray) -> None:
         """Each wanted robot's LaserScan as bytes (its encoder a ``cdr.ScanEncoder``) from
         its row of ``ranges`` (None: a scan without ranges) and of ``intensities`` ([k, m] each):
         the rows become float32 bytes once per tick, and a robot's part is a slice of them."""
-        ranges_f4, r_width = rows_f4(ranges) if ranges is not None else (b"", 0)
-        intensities_f4, i_width = rows_f4(intensities)
-        for k, i in enumerate(plan.local.tolist()):
-            if self.wanted(i, out):
-                self.send(i, self.encoders[i].encode_bytes(out.stamp_cdr, ranges_f4[k * r_width:(k + 1) * r_width],
-                                                       intensities_f4[k * i_width:(k + 1) * i_width]), out)
+        ranges_f4, rw = rows_f4(ranges) if ranges is not None else (b"", 0)
+        intensities_f4, iw = rows_f4(intensities)
+        places, rows = self.to_send(plan, out)
+        encoders, stamp = self.encoders, out.stamp_cdr
+        self.send_all(rows, [encoders[i].encode_bytes(stamp, ranges_f4[k * rw:(k + 1) * rw],
+                                                      intensities_f4[k * iw:(k + 1) * iw])
+                             for k, i in zip(places, rows)], out)
 
     def send_clouds(self, plan: GroupPlan, out: Outgoing, points: np.ndarray, offsets: Sequence[int]) -> None:
         """Each wanted robot's PointCloud2 as bytes (its encoder a ``cdr.CloudEncoder``):
@@ -134,17 +161,19 @@ class DevicePublisher:
         out as the cloud's fields), turned into bytes once per tick and sliced per robot."""
         data, step = points.tobytes(), points.dtype.itemsize
         sec, nanosec = out.sec, out.nanosec
-        for k, i in enumerate(plan.local.tolist()):
-            if self.wanted(i, out):
-                first, end = offsets[k], offsets[k + 1]
-                self.send(i, self.encoders[i].encode(sec, nanosec, data[first * step:end * step], end - first), out)
+        places, rows = self.to_send(plan, out)
+        encoders = self.encoders
+        self.send_all(rows, [encoders[i].encode(sec, nanosec, data[offsets[k] * step:offsets[k + 1] * step],
+                                                offsets[k + 1] - offsets[k])
+                             for k, i in zip(places, rows)], out)
 
     def encode_and_send(self, plan: GroupPlan, out: Outgoing, *columns: Sequence) -> None:
         """Each wanted robot of the plan (k-th): its encoder's bytes (``cdr.FixedEncoder``) of the
         stamp and ``column[k]`` …, published. A column holds one value per robot of the plan."""
-        for k, i in enumerate(plan.local.tolist()):
-            if self.wanted(i, out):
-                self.send(i, self.encoders[i].encode(out.stamp_cdr, *[column[k] for column in columns]), out)
+        places, rows = self.to_send(plan, out)
+        encoders, stamp = self.encoders, out.stamp_cdr
+        self.send_all(rows, [encoders[i].encode(stamp, *[column[k] for column in columns])
+                             for k, i in zip(places, rows)], out)
 
 
 # How a controller reads a device's sensor topic: made once per controller (from its robot's
