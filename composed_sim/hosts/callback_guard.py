@@ -97,7 +97,7 @@ class CallbackGuard:
                     self.running += 1
                     calls_of[robot] = calls_of.get(robot, 0) + 1
                 self._depth.inside = True
-            cpu = node_time.start() if own_time else -1.0
+            cpu = time.thread_time() if own_time else 0.0
             try:
                 try:
                     result = callback(*args)
@@ -123,7 +123,7 @@ class CallbackGuard:
                 return None
             took = monotonic() - started
             if own_time:
-                node_time.stop(cpu)
+                node_time.add(time.thread_time() - cpu)
             # Worker threads (multi-threaded executor) meet the tick's wall-clock deadline instead.
             if in_main and took > self._watchdog_s:
                 sim_node.reject_answer(robot, f"late: a callback took {took:.2f} s, more than "
