@@ -118,12 +118,15 @@ class LockstepExecutor(SingleThreadedExecutor):
             # One message per sensor subscription and walk: in a lockstep tick there is one, and
             # looking for a second would cost an empty take per subscription (any more are taken
             # by the next walk, in the same order). Every message queued on any other.
-            if inbox is not None and inbox.queue:     # linked: its callback takes the message alone
-                entity.callback(inbox.take())
-                handled += 1
-                while not once and inbox.queue:
+            if inbox is not None:                     # linked: its callback takes the message alone
+                if inbox.queue:
                     entity.callback(inbox.take())
                     handled += 1
+                    while not once and inbox.queue:
+                        entity.callback(inbox.take())
+                        handled += 1
+                # DDS is asked only when it may hold a message too (an empty take costs a call
+                # into rcl per subscription and walk).
                 if not (inbox.checking or inbox.via_dds or inbox.foreign) or not inbox.dds_may_hold():
                     continue
             while True:
