@@ -49,7 +49,7 @@ class CallbackGuard:
     def __init__(self, watchdog_s: float, unresponsive_s: float):
         self._watchdog_s = watchdog_s
         self._unresponsive_s = unresponsive_s
-        self._running: Optional[str] = None            # robot whose callback runs in the main thread, if any
+        self._running: Optional[str] = None            # robot whose callback runs in the main thread
         self._started = 0.0
         self._main = threading.main_thread()
         self._workers: dict[str, int] = {}             # robot → worker thread running its callback

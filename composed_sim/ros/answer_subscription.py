@@ -160,7 +160,7 @@ class AnswerSubscription(Waitable):
         if inbox.queue:
             self._callback(*inbox.queue.popleft())
             handled = 1
-            if inbox.links and (not (inbox.checking or inbox.via_dds or inbox.foreign) or not inbox.dds_may_hold()):
+            if inbox.links and not inbox.dds_may_hold():
                 return handled
         taken = self.take()
         if taken is None:

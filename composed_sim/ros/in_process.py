@@ -57,7 +57,7 @@ class Inbox:
     and what tells whether DDS may hold messages for it too: a publisher that is not linked (one
     in another process, say) or a linked one that went through DDS (someone else listens)."""
 
-    __slots__ = ("queue", "take", "links", "via_dds", "checking", "foreign", "_matched")
+    __slots__ = ("queue", "take", "links", "via_dds", "checking", "_foreign", "_matched")
 
     def __init__(self, depth: int, msg_type: Optional[type], matched_publishers: Callable[[], int], *,
                  timed: bool = False):
@@ -77,16 +77,14 @@ class Inbox:
         self.links = 0                 # publishers linked to it
         self.via_dds = False           # a linked publisher sent through DDS since DDS was last empty
         self.checking = True           # ask DDS on every call (else: its last answer; ``GraphWatch``)
-        self.foreign = True            # DDS matched a publisher that is not linked (last asked)
+        self._foreign = True
         self._matched = matched_publishers
 
     def dds_may_hold(self) -> bool:
-        """Must the subscription also take from DDS? Once a take finds nothing, ``emptied``.
-        (Where every message counts, callers test ``checking or via_dds or foreign`` first:
-        when all three are false, the answer is no without a call.)"""
+        """Must the subscription also take from DDS? Once a take finds nothing, ``emptied``."""
         if self.checking:
-            self.foreign = self._matched() != self.links
-        return self.via_dds or self.foreign
+            self._foreign = self._matched() != self.links
+        return self.via_dds or self._foreign
 
     def emptied(self) -> None:
         self.via_dds = False

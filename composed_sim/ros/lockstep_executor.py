@@ -127,7 +127,7 @@ class LockstepExecutor(SingleThreadedExecutor):
                         handled += 1
                 # DDS is asked only when it may hold a message too (an empty take costs a call
                 # into rcl per subscription and walk).
-                if not (inbox.checking or inbox.via_dds or inbox.foreign) or not inbox.dds_may_hold():
+                if not inbox.dds_may_hold():
                     continue
             while True:
                 with handle:

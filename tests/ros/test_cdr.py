@@ -153,6 +153,15 @@ def test_answers_round_trip():
         (c.stamp_key(stamp), 0.3, 2.0)
 
 
+@pytest.mark.parametrize("frame_id", ["", "a", "base", "bot12/base_link", "x" * 8])
+def test_an_answer_is_read_whatever_its_frame_id_pads(frame_id):
+    # The twist starts at the next 8-byte boundary after the frame_id: every padding is read alike.
+    msg = c.twist_stamped(c.stamp_of(7, 100_000_000), -0.5, 3.25)
+    msg.header.frame_id = frame_id
+    msg.twist.linear.y, msg.twist.angular.x = 9.0, 8.0      # neighbours of the two read
+    assert cdr.decode_twist_stamped(serialize_message(msg)) == (700_000_000, -0.5, 3.25)
+
+
 def test_one_decoder_follows_a_stream_whose_cloud_layout_changes():
     """A subscription's decoder parses the layout once and re-parses when the publisher changes it
     (another frame_id length, other field offsets): each cloud decodes as its message says."""
