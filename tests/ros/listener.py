@@ -13,7 +13,7 @@ ROOT = Path(__file__).resolve().parents[2]
 # matched; at the end prints what it got as JSON: per topic the list
 # of messages (tf as hex bytes, /clock as stamp nanoseconds), and every topic it saw published.
 SCRIPT = textwrap.dedent("""
-    import json, select, sys, rclpy
+    import copy, json, select, sys, rclpy
     from rclpy.context import Context
     from rclpy.node import Node
     from rclpy.executors import SingleThreadedExecutor
@@ -21,6 +21,10 @@ SCRIPT = textwrap.dedent("""
     from composed_sim.ros import contract as c
     from composed_sim.ros.topic import message_class
     domain, topics = int(sys.argv[1]), sys.argv[2:]
+    # The contract's QoS with a deep reader history: a run publishes a tick every few
+    # milliseconds, and a listener slowed down by a loaded machine must not lose the oldest
+    # messages of its keep-last history before its callbacks take them (the depth is not matched).
+    DEEP = copy.copy(c.QOS); DEEP.depth = 1000
     context = Context(); rclpy.init(context=context, domain_id=domain)
     node = Node("listener", context=context)
     got = {t: [] for t in topics}
@@ -31,7 +35,7 @@ SCRIPT = textwrap.dedent("""
                 m.clock.sec * 1_000_000_000 + m.clock.nanosec), 100))
         else:   # "/bot1/light=sensor_msgs/msg/LaserScan": that type; tf's otherwise
             name, _, type_name = t.partition("=")
-            qos = c.STATIC_QOS if t.endswith("tf_static") else c.QOS
+            qos = c.STATIC_QOS if t.endswith("tf_static") else DEEP
             subs.append(node.create_subscription(message_class(type_name) if type_name else c.TF_MESSAGE, name,
                                                  lambda data, t=t: got[t].append(data.hex()), qos, raw=True))
     executor = SingleThreadedExecutor(context=context); executor.add_node(node)
