@@ -13,6 +13,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from std_msgs.msg import String
 
 from composed_sim.devices.common import cdr
+from composed_sim.devices.common.device import Outgoing
 from composed_sim.hosts.composed import ComposedHost
 from composed_sim.ros import in_process
 from composed_sim.ros.lockstep_executor import LockstepExecutor
@@ -189,5 +190,4 @@ def test_a_topic_nobody_read_is_published_once_a_listener_comes_after_the_graph_
 
 
 def _outgoing(robots):
-    from composed_sim.devices.common.device import Outgoing
     return Outgoing(0, 0, 0, cdr.stamp_bytes(0, 0), [False] * robots)

@@ -297,22 +297,10 @@ class TwistEncoder:
         return bytes(self._buffer)
 
 
-def decode_twist(data) -> tuple[float, float]:
-    """TwistStamped bytes → (linear.x, angular.z)."""
-    pos = align(after_header(data), 8)
-    return _F64.unpack_from(data, pos)[0], _F64.unpack_from(data, pos + 40)[0]
-
-
-_STAMP_AND_LENGTH = struct.Struct("<iII")     # header.stamp, then frame_id's length
-
-
 def decode_twist_stamped(data) -> tuple[int, float, float]:
-    """TwistStamped bytes → (header.stamp ns, linear.x, angular.z), in as few steps as the
-    simulator can afford for every answer of every tick."""
-    sec, nanosec, length = _STAMP_AND_LENGTH.unpack_from(data, HEADER)
-    pos = HEADER + 12 + length
-    pos += -(pos - HEADER) % 8
-    return sec * 1_000_000_000 + nanosec, _F64.unpack_from(data, pos)[0], _F64.unpack_from(data, pos + 40)[0]
+    """TwistStamped bytes → (header.stamp ns, linear.x, angular.z)."""
+    pos = align(after_header(data), 8)
+    return stamp_ns(data), _F64.unpack_from(data, pos)[0], _F64.unpack_from(data, pos + 40)[0]
 
 
 def decode_unstamped_twist(data) -> tuple[float, float]:

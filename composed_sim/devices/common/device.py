@@ -111,7 +111,7 @@ class DevicePublisher:
         if out.failed[i]:
             return False
         if not self._read[i] and self.checking:
-            self._read[i] = self.pubs[i].get_subscription_count() > 0 or self.node.taps(self.topic, i)
+            self._read[i] = self._has_reader(i)
         return self._read[i]
 
     def publish_check(self) -> None:
@@ -119,7 +119,11 @@ class DevicePublisher:
         the node's recording changed)."""
         for i, pub in enumerate(self.pubs):
             if pub is not None and not self._read[i]:
-                self._read[i] = pub.get_subscription_count() > 0 or self.node.taps(self.topic, i)
+                self._read[i] = self._has_reader(i)
+
+    def _has_reader(self, i: int) -> bool:
+        """Robot i's topic has a subscriber matched, or is recorded."""
+        return self.pubs[i].get_subscription_count() > 0 or self.node.taps(self.topic, i)
 
     def to_send(self, plan: GroupPlan, out: Outgoing) -> tuple[list[int], list[int]]:
         """The robots of the plan ``wanted`` this tick: (their places k in the plan, their indices
