@@ -3,7 +3,7 @@ devices that read all robots at once (for all robots, or a worker's block: core/
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Optional
+from typing import Callable, Optional
 
 import numpy as np
 
@@ -20,18 +20,32 @@ class GroupReadings:
     ``csr_readings``, in its module of ``devices/``, which says their shapes): the foot-bot's
     ``proximity_distances`` and ``proximity`` [g, k], ``light`` [g, k], ``blobs`` (CSR over the
     group's robots), ``ground`` [g, s], ``lidar`` [g, r]. A device the group does not run: None.
+
+    A device's readings are read on first use (``unread``: each of its attributes → the call that
+    sets them all, core/senses.py): a sensor topic nobody subscribes to costs no sensing, and what
+    reads them later (a loop function, a recording) gets the same values, the noise being drawn
+    per robot, device and tick.
     """
 
-    def __init__(self, model: str, robots: slice):
+    def __init__(self, model: str, robots: slice, unread: Optional[dict[str, Callable[[], None]]] = None):
         self.model = model
         self.robots = robots                        # the group's robots: a contiguous index range
-        for name in _ROW_ARRAYS + _CSR:
-            setattr(self, name, None)
+        self._unread = unread if unread is not None else {}
+
+    def __getattr__(self, name: str):
+        # Only an attribute not set comes here: a reading not read yet (read now), or one of a
+        # device the group does not run.
+        read = self.__dict__.get("_unread", {}).get(name)
+        if read is not None:
+            read()
+            return self.__dict__[name]
+        if name in _READINGS:
+            return None
+        raise AttributeError(f"{type(self).__name__} has no attribute {name!r}")
 
 
 # GroupReadings' arrays with one row per robot, and its CSR readings.
-_ROW_ARRAYS = tuple(name for d in DEVICES for name in d.readings)
-_CSR = tuple(name for d in DEVICES for name in d.csr_readings)
+_READINGS = frozenset(name for d in DEVICES for name in (*d.readings, *d.csr_readings))
 
 
 @dataclass

@@ -13,7 +13,6 @@ range-and-bearing work on all robots at once.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
 from typing import Optional
 
 import numpy as np
@@ -34,11 +33,16 @@ from composed_sim.core.senses import RobotRows, Senses, SensingInputs
 from composed_sim.world.schema import Box, World
 
 
-@dataclass
 class PhaseTimes:
     """Wall seconds spent per phase, summed over the run."""
-    physics_s: float = 0.0
-    sensing_s: float = 0.0
+
+    def __init__(self, senses: Senses):
+        self.physics_s = 0.0
+        self._senses = senses
+
+    @property
+    def sensing_s(self) -> float:
+        return self._senses.seconds     # readings are read on first use, by whoever uses them
 
 
 class Simulation:
@@ -50,7 +54,7 @@ class Simulation:
         self.senses = Senses(world)       # the sensors: their static facts and noise streams
         self.groups: list[SensedGroup] = self.senses.groups
         self.tick = 0
-        self.times = PhaseTimes()
+        self.times = PhaseTimes(self.senses)
 
         positions, headings = place_robots(world, stream(world.seed, STREAM_PLACEMENT))
         self.initial_positions, self.initial_headings = positions, headings
@@ -172,9 +176,7 @@ class Simulation:
         """Every robot's readings after the last step, read on first use (the worker host's
         processes read their own; a loop function may read them here)."""
         if self._frame is None:
-            t0 = time.perf_counter()
             self._frame = self.senses.frame(self._inputs, self.robot_rows())
-            self.times.sensing_s += time.perf_counter() - t0
         return self._frame
 
     def sense(self) -> SensorFrame:

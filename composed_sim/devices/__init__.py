@@ -48,4 +48,6 @@ ALWAYS_ON: tuple[str, ...] = tuple(d.name for d in DEVICES if d.layout is None a
 TOPIC_SWITCHED: tuple[str, ...] = tuple(d.name for d in DEVICES if d.layout is None)
 # device name → read(sensing, group, readings): the devices read per robot group.
 GROUP_READERS = {d.name: d.read for d in DEVICES if d.read is not None}
+# device name → the GroupReadings attributes its ``read`` sets.
+READINGS = {d.name: (*d.readings, *d.csr_readings) for d in DEVICES if d.read is not None}
 BY_SENSOR_TOPIC: dict[str, Device] = {d.sensor_topic.name: d for d in DEVICES if d.sensor_topic is not None}

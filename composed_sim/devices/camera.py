@@ -243,10 +243,12 @@ class Publisher(DevicePublisher):
         return encoder(robots.names[i])
 
     def publish(self, plan, frame, out):
-        blobs = frame.groups[plan.group].blobs
-        take, local = csr_take(blobs.offsets, plan.within)
-        self.send_clouds(plan, out, points_of(blobs.angles[take], blobs.distances[take], blobs.colors[take]),
-                         local.tolist())
+        places, rows = self.to_send(plan, out)
+        if rows:
+            blobs = frame.groups[plan.group].blobs
+            take, local = csr_take(blobs.offsets, plan.within)
+            self.send_clouds(places, rows, out,
+                             points_of(blobs.angles[take], blobs.distances[take], blobs.colors[take]), local.tolist())
 
 
 # --- the controller's side -----------------------------------------------------------------------

@@ -62,7 +62,7 @@ class Publisher(DevicePublisher):
         radius = plan.model.wheel_radius_m
         self._angles[plan.local] += frame.wheels.distances_m[plan.rows] / radius
         angles, speeds = self._angles[plan.local], frame.wheels.velocities_mps[plan.rows] / radius
-        self.encode_and_send(plan, out, *(column.tolist() for column in
+        self.encode_and_send(*self.to_send(plan, out), out, *(column.tolist() for column in
                                           (angles[:, 0], angles[:, 1], speeds[:, 0], speeds[:, 1])))
 
 

@@ -92,9 +92,11 @@ class Publisher(DevicePublisher):
         return encoder(robots.names[i])
 
     def publish(self, plan, frame, out):
-        points = points_of(plan.model.ground.offsets_m, frame.groups[plan.group].ground[plan.within])  # [k, s]
-        k, s = points.shape
-        self.send_clouds(plan, out, points.reshape(-1), range(0, (k + 1) * s, s))
+        places, rows = self.to_send(plan, out)
+        if rows:
+            points = points_of(plan.model.ground.offsets_m, frame.groups[plan.group].ground[plan.within])  # [k, s]
+            k, s = points.shape
+            self.send_clouds(places, rows, out, points.reshape(-1), range(0, (k + 1) * s, s))
 
 
 DEVICE = Device(NAME, (TOPIC,), Publisher, reads_cloud_into("ground", decode), tick_fields=("ground",),

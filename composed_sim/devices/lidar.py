@@ -191,8 +191,10 @@ class Publisher(DevicePublisher):
         return encoder(robots.models[i].lidar, robots.names[i], robots.tick_ns * 1e-9)
 
     def publish(self, plan, frame, out):
-        ranges = frame.groups[plan.group].lidar[plan.within]        # [k, r]
-        self.send_scans(plan, out, ranges, ranges[:, :0])
+        places, rows = self.to_send(plan, out)
+        if rows:
+            ranges = frame.groups[plan.group].lidar[plan.within]        # [k, r]
+            self.send_scans(places, rows, out, ranges, ranges[:, :0])
 
 
 DEVICE = Device(NAME, (TOPIC,), Publisher, reads_into("scan", decode), tick_fields=("scan",),

@@ -189,7 +189,9 @@ class Publisher(DevicePublisher):
         return encoder(robots.models[i].light, robots.names[i])
 
     def publish(self, plan, frame, out):
-        self.send_scans(plan, out, None, frame.groups[plan.group].light[plan.within])
+        places, rows = self.to_send(plan, out)
+        if rows:
+            self.send_scans(places, rows, out, None, frame.groups[plan.group].light[plan.within])
 
 
 DEVICE = Device(NAME, (TOPIC,), Publisher, reads_into("light", decode), tick_fields=("light",),

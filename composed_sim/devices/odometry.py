@@ -42,7 +42,7 @@ class Publisher(DevicePublisher):
         pose = frame.odometry[plan.rows]
         qz, qw = half_yaw(pose[:, 2])
         twist = frame.odometry_twist[plan.rows]
-        self.encode_and_send(plan, out, *(column.tolist() for column in
+        self.encode_and_send(*self.to_send(plan, out), out, *(column.tolist() for column in
                                           (pose[:, 0], pose[:, 1], qz, qw, twist[:, 0], twist[:, 1])))
 
 

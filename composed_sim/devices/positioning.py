@@ -44,7 +44,8 @@ class Publisher(DevicePublisher):
 
     def publish(self, plan, frame, out):
         xy, q = frame.pose.positions[plan.rows, :2], frame.pose.quaternions[plan.rows]     # q: (x, y, z, w)
-        self.encode_and_send(plan, out, *(column.tolist() for column in (xy[:, 0], xy[:, 1], q[:, 2], q[:, 3])))
+        self.encode_and_send(*self.to_send(plan, out), out,
+                             *(column.tolist() for column in (xy[:, 0], xy[:, 1], q[:, 2], q[:, 3])))
 
 
 DEVICE = Device(NAME, (TOPIC,), Publisher, reads_into("pose", decode), tick_fields=("pose",),

@@ -178,8 +178,10 @@ class Publisher(DevicePublisher):
         return encoder(robots.models[i].proximity, robots.names[i])
 
     def publish(self, plan, frame, out):
-        group = frame.groups[plan.group]
-        self.send_scans(plan, out, group.proximity_distances[plan.within], group.proximity[plan.within])
+        places, rows = self.to_send(plan, out)
+        if rows:
+            group = frame.groups[plan.group]
+            self.send_scans(places, rows, out, group.proximity_distances[plan.within], group.proximity[plan.within])
 
 
 DEVICE = Device(NAME, (TOPIC,), Publisher, reads_into(("proximity_distances", "proximity"), decode),

@@ -268,7 +268,7 @@ class Publisher(DevicePublisher):
         take, offsets = csr_take(rab.offsets, plan.rows)
         points = points_of(rab.ranges[take], rab.horizontal_bearings[take], rab.vertical_bearings[take],
                            rab.payloads[take])
-        self.send_clouds(plan, out, points, offsets.tolist())
+        self.send_clouds(*self.to_send(plan, out), out, points, offsets.tolist())
 
 
 DEVICE = Device(NAME, (RX, TX), Publisher, reads_cloud_into("rab", decode), tick_fields=("rab",),

@@ -256,3 +256,54 @@ def test_a_block_of_robots_reads_exactly_their_readings_in_the_whole_frame(tmp_p
             if g.blobs is not None)
     assert len(cut.range_and_bearing.offsets) == stop - start + 1
     assert frame.range_and_bearing.of(6)[0].size > 0      # the world really has messages to cut
+
+
+def test_readings_are_read_on_first_use_and_are_those_of_their_tick(tmp_path, monkeypatch):
+    """A device's readings are computed when first used (a sensor topic nobody subscribes to costs
+    no sensing), once, and a frame read after the world moved on still gives its own tick's."""
+    import composed_sim.core.senses as senses
+
+    calls = []
+    for device, read in list(senses.GROUP_READERS.items()):
+        monkeypatch.setitem(senses.GROUP_READERS, device,
+                            lambda s, g, out, device=device, read=read: (calls.append((device, g.index)), read(s, g, out)))
+    path = tmp_path / "mixed.yaml"
+    path.write_text(HETEROGENEOUS_YAML)
+
+    def stepped(sim: Simulation, ticks: int):
+        sim.set_led_colors(1, np.full((13, 3), 200, dtype=np.uint8))
+        for _ in range(ticks):
+            sim.set_velocity_commands(np.full(sim.n, 0.1), np.full(sim.n, 0.5))
+            sim.step()
+        return sim.frame
+
+    def moved_on(sim: Simulation) -> None:
+        for _ in range(5):
+            sim.set_velocity_commands(np.full(sim.n, 0.3), np.full(sim.n, -0.5))
+            sim.step()
+
+    sim = Simulation(load_world(path))
+    eager = stepped(sim, 3)
+    fields = ("proximity_distances", "proximity", "light", "ground", "lidar", "blobs")
+    values = {(gi, field): getattr(g, field) for gi, g in enumerate(eager.groups) for field in fields}
+    assert sorted(set(calls)) == sorted({(d, g.index) for g in sim.groups for d in g.running
+                                         if d in senses.GROUP_READERS})
+    calls.clear()
+    late_sim = Simulation(load_world(path))
+    late = stepped(late_sim, 3)
+    moved_on(late_sim)                                 # the world moves on, then the old frame is read
+    assert calls == []                                 # nothing read yet: nobody used a reading
+    late.groups[0].proximity                           # the foot-bots' ring: both its fields, one read
+    late.groups[0].proximity_distances
+    assert calls == [("proximity", 0)]
+    for (gi, field), value in values.items():
+        got = getattr(late.groups[gi], field)
+        if value is None:
+            assert got is None
+        elif field == "blobs":
+            assert value.offsets.size > 1
+            for a, b in zip((got.offsets, got.angles, got.distances, got.colors),
+                            (value.offsets, value.angles, value.distances, value.colors)):
+                np.testing.assert_array_equal(a, b)
+        else:
+            np.testing.assert_array_equal(got, value)

@@ -127,7 +127,9 @@ class DevicePublisher:
 
     def to_send(self, plan: GroupPlan, out: Outgoing) -> tuple[list[int], list[int]]:
         """The robots of the plan ``wanted`` this tick: (their places k in the plan, their indices
-        i in the node). Once every robot of the topic has a reader, only the failed are left out."""
+        i in the node). Once every robot of the topic has a reader, only the failed are left out.
+        A ``publish`` asks first and takes the frame's readings only when someone is left: they
+        are read on first use (core/frames.py), so a topic nobody reads costs no sensing."""
         failed, read, wanted, checking = out.failed, self._read, self.wanted, self.checking
         pairs = [(k, i) for k, i in enumerate(plan.local.tolist())
                  if not failed[i] and (read[i] or checking and wanted(i, out))]
@@ -146,35 +148,35 @@ class DevicePublisher:
             pubs[i].publish(msg)
         self.node.tap_messages(self.topic, rows, messages, out.stamp_ns)
 
-    def send_scans(self, plan: GroupPlan, out: Outgoing, ranges: Optional[np.ndarray],
+    def send_scans(self, places: list[int], rows: list[int], out: Outgoing, ranges: Optional[np.ndarray],
                    intensities: np.ndarray) -> None:
-        """Each wanted robot's LaserScan as bytes (its encoder a ``cdr.ScanEncoder``) from
-        its row of ``ranges`` (None: a scan without ranges) and of ``intensities`` ([k, m] each):
-        the rows become float32 bytes once per tick, and a robot's part is a slice of them."""
+        """The LaserScans as bytes (each robot's encoder a ``cdr.ScanEncoder``) of the robots
+        ``to_send`` chose, from their rows of ``ranges`` (None: a scan without ranges) and of
+        ``intensities`` ([k, m] each, a row per robot of the plan): the rows become float32
+        bytes once per tick, and a robot's part is a slice of them."""
         ranges_f4, rw = rows_f4(ranges) if ranges is not None else (b"", 0)
         intensities_f4, iw = rows_f4(intensities)
-        places, rows = self.to_send(plan, out)
         encoders, stamp = self.encoders, out.stamp_cdr
         self.send_all(rows, [encoders[i].encode_bytes(stamp, ranges_f4[k * rw:(k + 1) * rw],
                                                       intensities_f4[k * iw:(k + 1) * iw])
                              for k, i in zip(places, rows)], out)
 
-    def send_clouds(self, plan: GroupPlan, out: Outgoing, points: np.ndarray, offsets: Sequence[int]) -> None:
-        """Each wanted robot's PointCloud2 as bytes (its encoder a ``cdr.CloudEncoder``):
-        the k-th robot's points are ``points[offsets[k]:offsets[k + 1]]`` (a structured array laid
-        out as the cloud's fields), turned into bytes once per tick and sliced per robot."""
+    def send_clouds(self, places: list[int], rows: list[int], out: Outgoing, points: np.ndarray,
+                    offsets: Sequence[int]) -> None:
+        """The PointCloud2s as bytes (each robot's encoder a ``cdr.CloudEncoder``) of the robots
+        ``to_send`` chose: the plan's k-th robot's points are ``points[offsets[k]:offsets[k + 1]]``
+        (a structured array laid out as the cloud's fields), turned into bytes once per tick and
+        sliced per robot."""
         data, step = points.tobytes(), points.dtype.itemsize
         sec, nanosec = out.sec, out.nanosec
-        places, rows = self.to_send(plan, out)
         encoders = self.encoders
         self.send_all(rows, [encoders[i].encode(sec, nanosec, data[offsets[k] * step:offsets[k + 1] * step],
                                                 offsets[k + 1] - offsets[k])
                              for k, i in zip(places, rows)], out)
 
-    def encode_and_send(self, plan: GroupPlan, out: Outgoing, *columns: Sequence) -> None:
-        """Each wanted robot of the plan (k-th): its encoder's bytes (``cdr.FixedEncoder``) of the
-        stamp and ``column[k]`` …, published. A column holds one value per robot of the plan."""
-        places, rows = self.to_send(plan, out)
+    def encode_and_send(self, places: list[int], rows: list[int], out: Outgoing, *columns: Sequence) -> None:
+        """Each robot ``to_send`` chose, the plan's k-th: its encoder's bytes (``cdr.FixedEncoder``)
+        of the stamp and ``column[k]`` …, published. A column holds one value per robot of the plan."""
         encoders, stamp = self.encoders, out.stamp_cdr
         self.send_all(rows, [encoders[i].encode(stamp, *[column[k] for column in columns])
                              for k, i in zip(places, rows)], out)
