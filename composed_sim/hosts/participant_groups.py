@@ -36,6 +36,7 @@ from composed_sim.hosts.run_wide_nodes import SETTLE_ROUNDS, RunWideNodes
 from composed_sim.ros import contract as c
 from composed_sim.ros.answer_subscription import cmd_vel_gids, publisher_gid
 from composed_sim.ros import in_process
+from composed_sim.ros.rcl_graph import GraphChanges
 from composed_sim.ros.in_process import GraphWatch, Link, inbox_of, link_answers, link_subscriptions
 from composed_sim.ros.lockstep_executor import LockstepExecutor
 from composed_sim.ros.participants import ignore_participants_of_this_process
@@ -88,6 +89,7 @@ class ParticipantGroups:
         self.exchange: Optional[NodesExchange] = None
         self.links: list[Link] = []                         # in-process paths (ros/in_process.py)
         self._graph_watches: list[GraphWatch] = []          # per group: when to ask for matched counts
+        self.graph_changes: Optional[GraphChanges] = None   # what tells them the graph changed
         self.executor: Optional[Executor] = None
         self.guard: Optional[CallbackGuard] = None
         self._spin_thread: Optional[threading.Thread] = None
@@ -173,6 +175,7 @@ class ParticipantGroups:
         straight to its robots' nodes while nothing else listens (ros/in_process.py)."""
         if not (isinstance(self.executor, LockstepExecutor) and in_process.enabled()):
             return
+        watched = []            # per group: (what asks DDS while the graph may change, its inboxes)
         for sim_node, first, end in zip(self.simulator_nodes, first_robots, [*first_robots[1:], len(self.robot_nodes)]):
             subscriptions = [s for nodes in self.robot_nodes[first:end] for node in nodes for s in node.subscriptions]
             links = link_subscriptions(sim_node.sensor_publishers(), subscriptions)
@@ -193,7 +196,10 @@ class ParticipantGroups:
             self.links += links
             # The device publishers ask DDS for readers of a topic nobody reads yet only while the
             # graph may change, as the links ask for their matched counts.
-            self._graph_watches.append(GraphWatch(sim_node, [*links, *sim_node.device_publishers()], inboxes))
+            watched.append(([*links, *sim_node.device_publishers()], inboxes))
+        self.graph_changes = GraphChanges(self.simulator_nodes)
+        self._graph_watches = [GraphWatch(self.graph_changes.poll(k), links, inboxes)
+                               for k, (links, inboxes) in enumerate(watched)]
         self.executor.wake()     # its walk picks the inboxes up
 
     # --- run-wide topics, at the tick's edges (ros/run_wide.py) --------------------------------
@@ -361,6 +367,8 @@ class ParticipantGroups:
                 return
 
     def __exit__(self, *exc) -> None:
+        if self.graph_changes is not None:
+            self.graph_changes.close()
         if self.executor is not None:
             self.executor.shutdown()
         if self._spin_thread is not None:

@@ -44,7 +44,6 @@ from rclpy.qos import (DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSPro
 from rclpy.serialization import deserialize_message, serialize_message
 from rclpy.subscription import Subscription
 
-from composed_sim.ros.rcl_graph import guard_condition_poll
 
 # Set to 0 to send every hosted message through DDS (a comparison, or a suspected link).
 SWITCH_ENV = "COMPOSED_SIM_IN_PROCESS"
@@ -208,19 +207,21 @@ class GraphWatch:
     """When may a link's matched counts have changed? Only when this participant's ROS graph did:
     an endpoint of another process (or a new one of this process) was discovered or went away.
     Asking DDS for the counts on every message cost about a sixth of the host's time at 1280
-    robots; the graph's guard condition, looked at once per tick, says when to ask. Discovery
+    robots; the graph's guard condition (its changes counted by a thread, ros/rcl_graph.py),
+    looked at once per tick, says when to ask. Discovery
     reports an endpoint to the graph and matches it a moment apart (measured: up to a third of a
     second), so after each change the links ask on every message for SETTLE_S,
     and then keep their last answer until the graph changes again."""
 
     SETTLE_S = 2.0
 
-    def __init__(self, node, links: Sequence, inboxes: Sequence[Inbox]):
-        """``node``: any node of the participant (its graph is the participant's); ``links``:
-        what asks DDS for matched counts while ``checking`` and takes one last look
-        (``publish_check``) before it keeps its answers: the ``Link``s, and the simulator's
-        device publishers (devices/common/device.py), which ask whether a robot's topic is read."""
-        self._changed = guard_condition_poll(node)
+    def __init__(self, changed: Callable[[], bool], links: Sequence, inboxes: Sequence[Inbox]):
+        """``changed``: has the participant's graph changed since the last call
+        (``GraphChanges.poll``, ros/rcl_graph.py)? ``links``: what asks DDS for matched counts
+        while ``checking`` and takes one last look (``publish_check``) before it keeps its
+        answers: the ``Link``s, and the simulator's device publishers (devices/common/device.py),
+        which ask whether a robot's topic is read."""
+        self._changed = changed
         self._links, self._inboxes = list(links), list(inboxes)
         self._until = -1.0               # asking on every message until then (monotonic s)
         self._checking = True

@@ -1,19 +1,25 @@
-"""Has a node's ROS graph changed? rcl's graph guard condition, polled through ctypes.
+"""Has a node's ROS graph changed? rcl's graph guard conditions, waited on through ctypes.
 
 rcl triggers a node's graph guard condition whenever its participant's view of the ROS graph
 changes (an endpoint or a node discovered or gone, in this process or another); rclpy does not
-expose it. A wait set of its own with a timeout of 0 tells whether it was triggered since the last
-look (a wait consumes the trigger). The structs are laid out as in rcl's ``wait.h`` and rcutils'
-``allocator.h`` that ship with the ROS wheels; rclpy's extension module has loaded librcl already.
+expose it. A thread of its own waits on the graph guard conditions of the process's participants
+(a wait consumes the triggers) and counts each one's changes; the tick reads the counts. Asking
+rcl instead with a timeout of 0 on every tick cost 18 µs of CPU and a timer-slack sleep of about
+55 µs per participant (16 participants at 1280 robots: 1.2 ms of every tick, measured). The
+structs are laid out as in rcl's ``wait.h`` and rcutils' ``allocator.h`` that ship with the ROS
+wheels; rclpy's extension module has loaded librcl already.
 """
 from __future__ import annotations
 
 import ctypes
-from typing import Callable
+import threading
+from typing import Callable, Sequence
 
+from rclpy.guard_condition import GuardCondition
 from rclpy.node import Node
 
 _RET_OK = 0
+_RET_TIMEOUT = 2
 
 
 class _Allocator(ctypes.Structure):          # rcutils_allocator_t
@@ -42,25 +48,72 @@ _rcl.rcl_wait_set_clear.argtypes = [ctypes.POINTER(_WaitSet)]
 _rcl.rcl_wait_set_add_guard_condition.argtypes = [ctypes.POINTER(_WaitSet), ctypes.c_void_p,
                                                   ctypes.POINTER(ctypes.c_size_t)]
 _rcl.rcl_wait.argtypes = [ctypes.POINTER(_WaitSet), ctypes.c_int64]
+_rcl.rcl_wait_set_fini.argtypes = [ctypes.POINTER(_WaitSet)]
 
 
-def guard_condition_poll(node: Node) -> Callable[[], bool]:
-    """``changed()``: has ``node``'s graph changed since the last call (the first call: since the
-    node was created)? Any doubt (a failed wait) counts as a change."""
-    with node.handle:
-        guard = _rcl.rcl_node_get_graph_guard_condition(node.handle.pointer)
-    wait_set = _rcl.rcl_get_zero_initialized_wait_set()
-    with node.context.handle:
-        if guard is None or _rcl.rcl_wait_set_init(ctypes.byref(wait_set), 0, 1, 0, 0, 0, 0, node.context.handle.pointer,
-                                                   _rcutils.rcutils_get_default_allocator()) != _RET_OK:
-            return lambda: True
-    ref = ctypes.byref(wait_set)
+class GraphChanges:
+    """How often each of some nodes' ROS graph has changed (one node per participant: the graph
+    is the participant's), counted by a thread that blocks on their graph guard conditions and
+    on one of its own that ``close`` triggers. If rcl fails it, every look counts as a change."""
 
-    def changed() -> bool:
-        if _rcl.rcl_wait_set_clear(ref) != _RET_OK or _rcl.rcl_wait_set_add_guard_condition(ref, guard, None) != _RET_OK:
+    def __init__(self, nodes: Sequence[Node]):
+        self.counts = [1] * len(nodes)          # the first look: changed since the node was created
+        self._broken = False
+        self._closed = False
+        context = nodes[0].context
+        self._wake = GuardCondition(None, None, context)
+        guards = []
+        for node in nodes:
+            with node.handle:
+                guards.append(_rcl.rcl_node_get_graph_guard_condition(node.handle.pointer))
+        with self._wake.handle:
+            guards.append(self._wake.handle.pointer)
+        self._wait_set = _rcl.rcl_get_zero_initialized_wait_set()
+        with context.handle:
+            if None in guards or _rcl.rcl_wait_set_init(
+                    ctypes.byref(self._wait_set), 0, len(guards), 0, 0, 0, 0, context.handle.pointer,
+                    _rcutils.rcutils_get_default_allocator()) != _RET_OK:
+                self._broken = True
+                return
+        self._thread = threading.Thread(target=self._watch, args=(guards,), name="graph changes", daemon=True)
+        self._thread.start()
+
+    def poll(self, k: int) -> Callable[[], bool]:
+        """``changed()``: has node k's graph changed since the last call (the first call: since
+        the node was created)?"""
+        counts, seen = self.counts, [0]
+
+        def changed() -> bool:
+            count = counts[k]
+            if count == seen[0] and not self._broken:
+                return False
+            seen[0] = count
             return True
-        if _rcl.rcl_wait(ref, 0) != _RET_OK:     # RCL_RET_TIMEOUT: nothing triggered
-            return False
-        return bool(wait_set.guard_conditions[0])
-    changed.wait_set = wait_set                  # kept alive with the closure
-    return changed
+        return changed
+
+    def _watch(self, guards: list) -> None:
+        ref, n = ctypes.byref(self._wait_set), len(self.counts)
+        while not self._closed:
+            if _rcl.rcl_wait_set_clear(ref) != _RET_OK or any(
+                    _rcl.rcl_wait_set_add_guard_condition(ref, guard, None) != _RET_OK for guard in guards):
+                break
+            result = _rcl.rcl_wait(ref, -1)     # until a graph changes or ``close`` (ctypes lets the GIL go)
+            if result == _RET_TIMEOUT:
+                continue
+            if result != _RET_OK:
+                break
+            for k in range(n):
+                if self._wait_set.guard_conditions[k]:
+                    self.counts[k] += 1
+        self._broken = not self._closed
+
+    def close(self) -> None:
+        """Stop the thread (before the nodes' contexts shut down)."""
+        if self._closed:
+            return
+        self._closed = True
+        if hasattr(self, "_thread"):
+            self._wake.trigger()
+            self._thread.join()
+            _rcl.rcl_wait_set_fini(ctypes.byref(self._wait_set))
+        self._wake.destroy()

@@ -17,6 +17,7 @@ from composed_sim.devices.common.device import Outgoing
 from composed_sim.hosts.composed import ComposedHost
 from composed_sim.ros import in_process
 from composed_sim.ros.lockstep_executor import LockstepExecutor
+from composed_sim.ros.rcl_graph import GraphChanges
 from composed_sim.world.loader import load_world
 from listener import Listener
 
@@ -125,6 +126,39 @@ def test_what_dds_would_treat_otherwise_is_not_linked(node):
         assert bool(in_process.link_subscriptions([publisher], [sub])) == linked, k
 
 
+def test_graph_changes_counts_each_participants_changes_until_closed(domain_id):
+    """A thread counts the graph changes of each node's participant: a node's own new endpoint
+    is a change of its graph; ``close`` ends the thread at once."""
+    import rclpy
+    from rclpy.context import Context
+
+    contexts = [Context(), Context()]
+    for context in contexts:
+        rclpy.init(context=context, domain_id=domain_id)
+    nodes = [Node(f"graph_{k}", context=context) for k, context in enumerate(contexts)]
+    changes = GraphChanges(nodes)
+    changed = [changes.poll(0), changes.poll(1)]
+    try:
+        assert changed[0]() and changed[1]()         # since the nodes were created
+        deadline = time.monotonic() + 30
+        while changed[1]() and time.monotonic() < deadline:    # until a look finds no change
+            time.sleep(0.05)
+        assert time.monotonic() < deadline, "node 1's graph never settled"
+        nodes[1].create_publisher(String, "graph_changes", 10)
+        deadline = time.monotonic() + 30
+        while not changed[1]() and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert time.monotonic() < deadline, "node 1's new publisher was never counted"
+        started = time.monotonic()
+        changes.close()
+        assert time.monotonic() - started < 1.0 and not changes._thread.is_alive()
+    finally:
+        changes.close()
+        for node, context in zip(nodes, contexts):
+            node.destroy_node()
+            rclpy.shutdown(context=context)
+
+
 def test_a_listener_that_comes_after_the_graph_settled_gets_every_tick_from_then_on(node, domain_id):
     # The link keeps its last answer while the graph is quiet; a subscriber in another process
     # changes the graph, and the links ask DDS again.
@@ -132,7 +166,8 @@ def test_a_listener_that_comes_after_the_graph_settled_gets_every_tick_from_then
     got = []
     sub = node.create_subscription(String, "chatter", got.append, 10)
     links = in_process.link_subscriptions([publisher], [sub])
-    watch = in_process.GraphWatch(node, links, [in_process.inbox_of(sub)])
+    changes = GraphChanges([node])
+    watch = in_process.GraphWatch(changes.poll(0), links, [in_process.inbox_of(sub)])
     executor = LockstepExecutor(context=node.context)
     executor.add_node(node)
     clock = [0.0]                         # the watch's ticks, on a clock of the test's own
@@ -160,6 +195,7 @@ def test_a_listener_that_comes_after_the_graph_settled_gets_every_tick_from_then
     assert [deserialize_message(bytes.fromhex(m), String).data for m in heard] == ["heard 0", "heard 1", "heard 2"]
     assert links[0].in_process == 4          # the three went through DDS, to both
     assert [m.data for m in got] == [f"quiet {k}" for k in range(4)] + ["heard 0", "heard 1", "heard 2"]
+    changes.close()
     executor.shutdown()
 
 
