@@ -84,13 +84,16 @@ def lidar_scan(positions: np.ndarray, headings: np.ndarray, radii: np.ndarray, h
     ch, sh = np.cos(h), np.sin(h)
     origins = positions[observers] + np.column_stack([ch * mx - sh * my, sh * mx + ch * my])   # [m, 2]
     rel = lidar.angles_array()                                                               # [r]
-    ca, sa = np.cos(rel)[None, :], np.sin(rel)[None, :]
-    dirs = np.stack([ch[:, None] * ca - sh[:, None] * sa, sh[:, None] * ca + ch[:, None] * sa], axis=-1)  # [m, r, 2]
     reach = lidar.max_range_m
     dist = np.full((m, r), np.inf)
-    if scene.n_bodies and m:
-        dist = scene.ray_distance(np.repeat(origins, r, axis=0), dirs.reshape(-1, 2), reach,
-                                  min_height=mz).reshape(m, r)
+    # Only the scanners with a static body within reach cast their rays at the scene (an open
+    # floor's obstacles are near few of them).
+    near = np.flatnonzero(scene.near(origins, reach)) if m else ()
+    if len(near):
+        ca, sa, cn, sn = np.cos(rel)[None, :], np.sin(rel)[None, :], ch[near, None], sh[near, None]
+        dirs = np.stack([cn * ca - sn * sa, sn * ca + cn * sa], axis=-1)                     # [near, r, 2]
+        dist[near] = scene.ray_distance(np.repeat(origins[near], r, axis=0), dirs.reshape(-1, 2), reach,
+                                        min_height=mz).reshape(len(near), r)
     n = len(positions)
     if n > 1 and m:
         dist = np.ascontiguousarray(dist)     # _robot_hits writes through a flat view of it
@@ -138,9 +141,6 @@ def _robot_hits(dist, positions, radii, heights, observers, origins, h, rel, lid
     # where t² - 2 t (u·c) + |c|² - r² = 0, c the target's centre.
     cx, cy = rel_c[:, 0], rel_c[:, 1]
     c2 = d * d - radii[tgt] ** 2                                  # <= 0: the mount is inside
-    # Ray directions in the world frame, [m, r] each, gathered per candidate (no trig per candidate).
-    ang = h[:, None] + rel[None, :]
-    ux_all, uy_all = np.cos(ang).ravel(), np.sin(ang).ravel()
     flat_out = dist.reshape(-1)
     ends = np.cumsum(count)
     start = 0
@@ -149,8 +149,10 @@ def _robot_hits(dist, positions, radii, heights, observers, origins, h, rel, lid
         stop = max(start + 1, int(np.searchsorted(ends, done + _LIDAR_CHUNK, "right")))
         pair, within = _ranges(count[start:stop])
         pair += start
-        cell = rows.take(pair) * r + np.mod(first.take(pair) + within, r)     # flat (scanner, ray)
-        b = ux_all.take(cell) * cx.take(pair) + uy_all.take(cell) * cy.take(pair)   # u·c
+        scanner, ray = rows.take(pair), np.mod(first.take(pair) + within, r)
+        cell = scanner * r + ray                                              # flat (scanner, ray)
+        ang = h.take(scanner) + rel.take(ray)          # the ray's direction in the world frame
+        b = np.cos(ang) * cx.take(pair) + np.sin(ang) * cy.take(pair)         # u·c
         c = c2.take(pair)
         disc = b * b - c
         hit = np.where(c <= 0.0, 0.0, np.where((disc >= 0.0) & (b > 0.0), b - np.sqrt(np.maximum(disc, 0.0)),

@@ -203,6 +203,14 @@ class StaticScene:
         """[4b] height of the box each edge belongs to."""
         return np.repeat(self.box_heights, 4)
 
+    def near(self, points: np.ndarray, reach: float) -> np.ndarray:
+        """points [m, 2] → bool [m]: some body's bounds come within ``reach`` (per axis) of the
+        point. Rays from a point no longer than ``reach`` can meet only the bodies of such points."""
+        if self.n_bodies == 0:
+            return np.zeros(len(points), dtype=bool)
+        lo, hi = points[:, None, :] - reach, points[:, None, :] + reach       # [m, 1, 2]
+        return ((lo <= self._hi) & (hi >= self._lo)).all(axis=2).any(axis=1)
+
     def _candidates(self, lo: np.ndarray, hi: np.ndarray):
         """Yield chunks of (path, body) index pairs whose bounds overlap; lo/hi [m, 2] bound the paths."""
         step = max(1, _CHUNK_PAIRS // max(1, self.n_bodies))
