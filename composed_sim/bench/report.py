@@ -160,7 +160,6 @@ def render_report(doc: dict, figures: dict[tuple[str, str], Path], raw: tuple[Pa
         f"[{raw[1].name}]({raw[1].as_posix()}); `composed-sim bench --replot "
         f"{(report.parent / raw[1]).as_posix()} --report {report.as_posix()}` redraws the figures and this report from them.",
     ]
-    odd = [r for r in rows if r["status"] != "ok"]
     est = doc.get("memory_estimate")
     if "multi-process" in s.get("modes", []) and est:
         lines += ["", f"Multi-process skip rule: predicted memory = simulator {est['base_mb']:.0f} MB + N × "

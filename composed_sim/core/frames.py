@@ -22,12 +22,13 @@ class GroupReadings:
     group's robots), ``ground`` [g, s], ``lidar`` [g, r]. A device the group does not run: None.
 
     A device's readings are read on first use (``unread``: each of its attributes → the call that
-    sets them all, core/senses.py): a sensor topic nobody subscribes to costs no sensing, and what
-    reads them later (a loop function, a recording) gets the same values, the noise being drawn
-    per robot, device and tick.
+    sets them all, given this object; core/senses.py): a sensor topic nobody subscribes to costs
+    no sensing, and what reads them later (a loop function, a recording) gets the same values,
+    the noise being drawn per robot, device and tick.
     """
 
-    def __init__(self, model: str, robots: slice, unread: Optional[dict[str, Callable[[], None]]] = None):
+    def __init__(self, model: str, robots: slice,
+                 unread: Optional[dict[str, Callable[["GroupReadings"], None]]] = None):
         self.model = model
         self.robots = robots                        # the group's robots: a contiguous index range
         self._unread = unread if unread is not None else {}
@@ -37,7 +38,7 @@ class GroupReadings:
         # device the group does not run.
         read = self.__dict__.get("_unread", {}).get(name)
         if read is not None:
-            read()
+            read(self)
             return self.__dict__[name]
         if name in _READINGS:
             return None

@@ -132,7 +132,9 @@ class Senses:
             if hi > lo:
                 for device in g.running:           # devices/: each reads the group into its fields, on first use
                     if device in GROUP_READERS:
-                        read = functools.partial(self._read, GROUP_READERS[device], sensing, g, out)
+                        # Called with the GroupReadings (not holding it: no reference cycle, so a
+                        # frame and what its sensing holds go as soon as the frame does).
+                        read = functools.partial(self._read, GROUP_READERS[device], sensing, g)
                         unread.update(dict.fromkeys(READINGS[device], read))
             groups.append(out)
         rab = None

@@ -261,6 +261,9 @@ def test_a_block_of_robots_reads_exactly_their_readings_in_the_whole_frame(tmp_p
 def test_readings_are_read_on_first_use_and_are_those_of_their_tick(tmp_path, monkeypatch):
     """A device's readings are computed when first used (a sensor topic nobody subscribes to costs
     no sensing), once, and a frame read after the world moved on still gives its own tick's."""
+    import gc
+    import weakref
+
     import composed_sim.core.senses as senses
 
     calls = []
@@ -296,6 +299,15 @@ def test_readings_are_read_on_first_use_and_are_those_of_their_tick(tmp_path, mo
     late.groups[0].proximity                           # the foot-bots' ring: both its fields, one read
     late.groups[0].proximity_distances
     assert calls == [("proximity", 0)]
+    # A frame goes as soon as nothing refers to it (no reference cycle waits for the collector):
+    # a large swarm's readings and their snapshot are not kept for later ticks.
+    gone = weakref.ref(late_sim.frame.groups[0])
+    gc.disable()
+    try:
+        late_sim.step()
+        assert gone() is None
+    finally:
+        gc.enable()
     for (gi, field), value in values.items():
         got = getattr(late.groups[gi], field)
         if value is None:
