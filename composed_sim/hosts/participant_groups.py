@@ -36,10 +36,10 @@ from composed_sim.hosts.run_wide_nodes import SETTLE_ROUNDS, RunWideNodes
 from composed_sim.ros import contract as c
 from composed_sim.ros.answer_subscription import cmd_vel_gids, publisher_gid
 from composed_sim.ros import in_process
-from composed_sim.ros.rcl_graph import GraphChanges
 from composed_sim.ros.in_process import GraphWatch, Link, inbox_of, link_answers, link_subscriptions
 from composed_sim.ros.lockstep_executor import LockstepExecutor
 from composed_sim.ros.participants import ignore_participants_of_this_process
+from composed_sim.ros.rcl_graph import GraphChanges
 from composed_sim.ros.robot_settings import robot_settings
 from composed_sim.ros.run_wide import Message, RunWideRelay
 from composed_sim.ros.simulator_node import AnswerTypeError, SimulatorNode

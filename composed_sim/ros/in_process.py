@@ -44,7 +44,6 @@ from rclpy.qos import (DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSPro
 from rclpy.serialization import deserialize_message, serialize_message
 from rclpy.subscription import Subscription
 
-
 # Set to 0 to send every hosted message through DDS (a comparison, or a suspected link).
 SWITCH_ENV = "COMPOSED_SIM_IN_PROCESS"
 _INBOX = "in_process_inbox"      # the attribute of a linked subscription that holds its Inbox
@@ -208,10 +207,10 @@ class GraphWatch:
     an endpoint of another process (or a new one of this process) was discovered or went away.
     Asking DDS for the counts on every message cost about a sixth of the host's time at 1280
     robots; the graph's guard condition (its changes counted by a thread, ros/rcl_graph.py),
-    looked at once per tick, says when to ask. Discovery
-    reports an endpoint to the graph and matches it a moment apart (measured: up to a third of a
-    second), so after each change the links ask on every message for SETTLE_S,
-    and then keep their last answer until the graph changes again."""
+    looked at once per tick, says when to ask. Discovery reports an endpoint to the graph and
+    matches it a moment apart (measured: up to a third of a second), so after each change the
+    links ask on every message for SETTLE_S, and then keep their last answer until the graph
+    changes again."""
 
     SETTLE_S = 2.0
 
