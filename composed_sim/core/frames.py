@@ -8,7 +8,7 @@ from typing import Callable, Optional
 import numpy as np
 
 from composed_sim.core.odometry import PoseReadings, WheelReadings
-from composed_sim.devices import DEVICES
+from composed_sim.devices import READINGS
 from composed_sim.devices.camera import BlobReadings
 from composed_sim.devices.range_and_bearing import RangeAndBearingReadings
 
@@ -45,8 +45,8 @@ class GroupReadings:
         raise AttributeError(f"{type(self).__name__} has no attribute {name!r}")
 
 
-# GroupReadings' arrays with one row per robot, and its CSR readings.
-_READINGS = frozenset(name for d in DEVICES for name in (*d.readings, *d.csr_readings))
+# Every GroupReadings attribute a device reads (its arrays with one row per robot, its CSR readings).
+_READINGS = frozenset(name for names in READINGS.values() for name in names)
 
 
 @dataclass

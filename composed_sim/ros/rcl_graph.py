@@ -13,13 +13,12 @@ from __future__ import annotations
 
 import ctypes
 import threading
-from typing import Callable, Sequence
+from typing import Callable, Optional, Sequence
 
 from rclpy.guard_condition import GuardCondition
 from rclpy.node import Node
 
 _RET_OK = 0
-_RET_TIMEOUT = 2
 
 
 class _Allocator(ctypes.Structure):          # rcutils_allocator_t
@@ -60,6 +59,7 @@ class GraphChanges:
         self.counts = [1] * len(nodes)          # the first look: changed since the node was created
         self._broken = False
         self._closed = False
+        self._thread: Optional[threading.Thread] = None
         context = nodes[0].context
         self._wake = GuardCondition(None, None, context)
         guards = []
@@ -97,10 +97,8 @@ class GraphChanges:
             if _rcl.rcl_wait_set_clear(ref) != _RET_OK or any(
                     _rcl.rcl_wait_set_add_guard_condition(ref, guard, None) != _RET_OK for guard in guards):
                 break
-            result = _rcl.rcl_wait(ref, -1)     # until a graph changes or ``close`` (ctypes lets the GIL go)
-            if result == _RET_TIMEOUT:
-                continue
-            if result != _RET_OK:
+            # No timeout: until a graph changes or ``close`` (ctypes lets the GIL go meanwhile).
+            if _rcl.rcl_wait(ref, -1) != _RET_OK:
                 break
             for k in range(n):
                 if self._wait_set.guard_conditions[k]:
@@ -112,7 +110,7 @@ class GraphChanges:
         if self._closed:
             return
         self._closed = True
-        if hasattr(self, "_thread"):
+        if self._thread is not None:
             self._wake.trigger()
             self._thread.join()
             _rcl.rcl_wait_set_fini(ctypes.byref(self._wait_set))
