@@ -184,7 +184,6 @@ def _first_failure(host) -> str:
 
 def _run_and_write(args, world, host, finish, logs, fail_fast: FailFast) -> tuple[dict, list, int]:
     """Run the ticks with the observers, write the results; (summary, files written, exit code)."""
-    """Run the ticks with the observers, write the results; (summary, files written, exit code)."""
     from composed_sim import plugins
     from composed_sim.core.placement import PlacementError
     from composed_sim.hosts.composed import ComposedHost

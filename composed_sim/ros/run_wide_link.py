@@ -15,6 +15,7 @@ import time
 from array import array
 from typing import Collection
 
+from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import UInt8MultiArray
@@ -24,6 +25,7 @@ from composed_sim.ros.run_wide import Message, RunWideRelay
 
 BATCH_TOPIC = "/_composed_sim/run_wide"
 LINK_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
+LAST_WORDS_ACK_S = 2.0      # how long an ending controller process waits for its last part's acknowledgement
 
 
 def outbox_topic(robot: str) -> str:
@@ -104,9 +106,13 @@ class RunWideLink:
         self.sent = self.tick
 
     def send_logs(self) -> None:
-        """A failing robot's last log lines' part, if any, as its process ends."""
+        """A failing robot's last log lines' part, if any, as its process ends. It waits (boundedly)
+        for the simulator to acknowledge it: a reliable message the transport dropped is resent
+        only while its writer lives, and the simulator counts a failed robot's lines only once
+        its process has ended (under load, one robot's last warning was lost that way)."""
         if self._outbox is not None and self._logs is not None and self._logs.forwarding:
             self._outbox.publish(pack(self.tick, [], False, self._logs.drain()))
+            self._outbox.wait_for_all_acked(Duration(seconds=LAST_WORDS_ACK_S))
 
     def destroy(self) -> None:
         self.node.destroy_node()
