@@ -7,9 +7,9 @@ dynamic circle dragged by an infinite-mass "control body" through velocity-only
 pivot and gear joints whose forces are capped, so a robot follows its wheel speeds
 in free space but can push, and be pushed by, other bodies only within those caps.
 
-State crosses the pymunk boundary in batch: poses and velocities are read with
-``pymunk.batch`` once per tick; the only per-robot Python work is setting the
-control bodies' velocities (they live outside the space, so batch cannot reach them).
+State crosses the pymunk boundary in batch: every tick the control bodies' velocities
+are written, and the poses and velocities read, with ``pymunk.batch``; no Python runs per
+robot.
 """
 from __future__ import annotations
 
@@ -19,10 +19,6 @@ from typing import Sequence
 import numpy as np
 import pymunk
 import pymunk.batch
-# Chipmunk's C setters via pymunk's cffi module: a third of the cost of the Body
-# property setters (0.55 vs 1.66 ms per tick at 1280 robots).
-from pymunk._chipmunk_cffi import lib as _cp
-
 from composed_sim.devices.common.poses import wrap_angle
 from composed_sim.world.robot_models import RobotModel
 from composed_sim.world.schema import Box, Cylinder, World
@@ -39,14 +35,16 @@ MOVABLE_GROUND_TORQUE_NM = 1.49
 _FIELDS = (pymunk.batch.BodyFields.POSITION | pymunk.batch.BodyFields.ANGLE
            | pymunk.batch.BodyFields.VELOCITY | pymunk.batch.BodyFields.ANGULAR_VELOCITY)
 _N_FIELDS = 6   # x, y, angle, vx, vy, w — the order cpSpaceEachBody's batch writer uses
+_SET_FIELDS = pymunk.batch.BodyFields.VELOCITY | pymunk.batch.BodyFields.ANGULAR_VELOCITY
 
 
 class PhysicsWorld:
     """pymunk (Chipmunk) space: differential-drive robots, static obstacles and movable objects.
 
-    Robot ``i`` is the ``i``-th dynamic body of the space; obstacles hang off the space's
-    static body, so ``pymunk.batch`` returns the robots first, in order. ``space`` is
-    exposed for queries (ray casts, tests); callers must not add to it or step it.
+    The space's bodies, in the order ``pymunk.batch`` lists them: the n robots, their n
+    control bodies and the movable objects (insertion order), then the space's static body,
+    which holds the obstacles. ``space`` is exposed for queries (ray casts, tests); callers
+    must not add to it or step it.
     """
 
     n: int
@@ -79,8 +77,7 @@ class PhysicsWorld:
         self._wheel_separation_m = np.array([m.wheel_separation_m for m in models], dtype=np.float64)
         self._left_mps = np.zeros(n)
         self._right_mps = np.zeros(n)
-        self._control_bodies: list[pymunk.Body] = []   # not in the space: keep them alive here
-        self._control_ptrs = []                         # cpBody* of each control body
+        controls = []
         for model, (x, y), a in zip(models, positions.tolist(), headings.tolist()):
             # dynamics2d_footbot_model.cpp: cpBodyNew(m, cpMomentForCircle(m, 0, R + R, 0)) —
             # ARGoS passes the diameter as the radius, so I = 2 m R^2; copied as is.
@@ -94,7 +91,10 @@ class PhysicsWorld:
             shape.elasticity = 0.0              # footbot model: e = 0 "No elasticity"
             shape.friction = model.friction     # footbot model: u = 0.7
             # dynamics2d_velocity_control.cpp: control body = cpBodyNew(INFINITY, INFINITY),
-            # never added to the space; Chipmunk 7 calls such a body KINEMATIC.
+            # never added to the space; Chipmunk 7 calls such a body KINEMATIC. Here it is in
+            # the space, so that batch can set its velocity: a kinematic body there only has
+            # its pose integrated, which these velocity-only joints do not read (their anchors
+            # sit at its origin and their correction is off), and no shape to collide.
             control = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
             pivot = pymunk.PivotJoint(body, control, (0.0, 0.0), (0.0, 0.0))
             pivot.max_bias = 0.0                # "disable joint correction": velocity-only
@@ -103,15 +103,16 @@ class PhysicsWorld:
             gear.max_bias = 0.0
             gear.max_force = model.max_torque_nm  # "limit the torque"
             self.space.add(body, shape, pivot, gear)
-            self._control_bodies.append(control)
-            self._control_ptrs.append(control._body)
+            controls.append(control)
+        self.space.add(*controls)
 
-        # Added after the robots, so the batch rows are robots first, then movable objects.
+        # Added after the robots and their control bodies, and so are later ones (add_movable).
         self.movable = [ob for ob in world.obstacles if ob.movable]
         self._movable_bodies: list[pymunk.Body] = []
         self._add_movable_objects(self.movable)
 
         self._buffer = pymunk.batch.Buffer()
+        self._velocity_buffer = pymunk.batch.Buffer()
         self._state = np.zeros((n, _N_FIELDS))   # [n, 6] x, y, angle, vx, vy, w after the last step
         self._movable_state = np.zeros((len(self.movable), _N_FIELDS))   # [k, 6] the same for movables
         self._read_state()
@@ -181,11 +182,12 @@ class PhysicsWorld:
         v = 0.5 * (self._left_mps + self._right_mps)
         w = (self._right_mps - self._left_mps) / self._wheel_separation_m
         a = self._state[:, 2]
-        vx, vy = (v * np.cos(a)).tolist(), (v * np.sin(a)).tolist()
-        set_v, set_w = _cp.cpBodySetVelocity, _cp.cpBodySetAngularVelocity
-        for ptr, vxi, vyi, wi in zip(self._control_ptrs, vx, vy, w.tolist()):
-            set_v(ptr, (vxi, vyi))
-            set_w(ptr, wi)
+        # batch sets the velocities of every body it lists, one row each: all but the control
+        # bodies get back what they have (read after the last step or placement).
+        velocities, controls = self._velocities, slice(self.n, 2 * self.n)
+        velocities[controls, 0], velocities[controls, 1], velocities[controls, 2] = v * np.cos(a), v * np.sin(a), w
+        self._velocity_buffer.set_float_buf(velocities)
+        pymunk.batch.set_space_bodies(self.space, _SET_FIELDS, self._velocity_buffer)
         step, dt = self.space.step, self._dt
         for _ in range(self._substeps):   # dynamics2d_engine.cpp Update(): `iterations` cpSpaceSteps
             step(dt)
@@ -194,13 +196,12 @@ class PhysicsWorld:
     def _read_state(self) -> None:
         self._buffer.clear()
         pymunk.batch.get_space_bodies(self.space, _FIELDS, self._buffer)
-        # cpSpaceEachBody lists the dynamic bodies (the robots, in insertion order) before
-        # the static ones (the space's static body), so the robots are the first n rows.
-        flat = np.frombuffer(self._buffer.float_buf(), dtype=np.float64)
-        self._state[:] = flat[: self.n * _N_FIELDS].reshape(self.n, _N_FIELDS)
-        if len(self.movable):
-            k = len(self.movable)
-            self._movable_state[:] = flat[self.n * _N_FIELDS:(self.n + k) * _N_FIELDS].reshape(k, _N_FIELDS)
+        # One row per body batch lists: robots, control bodies, movable objects, then the static
+        # bodies (the space's, which holds the obstacles).
+        rows = np.frombuffer(self._buffer.float_buf(), dtype=np.float64).reshape(-1, _N_FIELDS)
+        self._state[:] = rows[:self.n]
+        self._movable_state[:] = rows[2 * self.n:2 * self.n + len(self.movable)]
+        self._velocities = rows[:, 3:6].copy()   # C-contiguous, as set_float_buf needs
 
     def place_movable(self, index: int, position, yaw_rad: float) -> None:
         """Put movable object ``index`` at rest at a new pose (between steps)."""
