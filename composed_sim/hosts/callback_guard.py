@@ -97,8 +97,7 @@ class CallbackGuard:
                     self.running += 1
                     calls_of[robot] = calls_of.get(robot, 0) + 1
                 self._depth.inside = True
-            timed = own_time and node_time.sampled()
-            cpu = node_time.started() if timed else 0.0
+            cpu = time.thread_time() if own_time else 0.0
             try:
                 try:
                     result = callback(*args)
@@ -123,8 +122,8 @@ class CallbackGuard:
                     self.on_exception(robot, node, e)
                 return None
             took = monotonic() - started
-            if timed:
-                node_time.add(cpu)
+            if own_time:
+                node_time.add(time.thread_time() - cpu)
             # Worker threads (multi-threaded executor) meet the tick's wall-clock deadline instead.
             if in_main and took > self._watchdog_s:
                 sim_node.reject_answer(robot, f"late: a callback took {took:.2f} s, more than "
