@@ -422,8 +422,12 @@ class WorkerHost(ControllersElsewhere):
 # Flocking, 300 ticks, K=2 against K=1: 80 robots 0.96× the ticks (and 0.8 s more set-up), 160
 # robots 0.66×: below this many robots a worker, a process of its own does not pay.
 MIN_ROBOTS_PER_WORKER = 64
-# A worker's robots share one participant, whose set-up grows with the square of its endpoints.
-MAX_ROBOTS_PER_WORKER = 160
+# A worker's robots share one participant, whose set-up grows with the square of its endpoints;
+# fewer workers cost less per tick (each senses its block against the whole swarm, each has its
+# DDS threads). On 2 cores, alternated: 1280 robots in 4 workers of 320 against 8 of 160, 600
+# ticks, whole 30.1, 28.5 against 31.4, 31.5 s (set-up 4.1 against 3.2 s); 10 240 robots in 32
+# against 64, 300 ticks, whole 155.4 against 181.1 s (set-up 32.1 against 24.7 s).
+MAX_ROBOTS_PER_WORKER = 320
 
 
 def usable_cores() -> int:
