@@ -56,6 +56,7 @@ STALL_TIMEOUT_S = 60.0     # start-up fails when no child became ready for this 
 DETECT_PERIOD_S = 0.1      # how often start-up looks up the cmd_vel types not known yet
 POLL_S = NodesExchange.POLL_S   # look for dead children this often
 TERM_GRACE_S = 5.0         # SIGTERM → SIGKILL
+FAILED_GRACE_S = 2.0       # a failed robot's process: SIGTERM → SIGKILL
 
 
 @dataclass
@@ -68,6 +69,7 @@ class ControllerProcess:
     spawned: float = field(default_factory=time.perf_counter)
     created: bool = False                # its node exists: the CPU-heavy part of start-up is done
     answer_type: Optional[str] = None    # its cmd_vel publisher's type, as "created" reported it
+    stopping_since: Optional[float] = None   # monotonic s of the SIGTERM that ends a failed robot
     run_wide_topics: list[str] = field(default_factory=list)   # its run-wide link's, as "created" reported them
     linked: bool = False                 # the simulator's side of its link exists
     topics: Optional[list[str]] = None   # its contract topics, once matched on its side
@@ -334,6 +336,9 @@ class MultiProcessHost(ControllersElsewhere):
             return
         self._last_check = now
         for p in self.processes:
+            if p.stopping_since is not None and p.popen.returncode is None \
+                    and now - p.stopping_since > FAILED_GRACE_S and p.popen.poll() is None:
+                signal_group(p.popen, signal.SIGKILL)      # hung in a callback: SIGTERM waits for it
             if p.popen.returncode is None and p.popen.poll() is not None:
                 self._nodes[p.domain].mark_failed(p.robot, died_reason(p))
                 failure = failure_from_output(p.tail(100_000)) if self.logs is not None else None
@@ -343,9 +348,15 @@ class MultiProcessHost(ControllersElsewhere):
 
     def _stop_failed(self, robot: str) -> None:
         """A robot failed by the simulator (hung, silent, too many violations): its process goes,
-        as its callbacks would stop being run in composed mode."""
+        as its callbacks would stop being run in composed mode. SIGTERM first, so that it ends
+        its DDS participant itself; SIGKILL FAILED_GRACE_S later if it has not (a callback that
+        never returns; ``_check_children``). Killed at once, a controller can die holding its
+        shared-memory port's lock, and what goes toward that port then waits (the likely cause
+        of a healthy robot of the same domain once missing the watchdog the tick after)."""
         p = next(p for p in self.processes if p.robot == robot)
-        signal_group(p.popen, signal.SIGKILL)
+        if p.stopping_since is None and p.popen.returncode is None:
+            p.stopping_since = time.monotonic()
+            signal_group(p.popen, signal.SIGTERM)
 
     # --- shutdown ---------------------------------------------------------------------------
 
@@ -381,13 +392,13 @@ class MultiProcessHost(ControllersElsewhere):
         self._contexts = []
 
     def _stop_children(self) -> None:
-        """SIGTERM to every child's group, SIGKILL to whatever is left after TERM_GRACE_S, reap
-        all. Only unreaped children are signalled: a reaped child's pid may belong to another
-        process by now."""
+        """SIGTERM to every child's group (SIGKILL to a failed robot's, which had its SIGTERM),
+        SIGKILL to whatever is left after TERM_GRACE_S, reap all. Only unreaped children are
+        signalled: a reaped child's pid may belong to another process by now."""
         for p in self.processes:
             p.close_pipe()
-        for p in self.processes:
-            signal_group(p.popen, signal.SIGTERM)
+        for p in self.processes:      # a failed robot's still there did not heed its SIGTERM
+            signal_group(p.popen, signal.SIGTERM if p.stopping_since is None else signal.SIGKILL)
         reap([p.popen for p in self.processes], TERM_GRACE_S)
 
 

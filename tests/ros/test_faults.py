@@ -5,9 +5,13 @@ tick on. In every case the run completes, bot0, bot2 and bot3 move exactly as in
 a fault (bit for bit), bot1 gets the fallback, and every violation is bot1's.
 """
 
+import signal
+import time
+
 import numpy as np
 import pytest
 
+from composed_sim.hosts import multiprocess
 from composed_sim.hosts.composed import ComposedHost
 from composed_sim.hosts.multiprocess import MultiProcessHost
 from composed_sim.hosts.workers import WorkerHost
@@ -204,6 +208,30 @@ def test_a_rejected_answer_gets_the_previous_command_when_so_configured(faulty_p
                           for t in range(FROM_TICK, TICKS)]
     # Its previous command is the one it kept sending: it drives on exactly as without the fault.
     assert np.array_equal(result.trajectories.positions[:, 1], reference(domain_id)[:, 1])
+
+
+@pytest.mark.parametrize("fault, max_violations, ends_by", [
+    ("nan", 3, "itself"),               # past max_violations: SIGTERM, and it ends its participant itself
+    ("hang", None, signal.SIGKILL)])    # unresponsive, its callback never returns: SIGKILL after the grace
+def test_a_failed_robots_process_is_asked_to_end_and_killed_only_if_it_does_not(
+        faulty_plugin, fault, max_violations, ends_by, mp_domain):
+    world = fault_world(fault, max_violations=max_violations, watchdog_s=SLACK_WATCHDOG_S if max_violations else WATCHDOG_S)
+    with MultiProcessHost(world, domain_id=mp_domain, robots_per_domain=2) as host:
+        result = host.run()
+        assert any(v.robot == FAULTY and v.reason.startswith("controller failed") for v in result.violations)
+        faulty = next(p for p in host.processes if p.robot == FAULTY)
+        stopped_at = faulty.stopping_since
+        assert stopped_at is not None
+        deadline = time.monotonic() + multiprocess.FAILED_GRACE_S + 10.0
+        while faulty.popen.poll() is None and time.monotonic() < deadline:
+            host._check_children()        # what the run's waits call: escalates past the grace
+            time.sleep(0.05)
+        if ends_by == "itself":
+            assert faulty.popen.returncode == 0       # a clean end: node destroyed, context shut down
+        else:
+            assert faulty.popen.returncode == -ends_by
+            assert time.monotonic() - stopped_at >= multiprocess.FAILED_GRACE_S
+        assert all(p.popen.poll() is None for p in host.processes if p.robot != FAULTY)
 
 
 @pytest.mark.parametrize("mode", MODES)
