@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Optional, Sequence
+from typing import TYPE_CHECKING, Callable, Optional, Sequence
 
 import numpy as np
 
@@ -248,7 +248,8 @@ class Publisher(DevicePublisher):
             blobs = frame.groups[plan.group].blobs
             take, local = csr_take(blobs.offsets, plan.within)
             self.send_clouds(places, rows, out,
-                             points_of(blobs.angles[take], blobs.distances[take], blobs.colors[take]), local.tolist())
+                             points_of(blobs.angles[take], blobs.distances[take], blobs.colors[take]), local.tolist(),
+                             hand=_handed)
 
 
 # --- the controller's side -----------------------------------------------------------------------
@@ -309,6 +310,19 @@ def _blobs(points: np.ndarray) -> Blobs:
     x = points["x"].astype(float)
     y = points["y"].astype(float)
     return Blobs(np.arctan2(y, x), np.hypot(x, y), rgb=points["rgb"] & 0xFFFFFF)
+
+
+def _handed(points: np.ndarray, offsets: Sequence[int]) -> Callable[[int], Blobs]:
+    """The k-th cloud's ``decode``, for every cloud of ``points`` at once (devices/common/handoff.py):
+    the same elementwise operations over all of them."""
+    whole = _blobs(points)
+
+    def of(k: int) -> Blobs:
+        start, end = offsets[k], offsets[k + 1]
+        if start == end:
+            return Blobs(_NO_FLOATS, _NO_FLOATS, rgb=_NO_WORDS)
+        return Blobs(whole.angles[start:end], whole.distances[start:end], rgb=whole.rgb[start:end])
+    return of
 
 
 def _cloud_dtype(fields: tuple, point_step: int) -> np.dtype:

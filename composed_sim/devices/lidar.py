@@ -196,7 +196,8 @@ class Publisher(DevicePublisher):
         places, rows = self.to_send(plan, out)
         if rows:
             ranges = frame.groups[plan.group].lidar[plan.within]        # [k, r]
-            self.send_scans(places, rows, out, ranges, ranges[:, :0])
+            self.send_scans(places, rows, out, ranges, ranges[:, :0],
+                            hand=lambda ranges, intensities: ranges.__getitem__)        # decode's reading
 
 
 DEVICE = Device(NAME, (TOPIC,), Publisher, reads_into("scan", decode), tick_fields=("scan",),

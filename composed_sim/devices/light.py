@@ -191,7 +191,8 @@ class Publisher(DevicePublisher):
     def publish(self, plan, frame, out):
         places, rows = self.to_send(plan, out)
         if rows:
-            self.send_scans(places, rows, out, None, frame.groups[plan.group].light[plan.within])
+            self.send_scans(places, rows, out, None, frame.groups[plan.group].light[plan.within],
+                            hand=lambda ranges, intensities: intensities.__getitem__)   # decode's reading
 
 
 DEVICE = Device(NAME, (TOPIC,), Publisher, reads_into("light", decode), tick_fields=("light",),

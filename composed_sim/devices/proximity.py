@@ -181,7 +181,8 @@ class Publisher(DevicePublisher):
         places, rows = self.to_send(plan, out)
         if rows:
             group = frame.groups[plan.group]
-            self.send_scans(places, rows, out, group.proximity_distances[plan.within], group.proximity[plan.within])
+            self.send_scans(places, rows, out, group.proximity_distances[plan.within], group.proximity[plan.within],
+                            hand=lambda ranges, intensities: lambda k: (ranges[k], intensities[k]))  # decode's
 
 
 DEVICE = Device(NAME, (TOPIC,), Publisher, reads_into(("proximity_distances", "proximity"), decode),

@@ -291,3 +291,69 @@ def test_a_node_converts_exactly_its_robots_entries_of_csr_readings():
         assert local.tolist() == [0, *np.cumsum(counts[rows]).tolist()]
         for k, r in enumerate(rows):
             assert got[local[k]:local[k + 1]].tolist() == entries[offsets[r]:offsets[r + 1]].tolist()
+
+
+def test_a_reading_handed_beside_its_message_is_the_one_its_reader_decodes_bit_for_bit(ros_context, monkeypatch):
+    """In process, the simulator hands each sensor message's reading beside its bytes
+    (devices/common/handoff.py): for every device that does, the reading equals the reader's decode
+    of the bytes bit for bit (values, dtype, shape), the first reader takes it and any other
+    decodes its own; without in-process delivery nothing is handed."""
+    from composed_sim.core.simulation import Simulation
+    from composed_sim.devices import BY_SENSOR_TOPIC
+    from composed_sim.devices.common.device import DevicePublisher
+    from composed_sim.devices.common import handoff
+    from composed_sim.devices.common.handoff import take_reading
+    from composed_sim.ros.controller import Tick
+    from composed_sim.ros.robot_settings import robot_devices
+    from composed_sim.ros.simulator_node import SimulatorNode
+    world = world_with([
+        {"model": "foot-bot", "count": 12, "controller": "x", "devices": {"ground": {}},
+         "placement": {"method": "grid", "spacing_m": 0.4}},
+        {"model": "turtlebot3-burger", "count": 3, "name_prefix": "tb", "controller": "x"},
+    ], floor={"shapes": [{"type": "circle", "position": [0.0, 0.0], "radius_m": 1.0, "color": [0, 0, 0]}]})
+    sim = Simulation(world)
+    for i in range(0, 12, 2):          # some beacons lit: clouds of several blobs, and empty ones
+        colors = np.zeros((sim.models[i].n_leds, 3), dtype=np.uint8)
+        colors[-1] = (255, 0, 0)
+        sim.set_led_colors(i, colors)
+    sim.set_wheel_speeds(np.full(sim.n, 0.05), np.full(sim.n, 0.07))
+    frames = [sim.step(), sim.step()]
+    sent = []
+    original = DevicePublisher.send_all
+    monkeypatch.setattr(DevicePublisher, "send_all", lambda self, rows, messages, out:
+                        (sent.extend((self.topic.name, self.node.robots[i], m) for i, m in zip(rows, messages)),
+                         original(self, rows, messages, out)))
+    node = SimulatorNode(sim.names, sim.models, context=ros_context, tick_ns=world.tick_ns,
+                         devices=robot_devices(world))
+    try:
+        for publisher in node.device_publishers():     # as if each topic had a reader
+            publisher._read = [p is not None for p in publisher.pubs]
+            publisher.checking = False
+        node.publish_tick(frames[0])
+        assert sent and all(take_reading(m) is None for _, _, m in sent)
+        sent.clear()
+        node.hands_readings = True
+        node.publish_tick(frames[1])
+    finally:
+        node.destroy_node()
+    readers = {(topic, robot): BY_SENSOR_TOPIC[topic].reader(sim.models[sim.names.index(robot)]) for topic, robot, _ in sent}
+    handed, blobs_seen = set(), 0
+    for topic, robot, message in sent:
+        read = readers[topic, robot]
+        if id(message) in handoff._places:
+            handed.add(topic)
+        taken, second, decoded = Tick.at(0, 0), Tick.at(0, 0), Tick.at(0, 0)
+        read(bytes(bytearray(message)), decoded)      # another object of the same bytes: decoded
+        read(message, taken)                          # the reading handed with the message …
+        read(message, second)                         # … taken once: decoded
+        for field in BY_SENSOR_TOPIC[topic].tick_fields:
+            for tick in (taken, second):
+                a, b = getattr(decoded, field), getattr(tick, field)
+                if field == "blobs":
+                    blobs_seen += len(a)
+                    a, b = (a.angles, a.distances, a.rgb), (b.angles, b.distances, b.rgb)
+                else:
+                    a, b = (a,), (b,)
+                for x, y in zip(a, b):
+                    assert x.dtype == y.dtype and x.shape == y.shape and x.tobytes() == y.tobytes(), (topic, robot, field)
+    assert blobs_seen > 0 and handed == {"proximity", "light", "blobs", "ground", "scan"}

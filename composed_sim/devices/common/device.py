@@ -15,6 +15,7 @@ from typing import Any, Callable, ClassVar, Optional, Protocol, Sequence, Union
 import numpy as np
 
 from composed_sim.devices.common import cdr
+from composed_sim.devices.common.handoff import Batch, hand_readings, take_reading
 from composed_sim.devices.common.settings import DeviceSwitch
 from composed_sim.devices.common.topic import Topic
 
@@ -57,6 +58,9 @@ class Outgoing:
     stamp_ns: int
     stamp_cdr: bytes               # the stamp's 8 CDR bytes (cdr.stamp_bytes)
     failed: list[bool]             # per robot of the node: stopped for good, published no more
+    # The node's sensor messages go to its robots' nodes in process: hand each message's reading
+    # beside its bytes (handoff.py).
+    hand_readings: bool = False
 
 
 class PublishingNode(Protocol):
@@ -149,30 +153,42 @@ class DevicePublisher:
         self.node.tap_messages(self.topic, rows, messages, out.stamp_ns)
 
     def send_scans(self, places: list[int], rows: list[int], out: Outgoing, ranges: Optional[np.ndarray],
-                   intensities: np.ndarray) -> None:
+                   intensities: np.ndarray,
+                   hand: Optional[Callable[[Optional[np.ndarray], np.ndarray], Batch]] = None) -> None:
         """The LaserScans as bytes (each robot's encoder a ``cdr.ScanEncoder``) of the robots
         ``to_send`` chose, from their rows of ``ranges`` (None: a scan without ranges) and of
         ``intensities`` ([k, m] each, a row per robot of the plan): the rows become float32
-        bytes once per tick, and a robot's part is a slice of them."""
-        ranges_f4, rw = rows_f4(ranges) if ranges is not None else (b"", 0)
-        intensities_f4, iw = rows_f4(intensities)
+        bytes once per tick, and a robot's part is a slice of them. ``hand(ranges, intensities)``:
+        the batch of the readers' readings from those float32 rows as float64 (handoff.py)."""
+        ranges_f4 = None if ranges is None else np.ascontiguousarray(ranges, dtype="<f4")
+        intensities_f4 = np.ascontiguousarray(intensities, dtype="<f4")
+        ranges_bytes, rw = (b"", 0) if ranges_f4 is None else (ranges_f4.tobytes(), 4 * ranges_f4.shape[1])
+        intensities_bytes, iw = intensities_f4.tobytes(), 4 * intensities_f4.shape[1]
         encoders, stamp = self.encoders, out.stamp_cdr
-        self.send_all(rows, [encoders[i].encode_bytes(stamp, ranges_f4[k * rw:(k + 1) * rw],
-                                                      intensities_f4[k * iw:(k + 1) * iw])
-                             for k, i in zip(places, rows)], out)
+        messages = [encoders[i].encode_bytes(stamp, ranges_bytes[k * rw:(k + 1) * rw],
+                                             intensities_bytes[k * iw:(k + 1) * iw])
+                    for k, i in zip(places, rows)]
+        if hand is not None and out.hand_readings:
+            hand_readings(messages, hand(None if ranges_f4 is None else ranges_f4.astype(float),
+                                         intensities_f4.astype(float)), places, out.stamp_ns)
+        self.send_all(rows, messages, out)
 
     def send_clouds(self, places: list[int], rows: list[int], out: Outgoing, points: np.ndarray,
-                    offsets: Sequence[int]) -> None:
+                    offsets: Sequence[int], hand: Optional[Callable[[np.ndarray, Sequence[int]], Batch]] = None) -> None:
         """The PointCloud2s as bytes (each robot's encoder a ``cdr.CloudEncoder``) of the robots
         ``to_send`` chose: the plan's k-th robot's points are ``points[offsets[k]:offsets[k + 1]]``
         (a structured array laid out as the cloud's fields), turned into bytes once per tick and
-        sliced per robot."""
+        sliced per robot. ``hand(points, offsets)``: the batch of the readers' readings
+        (handoff.py)."""
         data, step = points.tobytes(), points.dtype.itemsize
         sec, nanosec = out.sec, out.nanosec
         encoders = self.encoders
-        self.send_all(rows, [encoders[i].encode(sec, nanosec, data[offsets[k] * step:offsets[k + 1] * step],
-                                                offsets[k + 1] - offsets[k])
-                             for k, i in zip(places, rows)], out)
+        messages = [encoders[i].encode(sec, nanosec, data[offsets[k] * step:offsets[k + 1] * step],
+                                       offsets[k + 1] - offsets[k])
+                    for k, i in zip(places, rows)]
+        if hand is not None and out.hand_readings:
+            hand_readings(messages, hand(points, offsets), places, out.stamp_ns)
+        self.send_all(rows, messages, out)
 
     def encode_and_send(self, places: list[int], rows: list[int], out: Outgoing, *columns: Sequence) -> None:
         """Each robot ``to_send`` chose, the plan's k-th: its encoder's bytes (``cdr.FixedEncoder``)
@@ -192,10 +208,14 @@ def reads_into(fields: Union[str, tuple[str, ...]], decode: Callable) -> Callabl
     that ``decode`` returns in that order), whatever the robot's model."""
     def reader(model: RobotModel) -> Reader:
         if isinstance(fields, str):
-            return lambda data, tick: setattr(tick, fields, decode(data))
+            def read_one(data, tick) -> None:
+                value = take_reading(data)
+                setattr(tick, fields, decode(data) if value is None else value)
+            return read_one
 
         def read(data, tick) -> None:
-            for field, value in zip(fields, decode(data)):
+            values = take_reading(data)
+            for field, value in zip(fields, decode(data) if values is None else values):
                 setattr(tick, field, value)
         return read
     return reader
@@ -206,7 +226,11 @@ def reads_cloud_into(field: str, decode: Callable) -> Callable[[RobotModel], Rea
     with a ``cdr.CloudDecoder`` per controller: its stream's layout is parsed once."""
     def reader(model: RobotModel) -> Reader:
         decoder = cdr.CloudDecoder()
-        return lambda data, tick: setattr(tick, field, decode(data, decoder))
+
+        def read(data, tick) -> None:
+            value = take_reading(data)
+            setattr(tick, field, decode(data, decoder) if value is None else value)
+        return read
     return reader
 
 
@@ -234,12 +258,6 @@ class Device:
     @property
     def sensor_topic(self) -> Optional[Topic]:
         return self.topics[0] if self.topics[0].direction == "sensor" else None
-
-
-def rows_f4(values: np.ndarray) -> tuple[bytes, int]:
-    """[k, m] → (the rows as consecutive little-endian float32 bytes, bytes per row)."""
-    values = np.ascontiguousarray(values, dtype="<f4")
-    return values.tobytes(), 4 * values.shape[1]
 
 
 def csr_take(offsets: np.ndarray, rows: np.ndarray):
