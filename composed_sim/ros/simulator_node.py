@@ -418,8 +418,9 @@ class SimulatorNode(Node):
         now = RosTime.from_msg(stamp)._time_handle
         for handle in self._driven_clock_handles:
             handle.set_ros_time_override(now)
+        failed = self.failed.tolist()
         out = Outgoing(stamp.sec, stamp.nanosec, self._current_key, cdr.stamp_bytes(stamp.sec, stamp.nanosec),
-                       self.failed.tolist(), self.hands_readings)
+                       failed, failed.count(True), self.hands_readings)
         for plan in self._plans if self._plans is not None else self._make_plans(frame):
             for publisher in self._device_publishers:
                 if publisher.device in plan.devices:

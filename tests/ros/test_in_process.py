@@ -226,4 +226,4 @@ def test_a_topic_nobody_read_is_published_once_a_listener_comes_after_the_graph_
 
 
 def _outgoing(robots):
-    return Outgoing(0, 0, 0, cdr.stamp_bytes(0, 0), [False] * robots)
+    return Outgoing(0, 0, 0, cdr.stamp_bytes(0, 0), [False] * robots, 0)

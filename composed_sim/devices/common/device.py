@@ -58,6 +58,7 @@ class Outgoing:
     stamp_ns: int
     stamp_cdr: bytes               # the stamp's 8 CDR bytes (cdr.stamp_bytes)
     failed: list[bool]             # per robot of the node: stopped for good, published no more
+    n_failed: int                  # how many (failures are for good: a count tells a change)
     # The node's sensor messages go to its robots' nodes in process: hand each message's reading
     # beside its bytes (handoff.py).
     hand_readings: bool = False
@@ -87,6 +88,9 @@ class DevicePublisher:
         self.encoders: list = [None] * n
         self._read = [False] * n
         self.checking = True           # ask DDS for readers on every tick (else: its last answers)
+        # Per group plan: (n_failed, places, rows) of the last ``to_send`` while not checking:
+        # the same until a robot fails or a reader comes (``publish_check``).
+        self._sending: dict[int, tuple[int, list[int], list[int]]] = {}
         for i in self.own_topics(robots):
             self.pubs[i] = node.create_robot_publisher(robots.names[i], self.topic)
             self.encoders[i] = self.template(robots, i)
@@ -124,6 +128,7 @@ class DevicePublisher:
         for i, pub in enumerate(self.pubs):
             if pub is not None and not self._read[i]:
                 self._read[i] = self._has_reader(i)
+        self._sending.clear()
 
     def _has_reader(self, i: int) -> bool:
         """Robot i's topic has a subscriber matched, or is recorded."""
@@ -134,10 +139,18 @@ class DevicePublisher:
         i in the node). Once every robot of the topic has a reader, only the failed are left out.
         A ``publish`` asks first and takes the frame's readings only when someone is left: they
         are read on first use (core/frames.py), so a topic nobody reads costs no sensing."""
-        failed, read, wanted, checking = out.failed, self._read, self.wanted, self.checking
+        checking = self.checking
+        if not checking:
+            sending = self._sending.get(plan.group)
+            if sending is not None and sending[0] == out.n_failed:
+                return sending[1], sending[2]
+        failed, read, wanted = out.failed, self._read, self.wanted
         pairs = [(k, i) for k, i in enumerate(plan.local.tolist())
                  if not failed[i] and (read[i] or checking and wanted(i, out))]
-        return [k for k, _ in pairs], [i for _, i in pairs]
+        places, rows = [k for k, _ in pairs], [i for _, i in pairs]
+        if not checking:
+            self._sending[plan.group] = (out.n_failed, places, rows)
+        return places, rows
 
     def send(self, i: int, msg, out: Outgoing) -> None:
         """Publish robot i's message bytes; the caller asked ``wanted`` first."""
