@@ -69,6 +69,8 @@ class CallbackGuard:
             sub.callback = self._wrap(sub.callback, node, robot, sim_node, with_info)
         for timer in node.timers:
             timer.callback = self._wrap(timer.callback, node, robot, sim_node, False, arity=0)
+        if isinstance(node, SwarmController):   # its sensors' messages in one call (ros/controller.py)
+            node.lockstep_batch = (node._sensor_subscriptions, self._wrap(node._on_sensors, node, robot, sim_node, False))
 
     def _wrap(self, callback: Callable, node: Node, robot: str, sim_node: SimulatorNode, with_info: bool,
               arity: int = 1) -> Callable:

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import functools
 import time
+from typing import Callable, Optional
 
 import numpy as np
 from builtin_interfaces.msg import Time
@@ -77,6 +78,10 @@ class SwarmController(Node):
 
     #: sensor topics (contract names) this controller needs each tick.
     sensors: tuple[str, ...] = ("proximity", "light", "blobs")
+    #: Set by a host that guards callbacks (hosts/callback_guard.py): (the sensor subscriptions, in
+    #: ``sensors``' order; ``_on_sensors`` as guarded). The lockstep executor then hands a tick's
+    #: sensor messages to the node in one call where all of them wait in process.
+    lockstep_batch: Optional[tuple[tuple, Callable[[list], None]]] = None
 
     def __init__(self, node_name: str = "controller", **node_kwargs):
         super().__init__(node_name, **node_kwargs)
@@ -96,10 +101,12 @@ class SwarmController(Node):
         # Each sensor is read by its device (devices/), from the serialized bytes, and answers
         # are published as bytes (cdr.py): the same messages, without building Python message objects.
         self._readers = {name: BY_SENSOR_TOPIC[name].reader(self.model) for name in self.sensors}
-        for name in self.sensors:
-            topic = c.TOPICS[name]
-            self.create_subscription(c.msg_type(topic), topic.name, functools.partial(self._on_sensor, name),
-                                     c.QOS, raw=True, event_callbacks=c.SUBSCRIPTION_EVENTS)
+        self._sensor_readers = tuple(self._readers[name] for name in self.sensors)
+        self._sensor_subscriptions = tuple(
+            self.create_subscription(c.msg_type(c.TOPICS[name]), c.TOPICS[name].name,
+                                     functools.partial(self._on_sensor, name), c.QOS, raw=True,
+                                     event_callbacks=c.SUBSCRIPTION_EVENTS)
+            for name in self.sensors)
         self._cmd_pub = self.create_publisher(c.msg_type(c.CMD_VEL), c.CMD_VEL.name, c.QOS,
                                               event_callbacks=c.PUBLISHER_EVENTS)
         self._answer_encoder = c.answer_encoder()
@@ -128,14 +135,30 @@ class SwarmController(Node):
             self._pending_key = key
         self._pending[name] = data
         if len(self._pending) == len(self.sensors):
-            self._answer()
+            msgs, self._pending = self._pending, {}
+            self._answer([(self._readers[n], data) for n, data in msgs.items()])
 
-    def _answer(self) -> None:
-        msgs, self._pending = self._pending, {}
+    def _on_sensors(self, messages: list) -> None:
+        """A message of every sensor, in ``sensors``' order (``lockstep_batch``): answered at once
+        when they are one tick's and nothing of another tick waits, else one by one."""
+        key = cdr.stamp_ns(messages[0])
+        if not self._pending:
+            for data in messages:
+                if cdr.stamp_ns(data) != key:
+                    break
+            else:
+                self._pending_key = key
+                self._answer(zip(self._sensor_readers, messages))
+                return
+        for name, data in zip(self.sensors, messages):
+            self._on_sensor(name, data)
+
+    def _answer(self, readings) -> None:
+        """``readings``: (a sensor's reader, its message) of each sensor of the tick."""
         sec, nanosec = divmod(self._pending_key, 1_000_000_000)
         tick = Tick.at(sec, nanosec)
-        for name, data in msgs.items():
-            self._readers[name](data, tick)
+        for reader, data in readings:
+            reader(data, tick)
         started = time.thread_time()
         linear, angular = self.on_tick(tick)
         node_time.add(time.thread_time() - started)    # the node's own code; the rest is the host's

@@ -39,6 +39,20 @@ def _once_per_tick(topic: str) -> bool:
 
 
 _WAITABLE = object()     # marks a waitable with dispatch_ready() in the walk's entity list
+_BATCH = object()        # marks a node's sensor subscriptions handled in one call (``lockstep_batch``)
+
+
+def _batch_entity(node: Node) -> list[tuple]:
+    """The walk's entity for a node's ``lockstep_batch`` (ros/controller.py), set by its host:
+    its subscriptions must be the node's first ones, all linked in process."""
+    batch = getattr(node, "lockstep_batch", None)
+    if batch is None:
+        return []
+    subscriptions, callback = batch
+    inboxes = tuple(inbox_of(s) for s in subscriptions)
+    if list(node.subscriptions)[:len(subscriptions)] != list(subscriptions) or None in inboxes:
+        return []
+    return [(callback, None, _BATCH, None, None, len(subscriptions), inboxes)]
 
 
 class LockstepExecutor(SingleThreadedExecutor):
@@ -98,12 +112,28 @@ class LockstepExecutor(SingleThreadedExecutor):
             # A subscription linked in process (ros/in_process.py) takes from its inbox first.
             entities = self._entities = [
                 entity for node in self._ordered_nodes
-                for entity in [(s, s.handle, s.msg_type, s.raw, s._callback_type is message_only,
-                                _once_per_tick(s.topic_name), inbox_of(s)) for s in node.subscriptions]
+                for entity in _batch_entity(node)
+                + [(s, s.handle, s.msg_type, s.raw, s._callback_type is message_only,
+                    _once_per_tick(s.topic_name), inbox_of(s)) for s in node.subscriptions]
                 + [(w, None, _WAITABLE, None, None, True, None) for w in node.waitables if hasattr(w, "dispatch_ready")]
                 + [(t, t.handle, None, None, None, True, None) for t in node.timers]]
-        handled = 0
+        handled = skip = 0
         for entity, handle, msg_type, raw, message_only, once, inbox in entities:
+            if skip:                               # a batch's subscriptions, handled by it this walk
+                skip -= 1
+                continue
+            if msg_type is _BATCH:
+                # A controller's sensor messages of the tick, all waiting in process and none in
+                # DDS: one call with all of them, instead of one per subscription (the entities
+                # that follow, which handle them one by one otherwise). ``once``: how many.
+                for box in inbox:
+                    if not box.queue or box.dds_may_hold():
+                        break
+                else:
+                    entity([box.take() for box in inbox])
+                    handled += once
+                    skip = once
+                continue
             if msg_type is _WAITABLE:
                 handled += entity.dispatch_ready()
                 continue

@@ -2,6 +2,7 @@
 and its answers skip DDS while nothing else listens, and go through DDS for a topic as soon as
 something does; the run is the same either way."""
 import time
+from collections import Counter
 from pathlib import Path
 
 import numpy as np
@@ -12,10 +13,11 @@ from rclpy.serialization import deserialize_message
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String
 
-from composed_sim.devices.common import cdr
+from composed_sim.devices.common import cdr, device
 from composed_sim.devices.common.device import Outgoing
 from composed_sim.hosts.composed import ComposedHost
 from composed_sim.ros import in_process
+from composed_sim.ros.controller import SwarmController
 from composed_sim.ros.lockstep_executor import LockstepExecutor
 from composed_sim.ros.rcl_graph import GraphChanges
 from composed_sim.world.loader import load_world
@@ -45,10 +47,36 @@ def _run(domain, listen=None):
     return result.trajectories, delivered
 
 
+def _count_shortcuts(monkeypatch) -> dict:
+    """Counts, per robot, the calls that hand a controller its tick's sensor messages at once
+    (``lockstep_batch``) and the readings it took as handed instead of decoding
+    (devices/common/handoff.py)."""
+    counts = {"batched": Counter(), "handed": Counter()}
+    on_sensors, take_reading = SwarmController._on_sensors, device.take_reading
+
+    def batched(node, messages):
+        counts["batched"][node.robot] += 1
+        return on_sensors(node, messages)
+
+    def taken(data):
+        reading = take_reading(data)
+        counts["handed"][cdr.stamp_ns(data)] += reading is not None
+        return reading
+    monkeypatch.setattr(SwarmController, "_on_sensors", batched)
+    monkeypatch.setattr(device, "take_reading", taken)
+    return counts
+
+
 def test_an_outside_listener_hears_every_tick_and_the_run_is_the_same(domain_id, monkeypatch):
+    counts = _count_shortcuts(monkeypatch)
     alone, delivered = _run(domain_id)
-    # Nothing outside listens: every sensor message and answer of the run went in process.
+    # Nothing outside listens: every sensor message and answer of the run went in process, each
+    # controller got its light and blobs in one call and took both readings as handed.
     assert delivered["/bot1/light"] == delivered["/bot1/cmd_vel"] == delivered["/bot0/blobs"] == TICKS
+    assert counts["batched"] == {f"bot{i}": TICKS for i in range(4)}
+    assert set(counts["handed"].values()) == {4 * 2}
+    counts["batched"].clear()
+    counts["handed"].clear()
 
     listener = Listener(domain_id, ["/bot1/light=sensor_msgs/msg/LaserScan",
                                     "/bot1/cmd_vel=geometry_msgs/msg/TwistStamped"])
@@ -60,6 +88,9 @@ def test_an_outside_listener_hears_every_tick_and_the_run_is_the_same(domain_id,
     # bot1's two topics went through DDS; the others stayed in process
     assert delivered["/bot1/light"] == delivered["/bot1/cmd_vel"] == 0
     assert delivered["/bot1/blobs"] == delivered["/bot0/light"] == delivered["/bot0/cmd_vel"] == TICKS
+    # bot1 took its light from DDS: its messages one by one, that reading decoded
+    assert counts["batched"] == {f"bot{i}": TICKS for i in (0, 2, 3)}
+    assert set(counts["handed"].values()) == {4 * 2 - 1}
 
     monkeypatch.setenv(in_process.SWITCH_ENV, "0")
     through_dds, delivered = _run(domain_id)
