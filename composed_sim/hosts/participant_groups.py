@@ -179,7 +179,9 @@ class ParticipantGroups:
         for sim_node, first, end in zip(self.simulator_nodes, first_robots, [*first_robots[1:], len(self.robot_nodes)]):
             subscriptions = [s for nodes in self.robot_nodes[first:end] for node in nodes for s in node.subscriptions]
             links = link_subscriptions(sim_node.sensor_publishers(), subscriptions)
-            sim_node.hands_readings = bool(links)     # each message's reading beside its bytes
+            read_raw = {link.topic for link in links if link.reaches_raw}
+            for publisher in sim_node.device_publishers():    # readings beside the bytes (devices/common/handoff.py)
+                publisher.hands_readings = any(p is not None and p.topic_name in read_raw for p in publisher.pubs)
             inboxes = [inbox_of(s) for s in subscriptions if inbox_of(s) is not None]
             for robot, nodes in zip(sim_node.robots, self.robot_nodes[first:end]):
                 answers = sim_node.answer_subscription(robot)

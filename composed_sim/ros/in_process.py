@@ -55,13 +55,14 @@ class Inbox:
     and what tells whether DDS may hold messages for it too: a publisher that is not linked (one
     in another process, say) or a linked one that went through DDS (someone else listens)."""
 
-    __slots__ = ("queue", "take", "links", "via_dds", "checking", "_foreign", "_matched")
+    __slots__ = ("queue", "take", "raw", "links", "via_dds", "checking", "_foreign", "_matched")
 
     def __init__(self, depth: int, msg_type: Optional[type], matched_publishers: Callable[[], int], *,
                  timed: bool = False):
         """``matched_publishers``: the subscription's matched count (O(1), from DDS); ``timed``:
         its items are (bytes, publication time ns), ``take`` returns (message, time ns)."""
         self.queue: deque = deque(maxlen=depth or None)
+        self.raw = msg_type is None    # its subscription gets the bytes
         popleft = self.queue.popleft
         # What the subscription's callback gets: the bytes (raw), or its own message object.
         convert = (lambda data: data) if msg_type is None else (lambda data: deserialize_message(data, msg_type))
@@ -154,6 +155,11 @@ class Link:
         self.checking = True                         # ask DDS on every message (else: its last answer)
         self._direct = False
         publisher.publish = self.publish
+
+    @property
+    def reaches_raw(self) -> bool:
+        """Does a linked subscription get the bytes themselves (``raw=True``)?"""
+        return any(inbox.raw for inbox in self._inboxes)
 
     def publish_check(self) -> None:
         """Ask DDS now whether the next messages may go in process."""

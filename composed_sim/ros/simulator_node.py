@@ -149,9 +149,6 @@ class SimulatorNode(Node):
         self.rejected = np.zeros(n, dtype=bool)  # … by a violation: it gets the fallback
         self.failed = np.zeros(n, dtype=bool)    # stopped for good: not waited for, zero command
         self.on_failed: list[Callable[[str], None]] = []   # hosts stop what is left of a failed controller
-        # Its sensor messages go to its robots' nodes in process (set by the host that links them):
-        # each goes with its reading (devices/common/handoff.py).
-        self.hands_readings = False
         self._violation_counts = np.zeros(n, dtype=int)
         self._last_accepted_s = np.full(n, math.inf)     # monotonic time of each robot's last good answer
         # Re-entrant: a violation recorded under the lock may fail its robot (max_violations).
@@ -420,7 +417,7 @@ class SimulatorNode(Node):
             handle.set_ros_time_override(now)
         failed = self.failed.tolist()
         out = Outgoing(stamp.sec, stamp.nanosec, self._current_key, cdr.stamp_bytes(stamp.sec, stamp.nanosec),
-                       failed, failed.count(True), self.hands_readings)
+                       failed, failed.count(True))
         for plan in self._plans if self._plans is not None else self._make_plans(frame):
             for publisher in self._device_publishers:
                 if publisher.device in plan.devices:

@@ -332,7 +332,8 @@ def test_a_reading_handed_beside_its_message_is_the_one_its_reader_decodes_bit_f
         node.publish_tick(frames[0])
         assert sent and all(take_reading(m) is None for _, _, m in sent)
         sent.clear()
-        node.hands_readings = True
+        for publisher in node.device_publishers():
+            publisher.hands_readings = True
         node.publish_tick(frames[1])
     finally:
         node.destroy_node()

@@ -59,9 +59,6 @@ class Outgoing:
     stamp_cdr: bytes               # the stamp's 8 CDR bytes (cdr.stamp_bytes)
     failed: list[bool]             # per robot of the node: stopped for good, published no more
     n_failed: int                  # how many (failures are for good: a count tells a change)
-    # The node's sensor messages go to its robots' nodes in process: hand each message's reading
-    # beside its bytes (handoff.py).
-    hand_readings: bool = False
 
 
 class PublishingNode(Protocol):
@@ -91,6 +88,9 @@ class DevicePublisher:
         # Per group plan: (n_failed, places, rows) of the last ``to_send`` while not checking:
         # the same until a robot fails or a reader comes (``publish_check``).
         self._sending: dict[int, tuple[int, list[int], list[int]]] = {}
+        # Its messages go in process to subscriptions that read the bytes (a controller's
+        # readers): hand each message's reading beside them (handoff.py). Set by the host.
+        self.hands_readings = False
         for i in self.own_topics(robots):
             self.pubs[i] = node.create_robot_publisher(robots.names[i], self.topic)
             self.encoders[i] = self.template(robots, i)
@@ -181,7 +181,7 @@ class DevicePublisher:
         messages = [encoders[i].encode_bytes(stamp, ranges_bytes[k * rw:(k + 1) * rw],
                                              intensities_bytes[k * iw:(k + 1) * iw])
                     for k, i in zip(places, rows)]
-        if hand is not None and out.hand_readings:
+        if hand is not None and self.hands_readings:
             hand_readings(messages, hand(None if ranges_f4 is None else ranges_f4.astype(float),
                                          intensities_f4.astype(float)), places, out.stamp_ns)
         self.send_all(rows, messages, out)
@@ -199,7 +199,7 @@ class DevicePublisher:
         messages = [encoders[i].encode(sec, nanosec, data[offsets[k] * step:offsets[k + 1] * step],
                                        offsets[k + 1] - offsets[k])
                     for k, i in zip(places, rows)]
-        if hand is not None and out.hand_readings:
+        if hand is not None and self.hands_readings:
             hand_readings(messages, hand(points, offsets), places, out.stamp_ns)
         self.send_all(rows, messages, out)
 

@@ -4,9 +4,10 @@ A simulator node encodes each robot's sensor messages from its group's readings,
 controller (``SwarmController``, through its device's reader) decodes them back into arrays. In
 one process that round trip is the host's work twice over: decoding alone was about 4 µs of the
 host's 37 µs per robot-tick at 1280 flocking foot-bots (the camera's cloud 2.9 µs, the light
-ring's scan 1.0 µs, each measured alone). Where the node's sensor messages go to its robots' nodes
-in process (ros/in_process.py), a device publisher therefore also decodes the whole group's
-messages at once, with the numpy operations its reader applies to one message, over the very
+ring's scan 1.0 µs, each measured alone). Where a topic's messages go in process (ros/in_process.py)
+to subscriptions that take the bytes (a controller's readers; a plain node's subscription gets
+a message object instead), its device publisher therefore also decodes the whole group's messages
+at once, with the numpy operations its reader applies to one message, over the very
 float32 values the bytes carry, and leaves each message's part of that batch here, under the
 message: the reader that gets the message takes it instead of decoding.
 
