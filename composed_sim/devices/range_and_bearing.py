@@ -26,7 +26,7 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Literal, Optional
+from typing import TYPE_CHECKING, Callable, Literal, Optional, Sequence
 
 import numpy as np
 
@@ -243,9 +243,23 @@ def decode(data: bytes, decoder: Optional[cdr.CloudDecoder] = None) -> RabMessag
     if payload_bytes < 0 or fields != _cloud_fields(payload_bytes):
         raise ValueError(f"not a rab_rx cloud: fields {[name for name, _, _ in fields]} (need x, y, z, range, "
                          f"bearing, elevation float32 and payload uint8)")
-    points = np.frombuffer(points, dtype=point_dtype(payload_bytes), count=width)
+    return _messages(np.frombuffer(points, dtype=point_dtype(payload_bytes), count=width))
+
+
+def _messages(points: np.ndarray) -> RabMessages:
     return RabMessages(points["range"].astype(float), points["bearing"].astype(float),
                        points["elevation"].astype(float), points["payload"].copy())
+
+
+def _handed(points: np.ndarray, offsets: Sequence[int]) -> Callable[[int], RabMessages]:
+    """The k-th cloud's ``decode``, for every cloud of ``points`` at once (devices/common/handoff.py)."""
+    whole = _messages(points)
+
+    def of(k: int) -> RabMessages:
+        start, end = offsets[k], offsets[k + 1]
+        return RabMessages(whole.ranges[start:end], whole.bearings[start:end], whole.elevations[start:end],
+                           whole.payloads[start:end])
+    return of
 
 
 _HEAD_BYTES = point_dtype(0).itemsize      # a point's bytes before its payload
@@ -268,7 +282,7 @@ class Publisher(DevicePublisher):
         take, offsets = csr_take(rab.offsets, plan.rows)
         points = points_of(rab.ranges[take], rab.horizontal_bearings[take], rab.vertical_bearings[take],
                            rab.payloads[take])
-        self.send_clouds(*self.to_send(plan, out), out, points, offsets.tolist())
+        self.send_clouds(*self.to_send(plan, out), out, points, offsets.tolist(), hand=_handed)
 
 
 DEVICE = Device(NAME, (RX, TX), Publisher, reads_cloud_into("rab", decode), tick_fields=("rab",),

@@ -29,7 +29,9 @@ What a user sees through ROS does not change:
   order: runs are identical either way). Its inbox keeps the last ``depth`` messages (keep-last),
   as the subscription's DDS history does;
 - a linked subscription gets the published bytes (``raw=True``) or a message deserialized from
-  them: its own copy, as from DDS.
+  them: its own copy, as from DDS. Where the simulator's sensor messages reach subscriptions of
+  the bytes, their readings go beside them, decoded for the whole group at once
+  (devices/common/handoff.py).
 """
 from __future__ import annotations
 

@@ -10,7 +10,9 @@ node's subscriptions in creation order, then the waitables that can be taken wit
 ready message from each sensor subscription (a robot's sensors come once per tick) and every ready
 message from any other subscription (a robot's own topics between its nodes), fires each timer
 that is due, and runs the callbacks; a callback's own publishes (a controller's answer, a message
-to a later node of the robot) are picked up by the same walk. Only when a walk finds nothing does it fall
+to a later node of the robot) are picked up by the same walk. A controller whose host set its
+``lockstep_batch`` (ros/controller.py) gets a tick's sensor messages in one call when all of them
+wait in process. Only when a walk finds nothing does it fall
 back to the ordinary wait set, which also serves services, guard conditions and messages from
 other processes.
 

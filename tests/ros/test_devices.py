@@ -310,8 +310,12 @@ def test_a_reading_handed_beside_its_message_is_the_one_its_reader_decodes_bit_f
         {"model": "foot-bot", "count": 12, "controller": "x", "devices": {"ground": {}},
          "placement": {"method": "grid", "spacing_m": 0.4}},
         {"model": "turtlebot3-burger", "count": 3, "name_prefix": "tb", "controller": "x"},
-    ], floor={"shapes": [{"type": "circle", "position": [0.0, 0.0], "radius_m": 1.0, "color": [0, 0, 0]}]})
+        {"model": "e-puck", "count": 4, "name_prefix": "ep", "controller": "x", "devices": {"range_and_bearing": {}}},
+    ], floor={"shapes": [{"type": "circle", "position": [0.0, 0.0], "radius_m": 1.0, "color": [0, 0, 0]}]},
+        range_and_bearing={"mode": "global"})
     sim = Simulation(world)
+    for i in range(15, 19):
+        sim.set_rab_payload(i, bytes([i] * 10))
     for i in range(0, 12, 2):          # some beacons lit: clouds of several blobs, and empty ones
         colors = np.zeros((sim.models[i].n_leds, 3), dtype=np.uint8)
         colors[-1] = (255, 0, 0)
@@ -338,7 +342,7 @@ def test_a_reading_handed_beside_its_message_is_the_one_its_reader_decodes_bit_f
     finally:
         node.destroy_node()
     readers = {(topic, robot): BY_SENSOR_TOPIC[topic].reader(sim.models[sim.names.index(robot)]) for topic, robot, _ in sent}
-    handed, blobs_seen = set(), 0
+    handed, blobs_seen, heard = set(), 0, 0
     for topic, robot, message in sent:
         read = readers[topic, robot]
         if id(message) in handoff._places:
@@ -353,8 +357,11 @@ def test_a_reading_handed_beside_its_message_is_the_one_its_reader_decodes_bit_f
                 if field == "blobs":
                     blobs_seen += len(a)
                     a, b = (a.angles, a.distances, a.rgb), (b.angles, b.distances, b.rgb)
+                elif field == "rab":
+                    heard += len(a)
+                    a, b = (a.ranges, a.bearings, a.elevations, a.payloads), (b.ranges, b.bearings, b.elevations, b.payloads)
                 else:
                     a, b = (a,), (b,)
                 for x, y in zip(a, b):
                     assert x.dtype == y.dtype and x.shape == y.shape and x.tobytes() == y.tobytes(), (topic, robot, field)
-    assert blobs_seen > 0 and handed == {"proximity", "light", "blobs", "ground", "scan"}
+    assert blobs_seen > 0 and heard > 0 and handed == {"proximity", "light", "blobs", "ground", "scan", "rab_rx"}
