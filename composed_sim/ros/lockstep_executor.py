@@ -48,7 +48,7 @@ def _batch_entity(node: Node) -> list[tuple]:
     """The walk's entity for a node's ``lockstep_batch`` (ros/controller.py), set by its host:
     its subscriptions must be the node's first ones, all linked in process."""
     batch = getattr(node, "lockstep_batch", None)
-    if batch is None:
+    if not batch or not batch[0]:
         return []
     subscriptions, callback = batch
     inboxes = tuple(inbox_of(s) for s in subscriptions)

@@ -258,3 +258,31 @@ def test_a_topic_nobody_read_is_published_once_a_listener_comes_after_the_graph_
 
 def _outgoing(robots):
     return Outgoing(0, 0, 0, cdr.stamp_bytes(0, 0), [False] * robots, 0)
+
+
+def test_a_batch_takes_its_subscriptions_messages_in_one_call_only_when_all_wait_in_process(node):
+    """``lockstep_batch`` (ros/controller.py): one call with a message of each subscription when
+    every one has one waiting in its inbox; otherwise each subscription's own callback, as without
+    the batch. An empty batch is no batch."""
+    publishers = [node.create_publisher(String, topic, 10) for topic in ("a", "b")]
+    one_by_one, batched = [], []
+    subs = [node.create_subscription(String, topic, lambda m, t=topic: one_by_one.append((t, m.data)), 10)
+            for topic in ("a", "b")]
+    in_process.link_subscriptions(publishers, subs)
+    node.lockstep_batch = (tuple(subs), lambda messages: batched.append([m.data for m in messages]))
+    executor = LockstepExecutor(context=node.context)
+    executor.add_node(node)
+    try:
+        for link_publisher, text in zip(publishers, ("a1", "b1")):
+            link_publisher.publish(String(data=text))
+        _spin(executor)
+        assert batched == [["a1", "b1"]] and one_by_one == []
+        publishers[1].publish(String(data="b2"))        # b alone: its own callback
+        _spin(executor)
+        assert batched == [["a1", "b1"]] and one_by_one == [("b", "b2")]
+        node.lockstep_batch = ((), lambda messages: batched.append(messages))
+        executor.wake()
+        _spin(executor)
+        assert batched == [["a1", "b1"]]
+    finally:
+        executor.shutdown()
