@@ -276,11 +276,17 @@ class ParticipantGroups:
         (when the tick's work may go on after an answer) for its threads to fall quiet."""
         deadline = time.monotonic() + timeout_s
         while self._quiet_robots and self.exchange.waiting_on_quiet_robots and time.monotonic() < deadline:
-            if self._threads_quiet():
-                self._take_ready_answers()
-                self.exchange.settle_idle(self._ran_since_open())
-            else:
+            calls = self._threads_quiet()
+            if calls is None:
                 self.exchange.wait_for_answers(QUIET_CHECK_S)
+                continue
+            # Only the robots whose callbacks had run by the quiet look, and only if no callback
+            # started since: one that did may publish its answer after the take below (a thread
+            # descheduled for milliseconds under load makes that window wide).
+            ran = self._ran_since_open()
+            self._take_ready_answers()
+            if self.guard.calls == calls:
+                self.exchange.settle_idle(ran)
         answered = self.exchange.wait_for_answers(max(0.0, deadline - time.monotonic()))
         if answered and self._settle:
             self._threads_quiet()
@@ -296,20 +302,23 @@ class ParticipantGroups:
     def _ran_since_open(self) -> set[str]:
         """The robots that ran a callback since the tick opened: only those have had their tick's
         readings; an idle executor that has not reached a robot yet says nothing about it."""
-        return {r for r, calls in self.guard.calls_of.items() if calls > self._calls_at_open.get(r, 0)}
+        calls_of = dict(self.guard.calls_of)     # a copy: the executor's threads add robots to it
+        return {r for r, calls in calls_of.items() if calls > self._calls_at_open.get(r, 0)}
 
-    def _threads_quiet(self) -> bool:
+    def _threads_quiet(self) -> Optional[int]:
         """Wait until no callback runs and none started since the last look, twice in a row (a
-        message queued by the last callback is picked up within that time); False if that takes
-        more than SETTLE_ROUNDS looks."""
+        message queued by the last callback is picked up within that time): the count of
+        callbacks run by then, every one of them ended; None if that takes more than
+        SETTLE_ROUNDS looks."""
         quiet, calls = 0, -1
         for _ in range(SETTLE_ROUNDS):
+            # running before calls: a callback starting between the two reads shows in calls
             quiet = quiet + 1 if self.guard.running == 0 and self.guard.calls == calls else 0
             if quiet >= 2:
-                return True
+                return calls
             calls = self.guard.calls
             time.sleep(QUIET_CHECK_S)
-        return False
+        return None
 
     def _spin_until_answered(self, timeout_s: float) -> bool:
         """Executors driven from this thread: the lockstep executor by design, the EventsExecutor

@@ -140,34 +140,40 @@ class AnswerSubscription(Waitable):
     def get_publisher_count(self) -> int:
         return self.handle.get_publisher_count()
 
-    def take(self) -> Optional[tuple[bytes, bytes]]:
-        """The next message's bytes and its publisher's GID; None when there is none."""
-        with self._lock:     # the handle too is destroyed only under it (``destroy``)
-            if self._args is None:
-                return None
-            ret = _take(*self._args)
-            if ret == _RET_TAKE_FAILED:
-                return None
-            if ret != _RET_OK:
-                raise RuntimeError(f"taking a message of {self.topic_name} failed: {_error_text()} (rcl {ret})")
-            message = self._message
-            return ctypes.string_at(message.buffer, message.buffer_length), ctypes.string_at(self._gid_at, _GID_BYTES)
+    def _take(self) -> Optional[tuple[bytes, bytes]]:
+        """The next message's bytes and its publisher's GID; None when there is none. Called
+        with the lock held (the handle too is destroyed only under it: ``destroy``)."""
+        if self._args is None:
+            return None
+        ret = _take(*self._args)
+        if ret == _RET_TAKE_FAILED:
+            return None
+        if ret != _RET_OK:
+            raise RuntimeError(f"taking a message of {self.topic_name} failed: {_error_text()} (rcl {ret})")
+        message = self._message
+        return ctypes.string_at(message.buffer, message.buffer_length), ctypes.string_at(self._gid_at, _GID_BYTES)
 
     def dispatch_ready(self) -> int:
         """Take one message, if any, and run the callback on it (the lockstep executor's walk):
-        one handed over in process first, then, while DDS may hold one too, one from DDS."""
+        one handed over in process first, then, while DDS may hold one too, one from DDS.
+
+        A message from DDS is taken and handled under the lock: a thread that finds nothing to
+        take (the simulator's, before it settles quiet robots) knows that no other thread holds
+        an answer taken but not yet handled (a multi-threaded executor's, descheduled between
+        the two)."""
         inbox, handled = self.inbox, 0
         if inbox.queue:
             self._callback(*inbox.queue.popleft())
             handled = 1
             if inbox.links and not inbox.dds_may_hold():
                 return handled
-        taken = self.take()
-        if taken is None:
-            inbox.emptied()
-            return handled
-        self._callback(*taken)
-        return handled + 1
+        with self._lock:
+            taken = self._take()
+            if taken is not None:
+                self._callback(*taken)
+                return handled + 1
+        inbox.emptied()
+        return handled
 
     def destroy(self, node: Node) -> None:
         node.remove_waitable(self)
