@@ -210,21 +210,25 @@ def _intensities(data, pos: int) -> np.ndarray:
 
 class CloudEncoder:
     """One robot's PointCloud2 of fixed fields (one row, ``width`` points): the template's bytes
-    up to its data, with the stamp, width and row_step written in, then the points."""
+    up to its data, in pieces around the stamp, width and row_step, then the points."""
 
     def __init__(self, data: bytes) -> None:
         """``data``: the cloud's template bytes without points (``cloud_bytes``)."""
         self._point_step = cloud_layout(data).point_step
-        self._dense = data[-1:]                               # is_dense, after the empty data
-        self._head = bytearray(data[:-5])                     # up to the data's length field
-        self._width_at = align(after_header(self._head), 4) + 4          # after height
-        self._row_step_at = len(self._head) - 4
+        head = data[:-5]                                      # up to the data's length field
+        width_at = align(after_header(head), 4) + 4           # after height
+        row_step_at = len(head) - 4
+        self._pieces = (head[:HEADER], head[HEADER + 8:width_at], head[width_at + 4:row_step_at],
+                        data[-1:])                            # is_dense, after the empty data
+
+    def encode_bytes(self, stamp: bytes, points: bytes, width: int) -> bytes:
+        """``stamp``: ``stamp_bytes``; ``points``: ``width`` points' bytes."""
+        head, height, layout, dense = self._pieces
+        return b"".join((head, stamp, height, _U32.pack(width), layout,
+                         _TWO_U32.pack(width * self._point_step, len(points)), points, dense))
 
     def encode(self, sec: int, nanosec: int, points: bytes, width: int) -> bytes:
-        _STAMP.pack_into(self._head, HEADER, sec, nanosec)
-        _U32.pack_into(self._head, self._width_at, width)
-        _U32.pack_into(self._head, self._row_step_at, width * self._point_step)
-        return b"".join((self._head, _U32.pack(len(points)), points, self._dense))
+        return self.encode_bytes(stamp_bytes(sec, nanosec), points, width)
 
 
 @dataclass(frozen=True)

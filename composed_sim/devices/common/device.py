@@ -194,10 +194,9 @@ class DevicePublisher:
         sliced per robot. ``hand(points, offsets)``: the batch of the readers' readings
         (handoff.py)."""
         data, step = points.tobytes(), points.dtype.itemsize
-        sec, nanosec = out.sec, out.nanosec
-        encoders = self.encoders
-        messages = [encoders[i].encode(sec, nanosec, data[offsets[k] * step:offsets[k + 1] * step],
-                                       offsets[k + 1] - offsets[k])
+        encoders, stamp = self.encoders, out.stamp_cdr
+        messages = [encoders[i].encode_bytes(stamp, data[offsets[k] * step:offsets[k + 1] * step],
+                                             offsets[k + 1] - offsets[k])
                     for k, i in zip(places, rows)]
         if hand is not None and self.hands_readings:
             hand_readings(messages, hand(points, offsets), places, out.stamp_ns)
