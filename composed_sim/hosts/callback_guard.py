@@ -81,7 +81,6 @@ class CallbackGuard:
         calls_of = self.calls_of
 
         main = self._main.ident
-        main_time = node_time.MAIN
         get_ident, monotonic = threading.get_ident, time.monotonic
 
         def run(*args):
@@ -100,18 +99,13 @@ class CallbackGuard:
                     self.running += 1
                     calls_of[robot] = calls_of.get(robot, 0) + 1
                 self._depth.inside = True
-            # The node's own time (ros/node_time.py): its thread's clock, or the main thread sampled.
-            sampled = own_time and in_main and not main_time.exact
-            cpu = time.thread_time() if own_time and not sampled else 0.0
-            if sampled:
-                main_time.inside = True
+            cpu = time.thread_time() if own_time else 0.0
             try:
                 try:
                     result = callback(*args)
                 finally:
                     if in_main:
                         self._running = None
-                        main_time.inside = False
                     else:
                         self._depth.inside = False
                         with self._workers_lock:   # after this, stop_worker cannot reach us
@@ -130,7 +124,7 @@ class CallbackGuard:
                     self.on_exception(robot, node, e)
                 return None
             took = monotonic() - started
-            if cpu:
+            if own_time:
                 node_time.add(time.thread_time() - cpu)
             # Worker threads (multi-threaded executor) meet the tick's wall-clock deadline instead.
             if in_main and took > self._watchdog_s:
@@ -160,8 +154,7 @@ class CallbackGuard:
     @contextlib.contextmanager
     def interrupting_hangs(self, callbacks_in_this_thread: bool):
         """While running ticks: a periodic SIGALRM checks on the callback running in the main
-        thread, if that is where callbacks run (and this is the main thread); the nodes' own
-        time is sampled there (ros/node_time.py)."""
+        thread, if that is where callbacks run (and this is the main thread)."""
         if not (callbacks_in_this_thread and threading.current_thread() is self._main):
             yield
             return
@@ -169,8 +162,7 @@ class CallbackGuard:
         period = max(0.05, self._unresponsive_s / 4)
         signal.setitimer(signal.ITIMER_REAL, period, period)
         try:
-            with node_time.sampling_main_thread():     # the nodes' own time, where they all run
-                yield
+            yield
         finally:
             signal.setitimer(signal.ITIMER_REAL, 0, 0)
             signal.signal(signal.SIGALRM, old_handler)

@@ -61,7 +61,6 @@ class Tick:
         self._stamp = stamp
 
 
-_MAIN = node_time.MAIN
 _TICK_FIELDS = tuple(name for d in DEVICES for name in d.tick_fields)
 # A reading the controller does not subscribe to is None: a class attribute, so that a tick sets
 # only the fields its readers fill (one attribute per field and tick cost a call each).
@@ -160,17 +159,9 @@ class SwarmController(Node):
         tick = Tick.at(sec, nanosec)
         for reader, data in readings:
             reader(data, tick)
-        # The node's own code; the rest is the host's (ros/node_time.py).
-        if _MAIN.exact:
-            started = time.thread_time()
-            linear, angular = self.on_tick(tick)
-            node_time.add(time.thread_time() - started)
-        else:                   # the main thread is sampled
-            _MAIN.inside = True
-            try:
-                linear, angular = self.on_tick(tick)
-            finally:
-                _MAIN.inside = False
+        started = time.thread_time()
+        linear, angular = self.on_tick(tick)
+        node_time.add(time.thread_time() - started)    # the node's own code; the rest is the host's
         if self._leds_dirty:   # before the answer, so the change lands on the same tick
             self._led_pub.publish(c.led_message(self._leds))
             self._leds_dirty = False
