@@ -126,26 +126,44 @@ def publisher_problem(robot: str, topic: str, published: type, robots: Container
 
 # --- the actuators' messages -------------------------------------------------------------------
 
+def _led_dims(n_leds: int) -> list[tuple[str, int, int]]:
+    """The leds message's layout: (label, size, stride) of each dimension."""
+    return [("led", n_leds, 3 * n_leds), ("rgb", 3, 3)]
+
+
+def _payload_dims(n_bytes: int) -> list[tuple[str, int, int]]:
+    """The rab_tx message's layout."""
+    return [("byte", n_bytes, n_bytes)]
+
+
+def _multi_array(dims, data: bytes) -> UInt8MultiArray:
+    msg = UInt8MultiArray()
+    msg.layout.dim = [MultiArrayDimension(label=label, size=size, stride=stride) for label, size, stride in dims]
+    msg.data = data
+    return msg
+
+
 def led_message(colors: np.ndarray) -> UInt8MultiArray:
     """colors: [n_leds, 3] uint8."""
     colors = np.asarray(colors, dtype=np.uint8).reshape(-1, 3)
-    msg = UInt8MultiArray()
-    msg.layout.dim = [
-        MultiArrayDimension(label="led", size=len(colors), stride=colors.size),
-        MultiArrayDimension(label="rgb", size=3, stride=3),
-    ]
-    msg.data = colors.tobytes()
-    return msg
+    return _multi_array(_led_dims(len(colors)), colors.tobytes())
+
+
+def led_encoder(n_leds: int) -> cdr.UInt8ArrayEncoder:
+    """``led_message``'s bytes from the colours' bytes ([n_leds, 3] uint8), as a controller sends them."""
+    return cdr.UInt8ArrayEncoder(_led_dims(n_leds))
 
 
 def payload_message(data) -> UInt8MultiArray:
     """A range-and-bearing payload (bytes or [B] uint8) as the rab_tx message."""
     payload = np.frombuffer(bytes(data), dtype=np.uint8) if isinstance(data, (bytes, bytearray)) \
         else np.asarray(data, dtype=np.uint8).reshape(-1)
-    msg = UInt8MultiArray()
-    msg.layout.dim = [MultiArrayDimension(label="byte", size=payload.size, stride=payload.size)]
-    msg.data = payload.tobytes()
-    return msg
+    return _multi_array(_payload_dims(payload.size), payload.tobytes())
+
+
+def payload_encoder(n_bytes: int) -> cdr.UInt8ArrayEncoder:
+    """``payload_message``'s bytes from the payload's ``n_bytes`` bytes."""
+    return cdr.UInt8ArrayEncoder(_payload_dims(n_bytes))
 
 
 def twist_stamped(stamp: Time, linear: float, angular: float) -> TwistStamped:

@@ -112,6 +112,7 @@ class SwarmController(Node):
         self._answer_encoder = c.answer_encoder()
         self._led_pub = self.create_publisher(c.msg_type(c.LEDS), c.LEDS.name, c.QOS,
                                               event_callbacks=c.PUBLISHER_EVENTS)
+        self._led_encoder = c.led_encoder(self.model.n_leds)
 
     # --- for subclasses ---------------------------------------------------------------------
 
@@ -163,7 +164,7 @@ class SwarmController(Node):
         linear, angular = self.on_tick(tick)
         node_time.add(time.thread_time() - started)    # the node's own code; the rest is the host's
         if self._leds_dirty:   # before the answer, so the change lands on the same tick
-            self._led_pub.publish(c.led_message(self._leds))
+            self._led_pub.publish(self._led_encoder.encode(self._leds.tobytes()))
             self._leds_dirty = False
         if self._rab_msg is not None:   # before the answer too: broadcast from the next tick on
             self._rab_pub.publish(self._rab_msg)
@@ -188,7 +189,8 @@ class SwarmController(Node):
         self.rab_payload_bytes: int = self.declare_parameter(PARAM_RAB_PAYLOAD_BYTES, 0).value
         self._rab_pub = (self.create_publisher(c.msg_type(c.RAB_TX), c.RAB_TX.name, c.QOS, event_callbacks=c.PUBLISHER_EVENTS)
                          if self.rab_payload_bytes > 0 else None)
-        self._rab_msg = None
+        self._rab_msg = None                 # the payload's message bytes, until sent
+        self._payload_encoder = c.payload_encoder(self.rab_payload_bytes)
         #: [r] LiDAR ray angles in the scanner's frame (None without a LiDAR).
         self.scan_angles = self.model.lidar.angles_array() if self.model.lidar is not None else None
 
@@ -204,4 +206,4 @@ class SwarmController(Node):
                              f"(range_and_bearing.payload_bytes), got {payload.tolist()}")
         padded = np.zeros(self.rab_payload_bytes, dtype=np.uint8)
         padded[:payload.size] = payload
-        self._rab_msg = c.payload_message(padded)
+        self._rab_msg = self._payload_encoder.encode(padded.tobytes())

@@ -3,7 +3,6 @@ them); each device's sensor messages are decoded by its module in ``devices/``."
 from __future__ import annotations
 
 import numpy as np
-from std_msgs.msg import UInt8MultiArray
 
 from composed_sim.devices.common import cdr
 
@@ -18,18 +17,18 @@ def decode_unstamped_answer_cdr(data: bytes) -> tuple[float, float]:
     return cdr.decode_unstamped_twist(data)
 
 
-def decode_leds(msg: UInt8MultiArray, n_leds: int) -> np.ndarray:
-    """→ [n_leds, 3] uint8; ValueError when the message does not carry n_leds colours."""
-    data = np.frombuffer(msg.data, dtype=np.uint8)
-    if data.size != 3 * n_leds:
-        raise ValueError(f"leds message has {data.size} bytes, expected {3 * n_leds} ({n_leds} LEDs × RGB)")
-    return data.reshape(n_leds, 3)
+def decode_leds(data: bytes, n_leds: int) -> np.ndarray:
+    """leds bytes → [n_leds, 3] uint8; ValueError when the message does not carry n_leds colours."""
+    colors = cdr.decode_uint8_array(data)
+    if colors.size != 3 * n_leds:
+        raise ValueError(f"leds message has {colors.size} bytes, expected {3 * n_leds} ({n_leds} LEDs × RGB)")
+    return colors.reshape(n_leds, 3)
 
 
-def decode_payload(msg: UInt8MultiArray, payload_bytes: int) -> np.ndarray:
-    """A rab_tx message → [B] uint8; ValueError when it does not carry exactly payload_bytes bytes."""
-    data = np.frombuffer(msg.data, dtype=np.uint8)
-    if data.size != payload_bytes:
-        raise ValueError(f"rab_tx message has {data.size} bytes, expected {payload_bytes} "
+def decode_payload(data: bytes, payload_bytes: int) -> np.ndarray:
+    """rab_tx bytes → [B] uint8; ValueError when it does not carry exactly payload_bytes bytes."""
+    payload = cdr.decode_uint8_array(data)
+    if payload.size != payload_bytes:
+        raise ValueError(f"rab_tx message has {payload.size} bytes, expected {payload_bytes} "
                          f"(range_and_bearing.payload_bytes of the world file)")
-    return data
+    return payload

@@ -131,13 +131,14 @@ class SimulatorNode(Node):
         for i, name in enumerate(names):
             if self._answer_types[i] is not None:
                 self._subscribe_answers(i, self._answer_types[i])
+            # Taken as bytes (raw) and decoded with numpy (cdr.decode_uint8_array), not as message objects.
             self._led_subs.append(self._inbox.create_subscription(
                 c.msg_type(c.LEDS), c.topic_name(name, c.LEDS), lambda msg: None, c.QOS,
-                event_callbacks=c.SUBSCRIPTION_EVENTS))
+                event_callbacks=c.SUBSCRIPTION_EVENTS, raw=True))
             if RANGE_AND_BEARING in self._devices[i]:
                 self._rab_subs[i] = self._inbox.create_subscription(
                     c.msg_type(c.RAB_TX), c.topic_name(name, c.RAB_TX), lambda msg: None, c.QOS,
-                    event_callbacks=c.SUBSCRIPTION_EVENTS)
+                    event_callbacks=c.SUBSCRIPTION_EVENTS, raw=True)
         # Every sensor publisher of each robot (a robot is connected once any has a subscriber).
         self._sensor_pubs = [[p.pubs[i] for p in self._device_publishers if p.pubs[i] is not None] for i in range(n)]
         self._plans: Optional[list[GroupPlan]] = None   # built from the first frame's groups

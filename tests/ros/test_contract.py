@@ -4,8 +4,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from rclpy.serialization import deserialize_message
+from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import LaserScan, PointCloud2
+from std_msgs.msg import UInt8MultiArray
 
 from composed_sim.world.robot_models import FOOTBOT
 from composed_sim.ros import contract as c, decoding
@@ -76,10 +77,13 @@ def test_blobs_round_trip_bearing_distance_colour():
 def test_leds_round_trip_and_wrong_size_is_rejected():
     colors = np.zeros((FOOTBOT.n_leds, 3), dtype=np.uint8)
     colors[12] = (255, 0, 0)
-    msg = c.led_message(colors)
-    np.testing.assert_array_equal(decoding.decode_leds(msg, FOOTBOT.n_leds), colors)
+    # A controller's bytes are the message's; the simulator decodes any layout's bytes.
+    sent = c.led_encoder(FOOTBOT.n_leds).encode(colors.tobytes())
+    assert deserialize_message(sent, UInt8MultiArray) == c.led_message(colors)
+    for data in (sent, serialize_message(c.led_message(colors)), serialize_message(UInt8MultiArray(data=colors.tobytes()))):
+        np.testing.assert_array_equal(decoding.decode_leds(data, FOOTBOT.n_leds), colors)
     with pytest.raises(ValueError, match="expected 39"):
-        decoding.decode_leds(c.led_message(colors[:5]), FOOTBOT.n_leds)
+        decoding.decode_leds(serialize_message(c.led_message(colors[:5])), FOOTBOT.n_leds)
 
 
 def test_twist_and_wheels_are_inverse():

@@ -8,6 +8,7 @@ from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Odometry
 from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import JointState, LaserScan, PointCloud2
+from std_msgs.msg import UInt8MultiArray
 
 from composed_sim.world.robot_models import FOOTBOT, TURTLEBOT3_BURGER
 from composed_sim.devices import (differential_steering, ground, lidar, odometry, positioning, proximity,
@@ -70,10 +71,13 @@ def test_rab_round_trip_range_bearing_elevation_and_payload_bytes():
 
 
 def test_rab_tx_round_trip_and_wrong_size_names_the_setting():
-    msg = c.payload_message(bytes(range(10)))
-    np.testing.assert_array_equal(decoding.decode_payload(msg, 10), np.arange(10))
+    payload = bytes(range(10))
+    sent = c.payload_encoder(10).encode(payload)
+    assert deserialize_message(sent, UInt8MultiArray) == c.payload_message(payload)
+    for data in (sent, serialize_message(c.payload_message(payload))):
+        np.testing.assert_array_equal(decoding.decode_payload(data, 10), np.arange(10))
     with pytest.raises(ValueError, match=r"has 3 bytes, expected 10 \(range_and_bearing.payload_bytes"):
-        decoding.decode_payload(c.payload_message([1, 2, 3]), 10)
+        decoding.decode_payload(serialize_message(c.payload_message([1, 2, 3])), 10)
 
 
 def test_pose_odometry_and_wheels_round_trip():

@@ -153,6 +153,32 @@ def twist_stamped_bytes(frame_id: str = "") -> bytes:
     return bytes(Writer().header(frame_id).put("6d", *[0.0] * 6).buffer)
 
 
+class UInt8ArrayEncoder:
+    """A std_msgs/UInt8MultiArray of a fixed layout (``dims``: (label, size, stride) each, data
+    offset 0): the bytes up to the data's count, once; a message is those, the count and the data."""
+
+    def __init__(self, dims) -> None:
+        writer = Writer().put("I", len(dims))
+        for label, size, stride in dims:
+            writer.string(label).put("2I", size, stride)
+        self._head = bytes(writer.put("I", 0).buffer)          # then data_offset
+
+    def encode(self, data: bytes) -> bytes:
+        return b"".join((self._head, _U32.pack(len(data)), data))
+
+
+def decode_uint8_array(data) -> np.ndarray:
+    """std_msgs/UInt8MultiArray bytes → its data [n] uint8 (a view of ``data``), whatever its layout."""
+    pos = HEADER
+    (n_dims,) = _U32.unpack_from(data, pos)
+    pos += 4
+    for _ in range(n_dims):                  # label (a string), size, stride
+        (length,) = _U32.unpack_from(data, pos)
+        pos = align(pos + 4 + length, 4) + 8
+    (n,) = _U32.unpack_from(data, pos + 4)    # after data_offset
+    return np.frombuffer(data, dtype=np.uint8, count=n, offset=pos + 8)
+
+
 class ScanEncoder:
     """One robot's LaserScan with fixed metadata and fixed-length arrays: the bytes of a template
     message cut around the stamp and the two arrays, so that a message is those pieces joined
