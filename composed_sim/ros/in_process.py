@@ -28,7 +28,7 @@ What a user sees through ROS does not change:
   that the lockstep executor walks (which takes from the inbox as it takes from DDS, in the same
   order: runs are identical either way). Its inbox keeps the last ``depth`` messages (keep-last),
   as the subscription's DDS history does;
-- a linked subscription gets the published bytes (``raw=True``) or a message deserialized from
+- a linked subscription gets the published bytes (``raw=True``) or a message object built from
   them: its own copy, as from DDS. Where the simulator's sensor messages reach subscriptions of
   the bytes, their readings go beside them, decoded for the whole group at once
   (devices/common/handoff.py).
@@ -43,8 +43,10 @@ from typing import Callable, Iterable, Optional, Sequence
 from rclpy.publisher import Publisher
 from rclpy.qos import (DurabilityPolicy, HistoryPolicy, LivelinessPolicy, QoSProfile,
                        ReliabilityPolicy)
-from rclpy.serialization import deserialize_message, serialize_message
+from rclpy.serialization import serialize_message
 from rclpy.subscription import Subscription
+
+from composed_sim.ros import message_objects
 
 # Set to 0 to send every hosted message through DDS (a comparison, or a suspected link).
 SWITCH_ENV = "COMPOSED_SIM_IN_PROCESS"
@@ -67,7 +69,7 @@ class Inbox:
         self.raw = msg_type is None    # its subscription gets the bytes
         popleft = self.queue.popleft
         # What the subscription's callback gets: the bytes (raw), or its own message object.
-        convert = (lambda data: data) if msg_type is None else (lambda data: deserialize_message(data, msg_type))
+        convert = (lambda data: data) if msg_type is None else message_objects.builder(msg_type)
         if timed:
             def take_timed():
                 data, published_ns = popleft()
