@@ -78,6 +78,9 @@ def test_rab_tx_round_trip_and_wrong_size_names_the_setting():
         np.testing.assert_array_equal(decoding.decode_payload(data, 10), np.arange(10))
     with pytest.raises(ValueError, match=r"has 3 bytes, expected 10 \(range_and_bearing.payload_bytes"):
         decoding.decode_payload(serialize_message(c.payload_message([1, 2, 3])), 10)
+    for cut in (6, 20, len(sent) - 3):           # bytes that end inside the message
+        with pytest.raises(ValueError):
+            decoding.decode_payload(sent[:cut], 10)
 
 
 def test_pose_odometry_and_wheels_round_trip():

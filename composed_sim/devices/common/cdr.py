@@ -168,14 +168,18 @@ class UInt8ArrayEncoder:
 
 
 def decode_uint8_array(data) -> np.ndarray:
-    """std_msgs/UInt8MultiArray bytes → its data [n] uint8 (a view of ``data``), whatever its layout."""
-    pos = HEADER
-    (n_dims,) = _U32.unpack_from(data, pos)
-    pos += 4
-    for _ in range(n_dims):                  # label (a string), size, stride
-        (length,) = _U32.unpack_from(data, pos)
-        pos = align(pos + 4 + length, 4) + 8
-    (n,) = _U32.unpack_from(data, pos + 4)    # after data_offset
+    """std_msgs/UInt8MultiArray bytes → its data [n] uint8 (a view of ``data``), whatever its
+    layout; ValueError for bytes that end before the message does."""
+    try:
+        pos = HEADER
+        (n_dims,) = _U32.unpack_from(data, pos)
+        pos += 4
+        for _ in range(n_dims):                  # label (a string), size, stride
+            (length,) = _U32.unpack_from(data, pos)
+            pos = align(pos + 4 + length, 4) + 8
+        (n,) = _U32.unpack_from(data, pos + 4)    # after data_offset
+    except struct.error:
+        raise ValueError(f"not a UInt8MultiArray: {len(data)} bytes end inside its layout") from None
     return np.frombuffer(data, dtype=np.uint8, count=n, offset=pos + 8)
 
 
