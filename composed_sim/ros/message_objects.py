@@ -17,6 +17,8 @@ from typing import Callable
 from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import LaserScan
 
+from composed_sim.devices.common import cdr
+
 _CDR_LE = b"\x00\x01"                  # the encapsulation header's representation id
 _STAMP = struct.Struct("<iI")
 _U32 = struct.Struct("<I")
@@ -28,13 +30,13 @@ def _laser_scan(data: bytes) -> LaserScan:
         return deserialize_message(data, LaserScan)
     msg = LaserScan()
     stamp = msg.header.stamp
-    stamp.sec, stamp.nanosec = _STAMP.unpack_from(data, 4)
-    (length,) = _U32.unpack_from(data, 12)
-    msg.header.frame_id = data[16:15 + length].decode()       # without its NUL
-    pos = 16 + length + (-(12 + length) % 4)                   # aligned to 4 past the header
+    stamp.sec, stamp.nanosec = _STAMP.unpack_from(data, cdr.HEADER)
+    frame_end = cdr.after_header(data)
+    msg.header.frame_id = data[cdr.HEADER + 12:frame_end - 1].decode()     # without its NUL
+    pos = cdr.align(frame_end, 4)
     (msg.angle_min, msg.angle_max, msg.angle_increment, msg.time_increment, msg.scan_time,
      msg.range_min, msg.range_max) = _SCAN_METADATA.unpack_from(data, pos)
-    pos += 28
+    pos += _SCAN_METADATA.size
     (n,) = _U32.unpack_from(data, pos)
     msg.ranges = array("f", data[pos + 4:pos + 4 + 4 * n])
     pos += 4 + 4 * n
