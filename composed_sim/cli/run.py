@@ -21,7 +21,7 @@ def cmd_run(args) -> int:
     from composed_sim.hosts.controllers import HostError
     from composed_sim.hosts.domain_claim import DomainTaken, claim_domains, claim_free_domain, run_identity
     from composed_sim.hosts.node_logs import LEVELS, Console, LogSettings, NodeLogs
-    from composed_sim.hosts.workers import WorkerHost, auto_workers
+    from composed_sim.hosts.workers.host import WorkerHost, auto_workers
     from composed_sim.results import summarize, write_results
 
     world = load_any_world(args)
@@ -190,7 +190,7 @@ def _run_and_write(args, world, host, finish, logs, fail_fast: FailFast) -> tupl
     from composed_sim.hosts.controllers import HostError
     from composed_sim.hosts.lockstep import AnotherSimulator
     from composed_sim.hosts.multiprocess import MultiProcessHost
-    from composed_sim.hosts.workers import WorkerHost, usable_cores
+    from composed_sim.hosts.workers.host import WorkerHost, usable_cores
 
     with Interrupts() as interrupts, contextlib.ExitStack() as outputs:
         try:

@@ -1,5 +1,5 @@
 """The composed host: the simulator and every controller node in one process, one domain, one
-executor (``--workers 1``; hosts/workers.py spreads the controllers over worker processes).
+executor (``--workers 1``; hosts/workers/host.py spreads the controllers over worker processes).
 
 The robots are split into participant groups (hosts/participant_groups.py); the physics, the
 sensing and the tick loop run in this same process.

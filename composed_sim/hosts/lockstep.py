@@ -112,7 +112,7 @@ class TickObserver(Protocol):
 
 class Exchange(Protocol):
     """The simulator's side of the ROS exchange: simulator nodes in this process (NodesExchange),
-    or worker processes that hold them (hosts/workers.py)."""
+    or worker processes that hold them (hosts/workers/host.py)."""
     violations: list[Violation]
 
     #: True: ``publish_state(sim)``, the exchange's processes read the sensors themselves

@@ -17,7 +17,7 @@ constructor logs through it too). It has the ``RcutilsLogger`` interface (levels
 A callback's exception goes the same way, whole (``exception``): the traceback into the robot's
 file, on the console the first time per node class and exception type, a count after.
 
-In a worker process (hosts/worker_process.py) the files are written there, and what the main
+In a worker process (hosts/workers/launcher.py) the files are written there, and what the main
 process needs goes with each tick's answers (``drain``): the console's first lines, the repeat
 counts, the failures, and the lines for /rosout only while recording. A controller process
 (multi-process mode) writes its robot's file itself; the main process reads its traceback from

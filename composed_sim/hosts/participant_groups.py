@@ -7,7 +7,7 @@ robots' own, so it is self-contained, and the participants of one process ignore
 then costs O(E²/K) instead of O(E²). Processes outside still discover every group.
 
 The single-process composed host holds every robot's groups; each worker process of the worker
-host holds its block's (hosts/workers.py). Either way, every per-robot message stays inside a
+host holds its block's (hosts/workers/host.py). Either way, every per-robot message stays inside a
 participant (with the lockstep executor, a robot's sensors and answers are handed over in process
 while nothing else listens: ros/in_process.py), and the robots are numbered from the start
 of the block: the SensorFrame handed to ``exchange.publish_tick`` covers the block only.

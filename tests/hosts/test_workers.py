@@ -18,7 +18,7 @@ import pytest
 from composed_sim.hosts.composed import ComposedHost
 from composed_sim.hosts.controllers import EXECUTORS, HostError
 from composed_sim.hosts.lockstep import CHECKPOINT_EVERY
-from composed_sim.hosts.workers import WorkerHost, auto_workers, plan_blocks
+from composed_sim.hosts.workers.host import WorkerHost, auto_workers, plan_blocks
 from composed_sim.ros.taps import TapBuffer
 from composed_sim.world.loader import load_world
 
@@ -128,7 +128,7 @@ def test_the_workers_are_forked_by_one_launcher_adopted_here_and_reaped(domain_i
     """One launcher imports the workers' code once and forks them; this process adopts them
     (they are its children, each in a process group of its own, each with its own log) and
     reaps every one at the end. One core: the workers build their nodes one after the other."""
-    monkeypatch.setattr("composed_sim.hosts.workers.usable_cores", lambda: 1)
+    monkeypatch.setattr("composed_sim.hosts.workers.host.usable_cores", lambda: 1)
     world = load_world(FLOCKING, robots=9, ticks=5, seed=3)
     this = psutil.Process()
     with WorkerHost(world, workers=3, domain_id=domain_id) as host:
@@ -136,7 +136,7 @@ def test_the_workers_are_forked_by_one_launcher_adopted_here_and_reaped(domain_i
         children = {p.pid: p for p in this.children()}
         assert set(pids) <= set(children), (pids, children)
         assert len({os.getpgid(pid) for pid in pids}) == 3 and all(os.getpgid(pid) == pid for pid in pids)
-        assert all("composed_sim.hosts.worker_process" in " ".join(children[pid].cmdline()) for pid in pids)
+        assert all("composed_sim.hosts.workers.launcher" in " ".join(children[pid].cmdline()) for pid in pids)
         assert len({w.log for w in host.workers}) == 3 and all(w.log.exists() for w in host.workers)
         result = host.run()
     assert result.violations == [] and result.trajectories.ticks_done == 5
@@ -169,7 +169,7 @@ def _start_run(tmp_path, domain_id: int, workers: int) -> tuple[subprocess.Popen
 
 def _workers_of(proc: subprocess.Popen) -> list[psutil.Process]:
     return [p for p in psutil.Process(proc.pid).children(recursive=True)
-            if "composed_sim.hosts.worker_process" in p.cmdline()]
+            if "composed_sim.hosts.workers.launcher" in p.cmdline()]
 
 
 def _running(processes: list[psutil.Process]) -> list[int]:

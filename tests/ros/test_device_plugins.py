@@ -168,7 +168,7 @@ def test_every_robot_model_and_device_gives_the_same_run_in_every_host_mode(doma
     through groups) reproduce the composed run bit for bit."""
     from composed_sim.hosts.composed import ComposedHost
     from composed_sim.hosts.multiprocess import MultiProcessHost
-    from composed_sim.hosts.workers import WorkerHost
+    from composed_sim.hosts.workers.host import WorkerHost
     from composed_sim.world.loader import world_from_dict
 
     always = {"positioning": {}, "odometry": {}, "differential_steering": {}}

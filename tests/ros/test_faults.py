@@ -14,7 +14,7 @@ import pytest
 from composed_sim.hosts import multiprocess
 from composed_sim.hosts.composed import ComposedHost
 from composed_sim.hosts.multiprocess import MultiProcessHost
-from composed_sim.hosts.workers import WorkerHost
+from composed_sim.hosts.workers.host import WorkerHost
 from composed_sim.world.loader import world_from_dict
 
 ROBOTS, TICKS, FAULTY, FROM_TICK = 4, 24, "bot1", 5

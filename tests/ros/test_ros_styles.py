@@ -13,7 +13,7 @@ from composed_sim.hosts.choices import EXECUTORS
 from composed_sim.hosts.composed import ComposedHost
 from composed_sim.hosts.controllers import HostError
 from composed_sim.hosts.multiprocess import MultiProcessHost
-from composed_sim.hosts.workers import WorkerHost
+from composed_sim.hosts.workers.host import WorkerHost
 from composed_sim.world.loader import load_world
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -12,7 +12,7 @@ import pytest
 
 from composed_sim.hosts.composed import ComposedHost
 from composed_sim.hosts.multiprocess import MultiProcessHost
-from composed_sim.hosts.workers import WorkerHost
+from composed_sim.hosts.workers.host import WorkerHost
 from composed_sim.world.loader import load_world
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -1,7 +1,7 @@
 """The worker processes of the worker host: a block of robots in one participant group, one executor.
 
-``python -m composed_sim.hosts.worker_process --fds N1,N2,… --logs DIR --parent-pid P`` is started
-by ``hosts/workers.py`` as a launcher: it imports what a worker needs once (worker_serving.py),
+``python -m composed_sim.hosts.workers.launcher --fds N1,N2,… --logs DIR --parent-pid P`` is started
+by ``hosts/workers/host.py`` as a launcher: it imports what a worker needs once (serving.py),
 forks one worker per socket, prints their pids and exits. Forking spares each worker the
 interpreter's start and the imports, about 0.7 s of CPU (5.6 s for 8 workers on 2 cores before
 the first could start its nodes), and the workers share those pages in memory. The main process,
@@ -47,7 +47,7 @@ from composed_sim.hosts.processes import die_with_parent
 def main(argv: list[str] | None = None) -> int:
     """The launcher: import what a worker needs once, fork the K workers, tell the main process
     their pids (one line on stdout) and exit; the main process, a subreaper, adopts them."""
-    p = argparse.ArgumentParser(prog="python -m composed_sim.hosts.worker_process")
+    p = argparse.ArgumentParser(prog="python -m composed_sim.hosts.workers.launcher")
     p.add_argument("--fds", required=True, help="the workers' socket descriptors, comma-separated, in worker order")
     p.add_argument("--logs", required=True, help="the folder of the workers' worker<i>.log")
     p.add_argument("--parent-pid", type=int, required=True)
@@ -58,7 +58,7 @@ def main(argv: list[str] | None = None) -> int:
     signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
     fds = [int(fd) for fd in args.fds.split(",")]
 
-    from composed_sim.hosts.worker_serving import serve     # the imports, shared by every fork
+    from composed_sim.hosts.workers.serving import serve     # the imports, shared by every fork
     # The imported objects out of the collector's reach: its passes would write to every one of
     # them in every worker, copying the pages they share (1280 robots in 8 workers: peak PSS 1267
     # -> 1162 MB).

@@ -1,4 +1,4 @@
-"""The messages between the main process and a worker process (hosts/worker_process.py has the
+"""The messages between the main process and a worker process (hosts/workers/launcher.py has the
 protocol), in a module of their own that both import without the worker's heavy imports."""
 from __future__ import annotations
 

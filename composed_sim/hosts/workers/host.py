@@ -2,7 +2,7 @@
 
 rclpy holds the GIL in ``publish`` and ``take``, so one process runs its robots' ROS exchange
 on one core, whatever the machine. Here the robots are cut into K contiguous blocks; each block
-lives in a worker process (hosts/worker_process.py) with its participant groups and its own
+lives in a worker process (hosts/workers/launcher.py) with its participant groups and its own
 executor, exactly as the single-process host holds all of them, so every per-robot message stays
 inside one participant, through rclpy publish and take, visible to any outside process.
 
@@ -13,7 +13,7 @@ inside one participant, through rclpy publish and take, visible to any outside p
 
 Once per tick the main process writes what the sensors read of the world (core/senses.py's
 SensingInputs: every robot's pose, LEDs and payload) and the wheels and odometry into shared
-memory (hosts/shared_state.py) and wakes each worker with a small message over its socket pair
+memory (hosts/workers/shared_state.py) and wakes each worker with a small message over its socket pair
 (``multiprocessing.connection``); each writes its robots' commands back there and sends the rest
 of its answers (LEDs, payloads, violations, logs), pickled. Each worker reads its own robots' sensors, so the main
 process's serial part does not grow with the sensing; the noise is drawn per robot, tick and
@@ -47,8 +47,8 @@ from composed_sim.hosts.controllers import HostError, check_executor
 from composed_sim.hosts.host import ControllersElsewhere, SetupInfo
 from composed_sim.hosts.processes import (AdoptedChild, InterruptWatch, become_subreaper, exit_reason, last_words,
                                           reap, signal_group)
-from composed_sim.hosts.shared_state import SharedState
-from composed_sim.hosts.worker_messages import TickAnswers, WorkerSetup
+from composed_sim.hosts.workers.shared_state import SharedState
+from composed_sim.hosts.workers.messages import TickAnswers, WorkerSetup
 from composed_sim.ros.participants import run_prefix
 from composed_sim.world.schema import World
 
@@ -286,12 +286,12 @@ class WorkerHost(ControllersElsewhere):
         return self
 
     def _launch(self, prefix: bytes) -> None:
-        """Start the launcher (hosts/worker_process.py), which forks the K workers; each waits for
+        """Start the launcher (hosts/workers/launcher.py), which forks the K workers; each waits for
         its block (``_send_setup``)."""
         become_subreaper()
         pairs = [socket.socketpair() for _ in self.blocks]
         fds = [theirs.fileno() for _, theirs in pairs]
-        cmd = [sys.executable, "-m", "composed_sim.hosts.worker_process", "--fds", ",".join(map(str, fds)),
+        cmd = [sys.executable, "-m", "composed_sim.hosts.workers.launcher", "--fds", ",".join(map(str, fds)),
                "--logs", str(self._tmp), "--parent-pid", str(os.getpid())]
         # Own process group: a terminal's Ctrl-C goes to this process only (which stops the run at
         # a tick boundary). SIGINT blocked while forking, as for the multi-process host's children.

@@ -1,4 +1,4 @@
-"""A worker's life after its launch (hosts/worker_process.py): its block of robots built in one
+"""A worker's life after its launch (hosts/workers/launcher.py): its block of robots built in one
 participant group, then one tick after another, as the main process sends them.
 
 Everything a worker needs is imported here, at the top: the launcher imports this module once,
@@ -22,8 +22,8 @@ from composed_sim.hosts.controllers import HostError
 from composed_sim.hosts.lockstep import acted_commands
 from composed_sim.hosts.node_logs import NodeLogs
 from composed_sim.hosts.participant_groups import ParticipantGroups
-from composed_sim.hosts.shared_state import SharedState
-from composed_sim.hosts.worker_messages import EXIT_SETUP, TickAnswers
+from composed_sim.hosts.workers.shared_state import SharedState
+from composed_sim.hosts.workers.messages import EXIT_SETUP, TickAnswers
 from composed_sim.ros import node_time
 from composed_sim.ros.participants import use_worker_prefix
 from composed_sim.ros.taps import TapBuffer
