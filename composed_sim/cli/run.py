@@ -64,7 +64,7 @@ def cmd_run(args) -> int:
             return ExternalControllersHost(world, domain_id=domain_id, discovery_timeout_s=args.discovery_timeout,
                                            discovery=distributed)
         if args.mode == "multi-process":
-            from composed_sim.hosts.multiprocess import MultiProcessHost
+            from composed_sim.hosts.multiprocess.host import MultiProcessHost
             return MultiProcessHost(world, executor=args.executor, domain_id=domain_id,
                                     robots_per_domain=args.robots_per_domain, logs=logs)
         workers = auto_workers(len(world.robot_names())) if args.workers == "auto" else args.workers
@@ -189,7 +189,7 @@ def _run_and_write(args, world, host, finish, logs, fail_fast: FailFast) -> tupl
     from composed_sim.hosts.composed import ComposedHost
     from composed_sim.hosts.controllers import HostError
     from composed_sim.hosts.lockstep import AnotherSimulator
-    from composed_sim.hosts.multiprocess import MultiProcessHost
+    from composed_sim.hosts.multiprocess.host import MultiProcessHost
     from composed_sim.hosts.workers.host import WorkerHost, usable_cores
 
     with Interrupts() as interrupts, contextlib.ExitStack() as outputs:

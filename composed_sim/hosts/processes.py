@@ -14,10 +14,6 @@ import time
 
 PR_SET_PDEATHSIG = 1
 PR_SET_CHILD_SUBREAPER = 36
-# Words of a controller process's start-up reports (hosts/controller_process.py):
-TYPE_PREFIX = "type:"   # of "created": the type its cmd_vel publisher has (geometry_msgs/msg/Twist)
-GID_PREFIX = "gid:"     # of "ready": one cmd_vel publisher's GID, in hex
-RUN_WIDE_PREFIX = "run_wide:"   # of "created": a topic its run-wide link uses (ros/run_wide.py)
 
 
 def die_with_parent(parent_pid: int | None, sig: int = signal.SIGTERM) -> None:

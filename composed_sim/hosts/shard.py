@@ -29,7 +29,7 @@ from rclpy.executors import Executor
 from rclpy.node import Node
 from rclpy.time import Time as RosTime
 
-from composed_sim.hosts.controller_process import contract_endpoints
+from composed_sim.hosts.multiprocess.controller_process import contract_endpoints
 from composed_sim.hosts.controllers import (HostError, check_executor, create_robot_nodes, load_classes, make_executor, matched,
                                              spin_until_shutdown)
 from composed_sim.hosts.robot_ranges import format_ranges

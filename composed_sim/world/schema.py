@@ -416,7 +416,7 @@ class Lockstep(Strict):
 
 
 # Fast DDS on Linux: a domain's ports start at 7400 + 250 * domain, so 232 is the last domain
-# whose ports stay below 65535 (see composed_sim.hosts.domains).
+# whose ports stay below 65535 (see composed_sim.hosts.multiprocess.domains).
 MAX_DOMAIN = 232
 ROBOTS_PER_DOMAIN = 50      # multi-process mode's default: the paper's
 DomainId = Annotated[int, Field(ge=0, le=MAX_DOMAIN)]

@@ -122,7 +122,7 @@ def test_the_graph_probe_finds_other_simulators_and_left_over_controllers(domain
     # A controller process whose run was killed still publishes bot0's cmd_vel: the simulator
     # of a new run would get its answers. Discovery takes 0.2 s here, at times seconds, so the
     # probe is polled until it has seen both nodes.
-    left = subprocess.Popen([sys.executable, "-m", "composed_sim.hosts.controller_process", "--world", str(FLOCKING),
+    left = subprocess.Popen([sys.executable, "-m", "composed_sim.hosts.multiprocess.controller_process", "--world", str(FLOCKING),
                              "--robot", "bot0", "--domain", str(domain_id)], cwd=ROOT)
     other = subprocess.Popen([sys.executable, "-c", OTHER_SIMULATOR, str(domain_id)], cwd=ROOT)
     both = ["/bot0/flocking (/bot0/cmd_vel)", "/other_simulator (/clock)"]

@@ -11,9 +11,9 @@ import time
 import numpy as np
 import pytest
 
-from composed_sim.hosts import multiprocess
+from composed_sim.hosts.multiprocess import host as multiprocess
 from composed_sim.hosts.composed import ComposedHost
-from composed_sim.hosts.multiprocess import MultiProcessHost
+from composed_sim.hosts.multiprocess.host import MultiProcessHost
 from composed_sim.hosts.workers.host import WorkerHost
 from composed_sim.world.loader import world_from_dict
 

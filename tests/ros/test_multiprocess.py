@@ -15,7 +15,7 @@ import pytest
 
 from composed_sim.hosts.composed import ComposedHost
 from composed_sim.hosts.controllers import HostError
-from composed_sim.hosts.multiprocess import MultiProcessHost
+from composed_sim.hosts.multiprocess.host import MultiProcessHost
 from composed_sim.world.loader import load_world
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -174,7 +174,7 @@ def controllers_started_by(pid: int) -> list[int]:
     found = []
     for p in psutil.process_iter(["cmdline"]):
         cmd = p.info["cmdline"] or []
-        if "composed_sim.hosts.controller_process" in cmd and "--parent-pid" in cmd \
+        if "composed_sim.hosts.multiprocess.controller_process" in cmd and "--parent-pid" in cmd \
                 and cmd[cmd.index("--parent-pid") + 1] == str(pid):
             found.append(p)
     return children_of_run(found)

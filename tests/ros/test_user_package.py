@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from composed_sim.hosts.composed import ComposedHost
-from composed_sim.hosts.multiprocess import MultiProcessHost
+from composed_sim.hosts.multiprocess.host import MultiProcessHost
 from composed_sim.hosts.workers.host import WorkerHost
 from composed_sim.world.loader import load_world
 

@@ -1,6 +1,6 @@
 """One robot's controller in its own OS process (multi-process mode).
 
-    python -m composed_sim.hosts.controller_process --world W.yaml --robot bot3 --domain 5 \\
+    python -m composed_sim.hosts.multiprocess.controller_process --world W.yaml --robot bot3 --domain 5 \\
         --executor lockstep [--parent-pid PID] [--report-fd FD]
 
 It builds the very same nodes as the composed host (``create_robot_nodes``), in the robot's
@@ -23,15 +23,19 @@ import sys
 import threading
 import time
 
-from composed_sim.hosts.processes import GID_PREFIX, RUN_WIDE_PREFIX, TYPE_PREFIX, die_with_parent
+from composed_sim.hosts.processes import die_with_parent
 
 READY_TIMEOUT_S = 120.0
+# Words of the start-up reports:
+TYPE_PREFIX = "type:"   # of "created": the type its cmd_vel publisher has (geometry_msgs/msg/Twist)
+GID_PREFIX = "gid:"     # of "ready": one cmd_vel publisher's GID, in hex
+RUN_WIDE_PREFIX = "run_wide:"   # of "created": a topic its run-wide link uses (ros/run_wide.py)
 EXIT_SETUP = 3          # the controller could not be built; the reason is on stderr
 CLEANUP_LIMIT_S = 5         # s from the end of the work to a forced exit (SIGALRM)
 
 
 def parse(argv: list[str] | None) -> argparse.Namespace:
-    p = argparse.ArgumentParser(prog="python -m composed_sim.hosts.controller_process",
+    p = argparse.ArgumentParser(prog="python -m composed_sim.hosts.multiprocess.controller_process",
                                 description="Run one robot's controller node in this process.")
     p.add_argument("--world", required=True, help="resolved world file (written by the host)")
     p.add_argument("--robot", required=True, help="robot name, e.g. bot3")

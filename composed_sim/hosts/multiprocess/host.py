@@ -1,6 +1,6 @@
 """The multi-process host: every robot's controller in its own OS process, as in the paper.
 
-Each controller process (``composed_sim.hosts.controller_process``) runs the very same plugin
+Each controller process (``composed_sim.hosts.multiprocess.controller_process``) runs the very same plugin
 class on the very same topics as in composed mode, in the ROS domain ``domains.assign_domains``
 gives its robot. The simulator process joins each used domain with its own rclpy Context and one
 SimulatorNode serving that domain's robots, spun by its own executor thread; ``NodesExchange``
@@ -35,8 +35,9 @@ from rclpy.executors import Executor
 from composed_sim.core.simulation import Simulation
 from composed_sim.hosts.host import ControllersElsewhere, SetupInfo
 from composed_sim.hosts.controllers import HostError, check_executor, load_classes, matched, spin_until_shutdown
-from composed_sim.hosts.domains import DomainError, assign_domains
-from composed_sim.hosts.processes import GID_PREFIX, RUN_WIDE_PREFIX, TYPE_PREFIX, InterruptWatch, exit_reason, last_words, reap, signal_group
+from composed_sim.hosts.multiprocess.domains import DomainError, assign_domains
+from composed_sim.hosts.multiprocess.controller_process import GID_PREFIX, RUN_WIDE_PREFIX, TYPE_PREFIX
+from composed_sim.hosts.processes import InterruptWatch, exit_reason, last_words, reap, signal_group
 from composed_sim.hosts.lockstep import NodesExchange
 from composed_sim.hosts.node_logs import failure_from_output
 from composed_sim.hosts.run_wide_nodes import RunWideNodes
@@ -286,7 +287,7 @@ class MultiProcessHost(ControllersElsewhere):
     def _spawn(self, robot: str, world_file: Path) -> ControllerProcess:
         read_fd, write_fd = os.pipe()    # its start-up reports; EOF when it is done or dead
         log = self._tmp / f"{robot}.log"
-        cmd = [sys.executable, "-m", "composed_sim.hosts.controller_process", "--world", str(world_file),
+        cmd = [sys.executable, "-m", "composed_sim.hosts.multiprocess.controller_process", "--world", str(world_file),
                "--robot", robot, "--domain", str(self.domains[robot]), "--executor", self.executor_kind,
                "--parent-pid", str(os.getpid()), "--report-fd", str(write_fd)]
         if self.logs is not None and self.logs.settings.log_dir:
