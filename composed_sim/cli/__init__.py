@@ -183,7 +183,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _add_distributed_options(parser: argparse.ArgumentParser, prefix: str) -> None:
-    from composed_sim.hosts.discovery import DEFAULT_DISCOVERY_TIMEOUT_S, RANGES
+    from composed_sim.hosts.distributed.discovery import DEFAULT_DISCOVERY_TIMEOUT_S, RANGES
     parser.add_argument("--discovery-timeout", type=_positive_float, metavar="SECONDS",
                         default=DEFAULT_DISCOVERY_TIMEOUT_S,
                         help=f"{prefix}how long to wait for the other side before giving up (default: %(default)s)")

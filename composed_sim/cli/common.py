@@ -114,7 +114,7 @@ def load_any_world(args):
 
 def distributed_settings(args) -> str:
     """Check the flags of a distributed run and put its discovery settings into the environment."""
-    from composed_sim.hosts.discovery import DiscoveryError, configure
+    from composed_sim.hosts.distributed.discovery import DiscoveryError, configure
     if args.command == "run" and args.mode != "composed":
         raise UserError("--external-controllers: the controllers are in `composed-sim host` shards, "
                         "so --mode multi-process does not apply")

@@ -13,8 +13,8 @@ def cmd_host(args) -> int:
     """A controller shard: serves until the simulator is gone (0) or Ctrl-C/SIGTERM (130)."""
     from composed_sim import plugins
     from composed_sim.hosts.controllers import HostError
-    from composed_sim.hosts.robot_ranges import RangeError, parse_ranges
-    from composed_sim.hosts.shard import ShardHost
+    from composed_sim.hosts.distributed.robot_ranges import RangeError, parse_ranges
+    from composed_sim.hosts.distributed.shard import ShardHost
 
     world = load_any_world(argparse.Namespace(world=args.world, robots=args.world_robots, ticks=None,
                                                seed=args.seed, controller=args.controller))

@@ -60,7 +60,7 @@ def cmd_run(args) -> int:
 
     def make_host(domain_id: int):
         if args.external_controllers:
-            from composed_sim.hosts.external import ExternalControllersHost
+            from composed_sim.hosts.distributed.external import ExternalControllersHost
             return ExternalControllersHost(world, domain_id=domain_id, discovery_timeout_s=args.discovery_timeout,
                                            discovery=distributed)
         if args.mode == "multi-process":

@@ -56,6 +56,13 @@ def matched(endpoint) -> bool:
     return count >= 1
 
 
+def contract_endpoints(nodes: Sequence[Node], robot: str) -> list:
+    """The robot's nodes' publishers and subscriptions on contract topics (their own other topics
+    and the parameter/rosout plumbing are not the simulator's business)."""
+    topics = {c.topic_name(robot, t) for t in c.SENSOR_TOPICS + c.ACTUATOR_TOPICS} | {c.CLOCK_TOPIC}
+    return [e for node in nodes for e in list(node.publishers) + list(node.subscriptions) if e.topic_name in topics]
+
+
 def make_executor(kind: str, context: Context) -> Executor:
     if kind == "multi-threaded":
         return MultiThreadedExecutor(context=context)

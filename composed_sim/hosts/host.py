@@ -5,7 +5,7 @@ A host runs one world's controllers and its simulator in lockstep. The hosts:
 - ``ComposedHost`` (hosts/composed.py): every controller node in this process;
 - ``WorkerHost`` (hosts/workers/host.py): the controller nodes in K worker processes, the physics here;
 - ``MultiProcessHost`` (hosts/multiprocess/host.py): one process per controller, as in the paper;
-- ``ExternalControllersHost`` (hosts/external.py): controllers in ``composed-sim host`` shards,
+- ``ExternalControllersHost`` (hosts/distributed/external.py): controllers in ``composed-sim host`` shards,
   possibly on other machines.
 
 Writing one: make it a context manager that builds everything in ``__enter__`` (a ``Simulation``

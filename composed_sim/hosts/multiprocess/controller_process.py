@@ -68,8 +68,8 @@ def main(argv: list[str] | None = None) -> int:
     from rclpy.context import Context
 
     from composed_sim import plugins
-    from composed_sim.hosts.controllers import (HostError, create_robot_nodes, load_classes, make_executor,
-                                                published_answer_type)
+    from composed_sim.hosts.controllers import (HostError, contract_endpoints, create_robot_nodes, load_classes,
+                                                make_executor, published_answer_type)
     from composed_sim.hosts.node_logs import FAILURE_MARK, Console, LogSettings, NodeLogs, node_label, raising_node
     from composed_sim.ros import contract as c
     from composed_sim.ros.answer_subscription import cmd_vel_gids
@@ -238,14 +238,6 @@ def run_until_idle(executor, rounds: int = 1000) -> None:
         else:
             executor.spin_once(timeout_sec=0)
             return
-
-
-def contract_endpoints(nodes, robot: str) -> list:
-    """The robot's nodes' publishers and subscriptions on contract topics (their own other topics
-    and the parameter/rosout plumbing are not the simulator's business)."""
-    from composed_sim.ros import contract as c
-    topics = {c.topic_name(robot, t) for t in c.SENSOR_TOPICS + c.ACTUATOR_TOPICS} | {c.CLOCK_TOPIC}
-    return [e for node in nodes for e in list(node.publishers) + list(node.subscriptions) if e.topic_name in topics]
 
 
 # How often an idle controller process wakes (a message or a due timer ends the wait at once):

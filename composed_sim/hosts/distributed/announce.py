@@ -21,7 +21,7 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import String
 
-from composed_sim.hosts.robot_ranges import format_ranges, parse_ranges
+from composed_sim.hosts.distributed.robot_ranges import format_ranges, parse_ranges
 from composed_sim.ros.robot_settings import quiet_node_options
 from composed_sim.world.schema import World
 

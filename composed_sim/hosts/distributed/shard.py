@@ -8,7 +8,7 @@ machines; nothing else crosses. Sim time: one ``/clock`` subscription per shard 
 node's clock (as the composed host does from the simulator node), instead of one per node.
 
 Life cycle: build the nodes → wait until every hosted controller's contract endpoints are matched
-with a simulator's → announce the shard (``shard_announce``) → serve ticks until the simulator's
+with a simulator's → announce the shard (``announce.py``) → serve ticks until the simulator's
 ``/clock`` publisher is gone (the run ended, failed or was killed: DDS reports the writer's removal
 at once on a clean exit, after the participant lease on a crash) or a stop is requested
 (SIGINT/SIGTERM in the CLI).
@@ -29,11 +29,10 @@ from rclpy.executors import Executor
 from rclpy.node import Node
 from rclpy.time import Time as RosTime
 
-from composed_sim.hosts.multiprocess.controller_process import contract_endpoints
-from composed_sim.hosts.controllers import (HostError, check_executor, create_robot_nodes, load_classes, make_executor, matched,
+from composed_sim.hosts.controllers import (HostError, check_executor, contract_endpoints, create_robot_nodes, load_classes, make_executor, matched,
                                              spin_until_shutdown)
-from composed_sim.hosts.robot_ranges import format_ranges
-from composed_sim.hosts.shard_announce import ShardAnnouncer, ShardInfo, world_fingerprint
+from composed_sim.hosts.distributed.robot_ranges import format_ranges
+from composed_sim.hosts.distributed.announce import ShardAnnouncer, ShardInfo, world_fingerprint
 from composed_sim.ros.sim_timers import before_each_tick
 from composed_sim.ros import contract as c
 from composed_sim.ros.answer_subscription import cmd_vel_gids

@@ -1,5 +1,5 @@
 """The simulator alone, its controllers hosted by shards on this or other machines
-(``composed-sim run WORLD --external-controllers``; the shards: ``composed_sim.hosts.shard``).
+(``composed-sim run WORLD --external-controllers``; the shards: ``composed_sim.hosts.distributed.shard``).
 
 The simulator node and the tick loop are the composed host's; the exchange is multi-process mode's
 ``NodesExchange`` over the one simulator node, spun by a LockstepExecutor in its own thread, so
@@ -22,11 +22,11 @@ from composed_sim.core.simulation import Simulation
 from composed_sim.hosts.host import ControllersElsewhere, SetupInfo
 from composed_sim.hosts.lockstep import NodesExchange
 from composed_sim.hosts.controllers import HostError
-from composed_sim.hosts.discovery import DEFAULT_DISCOVERY_TIMEOUT_S
+from composed_sim.hosts.distributed.discovery import DEFAULT_DISCOVERY_TIMEOUT_S
 from composed_sim.hosts.controllers import matched, spin_until_shutdown
 from composed_sim.hosts.processes import InterruptWatch
-from composed_sim.hosts.robot_ranges import format_ranges
-from composed_sim.hosts.shard_announce import ShardInfo, ShardRegistry, world_fingerprint
+from composed_sim.hosts.distributed.robot_ranges import format_ranges
+from composed_sim.hosts.distributed.announce import ShardInfo, ShardRegistry, world_fingerprint
 from composed_sim.ros import contract as c
 from composed_sim.ros.lockstep_executor import LockstepExecutor
 from composed_sim.ros.robot_settings import robot_settings
