@@ -122,7 +122,7 @@ class FoxgloveServer:
         self._clock_channel = self._channel(CLOCK_TOPIC, CLOCK_TYPE)
         self._robot_channels = {topic: self._channel(topic, msgtype) for topic, msgtype in topics.items()
                                 if self._globs.wants(topic)}
-        self._known = frozenset(topics)      # a topic outside them is a run-wide one (ros/run_wide.py)
+        self._known = frozenset(topics)      # a topic outside them is a run-wide one (hosting/run_wide/relay.py)
 
     def _channel(self, topic: str, msgtype: str) -> foxglove.Channel:
         msgdef, _ = message_definition(msgtype)

@@ -19,8 +19,8 @@ import time
 
 import numpy as np
 
-from composed_sim.hosts.choices import ROBOTS_PER_PARTICIPANT
-from composed_sim.ros.participants import ignore_participants_of_this_process
+from composed_sim.hosting.options import ROBOTS_PER_PARTICIPANT
+from composed_sim.hosting.participants import ignore_participants_of_this_process
 
 WARM_UP_TICKS = 10
 

@@ -15,7 +15,7 @@ import pytest
 
 from composed_sim import cli
 from composed_sim.hosts.composed import ComposedHost
-from composed_sim.hosts.controllers import HostError
+from composed_sim.hosting import HostError
 from composed_sim.hosts.distributed.discovery import DiscoveryError, configure
 from composed_sim.hosts.distributed.external import GONE_REASON, ExternalControllersHost
 from composed_sim.hosts.distributed.robot_ranges import RangeError, format_ranges, parse_ranges

@@ -60,7 +60,7 @@ def test_fast_dds_participants_per_domain_bound_the_robots_per_domain():
 
 
 def test_multi_process_section_loads_round_trips_and_reaches_the_host(tmp_path):
-    from composed_sim.hosts.controllers import HostError
+    from composed_sim.hosting import HostError
     from composed_sim.hosts.multiprocess.host import MultiProcessHost
 
     path = tmp_path / "w.yaml"

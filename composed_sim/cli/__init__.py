@@ -39,7 +39,7 @@ class _OneLineParser(argparse.ArgumentParser):
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from composed_sim.hosts.choices import EXECUTORS, MODES, ROBOTS_PER_PARTICIPANT
+    from composed_sim.hosting.options import EXECUTORS, MODES, ROBOTS_PER_PARTICIPANT
 
     parser = _OneLineParser(prog="composed-sim", description=(
         "Swarm simulator whose robot controllers are ROS 2 nodes, hosted with the simulator in a few processes."))

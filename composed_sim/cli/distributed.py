@@ -12,7 +12,7 @@ from composed_sim.cli.common import Interrupts, distributed_settings, load_any_w
 def cmd_host(args) -> int:
     """A controller shard: serves until the simulator is gone (0) or Ctrl-C/SIGTERM (130)."""
     from composed_sim import plugins
-    from composed_sim.hosts.controllers import HostError
+    from composed_sim.hosting import HostError
     from composed_sim.hosts.distributed.robot_ranges import RangeError, parse_ranges
     from composed_sim.hosts.distributed.shard import ShardHost
 

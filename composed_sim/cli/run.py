@@ -18,9 +18,9 @@ EXIT_CONTROLLER_FAILED = 1      # --fail-fast: a controller failed
 
 def cmd_run(args) -> int:
     from composed_sim.hosts.composed import ComposedHost
-    from composed_sim.hosts.controllers import HostError
+    from composed_sim.hosting import HostError
     from composed_sim.hosts.domain_claim import DomainTaken, claim_domains, claim_free_domain, run_identity
-    from composed_sim.hosts.node_logs import LEVELS, Console, LogSettings, NodeLogs
+    from composed_sim.hosting.node_logs import LEVELS, Console, LogSettings, NodeLogs
     from composed_sim.hosts.workers.host import WorkerHost, auto_workers
     from composed_sim.results import summarize, write_results
 
@@ -28,8 +28,8 @@ def cmd_run(args) -> int:
     lockstep = {k: v for k, v in (("watchdog_s", args.watchdog), ("fallback", args.fallback)) if v is not None}
     if lockstep:
         world = world.model_copy(update={"lockstep": world.lockstep.model_copy(update=lockstep)})
-    from composed_sim.ros.participants import remove_stale_shared_memory
-    remove_stale_shared_memory()        # what dead runs left in /dev/shm (ros/participants.py)
+    from composed_sim.hosting.participants import remove_stale_shared_memory
+    remove_stale_shared_memory()        # what dead runs left in /dev/shm (hosting/participants.py)
     domain_given = args.domain_id is not None or bool(os.environ.get("ROS_DOMAIN_ID"))
     domain_id = pick_domain(args.domain_id)
     check_writable(args.out)
@@ -50,7 +50,7 @@ def cmd_run(args) -> int:
 
     distributed = distributed_settings(args) if args.external_controllers else None
     check_plugins(args.world, world)
-    # The nodes' log lines and tracebacks: OUT/logs/<robot>.log, the console's share once (hosts/node_logs.py).
+    # The nodes' log lines and tracebacks: OUT/logs/<robot>.log, the console's share once (hosting/node_logs.py).
     logs_dir = args.out / "logs"
     for old in logs_dir.glob("*.log"):          # a run before into the same --out
         old.unlink()
@@ -187,7 +187,7 @@ def _run_and_write(args, world, host, finish, logs, fail_fast: FailFast) -> tupl
     from composed_sim import plugins
     from composed_sim.core.placement import PlacementError
     from composed_sim.hosts.composed import ComposedHost
-    from composed_sim.hosts.controllers import HostError
+    from composed_sim.hosting import HostError
     from composed_sim.hosts.lockstep import AnotherSimulator
     from composed_sim.hosts.multiprocess.host import MultiProcessHost
     from composed_sim.hosts.workers.host import WorkerHost, usable_cores
@@ -314,7 +314,7 @@ def _warn_unmatched_globs(globs: list[str], world, flag: str) -> None:
     """A topic glob that matches no topic of this run is a warning naming two that exist."""
     from composed_sim.ros import contract as c
     from composed_sim.ros.taps import TopicGlobs
-    from composed_sim.ros.run_wide import is_run_wide
+    from composed_sim.hosting.run_wide.relay import is_run_wide
     topics = [topic for topic, _ in _run_topics(world)] + [c.SWARM_MARKERS_TOPIC]
     robots = frozenset(world.robot_names())
     for glob in globs:

@@ -1,7 +1,7 @@
 """The composed host: the simulator and every controller node in one process, one domain, one
 executor (``--workers 1``; hosts/workers/host.py spreads the controllers over worker processes).
 
-The robots are split into participant groups (hosts/participant_groups.py); the physics, the
+The robots are split into participant groups (hosting/participant_groups.py); the physics, the
 sensing and the tick loop run in this same process.
 """
 from __future__ import annotations
@@ -10,11 +10,11 @@ import time
 from typing import Callable, Optional, Sequence
 
 from composed_sim.core.simulation import Simulation
-from composed_sim.hosts.choices import ROBOTS_PER_PARTICIPANT
+from composed_sim.hosting.options import ROBOTS_PER_PARTICIPANT
 from composed_sim.hosts.host import SetupInfo
-from composed_sim.hosts.node_logs import NodeLogs
+from composed_sim.hosting.node_logs import NodeLogs
 from composed_sim.hosts.lockstep import LoopResult, TickObserver, run_lockstep
-from composed_sim.hosts.participant_groups import ParticipantGroups, RelayingExchange
+from composed_sim.hosting.participant_groups import ParticipantGroups, RelayingExchange
 from composed_sim.ros.simulator_node import MessageTap
 from composed_sim.world.schema import World
 
@@ -24,7 +24,7 @@ class ComposedHost:
 
     def __init__(self, world: World, *, executor: str = "lockstep", domain_id: int = 0,
                  robots_per_participant: int = ROBOTS_PER_PARTICIPANT, logs: Optional[NodeLogs] = None):
-        """``logs``: the nodes' log lines and tracebacks (hosts/node_logs.py); rclpy's loggers without."""
+        """``logs``: the nodes' log lines and tracebacks (hosting/node_logs.py); rclpy's loggers without."""
         self.world = world
         self.executor_kind = executor
         self.sim: Optional[Simulation] = None

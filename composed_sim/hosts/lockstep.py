@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Callable, Optional, Protocol, Sequence
+from typing import Callable, Optional, Protocol, Sequence
 
 import numpy as np
 import psutil
@@ -17,9 +17,6 @@ from composed_sim.world.robot_models import display_colors
 from composed_sim.core.simulation import SensorFrame, Simulation
 from composed_sim.core.violations import Violation
 from composed_sim.loop_functions import LoopHooks
-from composed_sim.ros import node_time
-if TYPE_CHECKING:   # the tick loop itself needs no rclpy: the worker host's main process runs it without
-    from composed_sim.ros.simulator_node import SimulatorNode
 
 
 @dataclass
@@ -65,7 +62,7 @@ class LoopTimes:
     phases_s: dict = field(default_factory=lambda: dict.fromkeys(PHASES, 0.0))
     cpu_s: float = 0.0             # CPU seconds of this process and the controllers' during the ticks
     main_cpu_s: float = 0.0        # of which this process's (all its threads)
-    node_code_s: float = 0.0       # seconds inside the nodes' own code (ros/node_time.py), all processes
+    node_code_s: float = 0.0       # seconds inside the nodes' own code (hosting/node_time.py), all processes
 
 
 class PhaseClock:
@@ -111,8 +108,8 @@ class TickObserver(Protocol):
 
 
 class Exchange(Protocol):
-    """The simulator's side of the ROS exchange: simulator nodes in this process (NodesExchange),
-    or worker processes that hold them (hosts/workers/host.py)."""
+    """The simulator's side of the ROS exchange: simulator nodes in this process
+    (hosting/nodes_exchange.py), or worker processes that hold them (hosts/workers/host.py)."""
     violations: list[Violation]
 
     #: True: ``publish_state(sim)``, the exchange's processes read the sensors themselves
@@ -138,93 +135,6 @@ class Exchange(Protocol):
 
 class AnotherSimulator(Exception):
     """Another simulator publishes /clock in one of the run's ROS domains: the run stops."""
-
-
-class NodesExchange:
-    """The ``Exchange`` over several SimulatorNodes (the composed host's participant groups, one per DDS
-    participant; the multi-process host's domains): each node publishes and collects its own
-    robots, writing into the shared (simulation-row) command arrays."""
-
-    POLL_S = 0.01   # while waiting for answers, call ``check`` this often
-    senses_itself = False
-
-    def __init__(self, nodes: Sequence["SimulatorNode"], check: Callable[[], None] = lambda: None):
-        """``check``: looks for what can settle a robot besides an answer, e.g. a dead child
-        process (it marks its robot failed, so it is not waited for)."""
-        self.nodes = list(nodes)
-        self._check = check
-
-    @property
-    def violations(self) -> list[Violation]:
-        # Stable sort: per tick, in node order, each node's in the order they happened.
-        return sorted((v for n in self.nodes for v in n.violations), key=lambda v: v.tick)
-
-    @property
-    def all_answered(self) -> bool:
-        return all(n.all_answered for n in self.nodes)
-
-    @property
-    def answered_count(self) -> int:
-        return sum(n.answered_count for n in self.nodes)
-
-    @property
-    def waiting_on_quiet_robots(self) -> bool:
-        """Is a robot that answers when published (``answers: when_published``) still open?"""
-        return any((n.when_published & ~n.answered & ~n.failed).any() for n in self.nodes)
-
-    def settle_idle(self, robots=None) -> int:
-        """Those robots' nodes (or those of them in ``robots``) have nothing left to do in the
-        tick: they keep their last command."""
-        return sum(n.settle_idle(None if robots is None else [r for r in n.robots if r in robots])
-                   for n in self.nodes)
-
-    def publish_tick(self, frame: SensorFrame) -> None:
-        for node in self.nodes:
-            node.publish_tick(frame)
-
-    def gathering_s(self) -> float:
-        return 0.0      # the answers arrive through the executor's callbacks, counted as waiting
-
-    def controllers_time_s(self) -> tuple[float, float]:
-        return 0.0, node_time.seconds()      # the nodes run in this process (composed mode)
-
-    def publish_clock(self, tick: int) -> None:
-        for node in self.nodes:
-            node.publish_clock(tick)
-
-    def another_simulator(self) -> Optional[str]:
-        return next((other for node in self.nodes if (other := node.another_simulator()) is not None), None)
-
-    def wait_for_answers(self, timeout_s: float) -> bool:
-        """Until every node's robots answered (their callbacks run elsewhere: executor threads,
-        other processes), under one watchdog deadline for all."""
-        deadline = time.monotonic() + timeout_s
-        while True:
-            pending = [n for n in self.nodes if not n.all_answered]
-            if not pending:
-                return True
-            remaining = deadline - time.monotonic()
-            if remaining <= 0:
-                return False
-            if not pending[0].wait_for_answers(min(remaining, self.POLL_S)):
-                self._check()
-
-    def close_tick(self, fallback: str, previous: tuple[np.ndarray, np.ndarray],
-                   commands: tuple[np.ndarray, np.ndarray]) -> None:
-        for node in self.nodes:
-            node.close_tick(fallback, previous, commands)
-
-    def take_led_commands(self) -> dict[int, np.ndarray]:
-        out: dict[int, np.ndarray] = {}
-        for node in self.nodes:
-            out.update(node.take_led_commands())
-        return out
-
-    def take_rab_payloads(self) -> dict[int, np.ndarray]:
-        out: dict[int, np.ndarray] = {}
-        for node in self.nodes:
-            out.update(node.take_rab_payloads())
-        return out
 
 
 def acted_commands(tick: int, commands: tuple[np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:

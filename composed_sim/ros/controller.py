@@ -17,7 +17,7 @@ from rclpy.parameter import Parameter
 from composed_sim.world.robot_models import RobotModel, get_model
 from composed_sim.core.seeding import robot_rng
 from composed_sim.devices.common import cdr
-from composed_sim.ros import contract as c, node_time
+from composed_sim.ros import contract as c
 from composed_sim.devices import BY_SENSOR_TOPIC, DEVICES
 
 # Parameters every hosted controller is given (a plain Node may ignore them).
@@ -78,10 +78,13 @@ class SwarmController(Node):
 
     #: sensor topics (contract names) this controller needs each tick.
     sensors: tuple[str, ...] = ("proximity", "light", "blobs")
-    #: Set by a host that guards callbacks (hosts/callback_guard.py): (the sensor subscriptions, in
+    #: Set by a host that guards callbacks (hosting/callback_guard.py): (the sensor subscriptions, in
     #: ``sensors``' order; ``_on_sensors`` as guarded). The lockstep executor then hands a tick's
     #: sensor messages to the node in one call where all of them wait in process.
     lockstep_batch: Optional[tuple[tuple, Callable[[list], None]]] = None
+    #: Set by that host too: where the CPU time of ``on_tick`` goes (an object with ``add(seconds)``,
+    #: hosting/node_time.py); None: not counted.
+    node_time = None
 
     def __init__(self, node_name: str = "controller", **node_kwargs):
         super().__init__(node_name, **node_kwargs)
@@ -139,6 +142,11 @@ class SwarmController(Node):
             msgs, self._pending = self._pending, {}
             self._answer([(self._readers[n], data) for n, data in msgs.items()])
 
+    def sensor_batch(self) -> tuple[tuple, Callable[[list], None]]:
+        """For a host that hands a tick's sensor messages in one call (``lockstep_batch``): the
+        sensor subscriptions, in ``sensors``' order, and the call that takes their messages."""
+        return self._sensor_subscriptions, self._on_sensors
+
     def _on_sensors(self, messages: list) -> None:
         """A message of every sensor, in ``sensors``' order (``lockstep_batch``): answered at once
         when they are one tick's and nothing of another tick waits, else one by one."""
@@ -162,7 +170,8 @@ class SwarmController(Node):
             reader(data, tick)
         started = time.thread_time()
         linear, angular = self.on_tick(tick)
-        node_time.add(time.thread_time() - started)    # the node's own code; the rest is the host's
+        if self.node_time is not None:     # the node's own code; the rest is the host's
+            self.node_time.add(time.thread_time() - started)
         if self._leds_dirty:   # before the answer, so the change lands on the same tick
             self._led_pub.publish(self._led_encoder.encode(self._leds.tobytes()))
             self._leds_dirty = False

@@ -302,7 +302,7 @@ class SimulatorNode(Node):
                 self.tap_message(topic, i, data, stamp_ns)
 
     def mirror_run_wide(self, batch, stamp_ns: int) -> None:
-        """A tick's run-wide messages (ros/run_wide.py) on the wire, for processes outside the run
+        """A tick's run-wide messages (hosting/run_wide/relay.py) on the wire, for processes outside the run
         (a second rclpy process, a recorder), and to the tap: the hosted nodes get them from the
         relay, never from these publishers. One simulator node of the run does this."""
         for topic, type_name, data in batch:

@@ -16,7 +16,8 @@ import psutil
 import pytest
 
 from composed_sim.hosts.composed import ComposedHost
-from composed_sim.hosts.controllers import EXECUTORS, HostError
+from composed_sim.hosting import HostError
+from composed_sim.hosting.options import EXECUTORS
 from composed_sim.hosts.lockstep import CHECKPOINT_EVERY
 from composed_sim.hosts.workers.host import WorkerHost, auto_workers, plan_blocks
 from composed_sim.ros.taps import TapBuffer

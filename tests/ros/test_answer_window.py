@@ -13,7 +13,7 @@ def test_a_robot_failed_by_its_answer_does_not_close_the_tick_for_the_others(ros
     handled. The tick must still wait for bot0 (it once closed at once, and bot0's answer, still
     on its way, was recorded as missed: a flaky multi-process test)."""
     from rclpy.node import Node
-    from composed_sim.ros.lockstep_executor import LockstepExecutor
+    from composed_sim.hosting.executors.lockstep import LockstepExecutor
     from composed_sim.ros.simulator_node import SimulatorNode
     world = world_from_dict({"name": "window", "length_ticks": 5, "lockstep": {"max_violations": 1},
                              "robots": [{"count": 2, "controller": "x"}]})

@@ -18,7 +18,7 @@ from composed_sim.devices.common.device import Outgoing
 from composed_sim.hosts.composed import ComposedHost
 from composed_sim.ros import in_process
 from composed_sim.ros.controller import SwarmController
-from composed_sim.ros.lockstep_executor import LockstepExecutor
+from composed_sim.hosting.executors.lockstep import LockstepExecutor
 from composed_sim.ros.rcl_graph import GraphChanges
 from composed_sim.world.loader import load_world
 from listener import Listener

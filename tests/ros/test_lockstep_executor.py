@@ -5,7 +5,7 @@ import time
 from rclpy.node import Node
 from std_msgs.msg import Int32
 
-from composed_sim.ros.lockstep_executor import LockstepExecutor
+from composed_sim.hosting.executors.lockstep import LockstepExecutor
 
 
 def quiet_node(name, ctx):

@@ -14,7 +14,7 @@ import psutil
 import pytest
 
 from composed_sim.hosts.composed import ComposedHost
-from composed_sim.hosts.controllers import HostError
+from composed_sim.hosting import HostError
 from composed_sim.hosts.multiprocess.host import MultiProcessHost
 from composed_sim.world.loader import load_world
 

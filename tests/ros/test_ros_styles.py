@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from composed_sim import plugins
-from composed_sim.hosts.choices import EXECUTORS
+from composed_sim.hosting.options import EXECUTORS
 from composed_sim.hosts.composed import ComposedHost
-from composed_sim.hosts.controllers import HostError
+from composed_sim.hosting import HostError
 from composed_sim.hosts.multiprocess.host import MultiProcessHost
 from composed_sim.hosts.workers.host import WorkerHost
 from composed_sim.world.loader import load_world

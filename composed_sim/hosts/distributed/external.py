@@ -20,15 +20,16 @@ from rclpy.context import Context
 
 from composed_sim.core.simulation import Simulation
 from composed_sim.hosts.host import ControllersElsewhere, SetupInfo
-from composed_sim.hosts.lockstep import NodesExchange
-from composed_sim.hosts.controllers import HostError
+from composed_sim.hosting.nodes_exchange import NodesExchange
+from composed_sim.hosting import HostError
 from composed_sim.hosts.distributed.discovery import DEFAULT_DISCOVERY_TIMEOUT_S
-from composed_sim.hosts.controllers import matched, spin_until_shutdown
+from composed_sim.hosting.building import matched
+from composed_sim.hosting.executors.running import spin_until_shutdown
 from composed_sim.hosts.processes import InterruptWatch
 from composed_sim.hosts.distributed.robot_ranges import format_ranges
 from composed_sim.hosts.distributed.announce import ShardInfo, ShardRegistry, world_fingerprint
 from composed_sim.ros import contract as c
-from composed_sim.ros.lockstep_executor import LockstepExecutor
+from composed_sim.hosting.executors.lockstep import LockstepExecutor
 from composed_sim.ros.robot_settings import robot_settings
 from composed_sim.ros.simulator_node import AnswerTypeError, SimulatorNode
 from composed_sim.world.schema import World

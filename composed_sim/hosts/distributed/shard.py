@@ -29,11 +29,12 @@ from rclpy.executors import Executor
 from rclpy.node import Node
 from rclpy.time import Time as RosTime
 
-from composed_sim.hosts.controllers import (HostError, check_executor, contract_endpoints, create_robot_nodes, load_classes, make_executor, matched,
-                                             spin_until_shutdown)
+from composed_sim.hosting import HostError
+from composed_sim.hosting.building import contract_endpoints, create_robot_nodes, load_classes, matched
+from composed_sim.hosting.executors.running import check_executor, make_executor, spin_until_shutdown
 from composed_sim.hosts.distributed.robot_ranges import format_ranges
 from composed_sim.hosts.distributed.announce import ShardAnnouncer, ShardInfo, world_fingerprint
-from composed_sim.ros.sim_timers import before_each_tick
+from composed_sim.hosting.sim_timers import before_each_tick
 from composed_sim.ros import contract as c
 from composed_sim.ros.answer_subscription import cmd_vel_gids
 from composed_sim.world.schema import World

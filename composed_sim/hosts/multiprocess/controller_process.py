@@ -29,7 +29,7 @@ READY_TIMEOUT_S = 120.0
 # Words of the start-up reports:
 TYPE_PREFIX = "type:"   # of "created": the type its cmd_vel publisher has (geometry_msgs/msg/Twist)
 GID_PREFIX = "gid:"     # of "ready": one cmd_vel publisher's GID, in hex
-RUN_WIDE_PREFIX = "run_wide:"   # of "created": a topic its run-wide link uses (ros/run_wide.py)
+RUN_WIDE_PREFIX = "run_wide:"   # of "created": a topic its run-wide link uses (hosting/run_wide/relay.py)
 EXIT_SETUP = 3          # the controller could not be built; the reason is on stderr
 CLEANUP_LIMIT_S = 5         # s from the end of the work to a forced exit (SIGALRM)
 
@@ -68,14 +68,15 @@ def main(argv: list[str] | None = None) -> int:
     from rclpy.context import Context
 
     from composed_sim import plugins
-    from composed_sim.hosts.controllers import (HostError, contract_endpoints, create_robot_nodes, load_classes,
-                                                make_executor, published_answer_type)
-    from composed_sim.hosts.node_logs import FAILURE_MARK, Console, LogSettings, NodeLogs, node_label, raising_node
+    from composed_sim.hosting import HostError
+    from composed_sim.hosting.building import (contract_endpoints, create_robot_nodes, load_classes, published_answer_type)
+    from composed_sim.hosting.executors.running import make_executor
+    from composed_sim.hosting.node_logs import FAILURE_MARK, Console, LogSettings, NodeLogs, node_label, raising_node
     from composed_sim.ros import contract as c
     from composed_sim.ros.answer_subscription import cmd_vel_gids
-    from composed_sim.ros.run_wide import RunWideRelay
-    from composed_sim.ros.run_wide_link import RunWideLink
-    from composed_sim.ros.sim_timers import before_each_tick
+    from composed_sim.hosting.run_wide.relay import RunWideRelay
+    from composed_sim.hosting.run_wide.link import RunWideLink
+    from composed_sim.hosting.sim_timers import before_each_tick
     from composed_sim.world.loader import load_world
 
     world = load_world(args.world)
@@ -90,7 +91,7 @@ def main(argv: list[str] | None = None) -> int:
     # The robot's log file is written here; this process's console is a file nobody reads, so
     # only a failure's traceback goes there (after FAILURE_MARK, for the host to show).
     # The console's part and the /rosout lines go to the simulator with the robot's part of each
-    # tick (ros/run_wide_link.py).
+    # tick (hosting/run_wide/link.py).
     logs = NodeLogs(LogSettings(args.log_dir, args.log_level, rosout=args.rosout), world.tick_ns, forward=True,
                     console=Console(open(os.devnull, "w"))) if args.log_dir else None
     try:
@@ -165,8 +166,7 @@ def main(argv: list[str] | None = None) -> int:
         # ROS node's would; the traceback goes to the robot's log and, marked, to the host.
         node = raising_node(e, nodes)
         if logs is not None and node is not None:
-            logs.exception(args.robot, type(node), node.get_logger().name, e,
-                           skip="/composed_sim/hosts/,/composed_sim/ros/,/rclpy/")
+            logs.exception(args.robot, type(node), node.get_logger().name, e, skip=host_frames())
             tick, _ = logs.now()
             print(f"{FAILURE_MARK} {node_label(type(node))} {type(e).__name__} {tick}",
                   file=sys.stderr, flush=True)
@@ -193,6 +193,16 @@ def main(argv: list[str] | None = None) -> int:
             link.destroy()
         if context.ok():
             rclpy.shutdown(context=context)
+
+
+def host_frames() -> str:
+    """The files of a traceback's leading frames that are the host's or rclpy's executor, not the
+    node's (``NodeLogs.exception``'s ``skip``): this package's hosts, hosting and ros folders."""
+    import composed_sim.hosting
+    import composed_sim.hosts
+    import composed_sim.ros
+    folders = [os.path.dirname(m.__file__) for m in (composed_sim.hosts, composed_sim.hosting, composed_sim.ros)]
+    return ",".join([*(f + os.sep for f in folders), f"{os.sep}rclpy{os.sep}"])
 
 
 class StopRequest:
@@ -230,7 +240,7 @@ def starting_tick(stamp: int, tick_timers, link) -> None:
 def run_until_idle(executor, rounds: int = 1000) -> None:
     """Run what is ready until nothing is: a robot's chain may go on after its answer, and what it
     publishes on run-wide topics belongs to the tick."""
-    from composed_sim.ros.lockstep_executor import LockstepExecutor
+    from composed_sim.hosting.executors.lockstep import LockstepExecutor
     for _ in range(rounds):
         if isinstance(executor, LockstepExecutor):
             if executor.dispatch_ready() == 0:

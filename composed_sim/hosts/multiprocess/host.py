@@ -34,18 +34,20 @@ from rclpy.executors import Executor
 
 from composed_sim.core.simulation import Simulation
 from composed_sim.hosts.host import ControllersElsewhere, SetupInfo
-from composed_sim.hosts.controllers import HostError, check_executor, load_classes, matched, spin_until_shutdown
+from composed_sim.hosting import HostError
+from composed_sim.hosting.building import create_run_wide_nodes, load_classes, matched
+from composed_sim.hosting.executors.running import check_executor, spin_until_shutdown
 from composed_sim.hosts.multiprocess.domains import DomainError, assign_domains
 from composed_sim.hosts.multiprocess.controller_process import GID_PREFIX, RUN_WIDE_PREFIX, TYPE_PREFIX
 from composed_sim.hosts.processes import InterruptWatch, exit_reason, last_words, reap, signal_group
-from composed_sim.hosts.lockstep import NodesExchange
-from composed_sim.hosts.node_logs import failure_from_output
-from composed_sim.hosts.run_wide_nodes import RunWideNodes
+from composed_sim.hosting.nodes_exchange import NodesExchange
+from composed_sim.hosting.node_logs import failure_from_output
+from composed_sim.hosting.run_wide.nodes import RunWideNodes
 from composed_sim.ros import contract as c
-from composed_sim.ros.lockstep_executor import LockstepExecutor
+from composed_sim.hosting.executors.lockstep import LockstepExecutor
 from composed_sim.ros.robot_settings import robot_settings
-from composed_sim.ros.run_wide import RunWideRelay
-from composed_sim.ros.run_wide_link import SimulatorLink
+from composed_sim.hosting.run_wide.relay import RunWideRelay
+from composed_sim.hosting.run_wide.link import SimulatorLink
 from composed_sim.ros.simulator_node import AnswerTypeError, SimulatorNode
 from composed_sim.world.loader import dump_world
 from composed_sim.world.schema import World
@@ -123,7 +125,7 @@ class MultiProcessHost(ControllersElsewhere):
 
     def __init__(self, world: World, *, executor: str = "lockstep", domain_id: int = 0,
                  robots_per_domain: Optional[int] = None, logs=None):
-        """``logs``: a ``NodeLogs`` (hosts/node_logs.py): each child writes its robot's log file
+        """``logs``: a ``NodeLogs`` (hosting/node_logs.py): each child writes its robot's log file
         with its settings; a child's failure shows its traceback here."""
         check_executor(executor)
         self.logs = logs
@@ -175,7 +177,8 @@ class MultiProcessHost(ControllersElsewhere):
                                                **robot_settings(self.world, rows))
                 self._nodes[d].on_failed.append(self._stop_failed)
             if self.world.nodes:
-                self.run_wide = RunWideNodes(self.world, self._contexts[0], classes, self.relay, self.logs)
+                self.run_wide = create_run_wide_nodes(self.world, self._contexts[0], classes=classes,
+                                                      relay=self.relay, logs=self.logs)
             self.exchange = LinkedExchange(self, list(self._nodes.values()), self._check_children)
             with InterruptWatch() as interrupts:
                 self._start_controllers(world_file, interrupts)
@@ -250,7 +253,7 @@ class MultiProcessHost(ControllersElsewhere):
 
     def run_wide_batch(self, tick: int, sent: dict[int, list]) -> list:
         """The batch that opens ``tick``: the run-wide nodes' part of it, then what the robots sent
-        during the tick before, in robot order (ros/run_wide.py)."""
+        during the tick before, in robot order (hosting/run_wide/relay.py)."""
         if self.run_wide is not None:
             if self.logs is not None:
                 self.logs.tick = tick
@@ -405,7 +408,7 @@ class MultiProcessHost(ControllersElsewhere):
 
 class LinkedExchange(NodesExchange):
     """The per-domain simulator nodes, and the run-wide relay between the controller processes
-    (ros/run_wide_link.py): each tick's batch goes to every domain before the tick's sensors, and a
+    (hosting/run_wide/link.py): each tick's batch goes to every domain before the tick's sensors, and a
     tick closes once every robot that publishes run-wide messages has sent its part."""
 
     def __init__(self, host: MultiProcessHost, nodes: list[SimulatorNode], check):

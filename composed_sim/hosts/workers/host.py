@@ -43,13 +43,14 @@ import numpy as np
 from composed_sim.core.senses import Senses
 from composed_sim.core.simulation import Simulation
 from composed_sim.core.violations import FAILED, Violation
-from composed_sim.hosts.controllers import HostError, check_executor
+from composed_sim.hosting import HostError
+from composed_sim.hosting.executors.running import check_executor
 from composed_sim.hosts.host import ControllersElsewhere, SetupInfo
 from composed_sim.hosts.processes import (AdoptedChild, InterruptWatch, become_subreaper, exit_reason, last_words,
                                           reap, signal_group)
 from composed_sim.hosts.workers.shared_state import SharedState
 from composed_sim.hosts.workers.messages import TickAnswers, WorkerSetup
-from composed_sim.ros.participants import run_prefix
+from composed_sim.hosting.participants import run_prefix
 from composed_sim.world.schema import World
 
 STARTUP_TIMEOUT_S = 300.0    # a worker builds hundreds of nodes: minutes at 10 000 robots
@@ -110,7 +111,7 @@ class WorkersExchange:
         self._lockstep = lockstep
         self._tick = 0
         self.tap = None
-        # The run-wide messages that open the next tick (ros/run_wide.py): the workers' parts in
+        # The run-wide messages that open the next tick (hosting/run_wide/relay.py): the workers' parts in
         # worker order, i.e. robot order, the run-wide nodes' (worker 0's) first.
         self.run_wide: list[list] = [[] for _ in workers]
         self._gathering_s = 0.0
@@ -240,7 +241,7 @@ class WorkerHost(ControllersElsewhere):
 
     def __init__(self, world: World, *, workers: int, executor: str = "lockstep", domain_id: int = 0,
                  logs=None):
-        """``logs``: a ``NodeLogs`` (hosts/node_logs.py): the workers write their robots' log files
+        """``logs``: a ``NodeLogs`` (hosting/node_logs.py): the workers write their robots' log files
         with its settings and send it what the console shows."""
         check_executor(executor)
         self.logs = logs

@@ -15,7 +15,7 @@ A worker talks to the main process over its socket (pickled messages,
                     ("tick", tick, routed, changed, batch)  a tick: the world's state is in the
                                                    shared state (shared_state.py); what changed of
                                                    the scene, floor and lights; the run-wide
-                                                   messages that open it (ros/run_wide.py)
+                                                   messages that open it (hosting/run_wide/relay.py)
                     ("clock", tick)                /clock alone, for the state after the last tick
                     ("stop",)                      end now
     worker → main   ("ready", nodes, messages)     discovery done: tick 0 can start; what its nodes
@@ -23,7 +23,7 @@ A worker talks to the main process over its socket (pickled messages,
                     ("error", kind, message, field) the block could not be built
                     ("answers", TickAnswers)       the tick's LEDs, payloads, violations (its
                                                    commands: in the shared state),
-                                                   and its nodes' console lines (hosts/node_logs.py)
+                                                   and its nodes' console lines (hosting/node_logs.py)
 
 Inside, a tick is exactly the single-process host's: the worker reads its block's sensors
 (core/senses.py), its simulator node publishes them, the executor runs the controllers' callbacks until every robot answered or the watchdog

@@ -16,7 +16,7 @@ class WorkerSetup:
     index: int                # the worker's number; its participant group has the same
     executor: str
     domain_id: int
-    participant_prefix: bytes  # the GUID prefix of the worker's one participant (ros/participants.py)
+    participant_prefix: bytes  # the GUID prefix of the worker's one participant (hosting/participants.py)
     scratch_dir: str           # where the worker may write its Fast DDS profile
     shared_state: int          # the descriptor of the world's state in shared memory (shared_state.py)
     logs: Optional[object] = None   # node_logs.LogSettings: its robots' log files are written here
@@ -35,4 +35,4 @@ class TickAnswers:
     another_simulator: Optional[str] = None            # NodesExchange.another_simulator, this tick
     logs: tuple = ()                                   # NodeLogs.drain(): console lines, failures, /rosout
     cpu_s: float = 0.0                                 # the worker's CPU seconds since its first tick
-    node_code_s: float = 0.0                           # of which inside its nodes' own code (ros/node_time.py)
+    node_code_s: float = 0.0                           # of which inside its nodes' own code (hosting/node_time.py)

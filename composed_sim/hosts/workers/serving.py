@@ -18,14 +18,13 @@ import numpy as np
 
 from composed_sim import plugins
 from composed_sim.core.senses import Senses
-from composed_sim.hosts.controllers import HostError
+from composed_sim.hosting import HostError
 from composed_sim.hosts.lockstep import acted_commands
-from composed_sim.hosts.node_logs import NodeLogs
-from composed_sim.hosts.participant_groups import ParticipantGroups
+from composed_sim.hosting.node_logs import NodeLogs
+from composed_sim.hosting.participant_groups import ParticipantGroups
 from composed_sim.hosts.workers.shared_state import SharedState
 from composed_sim.hosts.workers.messages import EXIT_SETUP, TickAnswers
-from composed_sim.ros import node_time
-from composed_sim.ros.participants import use_worker_prefix
+from composed_sim.hosting.participants import use_worker_prefix
 from composed_sim.ros.taps import TapBuffer
 
 
@@ -77,7 +76,7 @@ def serve(fd: int, adopted: Callable[[], None]) -> int:
             if message[0] == "tick":
                 _, tick, route_messages, changed, batch = message
                 if first_tick is None:
-                    first_tick = (time.process_time(), node_time.seconds())
+                    first_tick = (time.process_time(), groups.node_time.seconds)
                 kept.update(changed)
                 frame = senses.frame(shared.inputs(tick, route_messages, **kept), shared.rows(block), block)
                 groups.open_tick(frame.tick, batch)
@@ -98,7 +97,7 @@ def serve(fd: int, adopted: Callable[[], None]) -> int:
                 if logs is not None:
                     answers.logs = logs.drain()
                 answers.cpu_s = time.process_time() - first_tick[0]
-                answers.node_code_s = node_time.seconds() - first_tick[1]
+                answers.node_code_s = groups.node_time.seconds - first_tick[1]
                 conn.send(("answers", answers))
             elif message[0] == "clock":
                 exchange.publish_clock(message[1])

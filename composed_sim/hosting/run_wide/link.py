@@ -1,4 +1,4 @@
-"""The run-wide relay across processes (multi-process mode; ros/run_wide.py is the relay itself).
+"""The run-wide relay across processes (multi-process mode; hosting/run_wide/relay.py is the relay itself).
 
 A controller process has a relay of its own. Its robot's messages of tick k go to the simulator
 on /<robot>/_composed_sim/run_wide, once the robot's nodes have nothing left to do in the tick;
@@ -21,7 +21,7 @@ from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import UInt8MultiArray
 
 from composed_sim.ros.robot_settings import quiet_node_options
-from composed_sim.ros.run_wide import Message, RunWideRelay
+from composed_sim.hosting.run_wide.relay import Message, RunWideRelay
 
 BATCH_TOPIC = "/_composed_sim/run_wide"
 LINK_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)

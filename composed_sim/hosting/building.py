@@ -1,5 +1,6 @@
-"""Building hosted controller nodes and the executor that runs them: shared by the composed host
-and by each controller process of the multi-process host (which therefore imports no physics)."""
+"""Building a robot's hosted nodes, and the world's run-wide nodes, checked against the topic
+contract: shared by the composed host, the worker processes, each controller process of the
+multi-process host and the shards (which therefore import no physics)."""
 from __future__ import annotations
 
 import sys
@@ -7,43 +8,24 @@ from dataclasses import dataclass
 from typing import Collection, Container, Mapping, Optional, Sequence
 
 from rclpy.context import Context
-from rclpy.executors import Executor, ExternalShutdownException, MultiThreadedExecutor, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.type_description_service import START_TYPE_DESCRIPTION_SERVICE_PARAM
 
 from composed_sim import plugins
-from composed_sim.hosts.choices import EXECUTORS
-from composed_sim.hosts.node_logs import NodeLogs
+from composed_sim.hosting import HostError
+from composed_sim.hosting.node_logs import NodeLogs
 from composed_sim.interfaces import InterfaceError, activate
 from composed_sim.ros import contract as c
 from composed_sim.world.robot_models import RANGE_AND_BEARING, get_model
 from composed_sim.ros.controller import (PARAM_RAB_PAYLOAD_BYTES, PARAM_ROBOT_MODEL, PARAM_RUN_SEED,
                                          PARAM_SENSOR_TOPICS)
-from composed_sim.ros.lockstep_executor import LockstepExecutor
-from composed_sim.ros.node_options import HostedNodeOptions, construct
-from composed_sim.ros.run_wide import RUN_WIDE_ORIGIN, RunWideRelay
-from composed_sim.ros.sim_timers import SimTimers
+from composed_sim.hosting.node_options import HostedNodeOptions, construct
+from composed_sim.hosting.run_wide.nodes import RunWideNodes
+from composed_sim.hosting.run_wide.relay import RUN_WIDE_ORIGIN, RunWideRelay
+from composed_sim.hosting.sim_timers import SimTimers
 from composed_sim.world.loader import format_path
 from composed_sim.world.schema import NodeSpec, RobotGroup, World
-
-
-
-class HostError(Exception):
-    """The host cannot start: the message says what and why."""
-
-
-def check_executor(kind: str) -> None:
-    if kind not in EXECUTORS:
-        raise HostError(f"unknown executor {kind!r}; choose one of {', '.join(EXECUTORS)}")
-
-
-def spin_until_shutdown(executor: Executor) -> None:
-    """An executor's spin() for a background thread: ends quietly when the executor is shut down."""
-    try:
-        executor.spin()
-    except ExternalShutdownException:
-        pass
 
 
 def matched(endpoint) -> bool:
@@ -61,18 +43,6 @@ def contract_endpoints(nodes: Sequence[Node], robot: str) -> list:
     and the parameter/rosout plumbing are not the simulator's business)."""
     topics = {c.topic_name(robot, t) for t in c.SENSOR_TOPICS + c.ACTUATOR_TOPICS} | {c.CLOCK_TOPIC}
     return [e for node in nodes for e in list(node.publishers) + list(node.subscriptions) if e.topic_name in topics]
-
-
-def make_executor(kind: str, context: Context) -> Executor:
-    if kind == "multi-threaded":
-        return MultiThreadedExecutor(context=context)
-    if kind == "single-threaded":
-        return SingleThreadedExecutor(context=context)
-    if kind == "events":
-        from rclpy.experimental import EventsExecutor
-        return EventsExecutor(context=context)
-    check_executor(kind)
-    return LockstepExecutor(context=context)
 
 
 def controller_parameters(world: World, group_index: int) -> list[Parameter]:
@@ -113,7 +83,7 @@ class BuiltNodes:
     """One robot's nodes (or the run-wide ones), built and checked, in the world file's order."""
     nodes: list[Node]
     # The timers of the nodes that do not follow the robot's sensors: the host moves them to each
-    # tick's time (ros/sim_timers.py).
+    # tick's time (hosting/sim_timers.py).
     tick_timers: list[SimTimers]
 
 
@@ -135,12 +105,12 @@ def create_robot_nodes(world: World, group_index: int, name: str, context: Conte
                        origin: int = 0, use_sim_time: bool = False, robots: Optional[Container[str]] = None,
                        clock_from_stamps: bool = False, logs: Optional[NodeLogs] = None) -> BuiltNodes:
     """Build robot ``name``'s nodes (its group's ``node_specs``) in its namespace, with their
-    timers on sim time (ros/sim_timers.py), their run-wide topics through ``relay`` (``origin``:
+    timers on sim time (hosting/sim_timers.py), their run-wide topics through ``relay`` (``origin``:
     the robot's index in the run), and check the world's parameters exist and the cmd_vel type.
     ``robots``: every robot's name (a set; computed from ``world`` when not given).
     ``clock_from_stamps``: the nodes' clocks follow a /clock that may arrive after the sensors (another
     process than the simulator's): a sensor stamp ahead of it moves it (``use_sim_time`` implies it).
-    ``logs``: where the nodes' log lines go (``<robot>.log``, hosts/node_logs.py); rclpy's loggers without."""
+    ``logs``: where the nodes' log lines go (``<robot>.log``, hosting/node_logs.py); rclpy's loggers without."""
     group = world.robots[group_index]
     robots = frozenset(world.robot_names()) if robots is None else robots
     sensors = [c.topic_name(name, t) for t in c.robot_topics(group.devices.published(get_model(group.model)))
@@ -189,7 +159,7 @@ def create_robot_nodes(world: World, group_index: int, name: str, context: Conte
 
 
 def create_run_wide_nodes(world: World, context: Context, *, classes: Mapping[str, type[Node]],
-                          relay: RunWideRelay, logs: Optional[NodeLogs] = None) -> BuiltNodes:
+                          relay: RunWideRelay, logs: Optional[NodeLogs] = None) -> RunWideNodes:
     """Build the world's run-wide nodes (``world.nodes``) outside every robot's namespace, their
     timers on sim time, moved to each tick's time by the host; their run-wide topics through ``relay``;
     their log lines to ``logs`` (``<node>.log``)."""
@@ -208,7 +178,7 @@ def create_run_wide_nodes(world: World, context: Context, *, classes: Mapping[st
         for node in built.nodes:
             node.destroy_node()
         raise
-    return built
+    return RunWideNodes(built.nodes, built.tick_timers, world.tick_ns, context)
 
 
 def hosted_logger(logs: Optional[NodeLogs], owner: Optional[str]):
@@ -253,7 +223,7 @@ def wiring_problem(nodes: Sequence[Node], robot: str, sensors: Sequence[str],
     publishes its cmd_vel, none subscribes to one of its sensor topics, or one subscribes to a
     robot topic that nobody publishes (a sensor its model lacks, a misspelt name). The message
     names what the robot has and the closest name. ``run_wide``: the topics outside the robots'
-    namespaces the nodes publish (ros/run_wide.py)."""
+    namespaces the nodes publish (hosting/run_wide/relay.py)."""
     published = {p.topic_name for node in nodes for p in node.publishers} | set(run_wide)
     subscribed = [(node, s.topic_name, s.msg_type) for node in nodes for s in node.subscriptions]
     sensor_types = {t: c.msg_type(c.TOPICS[t.rsplit("/", 1)[1]]) for t in sensors}

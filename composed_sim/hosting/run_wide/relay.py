@@ -17,7 +17,7 @@ host mode and worker layout (docs/contract.md, "Run-wide topics"):
 
 The relay of each process keeps that process's subscribers and collects its publishers'
 messages; the host moves the batches between processes (worker processes: with each tick's frame
-and answers; controller processes: over DDS, ros/run_wide_link.py). Messages travel as their CDR
+and answers; controller processes: over DDS, hosting/run_wide/link.py). Messages travel as their CDR
 bytes.
 """
 from __future__ import annotations

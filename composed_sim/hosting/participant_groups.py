@@ -3,7 +3,7 @@
 A participant group is one rclpy Context (one DDS participant) holding a SimulatorNode for up to
 ``robots_per_participant`` robots and those robots' controller nodes. A group's topics are its
 robots' own, so it is self-contained, and the participants of one process ignore one another
-(ros/participants.py): Fast DDS's endpoint matching, quadratic in a participant's endpoints,
+(hosting/participants.py): Fast DDS's endpoint matching, quadratic in a participant's endpoints,
 then costs O(E²/K) instead of O(E²). Processes outside still discover every group.
 
 The single-process composed host holds every robot's groups; each worker process of the worker
@@ -26,22 +26,25 @@ from rclpy.node import Node
 
 from composed_sim.core.simulation import SensorFrame
 from composed_sim.world.robot_models import get_model
-from composed_sim.hosts.callback_guard import CallbackGuard, refuse_shutdown_from_callbacks
-from composed_sim.hosts.choices import ROBOTS_PER_PARTICIPANT
-from composed_sim.hosts.controllers import (HostError, answer_type, check_executor, create_robot_nodes, load_classes,
-                                             make_executor, spin_until_shutdown)
-from composed_sim.hosts.lockstep import NodesExchange
-from composed_sim.hosts.node_logs import NodeLogs
-from composed_sim.hosts.run_wide_nodes import SETTLE_ROUNDS, RunWideNodes
+from composed_sim.hosting import callback_guard
+from composed_sim.hosting.callback_guard import CallbackGuard, refuse_shutdown_from_callbacks
+from composed_sim.hosting.options import ROBOTS_PER_PARTICIPANT
+from composed_sim.hosting import HostError
+from composed_sim.hosting.building import answer_type, create_robot_nodes, create_run_wide_nodes, load_classes
+from composed_sim.hosting.executors.running import check_executor, make_executor, spin_until_shutdown
+from composed_sim.hosting.node_logs import NodeLogs
+from composed_sim.hosting.node_time import NodeTime
+from composed_sim.hosting.nodes_exchange import NodesExchange
+from composed_sim.hosting.run_wide.nodes import SETTLE_ROUNDS, RunWideNodes
 from composed_sim.ros import contract as c
 from composed_sim.ros.answer_subscription import cmd_vel_gids, publisher_gid
 from composed_sim.ros import in_process
 from composed_sim.ros.in_process import GraphWatch, Link, inbox_of, link_answers, link_subscriptions
-from composed_sim.ros.lockstep_executor import LockstepExecutor
-from composed_sim.ros.participants import ignore_participants_of_this_process
+from composed_sim.hosting.executors.lockstep import LockstepExecutor
+from composed_sim.hosting.participants import ignore_participants_of_this_process
 from composed_sim.ros.rcl_graph import GraphChanges
 from composed_sim.ros.robot_settings import robot_settings
-from composed_sim.ros.run_wide import Message, RunWideRelay
+from composed_sim.hosting.run_wide.relay import Message, RunWideRelay
 from composed_sim.ros.simulator_node import AnswerTypeError, SimulatorNode
 from composed_sim.world.schema import World
 
@@ -65,7 +68,7 @@ class ParticipantGroups:
                  logs: Optional[NodeLogs] = None):
         """``first_group``: the number of this block's first participant group in the run (the
         block of robot 0 has group 0, which publishes /clock). ``logs``: where the nodes' log lines
-        and the tracebacks of their failing callbacks go (hosts/node_logs.py)."""
+        and the tracebacks of their failing callbacks go (hosting/node_logs.py)."""
         check_executor(executor)
         if robots_per_participant < 1:
             raise HostError(f"robots per participant must be at least 1, got {robots_per_participant}")
@@ -92,6 +95,7 @@ class ParticipantGroups:
         self.graph_changes: Optional[GraphChanges] = None   # what tells them the graph changed
         self.executor: Optional[Executor] = None
         self.guard: Optional[CallbackGuard] = None
+        self.node_time = NodeTime()                         # CPU seconds in the nodes' own code
         self._spin_thread: Optional[threading.Thread] = None
 
     def __enter__(self) -> "ParticipantGroups":
@@ -107,11 +111,11 @@ class ParticipantGroups:
         classes = load_classes(world)
         ignore_participants_of_this_process()
         lockstep = world.lockstep
-        self.guard = CallbackGuard(lockstep.watchdog_s, lockstep.unresponsive_s)
+        self.guard = CallbackGuard(lockstep.watchdog_s, lockstep.unresponsive_s, self.node_time)
         logs = self.logs
         if logs is not None:
             self.guard.on_exception = lambda robot, node, error: logs.exception(
-                robot, type(node), node.get_logger().name, error, skip="hosts/callback_guard.py")
+                robot, type(node), node.get_logger().name, error, skip=callback_guard.__file__)
         names, groups = world.robot_names(), world.group_of_robot()
         robots = frozenset(names)
         first_robots = []                    # per group: the index of its first robot in robot_nodes
@@ -123,7 +127,7 @@ class ParticipantGroups:
             self.contexts.append(context)
             group = self.first_group + k
             if group == 0 and world.nodes:    # first: they are delivered to before the robots
-                self.run_wide = RunWideNodes(world, context, classes, self.relay, logs)
+                self.run_wide = create_run_wide_nodes(world, context, classes=classes, relay=self.relay, logs=logs)
             # The nodes first: the simulator node subscribes to each robot's cmd_vel with the
             # type its nodes publish (one participant allows one type per topic).
             first_robot = len(self.robot_nodes)
@@ -150,7 +154,7 @@ class ParticipantGroups:
                 for node in nodes:
                     self.guard.guard(node, names[i], sim_node, self.relay.subscriptions_of(node))
                     sim_node.drive_clock_of(node)
-        self.exchange = NodesExchange(self.simulator_nodes)
+        self.exchange = NodesExchange(self.simulator_nodes, node_time=self.node_time)
         self._quiet_robots = any(node.when_published.any() for node in self.simulator_nodes)
         self.executor = make_executor(self.executor_kind, self.contexts[0])
         # Simulator nodes last, so that the lockstep executor's one ordered pass runs every
@@ -205,7 +209,7 @@ class ParticipantGroups:
                                for k, (links, inboxes) in enumerate(watched)]
         self.executor.wake()     # its walk picks the inboxes up
 
-    # --- run-wide topics, at the tick's edges (ros/run_wide.py) --------------------------------
+    # --- run-wide topics, at the tick's edges (hosting/run_wide/relay.py) --------------------------------
 
     def open_tick(self, tick: int, batch: list[Message]) -> None:
         """Before tick ``tick``'s sensors: the nodes' timers that do not wait for sensors move to
@@ -398,11 +402,11 @@ class ParticipantGroups:
 
 class RelayingExchange(NodesExchange):
     """The simulator nodes of every robot's participant groups (the composed host's), and their
-    run-wide relay: each tick opens with the run-wide messages of the tick before (ros/run_wide.py).
+    run-wide relay: each tick opens with the run-wide messages of the tick before (hosting/run_wide/relay.py).
     A worker process does the same steps itself, its batches coming from the main process."""
 
     def __init__(self, groups: ParticipantGroups):
-        super().__init__(groups.simulator_nodes)
+        super().__init__(groups.simulator_nodes, node_time=groups.node_time)
         self._groups = groups
         self._batch: Optional[list[Message]] = None     # what opens the next tick
         self._tick = 0

@@ -107,7 +107,7 @@ class LockstepExecutor(SingleThreadedExecutor):
         if entities is None:
             # What a walk needs of each entity, resolved once (properties cost a call each): per
             # node its subscriptions, then its timers. A timer on sim time is due only after its
-            # robot's sensor callbacks of the tick (ros/sim_timers.py), which the walk has just run:
+            # robot's sensor callbacks of the tick (hosting/sim_timers.py), which the walk has just run:
             # its answer is then taken by the simulator node later in the same walk, as an answer
             # published from a sensor callback is.
             message_only = Subscription.CallbackType.MessageOnly

@@ -3,7 +3,7 @@
 They live in one participant of the process that publishes /clock, outside every robot's
 namespace, and the host drives them itself at the start of each tick, with a lockstep executor
 of their own whatever the robots' executor: their timers due by the tick's time fire, and what
-they have to handle runs, before the tick's run-wide batch goes out (ros/run_wide.py). So a start
+they have to handle runs, before the tick's run-wide batch goes out (hosting/run_wide/relay.py). So a start
 command that a run-wide node publishes at tick 0 reaches every robot before its tick-0 sensors.
 """
 from __future__ import annotations
@@ -12,36 +12,35 @@ from rclpy.context import Context
 from rclpy.node import Node
 from rclpy.time import Time
 
-from composed_sim.hosts.controllers import create_run_wide_nodes
-from composed_sim.ros.lockstep_executor import LockstepExecutor
-from composed_sim.ros.run_wide import RunWideRelay
-from composed_sim.world.schema import World
+from composed_sim.hosting.executors.lockstep import LockstepExecutor
+from composed_sim.hosting.sim_timers import SimTimers
 
 SETTLE_ROUNDS = 1000        # bound on the walks that run what is left to do (a busy node cannot hang a tick)
 
 
 class RunWideNodes:
-    def __init__(self, world: World, context: Context, classes: dict[str, type[Node]], relay: RunWideRelay,
-                 logs=None):
-        self._tick_ns = world.tick_ns
-        self._built = create_run_wide_nodes(world, context, classes=classes, relay=relay, logs=logs)
+    """The run-wide nodes built (``building.create_run_wide_nodes``), their timers, their executor."""
+
+    def __init__(self, nodes: list[Node], tick_timers: list[SimTimers], tick_ns: int, context: Context):
+        self._tick_ns = tick_ns
+        self._nodes, self._tick_timers = nodes, tick_timers
         self._executor = LockstepExecutor(context=context)
-        for node in self._built.nodes:
+        for node in nodes:
             node.get_clock()._set_ros_time_is_active(True)
             self._executor.add_node(node)
 
     @property
     def nodes(self) -> list[Node]:
-        return self._built.nodes
+        return self._nodes
 
     def start_tick(self, tick: int) -> None:
         """Their part of tick ``tick``: the clock moves to the tick's time, their timers due by then
         fire, and whatever is ready runs until nothing is."""
         now_ns = tick * self._tick_ns
         now = Time(nanoseconds=now_ns)
-        for node in self._built.nodes:
+        for node in self._nodes:
             node.get_clock().set_ros_time_override(now)
-        for timers in self._built.tick_timers:
+        for timers in self._tick_timers:
             timers.advance_to(now_ns)
         for _ in range(SETTLE_ROUNDS):
             if self._executor.dispatch_ready() == 0:
@@ -49,5 +48,5 @@ class RunWideNodes:
 
     def destroy(self) -> None:
         self._executor.shutdown()
-        for node in self._built.nodes:
+        for node in self._nodes:
             node.destroy_node()

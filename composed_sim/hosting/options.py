@@ -2,7 +2,7 @@
 
 EXECUTORS = ("lockstep", "events", "single-threaded", "multi-threaded")
 MODES = ("composed", "multi-process")
-# Composed mode in one process: robots per DDS participant (hosts/participant_groups.py). Set-up
+# Composed mode in one process: robots per DDS participant (hosting/participant_groups.py). Set-up
 # costs about this × N; each participant costs its threads and ports: docs/speed.md has the
 # measurements.
 ROBOTS_PER_PARTICIPANT = 80

@@ -30,7 +30,7 @@ class HostedNodeOptions:
     parameters: Sequence[Parameter] = ()             # over those of the parameters file
     params_file: Optional[str] = None                # a ROS 2 parameters file (rcl reads it)
     remappings: Mapping[str, str] = field(default_factory=dict)
-    # The node's logger instead of rclpy's (hosts/node_logs.py), installed as soon as
+    # The node's logger instead of rclpy's (hosting/node_logs.py), installed as soon as
     # Node.__init__ returns, so that the rest of the constructor logs through it too.
     logger: Optional[Callable[[Node], object]] = None
 

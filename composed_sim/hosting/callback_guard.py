@@ -21,7 +21,7 @@ subscription and timer callbacks:
   blocked forever inside C keeps its worker thread).
 - a failed robot's callbacks are not run any more;
 - ``on_exception(robot, node, error)``, when set, gets the exception that failed a robot (its
-  traceback goes to the robot's log, hosts/node_logs.py).
+  traceback goes to the robot's log, hosting/node_logs.py).
 """
 from __future__ import annotations
 
@@ -30,14 +30,32 @@ import ctypes
 import signal
 import threading
 import time
-from typing import Callable, Optional, Sequence
+from typing import Callable, Optional, Protocol, Sequence, runtime_checkable
 
+import numpy as np
 from rclpy.node import Node
 from rclpy.subscription import Subscription
 
-from composed_sim.ros import node_time
-from composed_sim.ros.controller import SwarmController
-from composed_sim.ros.simulator_node import SimulatorNode
+from composed_sim.hosting.node_time import NodeTime
+
+
+class ServedRobots(Protocol):
+    """What the guard asks of the simulator node that serves a robot (ros/simulator_node.py)."""
+    failed: np.ndarray                  # [n] bool, per row
+
+    def row_of(self, robot: str) -> int: ...
+    def mark_failed(self, robot: str, reason: str) -> None: ...
+    def reject_answer(self, robot: str, reason: str) -> None: ...
+
+
+@runtime_checkable
+class BatchingNode(Protocol):
+    """A node that takes a tick's sensor messages in one call and times its own code itself
+    (ros/controller.py's ``SwarmController``): the guard wraps that call too."""
+    lockstep_batch: Optional[tuple]
+    node_time: Optional[NodeTime]
+
+    def sensor_batch(self) -> tuple[tuple, Callable[[list], None]]: ...
 
 
 class ControllerHung(BaseException):
@@ -46,7 +64,9 @@ class ControllerHung(BaseException):
 
 
 class CallbackGuard:
-    def __init__(self, watchdog_s: float, unresponsive_s: float):
+    def __init__(self, watchdog_s: float, unresponsive_s: float, node_time: NodeTime):
+        """``node_time``: where the CPU time of the nodes' own code goes (node_time.py)."""
+        self.node_time = node_time
         self._watchdog_s = watchdog_s
         self._unresponsive_s = unresponsive_s
         self._running: Optional[str] = None            # robot whose callback runs in the main thread
@@ -60,23 +80,26 @@ class CallbackGuard:
         self._depth = threading.local()                # per worker thread: inside a guarded callback?
         self.on_exception: Optional[Callable[[str, Node, BaseException], None]] = None
 
-    def guard(self, node: Node, robot: str, sim_node: SimulatorNode, relayed: Sequence = ()) -> None:
+    def guard(self, node: Node, robot: str, sim_node: ServedRobots, relayed: Sequence = ()) -> None:
         """Wrap the callbacks of every subscription and timer ``node`` has (a controller creates
         them in its constructor), and of its subscriptions on run-wide topics (``relayed``,
-        ros/run_wide.py); ``sim_node`` serves ``robot``."""
+        hosting/run_wide/relay.py); ``sim_node`` serves ``robot``."""
         for sub in (*node.subscriptions, *relayed):
             with_info = sub._callback_type is Subscription.CallbackType.WithMessageInfo
             sub.callback = self._wrap(sub.callback, node, robot, sim_node, with_info)
         for timer in node.timers:
             timer.callback = self._wrap(timer.callback, node, robot, sim_node, False, arity=0)
-        if isinstance(node, SwarmController):   # its sensors' messages in one call (ros/controller.py)
-            node.lockstep_batch = (node._sensor_subscriptions, self._wrap(node._on_sensors, node, robot, sim_node, False))
+        if isinstance(node, BatchingNode):   # its sensors' messages in one call (ros/controller.py)
+            subscriptions, on_sensors = node.sensor_batch()
+            node.lockstep_batch = (subscriptions, self._wrap(on_sensors, node, robot, sim_node, False))
+            node.node_time = self.node_time
 
-    def _wrap(self, callback: Callable, node: Node, robot: str, sim_node: SimulatorNode, with_info: bool,
+    def _wrap(self, callback: Callable, node: Node, robot: str, sim_node: ServedRobots, with_info: bool,
               arity: int = 1) -> Callable:
         failed = sim_node.failed         # shared, read-only here
-        # The base class times its subclass's own code itself (ros/node_time.py).
-        own_time = not isinstance(node, SwarmController)
+        # The base class times its subclass's own code itself (hosting/node_time.py).
+        own_time = not isinstance(node, BatchingNode)
+        node_time = self.node_time
         row = sim_node.row_of(robot)
         calls_of = self.calls_of
 
