@@ -210,9 +210,9 @@ def test_paper_results_ship_with_the_package_and_average_the_trials():
 
 
 def test_the_rclpy_floor_makes_the_exchange_calls_and_finds_every_message(domain_id):
-    """python -m composed_sim.rclpy_floor: the flocking exchange's rclpy calls alone, per size; it
+    """python -m composed_sim.bench.rclpy_floor: the flocking exchange's rclpy calls alone, per size; it
     fails if a take comes back empty (then it would not be what composed mode does)."""
-    r = subprocess.run([sys.executable, "-m", "composed_sim.rclpy_floor", "--robots", "3,5", "--ticks", "5",
+    r = subprocess.run([sys.executable, "-m", "composed_sim.bench.rclpy_floor", "--robots", "3,5", "--ticks", "5",
                         "--domain-id", str(domain_id)], capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, r.stderr[-2000:]
     rows = [json.loads(line) for line in r.stdout.splitlines()]

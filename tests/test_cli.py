@@ -216,7 +216,7 @@ def _wait_for_ticks(domain_id: int, proc: subprocess.Popen, ticks: int) -> None:
 
 
 def test_sigterm_stops_at_a_tick_boundary_and_keeps_results_and_recording(tmp_path, domain_id):
-    from composed_sim.recording import read_recording
+    from composed_sim.outputs.recording import read_recording
 
     out, bag = tmp_path / "out", tmp_path / "bag"
     run = subprocess.Popen([sys.executable, "-m", "composed_sim.cli", "run", str(FLOCKING), "--robots", "5",

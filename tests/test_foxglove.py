@@ -14,8 +14,8 @@ from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import LaserScan
 from visualization_msgs.msg import MarkerArray
 
-from composed_sim.observers import Scene
-from composed_sim.ros.markers import world_shapes
+from composed_sim.live.observers import Scene
+from composed_sim.live.markers import world_shapes
 from composed_sim.world.loader import load_world
 from composed_sim.world.robot_models import get_model
 from foxglove_client import channels, free_port, open_connection, receive_until_closed, subscribe

@@ -155,7 +155,7 @@ def test_recorded_messages_carry_their_definition_for_rosbags(activated, tmp_pat
     message back from the bag alone."""
     from rosbags.rosbag2 import Reader
     from rosbags.typesys import Stores, get_types_from_msg, get_typestore
-    from composed_sim.recording import BagRecorder
+    from composed_sim.outputs.recording import BagRecorder
     from cs_test_msgs.msg import Opinion
 
     sent = Opinion(robot=5, weights=[0.0, 1.0, 0.0], history=[3.0], note="right")

@@ -83,6 +83,19 @@ def test_a_raising_node_shows_its_traceback_once_and_every_robot_keeps_its_log(t
                      r"'battery low on bot\d'", err), err
 
 
+@pytest.mark.parametrize("mode", list(MODES))
+def test_a_traceback_starts_at_the_nodes_own_code(tmp_path, mode, mp_domain):
+    """The host's frames before the node's (the callback guard, the sim timers, a controller
+    process's executor loop) are left out, by the paths of the files they are in."""
+    world = chat_world(tmp_path, robots=2, ticks=7, raise_robots="bot1", raise_at=5)
+    domain = ["--domain-id", str(mp_domain)] if mode == "multi-process" else []
+    run = cli("run", world, "--out", tmp_path / "out", "--no-progress", "--no-picture", *MODES[mode], *domain)
+    assert run.returncode == 0, run.stderr
+    for text in (run.stderr, (tmp_path / "out" / "logs" / "bot1.log").read_text()):
+        first_frame = text.split("Traceback (most recent call last):\n", 1)[1].splitlines()[0]
+        assert first_frame.strip().startswith(f'File "{PLUGINS / "chatty.py"}"'), text
+
+
 def test_fail_fast_stops_at_the_first_failure_with_exit_1(tmp_path):
     out = tmp_path / "out"
     world = chat_world(tmp_path, ticks=30, raise_robots="bot2", raise_at=4, log_every_scan=False)

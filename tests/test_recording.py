@@ -10,11 +10,11 @@ from rosbags.rosbag2 import Reader
 from rosbags.typesys import Stores, get_typestore, get_types_from_msg
 from visualization_msgs.msg import Marker, MarkerArray
 
-from composed_sim.recording import (CLOCK_TOPIC, FRAME_ID, STATE_DTYPE, SWARM_STATE_TOPIC,
+from composed_sim.outputs.recording import (CLOCK_TOPIC, FRAME_ID, STATE_DTYPE, SWARM_STATE_TOPIC,
                                     BagRecorder, RecordingError, display_colors, read_recording,
                                     read_swarm_states)
 from composed_sim.ros.contract import led_message, stamp_of, twist_stamped
-from composed_sim.ros.markers import swarm_markers, swarm_markers_cdr
+from composed_sim.live.markers import swarm_markers, swarm_markers_cdr
 from composed_sim.world.loader import world_from_dict
 
 NAMES = ["bot0", "bot1", "bot2"]

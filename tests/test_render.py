@@ -6,7 +6,7 @@ import imageio.v3 as iio
 import numpy as np
 import pytest
 
-from composed_sim.render import DEFAULT_COLOR, render
+from composed_sim.outputs.render import DEFAULT_COLOR, render
 from composed_sim.world.loader import world_from_dict
 
 N, T = 12, 30

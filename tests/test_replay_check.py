@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from composed_sim.recording import BagRecorder, read_recording
+from composed_sim.outputs.recording import BagRecorder, read_recording
 
 ROOT = Path(__file__).resolve().parents[1]
 FLOCKING = ROOT / "worlds" / "flocking.yaml"

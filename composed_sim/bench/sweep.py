@@ -192,7 +192,7 @@ def _round(v, digits: int):
 def machine_info() -> dict:
     import psutil
 
-    from composed_sim.results import versions
+    from composed_sim.outputs.results import versions
     model = None
     try:
         with open("/proc/cpuinfo") as f:

@@ -21,7 +21,7 @@ def cmd_plugins() -> int:
 
 
 def cmd_export(args) -> int:
-    from composed_sim.export import ExportError, export_table
+    from composed_sim.outputs.export import ExportError, export_table
     out = args.out or args.results / f"trajectories.{args.format}"
     try:
         rows = export_table(args.results, out, args.format)
@@ -32,7 +32,7 @@ def cmd_export(args) -> int:
 
 
 def cmd_render(args) -> int:
-    from composed_sim.render import render
+    from composed_sim.outputs.render import render
     out = _render_target(args.out)
     traj, world, leds, tick_s = _load_results_or_recording(args.source)
     frames = render(traj, world, out, led_colors=leds, fps=args.fps, size_px=args.size,
@@ -42,7 +42,7 @@ def cmd_render(args) -> int:
 
 
 def cmd_bag_repair(args) -> int:
-    from composed_sim.bag_repair import is_unfinished
+    from composed_sim.outputs.bag_repair import is_unfinished
     if not is_unfinished(args.recording) and (args.recording / "metadata.yaml").exists():
         rec = _read_recording(args.recording)
         print(f"{args.recording}: complete already (ticks 0…{rec.ticks_done}): nothing to repair")
@@ -53,8 +53,8 @@ def cmd_bag_repair(args) -> int:
 
 def _repair(path: Path):
     """What the repair of an unfinished recording recovered; a UserError when it cannot."""
-    from composed_sim.bag_repair import repair
-    from composed_sim.recording import RecordingError
+    from composed_sim.outputs.bag_repair import repair
+    from composed_sim.outputs.recording import RecordingError
     try:
         return repair(path)
     except RecordingError as e:
@@ -64,8 +64,8 @@ def _repair(path: Path):
 
 
 def cmd_replay(args) -> int:
-    from composed_sim.bag_repair import is_unfinished
-    from composed_sim.render import render
+    from composed_sim.outputs.bag_repair import is_unfinished
+    from composed_sim.outputs.render import render
     out = _render_target(args.out) if args.out else None
     if is_unfinished(args.recording):       # its run was killed: what it left is repaired first
         print(f"composed-sim: {_repair(args.recording)} (the recording had not been closed: its run was killed)",
@@ -139,7 +139,7 @@ def _render_target(out: Path) -> Path:
 
 
 def _read_recording(path: Path):
-    from composed_sim.recording import RecordingError, read_recording
+    from composed_sim.outputs.recording import RecordingError, read_recording
     try:
         return read_recording(path)
     except (RecordingError, FileNotFoundError, NotADirectoryError) as e:
@@ -148,7 +148,7 @@ def _read_recording(path: Path):
 
 def _load_results_or_recording(source: Path):
     """(trajectories, world, led colours [T+1, n, 3] or None, tick_s) from either kind of directory."""
-    from composed_sim.results import TRAJECTORIES, WORLD, load_trajectories
+    from composed_sim.outputs.results import TRAJECTORIES, WORLD, load_trajectories
     from composed_sim.world.loader import WorldFileError, load_world
     if (source / "metadata.yaml").exists():
         rec = _read_recording(source)

@@ -22,7 +22,7 @@ def cmd_run(args) -> int:
     from composed_sim.hosts.domain_claim import DomainTaken, claim_domains, claim_free_domain, run_identity
     from composed_sim.hosting.node_logs import LEVELS, Console, LogSettings, NodeLogs
     from composed_sim.hosts.workers.host import WorkerHost, auto_workers
-    from composed_sim.results import summarize, write_results
+    from composed_sim.outputs.results import summarize, write_results
 
     world = load_any_world(args)
     lockstep = {k: v for k, v in (("watchdog_s", args.watchdog), ("fallback", args.fallback)) if v is not None}
@@ -40,7 +40,7 @@ def cmd_run(args) -> int:
     if (args.foxglove_topics or args.wait_for_viewer) and args.foxglove is None:
         raise UserError("--foxglove-topics and --wait-for-viewer: need --foxglove")
     if args.foxglove is not None:
-        from composed_sim.foxglove_server import parse_address
+        from composed_sim.live.foxglove_server import parse_address
         try:
             args.foxglove = parse_address(args.foxglove)
         except ValueError as e:
@@ -141,8 +141,8 @@ DISK_FULL = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)
 
 def _disk_full_line(args, error: OSError) -> str:
     """One line: the file that could not be written, the tick reached, what is kept."""
-    from composed_sim.bag_repair import is_unfinished
-    from composed_sim.results import SUMMARY
+    from composed_sim.outputs.bag_repair import is_unfinished
+    from composed_sim.outputs.results import SUMMARY
     partial = getattr(error, "partial_result", None)
     stopped = f" at tick {partial.trajectories.ticks_done}" if partial is not None else ""
     try:
@@ -261,20 +261,20 @@ def _write_if_room(finish, partial) -> None:
 def _run_observers(args, world, host, outputs: contextlib.ExitStack, interrupts, logs) -> list:
     """The recording, live markers, the Foxglove server and pacing asked for on the command
     line, as tick observers (in that order: a tick is shown before the pause after it)."""
-    from composed_sim.observers import MarkerObserver, RecordingObserver, Scene
+    from composed_sim.live.observers import MarkerObserver, RecordingObserver, Scene
     from composed_sim.ros.taps import Taps
 
     observers, taps = [], []
     scene = Scene(host.sim, world.tick_ns)
     recorder = None
     if args.record is not None:
-        from composed_sim.recording import BagRecorder
+        from composed_sim.outputs.recording import BagRecorder
         recorder = outputs.enter_context(BagRecorder(args.record, robot_names=host.sim.names, tick_s=world.tick_s,
                                                      topics_globs=args.record_topics, world=world))
         interrupts.on_second = recorder.close_if_idle   # even a hard quit leaves a readable bag
         recorder.set_custom("executor", args.executor)  # what `replay --check` re-simulates with
         observers.append(RecordingObserver(recorder, scene))
-        from composed_sim.observers import RosoutObserver
+        from composed_sim.live.observers import RosoutObserver
         observers.append(RosoutObserver(recorder, logs))
         if args.record_topics:
             _warn_unmatched_globs(args.record_topics, world, "--record-topics")
@@ -282,7 +282,7 @@ def _run_observers(args, world, host, outputs: contextlib.ExitStack, interrupts,
     if args.markers:
         observers.append(MarkerObserver(host.observer_node(), scene))
     if args.foxglove is not None:
-        from composed_sim.foxglove_server import FoxgloveError, FoxgloveServer
+        from composed_sim.live.foxglove_server import FoxgloveError, FoxgloveServer
         try:
             server = FoxgloveServer(scene, args.foxglove, dict(_run_topics(world)), args.foxglove_topics,
                                     wait_for_viewer_s=args.wait_for_viewer)
@@ -297,7 +297,7 @@ def _run_observers(args, world, host, outputs: contextlib.ExitStack, interrupts,
     if taps:
         host.set_message_tap(Taps(taps))
     if args.rate is not None:
-        from composed_sim.pacing import Pacer
+        from composed_sim.live.pacing import Pacer
         observers.append(Pacer(args.rate, world.tick_s))
     return observers
 

@@ -31,8 +31,8 @@ def ticks_wall_s(robots: int, ticks: int, foxglove: bool) -> float:
 def in_process_ratio(robots: int, ticks: int) -> float:
     """(step + on_tick) / step over ``ticks`` ticks, each part timed on its own."""
     from composed_sim.core.simulation import Simulation
-    from composed_sim.foxglove_server import FoxgloveServer
-    from composed_sim.observers import Scene
+    from composed_sim.live.foxglove_server import FoxgloveServer
+    from composed_sim.live.observers import Scene
     from composed_sim.world.loader import load_world
     world = load_world(ROOT / "worlds" / "flocking.yaml", robots=robots)
     sim = Simulation(world)

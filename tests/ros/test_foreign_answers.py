@@ -108,7 +108,7 @@ def test_a_publisher_on_the_topic_before_the_run_starts_is_not_taken_for_the_con
     from composed_sim.hosts.composed import ComposedHost
     from composed_sim.hosts.domain_claim import foreign_nodes
     from composed_sim.hosts.multiprocess.host import MultiProcessHost
-    from composed_sim.pacing import Pacer
+    from composed_sim.live.pacing import Pacer
     from composed_sim.world.loader import load_world
 
     world = load_world(FLOCKING, robots=4, seed=3)

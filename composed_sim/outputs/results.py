@@ -7,7 +7,7 @@ world.yaml       the resolved world, loadable as is to re-run the same experimen
 trajectories.npz positions [T+1, n, 2], headings [T+1, n], led_colors [T+1, n, 3] (each robot's
                  display colour), names [n], tick_s
 violations.csv   tick, robot, reason for each watchdog or contract violation
-arena.png        the arena: whole-run trails, final poses with LED colours, lights, obstacles (render.py)
+arena.png        the arena: whole-run trails, final poses with LED colours, lights, obstacles (outputs/render.py)
 """
 from __future__ import annotations
 
@@ -163,7 +163,7 @@ def write_results(out_dir: Path, world: World, result: LoopResult, summary: dict
         f.write((json.dumps(summary, indent=2) + "\n").encode())
     written.append(SUMMARY)
     if picture:
-        from composed_sim.render import render
+        from composed_sim.outputs.render import render
         # The whole run's trails: the picture summarises the run, not its last seconds.
         render(t, world, out_dir / PICTURE, led_colors=t.led_colors, trail_ticks=t.ticks_done,
                tick_s=world.tick_s)

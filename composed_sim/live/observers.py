@@ -5,13 +5,13 @@ from rclpy.node import Node
 from visualization_msgs.msg import MarkerArray
 
 from composed_sim.core.simulation import Simulation
-from composed_sim.recording import BagRecorder
+from composed_sim.outputs.recording import BagRecorder
 from composed_sim.ros.contract import stamp_of
-from composed_sim.ros.markers import MARKERS_TOPIC, MARKERS_TYPE, swarm_markers_cdr, world_shapes
+from composed_sim.live.markers import MARKERS_TOPIC, MARKERS_TYPE, swarm_markers_cdr, world_shapes
 
 
 class Scene:
-    """The swarm and the static world as one MarkerArray's CDR bytes (ros/markers.py), built at
+    """The swarm and the static world as one MarkerArray's CDR bytes (live/markers.py), built at
     most once per tick however many observers (live markers, recording, Foxglove) ask for it."""
 
     def __init__(self, sim: Simulation, tick_ns: int):

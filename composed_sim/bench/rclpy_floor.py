@@ -8,7 +8,7 @@ message sizes, over participants of ``ROBOTS_PER_PARTICIPANT`` robots as the com
 makes them, and nothing else: no decoding, no controller arithmetic, no executor, no physics.
 Whatever the simulator and the controllers do in Python comes on top of it.
 
-    python -m composed_sim.rclpy_floor --robots 80,1280 [--ticks 100] [--blobs 50] [--robots-per-participant K|all]
+    python -m composed_sim.bench.rclpy_floor --robots 80,1280 [--ticks 100] [--blobs 50] [--robots-per-participant K|all]
 """
 from __future__ import annotations
 
@@ -104,7 +104,7 @@ def _take(subscription) -> None:
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m composed_sim.rclpy_floor", description=__doc__.split("\n\n")[0])
+    parser = argparse.ArgumentParser(prog="python -m composed_sim.bench.rclpy_floor", description=__doc__.split("\n\n")[0])
     parser.add_argument("--robots", default="80,1280", help="comma-separated swarm sizes (default: %(default)s)")
     parser.add_argument("--ticks", type=int, default=100, help="timed ticks per size (default: %(default)s)")
     parser.add_argument("--blobs", type=int, default=50, help="blobs each robot sees (default: %(default)s, "

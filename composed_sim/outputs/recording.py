@@ -9,7 +9,7 @@ Topics
   /swarm/state   sensor_msgs/msg/PointCloud2      once per tick, every robot in one message
                                                   (``write_swarm_state``; layout below)
   /swarm/markers visualization_msgs/msg/MarkerArray  once per tick in a run's bag: the scene
-                                                  Foxglove draws (ros/markers.py, observers.py)
+                                                  Foxglove draws (live/markers.py, live/observers.py)
   any other      whatever rclpy message is given   only topics matching the recorder's globs
                                                   (``wants``, ``write_message``)
 
@@ -40,7 +40,7 @@ whichever comes first, the chunk in progress is ended and the file synced to dis
 the MCAP file then ends on a complete record, so a process killed with SIGKILL, or a machine
 losing power, leaves every tick up to the last flush readable by an MCAP stream reader. What
 ``close`` writes at the end (the MCAP summary and index, metadata.yaml) is what such a bag lacks;
-``composed-sim bag repair`` writes it (bag_repair.py) from the chunks and from ``UNFINISHED``, the
+``composed-sim bag repair`` writes it (outputs/bag_repair.py) from the chunks and from ``UNFINISHED``, the
 custom_data kept beside the MCAP file from the start and deleted by ``close``: its presence, with
 no metadata.yaml, marks a recording that was never closed. A write that fails (a full disk) cuts
 the MCAP file back to its last flush and raises an OSError naming the file.

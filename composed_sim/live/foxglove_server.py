@@ -4,7 +4,7 @@ The Foxglove app (or any client of the protocol, ``foxglove.websocket.v1``) conn
 process and needs no ROS install: every channel carries ROS 2 messages as CDR bytes with their
 ``ros2msg`` schema, which the app decodes itself, the very bytes a ``--record`` bag holds.
 
-  /swarm/markers   visualization_msgs/msg/MarkerArray  the scene, once per tick (ros/markers.py)
+  /swarm/markers   visualization_msgs/msg/MarkerArray  the scene, once per tick (live/markers.py)
   /clock           rosgraph_msgs/msg/Clock             once per tick
   per-robot topics their contract types                 those matching ``--foxglove-topics``
   run-wide topics  their nodes' types (users' own too)  those matching ``--foxglove-topics``, advertised
@@ -28,10 +28,10 @@ import psutil
 from foxglove.websocket import Capability
 
 from composed_sim.core.simulation import Simulation
-from composed_sim.observers import Scene
-from composed_sim.recording import CLOCK_TYPE, message_definition
+from composed_sim.live.observers import Scene
+from composed_sim.outputs.recording import CLOCK_TYPE, message_definition
 from composed_sim.ros.global_topics import CLOCK_TOPIC, SWARM_MARKERS_TOPIC
-from composed_sim.ros.markers import MARKERS_TYPE
+from composed_sim.live.markers import MARKERS_TYPE
 from composed_sim.ros.taps import TopicGlobs
 
 DEFAULT_HOST, DEFAULT_PORT = "127.0.0.1", 8765

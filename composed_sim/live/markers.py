@@ -1,7 +1,7 @@
 """Live markers for RViz and Foxglove: the whole swarm in one ``visualization_msgs/MarkerArray``.
 
 Published on ``/swarm/markers`` (optional) and served as the Foxglove scene (tools layer,
-``composed_sim/foxglove_server.py``). One marker per robot size plus one, whatever the swarm size,
+``composed_sim/live/foxglove_server.py``). One marker per robot size plus one, whatever the swarm size,
 so a viewer handles 1280 robots as two or three draw calls rather than 1280 markers:
 
   ns "swarm_bodies",   id k, SPHERE_LIST: one flattened sphere per robot of the k-th distinct
@@ -16,7 +16,7 @@ so a viewer handles 1280 robots as two or three draw calls rather than 1280 mark
                        (flat CYLINDER / CUBE at z = 0). They are sent with every message, so a
                        viewer that attaches late sees them too.
 
-Frame ``world`` (``composed_sim.recording.FRAME_ID``), the same fixed frame as the recorded
+Frame ``world`` (``composed_sim.outputs.recording.FRAME_ID``), the same fixed frame as the recorded
 ``/swarm/state``: the simulator's planar world frame, z up, origin at the world's (0, 0). Set it
 as the fixed frame in RViz/Foxglove. Markers never expire (lifetime 0): each message replaces the
 previous one (same ns and id).

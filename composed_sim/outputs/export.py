@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 import pyarrow as pa
 
-from composed_sim.results import TRAJECTORIES, WORLD, load_trajectories
+from composed_sim.outputs.results import TRAJECTORIES, WORLD, load_trajectories
 from composed_sim.world.loader import WorldFileError, load_world
 
 FORMATS = ("csv", "parquet")
