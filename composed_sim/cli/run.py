@@ -77,8 +77,7 @@ def cmd_run(args) -> int:
         host = make_host(domain_id)
         # The run owns its domains (hosts/domain_claim.py): a given one must be free, else the
         # first free block is taken and the host rebuilt there.
-        used = sorted(set(host.domains.values())) if args.mode == "multi-process" and not args.external_controllers \
-            else [domain_id]
+        used = host.ros_domains()
         given = domain_given or (args.mode == "multi-process" and used[0] != domain_id)
         about = run_identity(world.name)
         shards_first = args.external_controllers    # distributed: its shards may be up already
@@ -103,8 +102,9 @@ def cmd_run(args) -> int:
         summary["participants"] = host.setup.participants
         summary["workers"] = host.setup.workers
         summary["workers_requested"] = args.workers if args.mode == "composed" else None
-        if isinstance(host, WorkerHost):        # every process's peak (pages shared between them count in each)
-            summary["workers_peak_rss_mb"] = [round(mb, 1) for mb in host.workers_peak_rss_mb()]
+        workers_peak_rss_mb = host.workers_peak_rss_mb()
+        if workers_peak_rss_mb is not None:     # every process's peak (pages shared between them count in each)
+            summary["workers_peak_rss_mb"] = [round(mb, 1) for mb in workers_peak_rss_mb]
             summary["peak_rss_mb"] += sum(summary["workers_peak_rss_mb"])
         summary["domain_id"], summary["domains"] = used[0], used
         summary["checkpoint"] = checkpoint     # true: written while running; the run did not end
@@ -176,7 +176,7 @@ class FailFast:
 def _first_failure(host) -> str:
     """The first violation that failed a robot so far, as "bot1: controller failed: …", or ""."""
     from composed_sim.core.violations import FAILED
-    exchange = getattr(host, "exchange", None) or getattr(getattr(host, "groups", None), "exchange", None)
+    exchange = host.exchange
     first = next((v for v in (exchange.violations if exchange is not None else ()) if v.reason.startswith(FAILED)),
                  None)
     return f"{first.robot}: {first.reason}" if first is not None else ""
@@ -186,11 +186,9 @@ def _run_and_write(args, world, host, finish, logs, fail_fast: FailFast) -> tupl
     """Run the ticks with the observers, write the results; (summary, files written, exit code)."""
     from composed_sim import plugins
     from composed_sim.core.placement import PlacementError
-    from composed_sim.hosts.composed import ComposedHost
     from composed_sim.hosting import HostError
     from composed_sim.hosts.lockstep import AnotherSimulator
-    from composed_sim.hosts.multiprocess.host import MultiProcessHost
-    from composed_sim.hosts.workers.host import WorkerHost, usable_cores
+    from composed_sim.hosts.workers.host import usable_cores
 
     with Interrupts() as interrupts, contextlib.ExitStack() as outputs:
         try:
@@ -226,14 +224,9 @@ def _run_and_write(args, world, host, finish, logs, fail_fast: FailFast) -> tupl
                           f"{result.trajectories.ticks_done}, results so far in {args.out}/", file=sys.stderr)
                 for line in logs.console.closing_lines():
                     print(line, file=sys.stderr)
-                if args.exit_when_done and isinstance(host, (ComposedHost, WorkerHost, MultiProcessHost)):
-                    if isinstance(host, WorkerHost):
-                        host.__exit__(None, None, None)     # quick: the workers write their logs and end
-                    elif isinstance(host, MultiProcessHost):
-                        host.stop_processes()
-                    # Destroying thousands of nodes one by one takes minutes (each destruction
-                    # republishes the participant's graph, docs/speed.md): with every result and
-                    # the recording written, the process ends and the system reclaims the rest.
+                if args.exit_when_done and host.end_before_exit():
+                    # With every result and the recording written, the process ends and the system
+                    # reclaims the nodes (Host.end_before_exit).
                     outputs.close()
                     print_summary(args, world, summary, files + (["logs/"] if _kept(args.out / "logs") else []))
                     sys.stdout.flush()

@@ -11,7 +11,7 @@ from typing import Callable, Optional, Sequence
 
 from composed_sim.core.simulation import Simulation
 from composed_sim.hosting.options import ROBOTS_PER_PARTICIPANT
-from composed_sim.hosts.host import SetupInfo
+from composed_sim.hosts.host import HostBase, SetupInfo
 from composed_sim.hosting.node_logs import NodeLogs
 from composed_sim.hosts.lockstep import LoopResult, TickObserver, run_lockstep
 from composed_sim.hosting.participant_groups import ParticipantGroups, RelayingExchange
@@ -19,7 +19,7 @@ from composed_sim.ros.simulator_node import MessageTap
 from composed_sim.world.schema import World
 
 
-class ComposedHost:
+class ComposedHost(HostBase):
     """Context manager owning the simulation and the participant groups (``Host``)."""
 
     def __init__(self, world: World, *, executor: str = "lockstep", domain_id: int = 0,
@@ -27,6 +27,7 @@ class ComposedHost:
         """``logs``: the nodes' log lines and tracebacks (hosting/node_logs.py); rclpy's loggers without."""
         self.world = world
         self.executor_kind = executor
+        self.domain_id = domain_id
         self.sim: Optional[Simulation] = None
         self.groups = ParticipantGroups(world, 0, len(world.robot_names()), executor=executor,
                                         domain_id=domain_id, robots_per_participant=robots_per_participant,
@@ -40,6 +41,10 @@ class ComposedHost:
     @property
     def controllers(self):
         return self.groups.controllers
+
+    @property
+    def exchange(self):
+        return self.groups.exchange
 
     def __enter__(self) -> "ComposedHost":
         t0 = time.perf_counter()
@@ -63,6 +68,9 @@ class ComposedHost:
 
     def observer_node(self):
         return self.groups.simulator_nodes[0]
+
+    def end_before_exit(self) -> bool:
+        return True          # nothing of it lives in another process
 
     def __exit__(self, *exc) -> None:
         self.groups.__exit__(*exc)

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 from typing import Callable, Optional, Protocol, Sequence
 
 from composed_sim.core.simulation import Simulation
-from composed_sim.hosts.lockstep import LoopResult, TickObserver, run_lockstep
+from composed_sim.hosts.lockstep import Exchange, LoopResult, TickObserver, run_lockstep
 from composed_sim.ros.simulator_node import MessageTap
 from composed_sim.world.schema import World
 
@@ -50,6 +50,13 @@ class Host(Protocol):
         ``should_stop()``; every observer sees tick 0 and each tick after; ``checkpoint`` gets the
         result so far every ``lockstep.CHECKPOINT_EVERY`` ticks."""
 
+    @property
+    def exchange(self) -> Exchange:
+        """The tick loop's exchange (its ``violations`` so far), once the host is entered."""
+
+    def ros_domains(self) -> list[int]:
+        """The ROS domains the run uses, lowest first (multi-process mode: a block of them)."""
+
     def set_message_tap(self, tap: MessageTap) -> None:
         """Hand every per-robot message the tap wants (sensors out, answers in) to it, in this
         process, before the tick it belongs to ends."""
@@ -57,8 +64,31 @@ class Host(Protocol):
     def observer_node(self):
         """An rclpy Node in this process and the run's domain for live observers (markers)."""
 
+    def workers_peak_rss_mb(self) -> Optional[list[float]]:
+        """Each worker process's peak resident memory (the worker host), else None."""
 
-class ControllersElsewhere:
+    def end_before_exit(self) -> bool:
+        """Stop what must not outlive this process (worker and controller processes) so that it
+        may end now without destroying its nodes (``os._exit``: destroying thousands of nodes one
+        by one takes minutes). False: this host must be left through ``__exit__``."""
+
+
+class HostBase:
+    """What the hosts share: a run in one ROS domain, no worker processes, and leaving through
+    ``__exit__`` (the ``Host`` methods a host of its own overrides where it differs)."""
+    domain_id: int = 0
+
+    def ros_domains(self) -> list[int]:
+        return [self.domain_id]
+
+    def workers_peak_rss_mb(self) -> Optional[list[float]]:
+        return None
+
+    def end_before_exit(self) -> bool:
+        return False
+
+
+class ControllersElsewhere(HostBase):
     """``Host.run`` for the hosts whose controllers run in other processes (workers, one process
     per controller, distributed shards): the tick loop waits on the host's ``exchange``. A host
     whose start-up was interrupted (``_startup_interrupted``) runs no tick and says so."""

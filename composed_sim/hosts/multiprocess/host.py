@@ -374,6 +374,13 @@ class MultiProcessHost(ControllersElsewhere):
             shutil.rmtree(self._tmp, ignore_errors=True)
             self._tmp = None
 
+    def ros_domains(self) -> list[int]:
+        return sorted(set(self.domains.values()))
+
+    def end_before_exit(self) -> bool:
+        self.stop_processes()
+        return True
+
     def __exit__(self, *exc) -> None:
         self.stop_processes()
         for executor in self._executors:

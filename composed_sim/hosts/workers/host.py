@@ -377,6 +377,10 @@ class WorkerHost(ControllersElsewhere):
         for w in self.workers:
             w.conn.send(("tap", list(tap.topics_globs)))
 
+    def end_before_exit(self) -> bool:
+        self.__exit__(None, None, None)     # quick: the workers write their logs and end
+        return True
+
     def observer_node(self):
         """A node of this process's own, in the run's domain (the simulator nodes are in the workers)."""
         if self._observer_node is None:
