@@ -57,7 +57,8 @@ def _fraction(text: str) -> float:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    from composed_sim.hosting.options import EXECUTORS as executors, MODES as modes
+    from composed_sim.hosting.options import EXECUTORS as executors
+    from composed_sim.hosts.settings import MODES as modes
     join = ",".join
     parser.add_argument("--sizes", type=_size_list, default=PAPER_SIZES, metavar="N,N,…",
                         help=f"swarm sizes (default: the paper's {join(map(str, PAPER_SIZES))})")

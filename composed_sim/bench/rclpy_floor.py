@@ -21,6 +21,7 @@ import numpy as np
 
 from composed_sim.hosting.options import ROBOTS_PER_PARTICIPANT
 from composed_sim.hosting.participants import ignore_participants_of_this_process
+from composed_sim.hosts.settings import environment_domain
 
 WARM_UP_TICKS = 10
 
@@ -112,11 +113,12 @@ def main(argv=None) -> int:
     parser.add_argument("--robots-per-participant", default=str(ROBOTS_PER_PARTICIPANT),
                         help="robots per DDS participant, or 'all' for one participant (a worker process's "
                              "case; default: %(default)s, the single-process host's)")
-    parser.add_argument("--domain-id", type=int, default=int(os.environ.get("ROS_DOMAIN_ID", "0") or 0))
+    parser.add_argument("--domain-id", type=int, default=None, help="default: $ROS_DOMAIN_ID or 0")
     args = parser.parse_args(argv)
+    domain_id = args.domain_id if args.domain_id is not None else environment_domain() or 0
     for n in (int(v) for v in args.robots.split(",")):
         per = n if args.robots_per_participant == "all" else int(args.robots_per_participant)
-        us = measure(n, args.ticks, blobs=args.blobs, domain_id=args.domain_id, robots_per_participant=per)
+        us = measure(n, args.ticks, blobs=args.blobs, domain_id=domain_id, robots_per_participant=per)
         print(json.dumps({"robots": n, "robots_per_participant": per, "ticks": args.ticks, "blobs": args.blobs, "us_per_robot_tick": round(us, 1),
                           "s_per_600_ticks": round(600 * n * us * 1e-6, 1)}), flush=True)
     return 0

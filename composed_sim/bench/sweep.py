@@ -20,6 +20,7 @@ from composed_sim.bench.report import write_outputs
 from composed_sim.bench.rules import (CALIBRATION_ABOVE, CALIBRATION_ROBOTS, COLUMNS, FALLBACK_PROCESS_MB, PHASE_COLUMNS,
                                       PHASES, DomainAllocator, as_number, domains_needed, host_label, skip_reason)
 from composed_sim.bench.tree import LEFTOVER_GRACE_S, measure_tree, parse_summary, tail
+from composed_sim.hosts.settings import AUTO_WORKERS, HostSettings, environment_domain
 
 CHECKOUT = Path(__file__).resolve().parents[2]     # the repository, when run from a checkout
 
@@ -62,14 +63,10 @@ class Sweep:
 
     def command(self, robots: int, mode: str, executor: str, domain: int, out: Path, ticks: int,
                 workers: Optional[str] = None) -> list[str]:
-        cmd = [sys.executable, "-m", "composed_sim.cli", "run", str(self.world), "--robots", str(robots),
-               "--ticks", str(ticks), "--mode", mode, "--executor", executor, "--domain-id", str(domain),
-               "--out", str(out), "--json", "--no-progress", "--no-picture"]
-        if mode == "multi-process" and self.robots_per_domain:
-            cmd += ["--robots-per-domain", str(self.robots_per_domain)]
-        if mode == "composed" and workers is not None:
-            cmd += ["--workers", workers]
-        return cmd
+        hosting = HostSettings(mode=mode, executor=executor, domain_id=domain, domain_given=True,
+                               workers=workers or AUTO_WORKERS, robots_per_domain=self.robots_per_domain or None)
+        return [sys.executable, "-m", "composed_sim.cli", "run", str(self.world), "--robots", str(robots),
+                "--ticks", str(ticks), *hosting.argv(), "--out", str(out), "--json", "--no-progress", "--no-picture"]
 
     def one(self, robots: int, mode: str, executor: str, trial: int, ticks: Optional[int] = None,
             workers: Optional[str] = None) -> dict:
@@ -269,11 +266,10 @@ def run(args) -> int:
             raise UserError(str(e)) from None
     base = args.domain_id
     if base is None:
-        text = os.environ.get("ROS_DOMAIN_ID", "0") or "0"
         try:
-            base = int(text)
-        except ValueError:
-            raise UserError(f"ROS_DOMAIN_ID: expected a whole number, got {text!r}") from None
+            base = environment_domain() or 0
+        except ValueError as e:
+            raise UserError(str(e)) from None
     try:
         domains = DomainAllocator(base)
     except ValueError as e:

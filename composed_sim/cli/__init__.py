@@ -1,32 +1,30 @@
 """The ``composed-sim`` command: its arguments, and the dispatch to each subcommand's module
-(``run``: a run and its outputs; ``report``: what a run prints; ``distributed``: ``host``;
-``files``: worlds, plugins, results and recordings; ``interfaces``: interface packages)."""
+(``run``: a run and its outputs, from its typed ``settings``; ``report``: what a run prints;
+``distributed``: ``host``; ``files``: worlds, plugins, results and recordings; ``interfaces``:
+interface packages)."""
 from __future__ import annotations
 
 import argparse
 import sys
 from pathlib import Path
 
-from composed_sim.command_line import EXIT_FAILED, EXIT_USAGE, RunStopped, UserError, number_arg
 from composed_sim.cli.distributed import cmd_host
 from composed_sim.cli.files import cmd_bag_repair, cmd_export, cmd_plugins, cmd_render, cmd_replay, cmd_worlds
 from composed_sim.cli.interfaces import cmd_interfaces
-from composed_sim.cli.report import keep_stdout_for_json
+from composed_sim.cli.report import JsonStdout
 from composed_sim.cli.run import cmd_run
-
+from composed_sim.cli.settings import LiveSettings, OutputSettings, run_settings
+from composed_sim.command_line import EXIT_FAILED, EXIT_USAGE, RunStopped, UserError, number_arg
 
 _positive_int = number_arg(int, minimum=1)
-
-
 _non_negative_int = number_arg(int, minimum=0)
-
-
 _positive_float = number_arg(float, minimum=0, inclusive=False)
 
 
 def _workers(text: str):
     """--workers: a whole number >= 1, or auto."""
-    return "auto" if text == "auto" else _positive_int(text)
+    from composed_sim.hosts.settings import AUTO_WORKERS
+    return AUTO_WORKERS if text == AUTO_WORKERS else _positive_int(text)
 
 
 class _OneLineParser(argparse.ArgumentParser):
@@ -39,12 +37,56 @@ class _OneLineParser(argparse.ArgumentParser):
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from composed_sim.hosting.options import EXECUTORS, MODES, ROBOTS_PER_PARTICIPANT
-
     parser = _OneLineParser(prog="composed-sim", description=(
         "Swarm simulator whose robot controllers are ROS 2 nodes, hosted with the simulator in a few processes."))
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    _add_run(sub)
+    _add_host(sub)
+    _add_file_commands(sub)
+    interfaces = sub.add_parser("interfaces", help="build ROS 2 interface packages (.msg, .srv) into Python messages",
+                                description="Build a user's interface packages with the pip-installed rosidl "
+                                            "toolchain, cached by content (docs/interfaces.md).")
+    interfaces_sub = interfaces.add_subparsers(dest="interfaces_command", required=True, metavar="ACTION")
+    interfaces_build = interfaces_sub.add_parser("build", help="build (or find built) interface packages",
+                                                 description="Build each package folder (package.xml, msg/, srv/) "
+                                                             "in order, a package may use those before it; print "
+                                                             "where each is, how long it took, whether it was cached.")
+    interfaces_build.add_argument("packages", type=Path, nargs="+", metavar="DIR", help="an interface package folder")
 
+    bench = sub.add_parser("bench", help="benchmark swarm sizes, modes and executors against the paper",
+                           description="Sweep swarm sizes, host modes and executors; measure setup, "
+                                       "wall time, CPU and peak memory of each run's process tree; write "
+                                       "CSV, JSON and figures side by side with the paper's results.")
+    from composed_sim import bench as bench_module
+    bench_module.add_arguments(bench)
+
+    sweep = sub.add_parser("sweep", help="run a grid of runs over seeds, swarm sizes and world fields",
+                           description="Run a world over seeds, swarm sizes and world fields by dotted path, "
+                                       "in parallel, each run its own process, domain and folder; write runs.csv, "
+                                       "metrics.csv and plots (docs/experiments.md). Resumable.")
+    from composed_sim.sweep import command as sweep_command
+    sweep_command.add_arguments(sweep)
+    parser.commands = sub.choices        # name → subcommand parser, for the errors found after parsing
+    return parser
+
+
+def _add_hosting_flags(parser: argparse.ArgumentParser, *, seed_help: str, domain_help: str) -> None:
+    """What the run and host subcommands both take: the seed, an ARGoS file's controller, the
+    executor, the ROS domain."""
+    from composed_sim.hosting.options import DEFAULT_EXECUTOR, EXECUTORS
+    parser.add_argument("--seed", type=_non_negative_int, help=seed_help)
+    parser.add_argument("--controller", metavar="NAME",
+                        help="for an ARGoS .argos file: the controller plugin its robots run")
+    parser.add_argument("--executor", choices=EXECUTORS, default=DEFAULT_EXECUTOR,
+                        help="rclpy executor running the nodes (default: %(default)s)")
+    parser.add_argument("--domain-id", type=int, default=None, help=domain_help)
+
+
+def _add_run(sub) -> None:
+    from composed_sim.hosts.settings import AUTO_WORKERS, DEFAULT_MODE, MODES, HostSettings
+    from composed_sim.live import DEFAULT_FOXGLOVE_HOST, DEFAULT_FOXGLOVE_PORT
+    from composed_sim.world.schema import ROBOTS_PER_DOMAIN
+    outputs, live = OutputSettings(), LiveSettings()
     run = sub.add_parser("run", help="run a world file headless and write its results",
                          description="Run a world: the controller nodes hosted with simulator nodes in "
                                      "worker processes, in lockstep; writes summary.json, trajectories.npz, "
@@ -52,49 +94,45 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("world", type=Path, help="world file (YAML, e.g. worlds/flocking.yaml) or an ARGoS .argos file")
     run.add_argument("--robots", type=_positive_int, help="total number of robots (overrides the world)")
     run.add_argument("--ticks", type=_positive_int, help="ticks to simulate (overrides length_ticks)")
-    run.add_argument("--seed", type=_non_negative_int, help="random seed (overrides the world)")
-    run.add_argument("--mode", choices=MODES, default="composed",
+    _add_hosting_flags(run, seed_help="random seed (overrides the world)", domain_help=(
+        "ROS domain of the run, refused if another simulator uses it (default: $ROS_DOMAIN_ID where set, else the "
+        "first free domain from 0 up, printed first and recorded in summary.json; multi-process mode: the first of "
+        "a block of free domains)"))
+    run.add_argument("--mode", choices=MODES, default=DEFAULT_MODE,
                      help="composed: the controllers hosted together (see --workers); multi-process: one process per "
                           "controller over balanced ROS domains, as in the paper (default: %(default)s)")
-    run.add_argument("--executor", choices=EXECUTORS, default="lockstep",
-                     help="rclpy executor running the nodes (default: %(default)s)")
     run.add_argument("--robots-per-domain", type=_positive_int, default=None,
-                     help="multi-process mode: robots per ROS domain (default: the world's, else 50)")
-    run.add_argument("--robots-per-participant", type=_positive_int, default=ROBOTS_PER_PARTICIPANT,
+                     help=f"multi-process mode: robots per ROS domain (default: the world's, else {ROBOTS_PER_DOMAIN})")
+    run.add_argument("--robots-per-participant", type=_positive_int, default=HostSettings.robots_per_participant,
                      help="composed mode with --workers 1: robots per DDS participant, all in one domain; fewer "
                           "make set-up faster, each costs a participant (default: %(default)s; each worker "
                           "process holds one participant)")
-    run.add_argument("--workers", type=_workers, default="auto", metavar="K|auto",
+    run.add_argument("--workers", type=_workers, default=AUTO_WORKERS, metavar="K|auto",
                      help="composed mode: worker processes hosting the controller nodes, each with its own "
                           "executor on its own core; 1: everything in this process; auto: from the swarm "
                           "size and the usable cores (default: %(default)s)")
     run.add_argument("--watchdog", type=_positive_float, metavar="SECONDS",
                      help="wall seconds to wait for a controller's answer before its fallback")
     run.add_argument("--fallback", choices=("zero", "previous"), help="command given to a late robot")
-    run.add_argument("--domain-id", type=int, default=None,
-                     help="ROS domain of the run, refused if another simulator uses it (default: "
-                          "$ROS_DOMAIN_ID where set, else the first free domain from 0 up, printed first and "
-                          "recorded in summary.json; multi-process mode: the first of a block of free domains)")
-    run.add_argument("--controller", metavar="NAME",
-                     help="for an ARGoS .argos file: the controller plugin its robots run")
-    run.add_argument("--out", type=Path, default=Path("out"), help="output directory (default: %(default)s)")
+    run.add_argument("--out", type=Path, default=outputs.out, help="output directory (default: %(default)s)")
     run.add_argument("--record", type=Path, metavar="DIR",
                      help="record a rosbag2 (MCAP) directory: /clock, /swarm/state and --record-topics")
     run.add_argument("--record-topics", nargs="+", default=[], metavar="GLOB",
                      help="per-robot topics to record too, e.g. '/bot1*/cmd_vel' '/*/light'")
     run.add_argument("--markers", action="store_true",
                      help="publish the swarm as one visualization_msgs/MarkerArray on /swarm/markers")
-    run.add_argument("--foxglove", nargs="?", const="127.0.0.1:8765", metavar="[HOST:]PORT",
-                     help="serve the run live to the Foxglove app (WebSocket; default 127.0.0.1:8765)")
+    foxglove = f"{DEFAULT_FOXGLOVE_HOST}:{DEFAULT_FOXGLOVE_PORT}"
+    run.add_argument("--foxglove", nargs="?", const=foxglove, metavar="[HOST:]PORT",
+                     help=f"serve the run live to the Foxglove app (WebSocket; default {foxglove})")
     run.add_argument("--foxglove-topics", nargs="+", default=[], metavar="GLOB",
                      help="per-robot topics to serve too, e.g. '/bot0/*'")
     run.add_argument("--rate", type=_positive_float, metavar="R", help="run at most R x real time (1: real time)")
-    run.add_argument("--wait-for-viewer", type=_positive_float, metavar="SECONDS", default=0.0,
+    run.add_argument("--wait-for-viewer", type=_positive_float, metavar="SECONDS", default=live.wait_for_viewer_s,
                      help="with --foxglove: wait at tick 0 until a viewer subscribes, at most SECONDS")
     run.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
     run.add_argument("--no-picture", action="store_true", help="skip arena.png")
     run.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
-    run.add_argument("--log-level", choices=("debug", "info", "warn", "error"), default="warn",
+    run.add_argument("--log-level", choices=("debug", "info", "warn", "error"), default=outputs.log_level,
                      help="the nodes' log lines shown on the console, each call site once per node class "
                           "(all go to OUT/logs/<robot>.log; default: %(default)s)")
     run.add_argument("--fail-fast", action="store_true",
@@ -104,6 +142,8 @@ def build_parser() -> argparse.ArgumentParser:
                           "(on this or other machines), waited for before tick 0 (docs/distributed.md)")
     _add_distributed_options(run, "with --external-controllers: ")
 
+
+def _add_host(sub) -> None:
     host = sub.add_parser("host", help="host a range of robots' controllers for a simulator elsewhere",
                           description="Host some robots' controller nodes in this process (one context, one "
                                       "executor) for a simulator started with `run --external-controllers`, on "
@@ -114,15 +154,13 @@ def build_parser() -> argparse.ArgumentParser:
                       help="robot indices to host: 0-639, 5 or 0-9,20-29")
     host.add_argument("--world-robots", type=_positive_int, metavar="N",
                       help="total number of robots, when the simulator was given --robots N")
-    host.add_argument("--seed", type=_non_negative_int, help="random seed, when the simulator was given --seed")
-    host.add_argument("--controller", metavar="NAME", help="for an ARGoS .argos file: the controller plugin")
-    host.add_argument("--executor", choices=EXECUTORS, default="lockstep",
-                      help="rclpy executor running the hosted nodes (default: %(default)s)")
-    host.add_argument("--domain-id", type=int, default=None, help="ROS domain (default: $ROS_DOMAIN_ID or 0)")
+    _add_hosting_flags(host, seed_help="random seed, when the simulator was given --seed",
+                       domain_help="ROS domain (default: $ROS_DOMAIN_ID or 0)")
     _add_distributed_options(host, "")
 
-    sub.add_parser("plugins", help="list the installed controller plugins")
 
+def _add_file_commands(sub) -> None:
+    sub.add_parser("plugins", help="list the installed controller plugins")
     export = sub.add_parser("export", help="write a run's trajectories as a tidy table (CSV or Parquet)",
                             description="One row per (tick, robot): tick, time_s, robot, group, model, x, y, yaw, "
                                         "LED colour; for pandas or polars.")
@@ -152,40 +190,14 @@ def build_parser() -> argparse.ArgumentParser:
         description="Write the MCAP index and metadata.yaml of a recording whose run was killed (SIGKILL, power "
                     "loss, full disk), from its chunks on disk: every tick up to the last one complete on disk.")
     bag_repair.add_argument("recording", type=Path, help="a --record directory")
-
     sub.add_parser("worlds", help="list the shipped world files")
-
-    interfaces = sub.add_parser("interfaces", help="build ROS 2 interface packages (.msg, .srv) into Python messages",
-                                description="Build a user's interface packages with the pip-installed rosidl "
-                                            "toolchain, cached by content (docs/interfaces.md).")
-    interfaces_sub = interfaces.add_subparsers(dest="interfaces_command", required=True, metavar="ACTION")
-    interfaces_build = interfaces_sub.add_parser("build", help="build (or find built) interface packages",
-                                                 description="Build each package folder (package.xml, msg/, srv/) "
-                                                             "in order, a package may use those before it; print "
-                                                             "where each is, how long it took, whether it was cached.")
-    interfaces_build.add_argument("packages", type=Path, nargs="+", metavar="DIR", help="an interface package folder")
-
-    bench = sub.add_parser("bench", help="benchmark swarm sizes, modes and executors against the paper",
-                           description="Sweep swarm sizes, host modes and executors; measure setup, "
-                                       "wall time, CPU and peak memory of each run's process tree; write "
-                                       "CSV, JSON and figures side by side with the paper's results.")
-    from composed_sim import bench as bench_module
-    bench_module.add_arguments(bench)
-
-    sweep = sub.add_parser("sweep", help="run a grid of runs over seeds, swarm sizes and world fields",
-                           description="Run a world over seeds, swarm sizes and world fields by dotted path, "
-                                       "in parallel, each run its own process, domain and folder; write runs.csv, "
-                                       "metrics.csv and plots (docs/experiments.md). Resumable.")
-    from composed_sim.sweep import command as sweep_command
-    sweep_command.add_arguments(sweep)
-    parser.commands = sub.choices        # name → subcommand parser, for the errors found after parsing
-    return parser
 
 
 def _add_distributed_options(parser: argparse.ArgumentParser, prefix: str) -> None:
-    from composed_sim.hosts.distributed.discovery import DEFAULT_DISCOVERY_TIMEOUT_S, RANGES
+    from composed_sim.hosts.distributed.discovery import RANGES
+    from composed_sim.hosts.settings import DiscoverySettings
     parser.add_argument("--discovery-timeout", type=_positive_float, metavar="SECONDS",
-                        default=DEFAULT_DISCOVERY_TIMEOUT_S,
+                        default=DiscoverySettings.timeout_s,
                         help=f"{prefix}how long to wait for the other side before giving up (default: %(default)s)")
     parser.add_argument("--discovery-range", choices=RANGES, type=str.lower, default=None,
                         help=f"{prefix}ROS_AUTOMATIC_DISCOVERY_RANGE (default: the environment's, else subnet)")
@@ -218,35 +230,28 @@ def _error_prefix(command: str) -> str:
     return "composed-sim sweep" if command == "sweep" else "composed-sim"
 
 
+COMMANDS = {"plugins": lambda args: cmd_plugins(), "render": cmd_render, "replay": cmd_replay,
+            "bag": cmd_bag_repair, "export": cmd_export, "worlds": lambda args: cmd_worlds(), "host": cmd_host,
+            "interfaces": cmd_interfaces}
+
+
 def main(argv: list[str] | None = None) -> int:
     args = _parse(argv)
-    args.exit_when_done = argv is None    # a program of its own (not called from Python): see cmd_run
+    exit_when_done = argv is None    # a program of its own (not called from Python): see cmd_run
     try:
-        if args.command == "plugins":
-            return cmd_plugins()
         if args.command == "bench":
             from composed_sim import bench
             return bench.run(args)
         if args.command == "sweep":
             from composed_sim.sweep import command as sweep_command
             return sweep_command.run(args)
-        if args.command == "render":
-            return cmd_render(args)
-        if args.command == "replay":
-            return cmd_replay(args)
-        if args.command == "bag":
-            return cmd_bag_repair(args)
-        if args.command == "export":
-            return cmd_export(args)
-        if args.command == "worlds":
-            return cmd_worlds()
-        if args.command == "host":
-            return cmd_host(args)
-        if args.command == "interfaces":
-            return cmd_interfaces(args)
-        if args.json and args.exit_when_done:
-            keep_stdout_for_json()
-        return cmd_run(args)
+        if args.command in COMMANDS:
+            return COMMANDS[args.command](args)
+        settings = run_settings(args, exit_when_done=exit_when_done)
+        json_stdout = JsonStdout()
+        if settings.outputs.json and exit_when_done:
+            json_stdout.keep()
+        return cmd_run(settings, json_stdout)
     except UserError as e:
         print(f"{_error_prefix(args.command)}: error: {e}", file=sys.stderr)
         return EXIT_USAGE

@@ -1,25 +1,14 @@
-"""What the run and host subcommands share: the ROS domain, Ctrl-C handling, loading a world
-file or an ARGoS experiment with errors that name the file, and the discovery settings."""
+"""What the run and host subcommands share: Ctrl-C handling, loading a world file or an ARGoS
+experiment with errors that name the file, and the discovery settings."""
 from __future__ import annotations
 
 import os
 import signal
 import sys
 
+from composed_sim.cli.settings import WorldSource
 from composed_sim.command_line import EXIT_INTERRUPTED, UserError
-
-
-
-def pick_domain(arg: int | None) -> int:
-    text = str(arg) if arg is not None else os.environ.get("ROS_DOMAIN_ID", "0") or "0"
-    try:
-        value = int(text)
-    except ValueError:
-        raise UserError(f"ROS_DOMAIN_ID: expected a whole number, got {text!r}") from None
-    from composed_sim.world.schema import MAX_DOMAIN
-    if not 0 <= value <= MAX_DOMAIN:
-        raise UserError(f"--domain-id: must be within 0..{MAX_DOMAIN} (got {value})")
-    return value
+from composed_sim.hosts.settings import DiscoverySettings
 
 
 class Interrupts:
@@ -88,48 +77,38 @@ def located(world_path, error: Exception) -> str:
     return f"{field_line(world_path, field)}: {message}"
 
 
-def load_any_world(args):
+def load_any_world(source: WorldSource):
     """A YAML world file or an ARGoS experiment file, with the command line's overrides."""
     from composed_sim.argos_import import ArgosFileError, is_argos_file, load_argos, warning_text
     from composed_sim.world.loader import WorldFileError, load_world, with_overrides
 
     try:
-        if is_argos_file(args.world):
+        if is_argos_file(source.path):
             try:
-                world, warnings = load_argos(args.world, controller=args.controller, ticks=args.ticks)
+                world, warnings = load_argos(source.path, controller=source.controller, ticks=source.ticks)
             except ArgosFileError as e:      # the reason first, then what else the import noticed
-                text = warning_text(str(args.world), list(e.warnings))
+                text = warning_text(str(source.path), list(e.warnings))
                 raise UserError(str(e) + (f"\ncomposed-sim: warning: {text}" if text else "")) from None
-            text = warning_text(str(args.world), warnings)
+            text = warning_text(str(source.path), warnings)
             if text:
                 print(f"composed-sim: warning: {text}", file=sys.stderr)
-            return with_overrides(world, robots=args.robots, ticks=args.ticks, seed=args.seed,
-                                  source=str(args.world))
-        if args.controller is not None:
+            return with_overrides(world, robots=source.robots, ticks=source.ticks, seed=source.seed,
+                                  source=str(source.path))
+        if source.controller is not None:
             raise UserError("--controller: only for ARGoS .argos files (a YAML world names its controllers)")
-        return load_world(args.world, robots=args.robots, ticks=args.ticks, seed=args.seed)
+        return load_world(source.path, robots=source.robots, ticks=source.ticks, seed=source.seed)
     except WorldFileError as e:
         raise UserError(str(e)) from None
 
 
-def distributed_settings(args) -> str:
-    """Check the flags of a distributed run and put its discovery settings into the environment."""
+def configure_discovery(settings: DiscoverySettings) -> str:
+    """Put a distributed run's discovery settings into the environment; what they are, in words."""
     from composed_sim.hosts.distributed.discovery import DiscoveryError, configure
-    if args.command == "run" and args.mode != "composed":
-        raise UserError("--external-controllers: the controllers are in `composed-sim host` shards, "
-                        "so --mode multi-process does not apply")
     try:
-        description, warning = configure(discovery_range=args.discovery_range, static_peers=args.static_peers,
-                                         discovery_server=args.discovery_server)
+        description, warning = configure(discovery_range=settings.range, static_peers=settings.static_peers,
+                                         discovery_server=settings.server)
     except DiscoveryError as e:
         raise UserError(str(e)) from None
     if warning:
         print(f"composed-sim: note: {warning}", file=sys.stderr)
     return description
-
-
-def check_no_distributed_flags(args) -> None:
-    given = [flag for flag, value in (("--discovery-range", args.discovery_range), ("--static-peers", args.static_peers),
-                                      ("--discovery-server", args.discovery_server)) if value is not None]
-    if given:
-        raise UserError(f"{given[0]}: only for a distributed run (with --external-controllers)")

@@ -1,12 +1,11 @@
-"""``composed-sim host``: a controller shard for a simulator on another machine, and the discovery
-settings the distributed commands share."""
+"""``composed-sim host``: a controller shard for a simulator on another machine."""
 from __future__ import annotations
 
-import argparse
 import sys
 
+from composed_sim.cli.common import Interrupts, configure_discovery, load_any_world
+from composed_sim.cli.settings import discovery_settings, run_domain, world_source
 from composed_sim.command_line import EXIT_INTERRUPTED, UserError
-from composed_sim.cli.common import Interrupts, distributed_settings, load_any_world, pick_domain
 
 
 def cmd_host(args) -> int:
@@ -16,21 +15,21 @@ def cmd_host(args) -> int:
     from composed_sim.hosts.distributed.robot_ranges import RangeError, parse_ranges
     from composed_sim.hosts.distributed.shard import ShardHost
 
-    world = load_any_world(argparse.Namespace(world=args.world, robots=args.world_robots, ticks=None,
-                                               seed=args.seed, controller=args.controller))
+    world = load_any_world(world_source(args, args.world_robots))
     try:
         robots = parse_ranges(args.robots, len(world.robot_names()))
     except RangeError as e:
         raise UserError(f"--robots: {e}") from None
-    domain_id = pick_domain(args.domain_id)
-    discovery = distributed_settings(args)
+    domain_id, _ = run_domain(args.domain_id)
+    discovery = discovery_settings(args)
+    description = configure_discovery(discovery)
     with Interrupts("stopping the shard") as interrupts:
         try:
             with ShardHost(world, robots, executor=args.executor, domain_id=domain_id,
                            should_stop=lambda: interrupts.requested) as shard:
                 print(f"composed-sim host: {len(robots)} controllers ({args.robots}) in ROS domain {domain_id}, "
-                      f"discovery {discovery}; waiting for the simulator", file=sys.stderr)
-                if shard.wait_for_simulator(args.discovery_timeout):
+                      f"discovery {description}; waiting for the simulator", file=sys.stderr)
+                if shard.wait_for_simulator(discovery.timeout_s):
                     print("composed-sim host: matched with the simulator; serving", file=sys.stderr)
                     ended = shard.serve()
                 else:

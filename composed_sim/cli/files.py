@@ -105,12 +105,13 @@ def _check_recording(rec) -> str | None:
     if len(gaps):
         t = int(ticks[gaps[0]])
         return f"tick {t + 1} is missing (after tick {t}, the next recorded is {int(ticks[gaps[0] + 1])})"
-    from composed_sim.hosts.composed import ComposedHost
-    from composed_sim.hosts.domain_claim import claim_free_domain, run_identity
-    executor = rec.executor or "lockstep"
-    claim, domain = claim_free_domain(1, run_identity(rec.world.name))
+    from composed_sim.hosting.options import DEFAULT_EXECUTOR
+    from composed_sim.hosts.make import host_in_own_domains
+    from composed_sim.hosts.settings import HostSettings
+    executor = rec.executor or DEFAULT_EXECUTOR
+    host, claim, _ = host_in_own_domains(HostSettings(workers=1, executor=executor), rec.world)
     try:
-        with ComposedHost(rec.world, executor=executor, domain_id=domain) as host:
+        with host:
             if host.sim.names != rec.names:
                 return "the recorded robots are not the recorded world's"
             t = host.run(len(ticks) - 1).trajectories

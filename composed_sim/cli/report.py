@@ -7,6 +7,7 @@ import json
 import os
 import shutil
 import sys
+from typing import Optional
 
 
 WATCHING_DOC = 'docs/contract.md, "Watching a run from another process"'
@@ -24,9 +25,10 @@ def watch_hint(domain_id: int, *, foxglove: bool, markers: bool) -> str:
     return f"to watch it: {' or '.join(now)}" + (f"; or run with {' and '.join(options)}" if options else "")
 
 
-def print_summary(args, world, summary: dict, files: list[str]) -> None:
-    if args.json:
-        with json_stdout():
+def print_summary(json_stdout: Optional[JsonStdout], world, summary: dict, files: list[str]) -> None:
+    """The summary: as JSON on stdout where ``json_stdout`` is given (--json), else for people."""
+    if json_stdout is not None:
+        with json_stdout.restored():
             print(json.dumps(summary, indent=2), flush=True)
     else:
         from composed_sim.loop_functions import describe
@@ -34,30 +36,31 @@ def print_summary(args, world, summary: dict, files: list[str]) -> None:
         print(_human_summary(summary, files, describe(world, metrics.get("initial", {}), metrics.get("final", {}))))
 
 
-_json_fd: int | None = None     # the real stdout while a --json run sends everything else to stderr
+class JsonStdout:
+    """--json: stdout holds the summary only. Fast DDS's C++ logging writes to file descriptor 1
+    (e.g. about stale shared-memory ports of a killed run), so a program of its own makes fd 1
+    stderr until the summary is printed (``keep``)."""
 
+    def __init__(self) -> None:
+        self._fd: Optional[int] = None      # the real stdout, while fd 1 is stderr
 
-def keep_stdout_for_json() -> None:
-    """Fast DDS's C++ logging writes to file descriptor 1 (e.g. about stale shared-memory ports
-    of a killed run): with --json, stdout must hold the summary only, so until then fd 1 is stderr."""
-    global _json_fd
-    if _json_fd is None:
+    def keep(self) -> None:
+        if self._fd is None:
+            sys.stdout.flush()
+            self._fd = os.dup(1)
+            os.dup2(2, 1)
+
+    @contextlib.contextmanager
+    def restored(self):
+        if self._fd is None:
+            yield
+            return
         sys.stdout.flush()
-        _json_fd = os.dup(1)
-        os.dup2(2, 1)
-
-
-@contextlib.contextmanager
-def json_stdout():
-    if _json_fd is None:
-        yield
-        return
-    sys.stdout.flush()
-    os.dup2(_json_fd, 1)
-    try:
-        yield
-    finally:
-        sys.stdout.flush()
+        os.dup2(self._fd, 1)
+        try:
+            yield
+        finally:
+            sys.stdout.flush()
 
 
 PROGRESS_LOG_S = 5.0    # without a terminal: a progress line this often at most

@@ -1,5 +1,5 @@
-"""``composed-sim run``: load the world, pick and start the host, run the ticks with the observers,
-write the results, whatever ends the run."""
+"""``composed-sim run``: load the world, start the host its settings ask for, run the ticks with the
+observers, write the results, whatever ends the run."""
 from __future__ import annotations
 
 import contextlib
@@ -8,124 +8,159 @@ import json
 import os
 import sys
 
+from composed_sim.cli.common import Interrupts, check_plugins, configure_discovery, load_any_world, located
+from composed_sim.cli.observers import run_observers
+from composed_sim.cli.report import JsonStdout, print_summary, progress_bar, watch_hint
+from composed_sim.cli.settings import RunSettings
 from composed_sim.command_line import EXIT_INTERRUPTED, RunStopped, UserError, check_writable
-from composed_sim.cli.common import (Interrupts, check_no_distributed_flags, check_plugins, distributed_settings,
-                                     load_any_world, located, pick_domain)
-from composed_sim.cli.report import print_summary, progress_bar, watch_hint
 
 EXIT_CONTROLLER_FAILED = 1      # --fail-fast: a controller failed
+# A write refused for lack of room: the disk or quota is full, or the file size limit reached.
+DISK_FULL = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)
 
 
-def cmd_run(args) -> int:
-    from composed_sim.hosts.composed import ComposedHost
-    from composed_sim.hosting import HostError
-    from composed_sim.hosts.domain_claim import DomainTaken, claim_domains, claim_free_domain, run_identity
+def cmd_run(settings: RunSettings, json_stdout: JsonStdout) -> int:
     from composed_sim.hosting.node_logs import LEVELS, Console, LogSettings, NodeLogs
-    from composed_sim.hosts.workers.host import WorkerHost, auto_workers
-    from composed_sim.outputs.results import summarize, write_results
-
-    world = load_any_world(args)
-    lockstep = {k: v for k, v in (("watchdog_s", args.watchdog), ("fallback", args.fallback)) if v is not None}
-    if lockstep:
-        world = world.model_copy(update={"lockstep": world.lockstep.model_copy(update=lockstep)})
     from composed_sim.hosting.participants import remove_stale_shared_memory
-    remove_stale_shared_memory()        # what dead runs left in /dev/shm (hosting/participants.py)
-    domain_given = args.domain_id is not None or bool(os.environ.get("ROS_DOMAIN_ID"))
-    domain_id = pick_domain(args.domain_id)
-    check_writable(args.out)
-    if args.record is not None and args.record.exists():
-        raise UserError(f"--record {args.record}: already exists; a recording goes into a new directory")
-    if args.record_topics and args.record is None:
-        raise UserError("--record-topics: needs --record DIR")
-    if (args.foxglove_topics or args.wait_for_viewer) and args.foxglove is None:
-        raise UserError("--foxglove-topics and --wait-for-viewer: need --foxglove")
-    if args.foxglove is not None:
-        from composed_sim.live.foxglove_server import parse_address
-        try:
-            args.foxglove = parse_address(args.foxglove)
-        except ValueError as e:
-            raise UserError(f"--foxglove: {e}") from None
-    if not args.external_controllers:
-        check_no_distributed_flags(args)
 
-    distributed = distributed_settings(args) if args.external_controllers else None
-    check_plugins(args.world, world)
+    world = settings.lockstep.applied_to(load_any_world(settings.world))
+    remove_stale_shared_memory()        # what dead runs left in /dev/shm (hosting/participants.py)
+    out = settings.outputs.out
+    check_writable(out)
+    if settings.hosting.discovery is not None:
+        configure_discovery(settings.hosting.discovery)
+    check_plugins(settings.world.path, world)
     # The nodes' log lines and tracebacks: OUT/logs/<robot>.log, the console's share once (hosting/node_logs.py).
-    logs_dir = args.out / "logs"
+    logs_dir = out / "logs"
     for old in logs_dir.glob("*.log"):          # a run before into the same --out
         old.unlink()
-    logs = NodeLogs(LogSettings(str(logs_dir), LEVELS[args.log_level], rosout=args.record is not None),
+    logs = NodeLogs(LogSettings(str(logs_dir), LEVELS[settings.outputs.log_level],
+                                rosout=settings.outputs.record is not None),
                     world.tick_ns, console=Console(logs_hint=str(logs_dir)))
-    fail_fast = FailFast(args.fail_fast)
-
-    def make_host(domain_id: int):
-        if args.external_controllers:
-            from composed_sim.hosts.distributed.external import ExternalControllersHost
-            return ExternalControllersHost(world, domain_id=domain_id, discovery_timeout_s=args.discovery_timeout,
-                                           discovery=distributed)
-        if args.mode == "multi-process":
-            from composed_sim.hosts.multiprocess.host import MultiProcessHost
-            return MultiProcessHost(world, executor=args.executor, domain_id=domain_id,
-                                    robots_per_domain=args.robots_per_domain, logs=logs)
-        workers = auto_workers(len(world.robot_names())) if args.workers == "auto" else args.workers
-        if workers == 1:
-            return ComposedHost(world, executor=args.executor, domain_id=domain_id,
-                                robots_per_participant=args.robots_per_participant, logs=logs)
-        return WorkerHost(world, workers=workers, executor=args.executor, domain_id=domain_id, logs=logs)
-
+    run = Run(settings, world, logs, json_stdout)
     try:
-        host = make_host(domain_id)
-        # The run owns its domains (hosts/domain_claim.py): a given one must be free, else the
-        # first free block is taken and the host rebuilt there.
-        used = host.ros_domains()
-        given = domain_given or (args.mode == "multi-process" and used[0] != domain_id)
-        about = run_identity(world.name)
-        shards_first = args.external_controllers    # distributed: its shards may be up already
-        if given:
-            claim = claim_domains(used, about, given=True, controllers_expected=shards_first)
-        else:
-            claim, domain_id = claim_free_domain(len(used), about, controllers_expected=shards_first)
-            host = make_host(domain_id)
-            used = [domain_id + i for i in range(len(used))]
-            hint = watch_hint(domain_id, foxglove=args.foxglove is not None, markers=args.markers)
-            print(f"composed-sim: ROS domain {domain_id}{f'..{used[-1]}' if len(used) > 1 else ''} (free, "
-                  f"picked); {hint}", file=sys.stderr)
-    except (HostError, DomainTaken) as e:
-        raise UserError(str(e)) from None
+        summary, files, code = run.run_and_write()
+    except OSError as e:
+        if e.errno not in DISK_FULL:
+            raise
+        run.claim.release()
+        raise RunStopped(_disk_full_line(settings, e)) from None
+    run.claim.release()
+    print_summary(json_stdout if settings.outputs.json else None, world, summary,
+                  files + (["logs/"] if _kept(logs_dir) else []))
+    return code
 
-    def finish(result, checkpoint: bool = False) -> tuple[dict, list[str]]:
+
+class Run:
+    """One run: its host in domains of its own, the ticks, the results written."""
+
+    def __init__(self, settings: RunSettings, world, logs, json_stdout: JsonStdout):
+        from composed_sim.hosting import HostError
+        from composed_sim.hosts.domain_claim import DomainTaken
+        from composed_sim.hosts.make import host_in_own_domains
+        self.settings, self.world, self.logs, self.json_stdout = settings, world, logs, json_stdout
+        self.fail_fast = FailFast(settings.control.fail_fast)
+        try:
+            self.host, self.claim, picked = host_in_own_domains(settings.hosting, world, logs)
+        except (HostError, DomainTaken) as e:
+            raise UserError(str(e)) from None
+        self.domains = self.host.ros_domains()
+        if picked:
+            live = settings.live
+            hint = watch_hint(self.domains[0], foxglove=live.foxglove is not None, markers=live.markers)
+            print(f"composed-sim: ROS domain {self.domains[0]}"
+                  f"{f'..{self.domains[-1]}' if len(self.domains) > 1 else ''} (free, picked); {hint}", file=sys.stderr)
+
+    def finish(self, result, checkpoint: bool = False) -> tuple[dict, list[str]]:
         """Write the results; the summary and the names of the files written."""
-        mode = "external-controllers" if args.external_controllers else args.mode
-        summary = summarize(world, result, setup_s=host.setup.setup_s, mode=mode,
-                            executor=args.executor,
+        from composed_sim.outputs.results import summarize, write_results
+        host, hosting, out = self.host, self.settings.hosting, self.settings.outputs.out
+        summary = summarize(self.world, result, setup_s=host.setup.setup_s, mode=self.settings.mode,
+                            executor=hosting.executor,
                             phases={"physics_s": host.sim.times.physics_s, "sensing_s": host.sim.times.sensing_s})
         summary["participants"] = host.setup.participants
         summary["workers"] = host.setup.workers
-        summary["workers_requested"] = args.workers if args.mode == "composed" else None
+        summary["workers_requested"] = hosting.workers if hosting.mode == "composed" else None
         workers_peak_rss_mb = host.workers_peak_rss_mb()
         if workers_peak_rss_mb is not None:     # every process's peak (pages shared between them count in each)
             summary["workers_peak_rss_mb"] = [round(mb, 1) for mb in workers_peak_rss_mb]
             summary["peak_rss_mb"] += sum(summary["workers_peak_rss_mb"])
-        summary["domain_id"], summary["domains"] = used[0], used
+        summary["domain_id"], summary["domains"] = self.domains[0], self.domains
         summary["checkpoint"] = checkpoint     # true: written while running; the run did not end
-        summary["out"] = str(args.out)
-        summary["logs"] = str(logs_dir)
-        summary["failed_by"] = logs.console.failures    # "ZeroDivisionError in pkg.mod:Class": robots
-        summary["stopped_by_fail_fast"] = fail_fast.reason
-        files = write_results(args.out, world, result, summary, picture=not (args.no_picture or checkpoint),
-                              checkpoint=checkpoint)
+        summary["out"] = str(out)
+        summary["logs"] = str(out / "logs")
+        summary["failed_by"] = self.logs.console.failures    # "ZeroDivisionError in pkg.mod:Class": robots
+        summary["stopped_by_fail_fast"] = self.fail_fast.reason
+        files = write_results(out, self.world, result, summary,
+                              picture=self.settings.outputs.picture and not checkpoint, checkpoint=checkpoint)
         return summary, files
 
-    try:
-        summary, files, code = _run_and_write(args, world, host, finish, logs, fail_fast)
-    except OSError as e:
-        if e.errno not in DISK_FULL:
+    def run_and_write(self) -> tuple[dict, list, int]:
+        """Run the ticks with the observers, write the results; (summary, files written, exit code)."""
+        from composed_sim import plugins
+        from composed_sim.core.placement import PlacementError
+        from composed_sim.hosting import HostError
+        from composed_sim.hosts.lockstep import AnotherSimulator
+
+        with Interrupts() as interrupts, contextlib.ExitStack() as outputs:
+            try:
+                with self.host:
+                    return self._ticks(interrupts, outputs)
+            except (plugins.PluginError, PlacementError) as e:
+                raise UserError(located(self.settings.world.path, e)) from None
+            except (HostError, AnotherSimulator) as e:
+                raise UserError(str(e)) from None
+
+    def _ticks(self, interrupts, outputs: contextlib.ExitStack) -> tuple[dict, list, int]:
+        host, settings, out = self.host, self.settings, self.settings.outputs.out
+        self._say_workers()
+        observers = run_observers(settings, self.world, host, outputs, interrupts, self.logs)
+        progress = progress_bar(self.world.length_ticks, disabled=not settings.control.progress)
+        try:
+            result = host.run(progress=progress.update,
+                              should_stop=lambda: interrupts.requested or self.fail_fast.stops(host),
+                              observers=observers, checkpoint=lambda partial: self.finish(partial, True))
+        except Exception as e:
+            partial = getattr(e, "partial_result", None)
+            if isinstance(e, OSError) and e.errno in DISK_FULL:
+                _write_if_room(self.finish, partial)
+                raise
+            if partial is not None:   # write what was simulated before the failure
+                self.finish(partial)
+                print(f"composed-sim: the run failed at tick {partial.trajectories.ticks_done}; "
+                      f"results so far are in {out}/", file=sys.stderr)
             raise
-        claim.release()
-        raise RunStopped(_disk_full_line(args, e)) from None
-    claim.release()
-    print_summary(args, world, summary, files + (["logs/"] if _kept(logs_dir) else []))
-    return code
+        finally:
+            progress.close()
+            self.logs.flush()
+        summary, files = self.finish(result)
+        code = EXIT_INTERRUPTED if result.interrupted else 0
+        if self.fail_fast.reason:
+            code = EXIT_CONTROLLER_FAILED
+            print(f"composed-sim: --fail-fast: {self.fail_fast.reason}; stopped at tick "
+                  f"{result.trajectories.ticks_done}, results so far in {out}/", file=sys.stderr)
+        for line in self.logs.console.closing_lines():
+            print(line, file=sys.stderr)
+        if settings.control.exit_when_done and host.end_before_exit():
+            # With every result and the recording written, the process ends and the system
+            # reclaims the nodes (Host.end_before_exit).
+            outputs.close()
+            print_summary(self.json_stdout if settings.outputs.json else None, self.world, summary,
+                          files + (["logs/"] if _kept(out / "logs") else []))
+            sys.stdout.flush()
+            sys.stderr.flush()
+            os._exit(code)
+        return summary, files, code
+
+    def _say_workers(self) -> None:
+        """Once set-up went well: how many worker processes host the robots."""
+        from composed_sim.hosts.settings import AUTO_WORKERS
+        from composed_sim.hosts.workers.host import usable_cores
+        host = self.host
+        if host.setup.workers > 1 and not self.settings.outputs.json:
+            auto = self.settings.hosting.workers == AUTO_WORKERS
+            print(f"composed-sim: {len(host.sim.names)} robots in {host.setup.workers} worker processes"
+                  + (f" (--workers auto, {usable_cores()} usable cores)" if auto else ""), file=sys.stderr)
 
 
 def _kept(folder) -> bool:
@@ -135,28 +170,25 @@ def _kept(folder) -> bool:
     return folder.is_dir()
 
 
-# A write refused for lack of room: the disk or quota is full, or the file size limit reached.
-DISK_FULL = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)
-
-
-def _disk_full_line(args, error: OSError) -> str:
+def _disk_full_line(settings: RunSettings, error: OSError) -> str:
     """One line: the file that could not be written, the tick reached, what is kept."""
     from composed_sim.outputs.bag_repair import is_unfinished
     from composed_sim.outputs.results import SUMMARY
+    out, record = settings.outputs.out, settings.outputs.record
     partial = getattr(error, "partial_result", None)
     stopped = f" at tick {partial.trajectories.ticks_done}" if partial is not None else ""
     try:
-        results = f"results of ticks 0…{json.loads((args.out / SUMMARY).read_text())['ticks']} in {args.out}/"
+        results = f"results of ticks 0…{json.loads((out / SUMMARY).read_text())['ticks']} in {out}/"
     except (OSError, ValueError, KeyError):
-        results = f"no results in {args.out}/"
+        results = f"no results in {out}/"
     kept = [results]
-    if args.record is not None and is_unfinished(args.record):
-        kept.append(f"the recording up to its last flush in {args.record}/ (with room again: "
-                    f"composed-sim bag repair {args.record})")
-    elif args.record is not None:
-        kept.append(f"the recording in {args.record}/")
+    if record is not None and is_unfinished(record):
+        kept.append(f"the recording up to its last flush in {record}/ (with room again: "
+                    f"composed-sim bag repair {record})")
+    elif record is not None:
+        kept.append(f"the recording in {record}/")
     why = "file size limit reached" if error.errno == errno.EFBIG else "disk full"
-    return (f"{why}: cannot write {error.filename or args.out} ({error.strerror}); the run stopped{stopped}; "
+    return (f"{why}: cannot write {error.filename or out} ({error.strerror}); the run stopped{stopped}; "
             f"kept: {' and '.join(kept)}")
 
 
@@ -182,63 +214,6 @@ def _first_failure(host) -> str:
     return f"{first.robot}: {first.reason}" if first is not None else ""
 
 
-def _run_and_write(args, world, host, finish, logs, fail_fast: FailFast) -> tuple[dict, list, int]:
-    """Run the ticks with the observers, write the results; (summary, files written, exit code)."""
-    from composed_sim import plugins
-    from composed_sim.core.placement import PlacementError
-    from composed_sim.hosting import HostError
-    from composed_sim.hosts.lockstep import AnotherSimulator
-    from composed_sim.hosts.workers.host import usable_cores
-
-    with Interrupts() as interrupts, contextlib.ExitStack() as outputs:
-        try:
-            with host:
-                if host.setup.workers > 1 and not args.json:     # said once set-up went well
-                    print(f"composed-sim: {len(host.sim.names)} robots in {host.setup.workers} worker processes"
-                          + (f" (--workers auto, {usable_cores()} usable cores)" if args.workers == "auto" else ""),
-                          file=sys.stderr)
-                observers = _run_observers(args, world, host, outputs, interrupts, logs)
-                progress = progress_bar(world.length_ticks, disabled=args.no_progress)
-                try:
-                    result = host.run(progress=progress.update,
-                                      should_stop=lambda: interrupts.requested or fail_fast.stops(host),
-                                      observers=observers, checkpoint=lambda partial: finish(partial, True))
-                except Exception as e:
-                    partial = getattr(e, "partial_result", None)
-                    if isinstance(e, OSError) and e.errno in DISK_FULL:
-                        _write_if_room(finish, partial)
-                        raise
-                    if partial is not None:   # write what was simulated before the failure
-                        finish(partial)
-                        print(f"composed-sim: the run failed at tick {partial.trajectories.ticks_done}; "
-                              f"results so far are in {args.out}/", file=sys.stderr)
-                    raise
-                finally:
-                    progress.close()
-                    logs.flush()
-                summary, files = finish(result)
-                code = EXIT_INTERRUPTED if result.interrupted else 0
-                if fail_fast.reason:
-                    code = EXIT_CONTROLLER_FAILED
-                    print(f"composed-sim: --fail-fast: {fail_fast.reason}; stopped at tick "
-                          f"{result.trajectories.ticks_done}, results so far in {args.out}/", file=sys.stderr)
-                for line in logs.console.closing_lines():
-                    print(line, file=sys.stderr)
-                if args.exit_when_done and host.end_before_exit():
-                    # With every result and the recording written, the process ends and the system
-                    # reclaims the nodes (Host.end_before_exit).
-                    outputs.close()
-                    print_summary(args, world, summary, files + (["logs/"] if _kept(args.out / "logs") else []))
-                    sys.stdout.flush()
-                    sys.stderr.flush()
-                    os._exit(code)
-        except (plugins.PluginError, PlacementError) as e:
-            raise UserError(located(args.world, e)) from None
-        except (HostError, AnotherSimulator) as e:
-            raise UserError(str(e)) from None
-    return summary, files, code
-
-
 def _write_if_room(finish, partial) -> None:
     """The results so far, after a write failed for lack of room: the part written of a file
     is given back, so the smaller files may fit; if not, the last checkpoint stays."""
@@ -249,71 +224,3 @@ def _write_if_room(finish, partial) -> None:
     except OSError as e:
         if e.errno not in DISK_FULL:
             raise
-
-
-def _run_observers(args, world, host, outputs: contextlib.ExitStack, interrupts, logs) -> list:
-    """The recording, live markers, the Foxglove server and pacing asked for on the command
-    line, as tick observers (in that order: a tick is shown before the pause after it)."""
-    from composed_sim.live.observers import MarkerObserver, RecordingObserver, Scene
-    from composed_sim.ros.taps import Taps
-
-    observers, taps = [], []
-    scene = Scene(host.sim, world.tick_ns)
-    recorder = None
-    if args.record is not None:
-        from composed_sim.outputs.recording import BagRecorder
-        recorder = outputs.enter_context(BagRecorder(args.record, robot_names=host.sim.names, tick_s=world.tick_s,
-                                                     topics_globs=args.record_topics, world=world))
-        interrupts.on_second = recorder.close_if_idle   # even a hard quit leaves a readable bag
-        recorder.set_custom("executor", args.executor)  # what `replay --check` re-simulates with
-        observers.append(RecordingObserver(recorder, scene))
-        from composed_sim.live.observers import RosoutObserver
-        observers.append(RosoutObserver(recorder, logs))
-        if args.record_topics:
-            _warn_unmatched_globs(args.record_topics, world, "--record-topics")
-            taps.append(recorder)
-    if args.markers:
-        observers.append(MarkerObserver(host.observer_node(), scene))
-    if args.foxglove is not None:
-        from composed_sim.live.foxglove_server import FoxgloveError, FoxgloveServer
-        try:
-            server = FoxgloveServer(scene, args.foxglove, dict(_run_topics(world)), args.foxglove_topics,
-                                    wait_for_viewer_s=args.wait_for_viewer)
-        except FoxgloveError as e:
-            raise UserError(str(e)) from None
-        outputs.callback(server.close)
-        print(f"composed-sim: serving Foxglove on ws://{args.foxglove[0]}:{server.port}", file=sys.stderr)
-        observers.append(server)
-        if args.foxglove_topics:
-            _warn_unmatched_globs(args.foxglove_topics, world, "--foxglove-topics")
-            taps.append(server)
-    if taps:
-        host.set_message_tap(Taps(taps))
-    if args.rate is not None:
-        from composed_sim.live.pacing import Pacer
-        observers.append(Pacer(args.rate, world.tick_s))
-    return observers
-
-
-def _run_topics(world) -> list[tuple[str, str]]:
-    """(topic, message type) of every robot's contract topic in this run."""
-    from composed_sim.ros import contract as c
-    from composed_sim.ros.robot_settings import robot_devices
-    return [(c.topic_name(name, t), t.type_name)
-            for name, devices in zip(world.robot_names(), robot_devices(world)) for t in c.robot_topics(devices)]
-
-
-def _warn_unmatched_globs(globs: list[str], world, flag: str) -> None:
-    """A topic glob that matches no topic of this run is a warning naming two that exist."""
-    from composed_sim.ros import contract as c
-    from composed_sim.ros.taps import TopicGlobs
-    from composed_sim.hosting.run_wide.relay import is_run_wide
-    topics = [topic for topic, _ in _run_topics(world)] + [c.SWARM_MARKERS_TOPIC]
-    robots = frozenset(world.robot_names())
-    for glob in globs:
-        matcher = TopicGlobs([glob])
-        # A run-wide topic (/swarm_command) exists once a node publishes it: not known before.
-        if not any(matcher.wants(t) for t in topics) and not (glob.startswith("/") and is_run_wide(glob, robots)):
-            print(f"composed-sim: warning: {flag} {glob!r} matches no topic of this run "
-                  f"(its topics are like {topics[0]} and {topics[-2] if len(topics) > 1 else topics[0]})",
-                  file=sys.stderr)

@@ -28,7 +28,7 @@ from composed_sim.core.simulation import SensorFrame
 from composed_sim.world.robot_models import get_model
 from composed_sim.hosting import callback_guard
 from composed_sim.hosting.callback_guard import CallbackGuard, refuse_shutdown_from_callbacks
-from composed_sim.hosting.options import ROBOTS_PER_PARTICIPANT
+from composed_sim.hosting.options import DEFAULT_EXECUTOR, ROBOTS_PER_PARTICIPANT
 from composed_sim.hosting import HostError
 from composed_sim.hosting.building import answer_type, create_robot_nodes, create_run_wide_nodes, load_classes
 from composed_sim.hosting.executors.running import check_executor, make_executor, spin_until_shutdown
@@ -63,7 +63,7 @@ class ParticipantGroups:
 
     A context manager; ``__exit__`` destroys the nodes before their contexts."""
 
-    def __init__(self, world: World, start: int, stop: int, *, executor: str = "lockstep", domain_id: int = 0,
+    def __init__(self, world: World, start: int, stop: int, *, executor: str = DEFAULT_EXECUTOR, domain_id: int = 0,
                  robots_per_participant: int = ROBOTS_PER_PARTICIPANT, first_group: int = 0,
                  logs: Optional[NodeLogs] = None):
         """``first_group``: the number of this block's first participant group in the run (the

@@ -10,7 +10,7 @@ import time
 from typing import Callable, Optional, Sequence
 
 from composed_sim.core.simulation import Simulation
-from composed_sim.hosting.options import ROBOTS_PER_PARTICIPANT
+from composed_sim.hosting.options import DEFAULT_EXECUTOR, ROBOTS_PER_PARTICIPANT
 from composed_sim.hosts.host import HostBase, SetupInfo
 from composed_sim.hosting.node_logs import NodeLogs
 from composed_sim.hosts.lockstep import LoopResult, TickObserver, run_lockstep
@@ -22,7 +22,7 @@ from composed_sim.world.schema import World
 class ComposedHost(HostBase):
     """Context manager owning the simulation and the participant groups (``Host``)."""
 
-    def __init__(self, world: World, *, executor: str = "lockstep", domain_id: int = 0,
+    def __init__(self, world: World, *, executor: str = DEFAULT_EXECUTOR, domain_id: int = 0,
                  robots_per_participant: int = ROBOTS_PER_PARTICIPANT, logs: Optional[NodeLogs] = None):
         """``logs``: the nodes' log lines and tracebacks (hosting/node_logs.py); rclpy's loggers without."""
         self.world = world

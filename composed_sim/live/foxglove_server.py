@@ -28,13 +28,13 @@ import psutil
 from foxglove.websocket import Capability
 
 from composed_sim.core.simulation import Simulation
+from composed_sim.live import DEFAULT_FOXGLOVE_HOST
 from composed_sim.live.observers import Scene
 from composed_sim.outputs.recording import CLOCK_TYPE, message_definition
 from composed_sim.ros.global_topics import CLOCK_TOPIC, SWARM_MARKERS_TOPIC
 from composed_sim.live.markers import MARKERS_TYPE
 from composed_sim.ros.taps import TopicGlobs
 
-DEFAULT_HOST, DEFAULT_PORT = "127.0.0.1", 8765
 DRAIN_S = 1.0        # at the end of a watched run: time for the viewers to receive the last ticks
 _CDR_HEADER = b"\x00\x01\x00\x00"        # little-endian CDR encapsulation
 
@@ -52,7 +52,7 @@ def parse_address(text: str) -> tuple[str, int]:
         number = -1
     if not 0 <= number <= 65535:
         raise ValueError(f"{text!r}: not [HOST:]PORT with a port in 0..65535")
-    return host or DEFAULT_HOST, number
+    return host or DEFAULT_FOXGLOVE_HOST, number
 
 
 def port_holder(port: int) -> Optional[str]:

@@ -15,10 +15,9 @@ ROS_DISCOVERY_SERVER           a Fast DDS discovery server (``fastdds discovery 
 from __future__ import annotations
 
 import os
-from typing import MutableMapping, Optional
+from typing import Mapping, MutableMapping, Optional
 
 RANGES = ("subnet", "localhost", "off", "system_default")
-DEFAULT_DISCOVERY_TIMEOUT_S = 120.0   # simulator waiting for shards, shard waiting for a simulator
 MAX_STATIC_PEERS = 32        # RMW_DISCOVERY_PARAMS_MAX_PEERS in rmw
 
 
@@ -56,15 +55,20 @@ def configure(*, discovery_range: Optional[str] = None, static_peers: Optional[s
             raise DiscoveryError("--discovery-server: expected ADDRESS:PORT, e.g. 10.0.0.1:11811")
         environ["ROS_DISCOVERY_SERVER"] = discovery_server
     server = environ.get("ROS_DISCOVERY_SERVER", "").strip()
-
-    description = range_
-    if peers:
-        description += f" + static peers {';'.join(peers)}"
-    if server:
-        description += f" + discovery server {server}"
     warning = None
     if range_ in ("LOCALHOST", "OFF") and not peers and not server:
         reach = "only shards on this machine" if range_ == "LOCALHOST" else "no shard"
         warning = (f"discovery range is {range_}: {reach} can be found; use --discovery-range subnet, "
                    f"--static-peers or --discovery-server across machines")
-    return description, warning
+    return describe(environ), warning
+
+
+def describe(environ: Mapping[str, str] = os.environ) -> str:
+    """The discovery settings ``environ`` holds, for messages: ``SUBNET + static peers A;B``."""
+    description = environ.get("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST").upper()
+    peers = [p.strip() for p in environ.get("ROS_STATIC_PEERS", "").split(";") if p.strip()]
+    if peers:
+        description += f" + static peers {';'.join(peers)}"
+    if server := environ.get("ROS_DISCOVERY_SERVER", "").strip():
+        description += f" + discovery server {server}"
+    return description

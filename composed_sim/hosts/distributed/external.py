@@ -22,7 +22,7 @@ from composed_sim.core.simulation import Simulation
 from composed_sim.hosts.host import ControllersElsewhere, SetupInfo
 from composed_sim.hosting.nodes_exchange import NodesExchange
 from composed_sim.hosting import HostError
-from composed_sim.hosts.distributed.discovery import DEFAULT_DISCOVERY_TIMEOUT_S
+from composed_sim.hosts.settings import DEFAULT_DISCOVERY_TIMEOUT_S
 from composed_sim.hosting.building import matched
 from composed_sim.hosting.executors.running import spin_until_shutdown
 from composed_sim.hosts.processes import InterruptWatch

@@ -29,6 +29,7 @@ from rclpy.executors import Executor
 from rclpy.node import Node
 from rclpy.time import Time as RosTime
 
+from composed_sim.hosting.options import DEFAULT_EXECUTOR
 from composed_sim.hosting import HostError
 from composed_sim.hosting.building import contract_endpoints, create_robot_nodes, load_classes, matched
 from composed_sim.hosting.executors.running import check_executor, make_executor, spin_until_shutdown
@@ -45,7 +46,7 @@ LIVENESS_PERIOD_S = 0.2      # how often a serving shard looks whether its simul
 class ShardHost:
     """Context manager owning the shard's context, nodes and executor, destroyed in order."""
 
-    def __init__(self, world: World, robots: list[int], *, executor: str = "lockstep", domain_id: int = 0,
+    def __init__(self, world: World, robots: list[int], *, executor: str = DEFAULT_EXECUTOR, domain_id: int = 0,
                  should_stop: Callable[[], bool] = lambda: False):
         check_executor(executor)
         if not robots:

@@ -34,6 +34,7 @@ from rclpy.executors import Executor
 
 from composed_sim.core.simulation import Simulation
 from composed_sim.hosts.host import ControllersElsewhere, SetupInfo
+from composed_sim.hosting.options import DEFAULT_EXECUTOR
 from composed_sim.hosting import HostError
 from composed_sim.hosting.building import create_run_wide_nodes, load_classes, matched
 from composed_sim.hosting.executors.running import check_executor, spin_until_shutdown
@@ -123,7 +124,7 @@ class MultiProcessHost(ControllersElsewhere):
     that are ready without rebuilding a wait set per message, and its callbacks only store them.
     """
 
-    def __init__(self, world: World, *, executor: str = "lockstep", domain_id: int = 0,
+    def __init__(self, world: World, *, executor: str = DEFAULT_EXECUTOR, domain_id: int = 0,
                  robots_per_domain: Optional[int] = None, logs=None):
         """``logs``: a ``NodeLogs`` (hosting/node_logs.py): each child writes its robot's log file
         with its settings; a child's failure shows its traceback here."""

@@ -43,6 +43,7 @@ import numpy as np
 from composed_sim.core.senses import Senses
 from composed_sim.core.simulation import Simulation
 from composed_sim.core.violations import FAILED, Violation
+from composed_sim.hosting.options import DEFAULT_EXECUTOR
 from composed_sim.hosting import HostError
 from composed_sim.hosting.executors.running import check_executor
 from composed_sim.hosts.host import ControllersElsewhere, SetupInfo
@@ -239,7 +240,7 @@ class WorkerHost(ControllersElsewhere):
     """Context manager (``Host``): the simulation here, the controllers in ``workers`` processes;
     every worker stopped and reaped in ``__exit__``."""
 
-    def __init__(self, world: World, *, workers: int, executor: str = "lockstep", domain_id: int = 0,
+    def __init__(self, world: World, *, workers: int, executor: str = DEFAULT_EXECUTOR, domain_id: int = 0,
                  logs=None):
         """``logs``: a ``NodeLogs`` (hosting/node_logs.py): the workers write their robots' log files
         with its settings and send it what the console shows."""
