@@ -28,23 +28,6 @@ from composed_sim.world.loader import format_path
 from composed_sim.world.schema import NodeSpec, RobotGroup, World
 
 
-def matched(endpoint) -> bool:
-    """A publisher with a matched subscription, a subscription with a matched publisher; True for
-    None (a topic the caller does not serve, e.g. /clock, shared by all)."""
-    if endpoint is None:
-        return True
-    count = endpoint.get_subscription_count() if hasattr(endpoint, "get_subscription_count") \
-        else endpoint.get_publisher_count()
-    return count >= 1
-
-
-def contract_endpoints(nodes: Sequence[Node], robot: str) -> list:
-    """The robot's nodes' publishers and subscriptions on contract topics (their own other topics
-    and the parameter/rosout plumbing are not the simulator's business)."""
-    topics = {c.topic_name(robot, t) for t in c.SENSOR_TOPICS + c.ACTUATOR_TOPICS} | {c.CLOCK_TOPIC}
-    return [e for node in nodes for e in list(node.publishers) + list(node.subscriptions) if e.topic_name in topics]
-
-
 def controller_parameters(world: World, group_index: int) -> list[Parameter]:
     group = world.robots[group_index]
     params = [Parameter(k, value=v) for k, v in group.params.items()]

@@ -14,7 +14,6 @@ of the block: the SensorFrame handed to ``exchange.publish_tick`` covers the blo
 """
 from __future__ import annotations
 
-import threading
 import time
 from typing import Optional
 
@@ -28,14 +27,15 @@ from composed_sim.core.simulation import SensorFrame
 from composed_sim.world.robot_models import get_model
 from composed_sim.hosting import callback_guard
 from composed_sim.hosting.callback_guard import CallbackGuard, refuse_shutdown_from_callbacks
-from composed_sim.hosting.options import DEFAULT_EXECUTOR, ROBOTS_PER_PARTICIPANT
+from composed_sim.hosting.options import ROBOTS_PER_PARTICIPANT, ProcessHosting
 from composed_sim.hosting import HostError
 from composed_sim.hosting.building import answer_type, create_robot_nodes, create_run_wide_nodes, load_classes
-from composed_sim.hosting.executors.running import check_executor, make_executor, spin_until_shutdown
+from composed_sim.hosting.executors.running import (SETTLE_ROUNDS, Spinning, check_executor, driven_by_caller, is_idle,
+                                                   make_executor, run_until_idle)
 from composed_sim.hosting.node_logs import NodeLogs
 from composed_sim.hosting.node_time import NodeTime
 from composed_sim.hosting.nodes_exchange import NodesExchange
-from composed_sim.hosting.run_wide.nodes import SETTLE_ROUNDS, RunWideNodes
+from composed_sim.hosting.run_wide.nodes import RunWideNodes
 from composed_sim.ros import contract as c
 from composed_sim.ros.answer_subscription import cmd_vel_gids, publisher_gid
 from composed_sim.ros import in_process
@@ -63,19 +63,19 @@ class ParticipantGroups:
 
     A context manager; ``__exit__`` destroys the nodes before their contexts."""
 
-    def __init__(self, world: World, start: int, stop: int, *, executor: str = DEFAULT_EXECUTOR, domain_id: int = 0,
+    def __init__(self, world: World, start: int, stop: int, hosting: ProcessHosting, *,
                  robots_per_participant: int = ROBOTS_PER_PARTICIPANT, first_group: int = 0,
                  logs: Optional[NodeLogs] = None):
-        """``first_group``: the number of this block's first participant group in the run (the
-        block of robot 0 has group 0, which publishes /clock). ``logs``: where the nodes' log lines
-        and the tracebacks of their failing callbacks go (hosting/node_logs.py)."""
-        check_executor(executor)
+        """``hosting``: its executor and domain. ``first_group``: the number of this block's first
+        participant group in the run (the block of robot 0 has group 0, which publishes /clock).
+        ``logs``: where the nodes' log lines and the tracebacks of their failing callbacks go
+        (hosting/node_logs.py)."""
+        check_executor(hosting.executor)
         if robots_per_participant < 1:
             raise HostError(f"robots per participant must be at least 1, got {robots_per_participant}")
         self.world = world
         self.start, self.stop = start, stop
-        self.executor_kind = executor
-        self.domain_id = domain_id
+        self.hosting = hosting
         self.robots_per_participant = robots_per_participant
         self.first_group = first_group
         self.logs = logs
@@ -94,9 +94,9 @@ class ParticipantGroups:
         self._graph_watches: list[GraphWatch] = []          # per group: when to ask for matched counts
         self.graph_changes: Optional[GraphChanges] = None   # what tells them the graph changed
         self.executor: Optional[Executor] = None
+        self.spinning: Optional[Spinning] = None
         self.guard: Optional[CallbackGuard] = None
         self.node_time = NodeTime()                         # CPU seconds in the nodes' own code
-        self._spin_thread: Optional[threading.Thread] = None
 
     def __enter__(self) -> "ParticipantGroups":
         try:
@@ -122,7 +122,7 @@ class ParticipantGroups:
         for k, first in enumerate(range(self.start, self.stop, self.robots_per_participant)):
             block = range(first, min(self.stop, first + self.robots_per_participant))
             context = Context()
-            rclpy.init(context=context, domain_id=self.domain_id)
+            rclpy.init(context=context, domain_id=self.hosting.domain_id)
             refuse_shutdown_from_callbacks(context, self.guard)
             self.contexts.append(context)
             group = self.first_group + k
@@ -156,7 +156,8 @@ class ParticipantGroups:
                     sim_node.drive_clock_of(node)
         self.exchange = NodesExchange(self.simulator_nodes, node_time=self.node_time)
         self._quiet_robots = any(node.when_published.any() for node in self.simulator_nodes)
-        self.executor = make_executor(self.executor_kind, self.contexts[0])
+        self.executor = make_executor(self.hosting.executor, self.contexts[0])
+        self.spinning = Spinning(self.executor)
         # Simulator nodes last, so that the lockstep executor's one ordered pass runs every
         # controller on its sensors first and then collects the answers they just published.
         for node in (*self.controllers, *self.simulator_nodes):
@@ -265,15 +266,14 @@ class ParticipantGroups:
     def start_serving(self):
         """Before the first tick: returns ``wait_for_answers(timeout_s) -> bool`` for the tick
         loop, and a context manager to run the ticks in (it interrupts hung callbacks)."""
-        if self.executor_kind != "multi-threaded":
+        if driven_by_caller(self.hosting.executor, guarded=True):
             wait = self._spin_until_answered
         else:
-            # Its callbacks run on its worker threads, as it is made for; the tick loop waits for
-            # the simulator nodes' "all answered".
-            self._spin_thread = threading.Thread(target=spin_until_shutdown, args=(self.executor,), name="executor", daemon=True)
-            self._spin_thread.start()
+            # Its callbacks run on its worker threads; the tick loop waits for the simulator
+            # nodes' "all answered".
+            self.spinning.start_thread()
             wait = self._await_answers
-        return wait, self.guard.interrupting_hangs(self._spin_thread is None)
+        return wait, self.guard.interrupting_hangs(self.spinning.thread is None)
 
     def _await_answers(self, timeout_s: float) -> bool:
         """The multi-threaded executor's callbacks run on its threads: wait for every answer, then
@@ -337,7 +337,7 @@ class ParticipantGroups:
         idle = 0
         while not self.exchange.all_answered:
             if self._quiet_robots and self.exchange.waiting_on_quiet_robots and time.monotonic() < deadline:
-                if not self._executor_idle():
+                if not is_idle(self.executor, self._callbacks_run):
                     continue            # it ran callbacks: look again
                 self._take_ready_answers()
                 if self.exchange.settle_idle(self._ran_since_open()):
@@ -356,39 +356,18 @@ class ParticipantGroups:
             idle = idle + 1 if (self.guard.calls, self.exchange.answered_count) == before else 0
             if drain_left <= 0 or idle >= 2:
                 return False
-        if self._settle:
-            self._run_until_idle()
+        if self._settle:      # every robot has answered, but a chain of its nodes may go on
+            run_until_idle(self.executor, self._callbacks_run)
         return True
 
-    def _executor_idle(self) -> bool:
-        """Nothing of the tick is left to run: a lockstep walk that sees every entity ran nothing,
-        or two passes over the executor ran no callback (a pass over the wait set costs a wait set
-        rebuilt over every entity: with hundreds of nodes, milliseconds)."""
-        if isinstance(self.executor, LockstepExecutor) and self.executor.walk_covers_all:
-            return self.executor.dispatch_ready() == 0
-        for _ in range(2):
-            before = self.guard.calls
-            if isinstance(self.executor, LockstepExecutor) and self.executor.dispatch_ready():
-                return False
-            self.executor.spin_once(timeout_sec=0)
-            if self.guard.calls != before:
-                return False
-        return True
-
-    def _run_until_idle(self) -> None:
-        """Run what is ready until nothing is (bounded): every robot has answered, but a chain of
-        its nodes may go on, and what it publishes belongs to this tick."""
-        for _ in range(SETTLE_ROUNDS):
-            if self._executor_idle():
-                return
+    def _callbacks_run(self) -> int:
+        return self.guard.calls
 
     def __exit__(self, *exc) -> None:
         if self.graph_changes is not None:
             self.graph_changes.close()
-        if self.executor is not None:
-            self.executor.shutdown()
-        if self._spin_thread is not None:
-            self._spin_thread.join(timeout=5.0)
+        if self.spinning is not None:
+            self.spinning.stop()
         if self.run_wide is not None:
             self.run_wide.destroy()
         for node in (*self.controllers, *self.simulator_nodes):

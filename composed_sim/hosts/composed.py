@@ -10,7 +10,7 @@ import time
 from typing import Callable, Optional, Sequence
 
 from composed_sim.core.simulation import Simulation
-from composed_sim.hosting.options import DEFAULT_EXECUTOR, ROBOTS_PER_PARTICIPANT
+from composed_sim.hosting.options import DEFAULT_EXECUTOR, ROBOTS_PER_PARTICIPANT, ProcessHosting
 from composed_sim.hosts.host import HostBase, SetupInfo
 from composed_sim.hosting.node_logs import NodeLogs
 from composed_sim.hosts.lockstep import LoopResult, TickObserver, run_lockstep
@@ -26,12 +26,11 @@ class ComposedHost(HostBase):
                  robots_per_participant: int = ROBOTS_PER_PARTICIPANT, logs: Optional[NodeLogs] = None):
         """``logs``: the nodes' log lines and tracebacks (hosting/node_logs.py); rclpy's loggers without."""
         self.world = world
-        self.executor_kind = executor
         self.domain_id = domain_id
         self.sim: Optional[Simulation] = None
-        self.groups = ParticipantGroups(world, 0, len(world.robot_names()), executor=executor,
-                                        domain_id=domain_id, robots_per_participant=robots_per_participant,
-                                        logs=logs)
+        hosting = ProcessHosting(executor, domain_id, logs.settings if logs is not None else None)
+        self.groups = ParticipantGroups(world, 0, len(world.robot_names()), hosting,
+                                        robots_per_participant=robots_per_participant, logs=logs)
         self.setup: Optional[SetupInfo] = None
 
     @property

@@ -13,9 +13,9 @@ from rclpy.node import Node
 from rclpy.time import Time
 
 from composed_sim.hosting.executors.lockstep import LockstepExecutor
+from composed_sim.hosting.executors.running import run_until_idle
 from composed_sim.hosting.sim_timers import SimTimers
 
-SETTLE_ROUNDS = 1000        # bound on the walks that run what is left to do (a busy node cannot hang a tick)
 
 
 class RunWideNodes:
@@ -42,9 +42,7 @@ class RunWideNodes:
             node.get_clock().set_ros_time_override(now)
         for timers in self._tick_timers:
             timers.advance_to(now_ns)
-        for _ in range(SETTLE_ROUNDS):
-            if self._executor.dispatch_ready() == 0:
-                break
+        run_until_idle(self._executor)
 
     def destroy(self) -> None:
         self._executor.shutdown()

@@ -11,7 +11,6 @@ lease) is marked failed: a violation, then the fallback every tick, never a stal
 """
 from __future__ import annotations
 
-import threading
 import time
 from typing import Callable, Optional
 
@@ -23,8 +22,8 @@ from composed_sim.hosts.host import ControllersElsewhere, SetupInfo
 from composed_sim.hosting.nodes_exchange import NodesExchange
 from composed_sim.hosting import HostError
 from composed_sim.hosts.settings import DEFAULT_DISCOVERY_TIMEOUT_S
-from composed_sim.hosting.building import matched
-from composed_sim.hosting.executors.running import spin_until_shutdown
+from composed_sim.hosting.matching import matched
+from composed_sim.hosting.executors.running import Spinning
 from composed_sim.hosts.processes import InterruptWatch
 from composed_sim.hosts.distributed.robot_ranges import format_ranges
 from composed_sim.hosts.distributed.announce import ShardInfo, ShardRegistry, world_fingerprint
@@ -54,8 +53,7 @@ class ExternalControllersHost(ControllersElsewhere):
         self.setup: Optional[SetupInfo] = None
         self._context: Optional[Context] = None
         self._registry: Optional[ShardRegistry] = None
-        self._executor: Optional[LockstepExecutor] = None
-        self._thread: Optional[threading.Thread] = None
+        self._spinning: Optional[Spinning] = None
         self._startup_interrupted = False
 
     def __enter__(self) -> "ExternalControllersHost":
@@ -74,10 +72,9 @@ class ExternalControllersHost(ControllersElsewhere):
                 self._wait_for_shards(endpoints, lambda: interrupts.requested)
             self._startup_interrupted = interrupts.requested
             self.exchange = NodesExchange([self.sim_node], self._check_shards)
-            self._executor = LockstepExecutor(context=self._context)
-            self._executor.add_node(self.sim_node)
-            self._thread = threading.Thread(target=spin_until_shutdown, args=(self._executor,), name="executor", daemon=True)
-            self._thread.start()
+            self._spinning = Spinning(LockstepExecutor(context=self._context))
+            self._spinning.executor.add_node(self.sim_node)
+            self._spinning.start_thread()
         except BaseException:
             self.__exit__(None, None, None)
             raise
@@ -164,11 +161,9 @@ class ExternalControllersHost(ControllersElsewhere):
         return 0 if sub is None else sub.get_publisher_count()
 
     def __exit__(self, *exc) -> None:
-        if self._executor is not None:
-            self._executor.shutdown()
-        if self._thread is not None:
-            self._thread.join(timeout=5.0)
-        self._executor, self._thread = None, None
+        if self._spinning is not None:
+            self._spinning.stop()
+            self._spinning = None
         if self._registry is not None:
             self._registry.destroy()
             self._registry = None

@@ -18,21 +18,20 @@ from __future__ import annotations
 import os
 import re
 import socket
-import threading
 import time
 from typing import Callable, Optional
 
 import rclpy
 from rclpy.clock import Clock as RosClock
 from rclpy.context import Context
-from rclpy.executors import Executor
 from rclpy.node import Node
 from rclpy.time import Time as RosTime
 
 from composed_sim.hosting.options import DEFAULT_EXECUTOR
 from composed_sim.hosting import HostError
-from composed_sim.hosting.building import contract_endpoints, create_robot_nodes, load_classes, matched
-from composed_sim.hosting.executors.running import check_executor, make_executor, spin_until_shutdown
+from composed_sim.hosting.building import create_robot_nodes, load_classes
+from composed_sim.hosting.matching import contract_endpoints, matched, poll_until
+from composed_sim.hosting.executors.running import Spinning, check_executor, driven_by_caller, make_executor
 from composed_sim.hosts.distributed.robot_ranges import format_ranges
 from composed_sim.hosts.distributed.announce import ShardAnnouncer, ShardInfo, world_fingerprint
 from composed_sim.hosting.sim_timers import before_each_tick
@@ -60,10 +59,9 @@ class ShardHost:
         self.context: Optional[Context] = None
         self.announcer: Optional[ShardAnnouncer] = None
         self.robot_nodes: list[list[Node]] = []      # per hosted robot: its nodes
-        self.executor: Optional[Executor] = None
+        self.spinning: Optional[Spinning] = None
         self._clocks: list[RosClock] = []
         self._clock_sub = None
-        self._spin_thread: Optional[threading.Thread] = None
 
     def __enter__(self) -> "ShardHost":
         try:
@@ -77,10 +75,10 @@ class ShardHost:
             self.announcer = ShardAnnouncer(self.context, node_name)
             self._clock_sub = self.announcer.node.create_subscription(
                 c.CLOCK_TYPE, c.CLOCK_TOPIC, self._on_clock, 10)
-            self.executor = make_executor(self.executor_kind, self.context)
+            self.spinning = Spinning(make_executor(self.executor_kind, self.context))
             # First: the lockstep executor's ordered walk then moves the clocks to a tick's time
             # before the controllers read that tick's sensors.
-            self.executor.add_node(self.announcer.node)
+            self.spinning.executor.add_node(self.announcer.node)
             for i in self.robots:
                 if self.should_stop():
                     break
@@ -95,7 +93,7 @@ class ShardHost:
                     clock = node.get_clock()
                     clock._set_ros_time_is_active(True)    # as SimulatorNode.drive_clock_of
                     self._clocks.append(clock)
-                    self.executor.add_node(node)
+                    self.spinning.executor.add_node(node)
                 self.robot_nodes.append(nodes)
         except BaseException:
             self.__exit__(None, None, None)
@@ -116,23 +114,19 @@ class ShardHost:
         names = self.world.robot_names()
         endpoints = [(i, e) for i, nodes in zip(self.robots, self.robot_nodes)
                      for e in contract_endpoints(nodes, names[i])]
-        deadline = time.monotonic() + timeout_s
-        pause = 0.002
-        while True:
-            unmatched = sorted({i for i, e in endpoints if not matched(e)})
-            if not unmatched and self._clock_sub.get_publisher_count() >= 1:
-                break
-            if self.should_stop():
-                return False
-            if time.monotonic() > deadline:
-                what = (f"the controllers of robots {format_ranges(unmatched)} found no matching simulator "
-                        f"endpoints" if unmatched else "no simulator /clock publisher was found")
-                raise HostError(f"shard {format_ranges(self.robots)}: {what} within {timeout_s:g} s in ROS "
-                                f"domain {self.domain_id}; start `composed-sim run WORLD --external-controllers` "
-                                f"with the same world and domain, and check the discovery settings "
-                                f"(docs/distributed.md)")
-            time.sleep(pause)
-            pause = min(2 * pause, 0.05)
+        unmatched = lambda: sorted({i for i, e in endpoints if not matched(e)})     # noqa: E731
+        found = poll_until(lambda: not unmatched() and self._clock_sub.get_publisher_count() >= 1, timeout_s,
+                           self.should_stop)
+        if found is None:
+            missing = unmatched()
+            what = (f"the controllers of robots {format_ranges(missing)} found no matching simulator "
+                    f"endpoints" if missing else "no simulator /clock publisher was found")
+            raise HostError(f"shard {format_ranges(self.robots)}: {what} within {timeout_s:g} s in ROS "
+                            f"domain {self.domain_id}; start `composed-sim run WORLD --external-controllers` "
+                            f"with the same world and domain, and check the discovery settings "
+                            f"(docs/distributed.md)")
+        if not found:
+            return False
         topics = {}
         for i, e in endpoints:
             if e.topic_name != c.CLOCK_TOPIC:
@@ -148,10 +142,9 @@ class ShardHost:
     def serve(self) -> str:
         """Run the controllers until the simulator is gone ("simulator gone") or a stop is
         requested ("stopped")."""
-        if self.executor_kind not in ("events", "lockstep"):
-            # The stock executors spin in their own thread, as in the composed host.
-            self._spin_thread = threading.Thread(target=spin_until_shutdown, args=(self.executor,), name="executor", daemon=True)
-            self._spin_thread.start()
+        spinning = self.spinning
+        if not driven_by_caller(self.executor_kind, guarded=False):
+            spinning.start_thread()
         next_check = time.monotonic() + LIVENESS_PERIOD_S
         while True:
             if self.should_stop():
@@ -160,18 +153,14 @@ class ShardHost:
                 if self._clock_sub.get_publisher_count() == 0:
                     return "simulator gone"
                 next_check = time.monotonic() + LIVENESS_PERIOD_S
-            if self._spin_thread is None:
-                # Driven from this thread: the lockstep executor by design, the EventsExecutor
-                # because its spin() in a thread hung in our probes (docs/architecture.md).
-                self.executor.spin_once(timeout_sec=LIVENESS_PERIOD_S / 4)
+            if spinning.thread is None:
+                spinning.executor.spin_once(timeout_sec=LIVENESS_PERIOD_S / 4)
             else:
                 time.sleep(LIVENESS_PERIOD_S / 4)
 
     def __exit__(self, *exc) -> None:
-        if self.executor is not None:
-            self.executor.shutdown()
-        if self._spin_thread is not None:
-            self._spin_thread.join(timeout=5.0)
+        if self.spinning is not None:
+            self.spinning.stop()
         for node in (n for nodes in self.robot_nodes for n in nodes):
             node.destroy_node()
         self.robot_nodes = []

@@ -21,25 +21,24 @@ import signal
 import subprocess
 import sys
 import tempfile
-import threading
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Iterable, Optional
 
 import numpy as np
 import rclpy
 from rclpy.context import Context
-from rclpy.executors import Executor
 
 from composed_sim.core.simulation import Simulation
 from composed_sim.hosts.host import ControllersElsewhere, SetupInfo
-from composed_sim.hosting.options import DEFAULT_EXECUTOR
+from composed_sim.hosting.options import DEFAULT_EXECUTOR, ProcessHosting
 from composed_sim.hosting import HostError
-from composed_sim.hosting.building import create_run_wide_nodes, load_classes, matched
-from composed_sim.hosting.executors.running import check_executor, spin_until_shutdown
+from composed_sim.hosting.building import create_run_wide_nodes, load_classes
+from composed_sim.hosting.matching import matched
+from composed_sim.hosting.executors.running import Spinning, check_executor
 from composed_sim.hosts.multiprocess.domains import DomainError, assign_domains
-from composed_sim.hosts.multiprocess.controller_process import GID_PREFIX, RUN_WIDE_PREFIX, TYPE_PREFIX
+from composed_sim.hosts.multiprocess.hosted_robot import GID_PREFIX, RUN_WIDE_PREFIX, TYPE_PREFIX
 from composed_sim.hosts.processes import InterruptWatch, exit_reason, last_words, reap, signal_group
 from composed_sim.hosting.nodes_exchange import NodesExchange
 from composed_sim.hosting.node_logs import failure_from_output
@@ -131,7 +130,8 @@ class MultiProcessHost(ControllersElsewhere):
         check_executor(executor)
         self.logs = logs
         self.world = world
-        self.executor_kind = executor
+        # What each controller process is told (its domain is its robot's).
+        self.hosting = ProcessHosting(executor, domain_id, logs.settings if logs is not None else None)
         mp = world.multi_process
         self.robots_per_domain = robots_per_domain or mp.robots_per_domain
         first = mp.first_domain if mp.first_domain is not None else domain_id
@@ -145,8 +145,7 @@ class MultiProcessHost(ControllersElsewhere):
         self.setup: Optional[SetupInfo] = None
         self._contexts: list[Context] = []
         self._nodes: dict[int, SimulatorNode] = {}
-        self._executors: list[Executor] = []
-        self._threads: list[threading.Thread] = []
+        self._spinning: list[Spinning] = []          # per domain: its simulator node's executor thread
         self._tmp: Optional[Path] = None
         self._last_check = 0.0
         self._startup_interrupted = False
@@ -185,12 +184,10 @@ class MultiProcessHost(ControllersElsewhere):
                 self._start_controllers(world_file, interrupts)
             self._startup_interrupted = interrupts.requested
             for d, node in self._nodes.items():
-                executor = LockstepExecutor(context=node.context)
-                executor.add_node(node)
-                thread = threading.Thread(target=spin_until_shutdown, args=(executor,), name=f"executor-d{d}", daemon=True)
-                thread.start()
-                self._executors.append(executor)
-                self._threads.append(thread)
+                spinning = Spinning(LockstepExecutor(context=node.context))
+                spinning.executor.add_node(node)
+                spinning.start_thread(f"executor-d{d}")
+                self._spinning.append(spinning)
         except BaseException:
             self.__exit__(None, None, None)
             raise
@@ -292,11 +289,8 @@ class MultiProcessHost(ControllersElsewhere):
         read_fd, write_fd = os.pipe()    # its start-up reports; EOF when it is done or dead
         log = self._tmp / f"{robot}.log"
         cmd = [sys.executable, "-m", "composed_sim.hosts.multiprocess.controller_process", "--world", str(world_file),
-               "--robot", robot, "--domain", str(self.domains[robot]), "--executor", self.executor_kind,
+               "--robot", robot, *replace(self.hosting, domain_id=self.domains[robot]).argv(),
                "--parent-pid", str(os.getpid()), "--report-fd", str(write_fd)]
-        if self.logs is not None and self.logs.settings.log_dir:
-            cmd += ["--log-dir", self.logs.settings.log_dir, "--log-level", str(self.logs.settings.console_level)]
-            cmd += ["--rosout"] if self.logs.settings.rosout else []
         # Own process group: a terminal's Ctrl-C goes to the simulator only (which stops the run
         # at a tick boundary), and killpg reaches anything the child started. SIGINT blocked while
         # forking: one arriving before the child's setpgid stays pending until the child ignores it.
@@ -384,11 +378,9 @@ class MultiProcessHost(ControllersElsewhere):
 
     def __exit__(self, *exc) -> None:
         self.stop_processes()
-        for executor in self._executors:
-            executor.shutdown()
-        for thread in self._threads:
-            thread.join(timeout=5.0)
-        self._executors, self._threads = [], []
+        for spinning in self._spinning:
+            spinning.stop()
+        self._spinning = []
         if self.run_wide is not None:
             self.run_wide.destroy()
             self.run_wide = None

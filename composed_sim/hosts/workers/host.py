@@ -43,7 +43,7 @@ import numpy as np
 from composed_sim.core.senses import Senses
 from composed_sim.core.simulation import Simulation
 from composed_sim.core.violations import FAILED, Violation
-from composed_sim.hosting.options import DEFAULT_EXECUTOR
+from composed_sim.hosting.options import DEFAULT_EXECUTOR, ProcessHosting
 from composed_sim.hosting import HostError
 from composed_sim.hosting.executors.running import check_executor
 from composed_sim.hosts.host import ControllersElsewhere, SetupInfo
@@ -251,8 +251,8 @@ class WorkerHost(ControllersElsewhere):
             raise HostError(f"--workers {workers}: a worker hosts at least one of the {n} robots "
                             f"(choose 1 … {n}, or auto)")
         self.world = world
-        self.executor_kind = executor
         self.domain_id = domain_id
+        self.hosting = ProcessHosting(executor, domain_id, logs.settings if logs is not None else None)
         self.blocks = plan_blocks(n, workers)
         self.sim: Optional[Simulation] = None
         self.setup: Optional[SetupInfo] = None
@@ -313,9 +313,9 @@ class WorkerHost(ControllersElsewhere):
 
     def _send_setup(self, w: Worker) -> None:
         """Tell a worker its block: it builds its nodes now."""
-        w.conn.send(("setup", WorkerSetup(self.world, w.start, w.stop, w.index, self.executor_kind, self.domain_id,
+        w.conn.send(("setup", WorkerSetup(self.world, w.start, w.stop, w.index, self.hosting,
                                           self._prefix + w.index.to_bytes(4, "little"), str(self._tmp),
-                                          self.shared.fd, self.logs.settings if self.logs else None)))
+                                          self.shared.fd)))
 
     def _adopt(self) -> None:
         """The workers' pids, from the launcher once it forked them all and exited."""

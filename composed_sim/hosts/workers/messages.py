@@ -14,12 +14,10 @@ class WorkerSetup:
     start: int                # the block: robots start … stop-1
     stop: int
     index: int                # the worker's number; its participant group has the same
-    executor: str
-    domain_id: int
+    hosting: object            # hosting/options.ProcessHosting: its executor, domain, where its robots' logs go
     participant_prefix: bytes  # the GUID prefix of the worker's one participant (hosting/participants.py)
     scratch_dir: str           # where the worker may write its Fast DDS profile
     shared_state: int          # the descriptor of the world's state in shared memory (shared_state.py)
-    logs: Optional[object] = None   # node_logs.LogSettings: its robots' log files are written here
 
 
 @dataclass

@@ -44,8 +44,8 @@ def serve(fd: int, adopted: Callable[[], None]) -> int:
     use_worker_prefix(setup.participant_prefix, setup.scratch_dir)
     world = setup.world
     # The robots' log files are written here; the main process gets the console's part.
-    logs = NodeLogs(setup.logs, world.tick_ns, forward=True) if setup.logs is not None else None
-    groups = ParticipantGroups(world, setup.start, setup.stop, executor=setup.executor, domain_id=setup.domain_id,
+    logs = NodeLogs(setup.hosting.logs, world.tick_ns, forward=True) if setup.hosting.logs is not None else None
+    groups = ParticipantGroups(world, setup.start, setup.stop, setup.hosting,
                                robots_per_participant=setup.stop - setup.start, first_group=setup.index, logs=logs)
     try:
         groups.__enter__()

@@ -1,0 +1,188 @@
+"""One robot's nodes in a controller process of their own (controller_process.py): built as the
+composed host builds them, on sim time from /clock; linked to the simulator for the run-wide
+topics and the log lines; their start-up reported to the host; then served until a stop."""
+from __future__ import annotations
+
+import os
+import signal
+import sys
+import time
+from typing import Callable, Optional
+
+import rclpy
+from rclpy.context import Context
+
+from composed_sim import plugins
+from composed_sim.hosting import HostError
+from composed_sim.hosting.building import create_robot_nodes, load_classes, published_answer_type
+from composed_sim.hosting.executors.running import Spinning, driven_by_caller, make_executor, run_until_idle
+from composed_sim.hosting.matching import contract_endpoints, matched, poll_until
+from composed_sim.hosting.node_logs import FAILURE_MARK, Console, NodeLogs, node_label, raising_node
+from composed_sim.hosting.options import ProcessHosting
+from composed_sim.hosting.run_wide.link import RunWideLink
+from composed_sim.hosting.run_wide.relay import RunWideRelay
+from composed_sim.hosting.sim_timers import before_each_tick
+from composed_sim.ros import contract as c
+from composed_sim.ros.answer_subscription import cmd_vel_gids
+from composed_sim.world.schema import World
+
+READY_TIMEOUT_S = 120.0
+# Words of the start-up reports:
+TYPE_PREFIX = "type:"   # of "created": the type its cmd_vel publisher has (geometry_msgs/msg/Twist)
+GID_PREFIX = "gid:"     # of "ready": one cmd_vel publisher's GID, in hex
+RUN_WIDE_PREFIX = "run_wide:"   # of "created": a topic its run-wide link uses (hosting/run_wide/relay.py)
+CLEANUP_LIMIT_S = 5         # s from the end of the work to a forced exit (SIGALRM)
+# How often an idle controller process wakes (a message or a due timer ends the wait at once):
+# only to see a stop request. Every wake-up walks the executor and builds a wait set; many a
+# second, hundreds of processes waiting for the others to start took whole cores
+# (docs/speed.md, "Multi-process start-up").
+IDLE_WAKE_S = 0.5
+
+
+class HostedRobot:
+    """The robot's context, nodes, run-wide link, executor and logs; ``close`` ends them in order."""
+
+    def __init__(self, world: World, robot: str, hosting: ProcessHosting):
+        self.world, self.robot, self.hosting = world, robot, hosting
+        self.context = Context()
+        rclpy.init(context=self.context, domain_id=hosting.domain_id)   # a non-default context: no rclpy handlers
+        self.nodes: list = []
+        self.link: Optional[RunWideLink] = None
+        self.spinning: Optional[Spinning] = None
+        # The robot's log file is written here; this process's console is a file nobody reads, so
+        # only a failure's traceback goes there (after FAILURE_MARK, for the host to show).
+        # The console's part and the /rosout lines go to the simulator with the robot's part of each
+        # tick (hosting/run_wide/link.py).
+        self.logs = NodeLogs(hosting.logs, world.tick_ns, forward=True, console=Console(open(os.devnull, "w"))) \
+            if hosting.logs is not None else None
+
+    def build(self) -> bool:
+        """Its nodes, its run-wide link and its executor; False (the reason on stderr) where the
+        nodes cannot be built."""
+        world, robot = self.world, self.robot
+        names = world.robot_names()
+        group_index = world.group_of_robot()[names.index(robot)]
+        relay = RunWideRelay(names)
+        try:
+            built = create_robot_nodes(world, group_index, robot, self.context, classes=load_classes(world),
+                                       relay=relay, origin=names.index(robot), use_sim_time=True, logs=self.logs)
+        except (plugins.PluginError, HostError) as e:
+            print(e, file=sys.stderr)
+            return False
+        self.nodes = built.nodes
+        if self.logs is not None:
+            clock = self.nodes[0].get_clock()
+            self.logs.clock = lambda: clock.now().nanoseconds
+        # The link also tells the simulator when a robot that answers when published is idle.
+        quiet = world.robots[group_index].answers == "when_published"
+        if relay.in_use or quiet or self.logs is not None:
+            self.link = RunWideLink(self.context, robot, relay,
+                                    receives=any(relay.subscriptions_of(n) for n in self.nodes),
+                                    # the log lines' part too: each tick's lines reach the console and the bag
+                                    sends=quiet or self.logs is not None
+                                    or any(relay.topics_published_by(n) for n in self.nodes),
+                                    timeout_s=world.lockstep.watchdog_s, logs=self.logs)
+            self.link.watch_answers([p for n in self.nodes for p in n.publishers
+                                     if p.topic_name == c.topic_name(robot, c.CMD_VEL)])
+        # Before the robot's first sensor callback of each tick: the tick's run-wide batch, and the
+        # timers of its nodes that read no sensors moved to the tick's time.
+        sensors = {c.topic_name(robot, t) for t in c.SENSOR_TOPICS}
+        before_each_tick([s for n in self.nodes for s in n.subscriptions if s.topic_name in sensors],
+                         lambda stamp: self._starting_tick(stamp, built.tick_timers))
+        self.spinning = Spinning(make_executor(self.hosting.executor, self.context))
+        for node in self.nodes:
+            self.spinning.executor.add_node(node)
+        return True
+
+    def _starting_tick(self, stamp: int, tick_timers) -> None:
+        for timers in tick_timers:
+            timers.advance_to(stamp)
+        if self.link is not None:
+            self.link.before_tick(stamp)
+
+    def report(self, fd: int, stopped: Callable[[], bool]) -> Optional[int]:
+        """Tell the host on the pipe ``fd`` that the nodes exist, then that their contract endpoints
+        are matched with the simulator's (its side checks the same topics). None: go on serving;
+        else the exit code."""
+        try:
+            with os.fdopen(fd, "w", buffering=1) as report:
+                link_endpoints = self.link.endpoints if self.link is not None else []
+                answer_type = published_answer_type(self.nodes, self.robot)   # None: its publisher comes later
+                words = ["created"] + ([f"{TYPE_PREFIX}{c.type_name(answer_type)}"] if answer_type else [])
+                words += [f"{RUN_WIDE_PREFIX}{e.topic_name}" for e in link_endpoints]
+                report.write(" ".join(words) + "\n")
+                endpoints = contract_endpoints(self.nodes, self.robot) + link_endpoints
+                found = poll_until(lambda: all(matched(e) for e in endpoints), READY_TIMEOUT_S, stopped)
+                if found is None:
+                    print(f"{self.robot}: no simulator matched within {READY_TIMEOUT_S:.0f} s", file=sys.stderr)
+                if not found:
+                    return 0 if stopped() else 1
+                topics = sorted({e.topic_name for e in endpoints})
+                gids = [GID_PREFIX + gid.hex() for node in self.nodes for gid in cmd_vel_gids(node, self.robot)]
+                report.write(" ".join(["ready"] + topics + gids) + "\n")
+        except BrokenPipeError:     # the host gave up on the start-up and is stopping us
+            return 0
+        return None
+
+    def serve(self, stopped: Callable[[], bool]) -> None:
+        """Run the nodes until a stop; send the robot's part of each tick over the link once its
+        nodes are idle."""
+        link, spinning = self.link, self.spinning
+        sends = link is not None and link.sends
+        if driven_by_caller(self.hosting.executor, guarded=False):
+            while not stopped():
+                spinning.executor.spin_once(timeout_sec=IDLE_WAKE_S)
+                if sends and link.tick > link.sent:
+                    run_until_idle(spinning.executor)
+                    link.send()
+            return
+        spinning.start_thread()
+        ticks_seen = -1
+        while not stopped():
+            # Signal handlers run during the sleep, which then goes on. A tick's run-wide messages
+            # go out once the robot's nodes are past the tick's sensors for one look (a threaded
+            # executor tells no one when it is idle).
+            time.sleep(0.002 if sends else 0.1)
+            if sends and link.tick > link.sent:
+                if ticks_seen == link.tick:
+                    link.send()
+                ticks_seen = link.tick
+
+    def failed(self, error: Exception) -> None:
+        """A callback raised: its traceback to the robot's log, and marked, for the host, here."""
+        node = raising_node(error, self.nodes)
+        if self.logs is not None and node is not None:
+            self.logs.exception(self.robot, type(node), node.get_logger().name, error, skip=host_frames())
+            tick, _ = self.logs.now()
+            print(f"{FAILURE_MARK} {node_label(type(node))} {type(error).__name__} {tick}", file=sys.stderr, flush=True)
+
+    def close(self) -> None:
+        if self.logs is not None:
+            self.logs.flush()
+        if self.link is not None and self.link.tick >= 0:
+            try:
+                self.link.send_logs()    # a failing robot's last lines: the simulator's console counts them
+            except Exception:            # noqa: BLE001 - its simulator may be gone: nothing to tell
+                pass
+        # A bound on the clean-up: a DDS call that waits on a peer that died with the simulator
+        # (its shared-memory port, say) must not keep this process alive. SIGALRM has no handler
+        # here, so the kernel ends the process even while a C call holds the interpreter.
+        signal.alarm(CLEANUP_LIMIT_S)
+        if self.spinning is not None:
+            self.spinning.stop(shutdown_timeout_s=1.0, join_timeout_s=2.0)
+        for node in self.nodes:
+            node.destroy_node()
+        if self.link is not None:
+            self.link.destroy()
+        if self.context.ok():
+            rclpy.shutdown(context=self.context)
+
+
+def host_frames() -> str:
+    """The files of a traceback's leading frames that are the host's or rclpy's executor, not the
+    node's (``NodeLogs.exception``'s ``skip``): this package's hosts, hosting and ros folders."""
+    import composed_sim.hosting
+    import composed_sim.hosts
+    import composed_sim.ros
+    folders = [os.path.dirname(m.__file__) for m in (composed_sim.hosts, composed_sim.hosting, composed_sim.ros)]
+    return ",".join([*(f + os.sep for f in folders), f"{os.sep}rclpy{os.sep}"])
