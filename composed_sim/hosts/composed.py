@@ -15,7 +15,7 @@ from composed_sim.hosts.host import HostBase, SetupInfo
 from composed_sim.hosting.node_logs import NodeLogs
 from composed_sim.hosts.lockstep import LoopResult, TickObserver, run_lockstep
 from composed_sim.hosting.participant_groups import ParticipantGroups, RelayingExchange
-from composed_sim.ros.simulator_node import MessageTap
+from composed_sim.ros.taps import MessageTap
 from composed_sim.world.schema import World
 
 

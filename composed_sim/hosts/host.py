@@ -23,7 +23,7 @@ from typing import Callable, Optional, Protocol, Sequence
 
 from composed_sim.core.simulation import Simulation
 from composed_sim.hosts.lockstep import Exchange, LoopResult, TickObserver, run_lockstep
-from composed_sim.ros.simulator_node import MessageTap
+from composed_sim.ros.taps import MessageTap
 from composed_sim.world.schema import World
 
 

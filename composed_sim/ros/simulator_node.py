@@ -6,38 +6,31 @@ hands it a SensorFrame to publish and reads back the commands as arrays.
 from __future__ import annotations
 
 import functools
-import math
-import threading
 import time
-from typing import TYPE_CHECKING, Callable, Collection, Mapping, Optional, Protocol, Sequence
+from typing import TYPE_CHECKING, Callable, Collection, Mapping, Optional, Sequence
 
 import numpy as np
 from rclpy.context import Context
 from rclpy.node import Node
-from rclpy.serialization import serialize_message
 from rclpy.time import Time as RosTime
 from rosgraph_msgs.msg import Clock
 
+from composed_sim.devices import DEVICES
+from composed_sim.devices.common import cdr
+from composed_sim.devices.common.device import DevicePublisher, GroupPlan, NodeRobots, Outgoing
+from composed_sim.ros import contract as c, decoding
+from composed_sim.ros.answer_ledger import AnswerLedger
+from composed_sim.ros.answer_subscription import (NODE_NAME_UNKNOWN, AnswerSubscription, ControllerPublishers, graph_gid,
+                                                 publisher_gid, publisher_text)
+from composed_sim.ros.in_process import inbox_of
+from composed_sim.ros.robot_settings import quiet_node_options
+from composed_sim.ros.robot_taps import RobotTaps
+from composed_sim.ros.taps import MessageTap
+from composed_sim.ros.topic import message_class
 from composed_sim.world.robot_models import RANGE_AND_BEARING, RobotModel
-from composed_sim.core.violations import FAILED, Violation
 from composed_sim.world.schema import Lockstep
 if TYPE_CHECKING:   # only a type here: a controller process must not import the physics
     from composed_sim.core.simulation import SensorFrame
-from composed_sim.devices.common import cdr
-from composed_sim.ros import contract as c, decoding
-from composed_sim.ros.topic import message_class
-from composed_sim.ros.in_process import inbox_of
-from composed_sim.ros.answer_subscription import (NODE_NAME_UNKNOWN, AnswerSubscription, ControllerPublishers, graph_gid,
-                                                 publisher_gid, publisher_text)
-from composed_sim.devices import DEVICES
-from composed_sim.devices.common.device import DevicePublisher, GroupPlan, NodeRobots, Outgoing
-from composed_sim.ros.robot_settings import quiet_node_options
-
-
-
-class MessageTap(Protocol):
-    def wants(self, topic: str) -> bool: ...
-    def write_serialized(self, topic: str, msgtype: str, data: bytes, stamp_ns: int) -> object: ...
 
 
 class AnswerTypeError(Exception):
@@ -59,13 +52,14 @@ LATE_RAB = "rab_tx answering an earlier tick arrived after that tick closed: app
 class SimulatorNode(Node):
     """Sensor publishers and command subscriptions for a set of robots, in one node.
 
-    One node serves every robot in composed mode; in multi-process mode there is one per ROS
-    domain, each serving that domain's robots (``rows``: their rows in the simulation's arrays).
+    One node serves every robot of a participant group in composed mode; in multi-process mode
+    there is one per ROS domain, each serving that domain's robots (``rows``: their rows in the
+    simulation's arrays). The answers to each tick are kept by its ``AnswerLedger``
+    (ros/answer_ledger.py), whose arrays it shows (``answered``, ``failed`` …).
 
-    Answers (``cmd_vel``) arrive through executor callbacks, possibly on worker threads; the
-    host waits on ``wait_for_answers``. LED commands go to a separate inbox node that is never
-    added to an executor and is drained by the host at the act phase, so an LED change
-    published before a tick's answer always lands on the same tick, whatever the executor.
+    LED commands go to a separate inbox node that is never added to an executor and is drained by
+    the host at the act phase, so an LED change published before a tick's answer always lands on
+    the same tick, whatever the executor.
     """
 
     def __init__(self, names: list[str], models: list[RobotModel], *, context: Context,
@@ -75,30 +69,30 @@ class SimulatorNode(Node):
                  answer_types: Optional[Sequence[Optional[type]]] = None,
                  answers_every_ticks: Optional[Sequence[int]] = None, global_tf: Optional[Sequence[bool]] = None,
                  answers_when_published: Optional[Sequence[bool]] = None):
-        """``lockstep``: the world's fault policy (unresponsive_after_s, max_violations); None:
-        robots are never failed for being unresponsive or for their violations. ``devices``: per
-        robot, the devices whose topics it has (``Devices.published``; None: each model's
-        defaults). ``rab_payload_bytes``: the world's range_and_bearing.payload_bytes.
-        ``publish_clock``: False where another node of this process and domain publishes it.
-        ``answer_types``: per robot, what its controller publishes on cmd_vel (a type of
-        ``contract.ANSWER_TYPES``), or None to read it from the ROS graph once the controller's
-        publisher is discovered (``detect_answer_types``); None: TwistStamped for all.
-        ``answers_every_ticks``: per robot, k: it answers ticks 0, k, 2k … and keeps its last
-        command in between (None: every tick). ``global_tf``: per robot running tf, whether its
-        frames go to /tf and /tf_static instead of its own /<robot>/tf (None: its own).
-        ``answers_when_published``: per robot, whether a tick its nodes leave without a cmd_vel keeps
-        its last command, without a violation (``settle_idle``; None: no robot)."""
+        """``lockstep``, ``answers_every_ticks``, ``answers_when_published``: the ledger's
+        (ros/answer_ledger.py). ``devices``: per robot, the devices whose topics it has
+        (``Devices.published``; None: each model's defaults). ``rab_payload_bytes``: the world's
+        range_and_bearing.payload_bytes. ``publish_clock``: False where another node of this
+        process and domain publishes it. ``answer_types``: per robot, what its controller
+        publishes on cmd_vel (a type of ``contract.ANSWER_TYPES``), or None to read it from the
+        ROS graph once the controller's publisher is discovered (``detect_answer_types``); None:
+        TwistStamped for all. ``global_tf``: per robot running tf, whether its frames go to /tf
+        and /tf_static instead of its own /<robot>/tf (None: its own)."""
         super().__init__(node_name, context=context, **quiet_node_options())
+        n = len(names)
+        rows = np.arange(n) if rows is None else np.asarray(rows)
+        if len(rows) != n:
+            raise ValueError(f"{n} robots but {len(rows)} rows")
         self._names = names
         self._index = {name: i for i, name in enumerate(names)}
-        self._unresponsive_s = math.inf if lockstep is None else lockstep.unresponsive_s
-        self._max_violations = None if lockstep is None else lockstep.max_violations
         self._models = models
         self._tick_ns = tick_ns
-        n = len(names)
-        self.rows = np.arange(n) if rows is None else np.asarray(rows)
-        if len(self.rows) != n:
-            raise ValueError(f"{n} robots but {len(self.rows)} rows")
+        self._ledger = AnswerLedger(names, rows, lockstep, answers_every_ticks, answers_when_published)
+        ledger = self._ledger           # its arrays, read (and filled) in place
+        self.rows, self.when_published, self.violations, self.on_failed = \
+            ledger.rows, ledger.when_published, ledger.violations, ledger.on_failed
+        self.linear, self.angular, self.answered, self.rejected, self.failed = \
+            ledger.linear, ledger.angular, ledger.answered, ledger.rejected, ledger.failed
         self._inbox = Node(node_name + "_inbox", context=context, **quiet_node_options())
         self._clock_pub = self.create_publisher(Clock, c.CLOCK_TOPIC, 10, event_callbacks=c.PUBLISHER_EVENTS) if publish_clock else None
         self._clock_msg = Clock()
@@ -106,9 +100,8 @@ class SimulatorNode(Node):
         self._next_clock_watch = 0.0
         self._other_seen_at: dict[bytes, float] = {}     # another /clock publisher's GID → first seen, not named
         self._driven_clock_handles = []
-        self._tap: Optional[MessageTap] = None
+        self._taps = RobotTaps(names)
         self._run_wide_publishers: dict[str, object] = {}    # topic → its publisher (mirror_run_wide)
-
         self._devices = [frozenset(m.default_devices) for m in models] if devices is None \
             else [frozenset(d) for d in devices]
         if len(self._devices) != n:
@@ -118,50 +111,31 @@ class SimulatorNode(Node):
         robots = NodeRobots(names, models, self._devices, tick_ns, rab_payload_bytes, global_tf)
         self._device_publishers: list[DevicePublisher] = [d.publisher(self, robots) for d in DEVICES
                                                           if robots.running(d.name)]
-        self._led_subs, self._rab_subs = [], [None] * n
+        # Every sensor publisher of each robot (a robot is connected once any has a subscriber).
+        self._sensor_pubs = [[p.pubs[i] for p in self._device_publishers if p.pubs[i] is not None] for i in range(n)]
+        self._plans: Optional[list[GroupPlan]] = None   # built from the first frame's groups
         self._cmd_subs: list[Optional[AnswerSubscription]] = [None] * n   # per robot, once its answer type is known
         self._answer_types: list[Optional[type]] = [c.msg_type(c.CMD_VEL)] * n if answer_types is None \
             else list(answer_types)
         self._controllers = ControllerPublishers(self, self._cmd_subs, self._answer_types)
         self._foreign_noted: set[tuple[int, bytes]] = set()   # (robot, GID) recorded this tick
-        self._every = None if answers_every_ticks is None or all(k == 1 for k in answers_every_ticks) \
-            else np.asarray(answers_every_ticks)
-        self.when_published = np.zeros(n, dtype=bool) if answers_when_published is None \
-            else np.asarray(answers_when_published, dtype=bool)
+        self._led_subs, self._rab_subs = self._subscribe(names)
+
+    def _subscribe(self, names: list[str]) -> tuple[list, list]:
+        """Each robot's cmd_vel (where its answer type is known) and, on the inbox node, its LEDs
+        and rab_tx, taken as bytes (raw) and decoded with numpy (cdr.decode_uint8_array)."""
+        leds, rab = [], [None] * len(names)
         for i, name in enumerate(names):
             if self._answer_types[i] is not None:
                 self._subscribe_answers(i, self._answer_types[i])
-            # Taken as bytes (raw) and decoded with numpy (cdr.decode_uint8_array), not as message objects.
-            self._led_subs.append(self._inbox.create_subscription(
+            leds.append(self._inbox.create_subscription(
                 c.msg_type(c.LEDS), c.topic_name(name, c.LEDS), lambda msg: None, c.QOS,
                 event_callbacks=c.SUBSCRIPTION_EVENTS, raw=True))
             if RANGE_AND_BEARING in self._devices[i]:
-                self._rab_subs[i] = self._inbox.create_subscription(
+                rab[i] = self._inbox.create_subscription(
                     c.msg_type(c.RAB_TX), c.topic_name(name, c.RAB_TX), lambda msg: None, c.QOS,
                     event_callbacks=c.SUBSCRIPTION_EVENTS, raw=True)
-        # Every sensor publisher of each robot (a robot is connected once any has a subscriber).
-        self._sensor_pubs = [[p.pubs[i] for p in self._device_publishers if p.pubs[i] is not None] for i in range(n)]
-        self._plans: Optional[list[GroupPlan]] = None   # built from the first frame's groups
-
-        # Answers to the current tick, written by callbacks (any thread), read by the host.
-        self.linear = np.zeros(n)       # [n] m/s
-        self.angular = np.zeros(n)      # [n] rad/s
-        self.answered = np.zeros(n, dtype=bool)  # the robot's part of this tick is settled
-        self.rejected = np.zeros(n, dtype=bool)  # … by a violation: it gets the fallback
-        self.failed = np.zeros(n, dtype=bool)    # stopped for good: not waited for, zero command
-        self.on_failed: list[Callable[[str], None]] = []   # hosts stop what is left of a failed controller
-        self._violation_counts = np.zeros(n, dtype=int)
-        self._last_accepted_s = np.full(n, math.inf)     # monotonic time of each robot's last good answer
-        # Re-entrant: a violation recorded under the lock may fail its robot (max_violations).
-        self._lock = threading.RLock()
-        self._all_answered = threading.Event()
-        self._n_answered = 0
-        self._n_expected = n
-        self._current_key = -1          # stamp (ns) answers must carry; -1 once the window closed
-        self._tick_key = 0              # stamp (ns) of the last published tick
-        self._opened_ns: Optional[int] = None
-        self._current_tick = -1
-        self.violations: list[Violation] = []
+        return leds, rab
 
     def _subscribe_answers(self, i: int, msg_type: type) -> None:
         on_answer = self._on_cmd_vel if msg_type is c.msg_type(c.CMD_VEL) else self._on_unstamped_cmd_vel
@@ -250,11 +224,12 @@ class SimulatorNode(Node):
         max_violations (its controller did nothing wrong)."""
         if self._controllers.accepts(i, gid):
             return True
-        with self._lock:
+        ledger = self._ledger
+        with ledger.lock:
             if (i, gid) not in self._foreign_noted:
                 self._foreign_noted.add((i, gid))
-                self._record(self._current_tick, i, f"cmd_vel from {self._controllers.describe(i, gid)}, which is "
-                             f"not {self._names[i]}'s controller: rejected", counts=False)
+                ledger.record(ledger.current_tick, i, f"cmd_vel from {self._controllers.describe(i, gid)}, which "
+                              f"is not {self._names[i]}'s controller: rejected", counts=False)
         return False
 
     def create_robot_publisher(self, robot: str, topic: c.Topic):
@@ -272,34 +247,19 @@ class SimulatorNode(Node):
         clock._set_ros_time_is_active(True)
         self._driven_clock_handles.append(clock.handle)
 
-    def set_message_tap(self, tap: "MessageTap") -> None:
+    def set_message_tap(self, tap: MessageTap) -> None:
         """Hand every per-robot message the tap wants (sensors out, answers in) to it, e.g. a bag."""
-        self._tap_lock = threading.Lock()
-        self._tap = tap
-        self._tapped = {topic.name: [tap.wants(c.topic_name(name, topic)) for name in self._names]
-                        for topic in c.TOPICS.values()}
+        self._taps.set(tap)
         for publisher in self._device_publishers:     # a recorded topic is published from now on
             publisher.publish_check()
 
     def taps(self, topic: c.Topic, i: int) -> bool:
-        """Is robot i's ``topic`` recorded?"""
-        return self._tap is not None and self._tapped[topic.name][i]
-
-    def tap_message(self, topic: c.Topic, i: int, data, stamp_ns: int, msg_type: Optional[type] = None) -> None:
-        """Hand robot i's message on ``topic`` to the tap if it wants it. ``data``: the message's
-        bytes, or the message; ``msg_type``: when not the topic's."""
-        if self.taps(topic, i):
-            if not isinstance(data, bytes):
-                data = serialize_message(data)
-            with self._tap_lock:   # answers may arrive on executor worker threads
-                self._tap.write_serialized(c.topic_name(self._names[i], topic), c.type_name(msg_type) if msg_type else topic.type_name,
-                                           data, stamp_ns)
+        """Is robot i's ``topic`` recorded? (For its device's publisher.)"""
+        return self._taps.wants(topic, i)
 
     def tap_messages(self, topic: c.Topic, rows: Sequence[int], messages: Sequence, stamp_ns: int) -> None:
-        """``tap_message`` for each of robots ``rows`` (``messages[j]`` robot ``rows[j]``'s)."""
-        if self._tap is not None:
-            for i, data in zip(rows, messages):
-                self.tap_message(topic, i, data, stamp_ns)
+        """Robots ``rows``' messages on ``topic`` (``messages[j]`` robot ``rows[j]``'s) to the tap."""
+        self._taps.messages(topic, rows, messages, stamp_ns)
 
     def mirror_run_wide(self, batch, stamp_ns: int) -> None:
         """A tick's run-wide messages (hosting/run_wide/relay.py) on the wire, for processes outside the run
@@ -311,9 +271,8 @@ class SimulatorNode(Node):
                 publisher = self._run_wide_publishers[topic] = self.create_publisher(
                     message_class(type_name), topic, c.QOS)
             publisher.publish(data)
-            if self._tap is not None and self._tap.wants(topic):
-                with self._tap_lock:
-                    self._tap.write_serialized(topic, type_name, data, stamp_ns)
+            if self._taps.tap is not None and self._taps.tap.wants(topic):
+                self._taps.write(topic, type_name, data, stamp_ns)
 
     @property
     def robots(self) -> list[str]:
@@ -328,19 +287,11 @@ class SimulatorNode(Node):
         """Stop a robot for good (its controller is gone, hung or past max_violations): recorded
         once, then stopped (zero command) every tick, never waited for; its sensors are no longer
         published."""
-        with self._lock:
-            self._fail(self._index[robot], reason)
+        self._ledger.mark_failed(robot, reason)
 
     def reject_answer(self, robot: str, reason: str) -> None:
-        """Settle a robot's part of the open tick as a violation: it gets the fallback, whatever
-        it answered or will answer to this tick (e.g. its callback overran the watchdog)."""
-        i = self._index[robot]
-        with self._lock:
-            if self._current_key < 0 or self.failed[i]:
-                return
-            self.rejected[i] = True
-            self._settle(i)
-            self._record(self._current_tick, i, reason)
+        """Settle a robot's part of the open tick as a violation (ros/answer_ledger.py)."""
+        self._ledger.reject_answer(robot, reason)
 
     def take_ready_answers(self) -> int:
         """Take the answers waiting on the cmd_vel subscriptions now, from this thread (a
@@ -348,40 +299,9 @@ class SimulatorNode(Node):
         return sum(sub.dispatch_ready() for sub in self._cmd_subs if sub is not None)
 
     def settle_idle(self, robots: Optional[Collection[str]] = None) -> int:
-        """The robots that answer when published (``answers: when_published``) and have not
-        answered the open tick, whose nodes have nothing left to do in it (all of them, or
-        ``robots``): settled, keeping their last command. How many were settled."""
-        with self._lock:
-            if self._current_key < 0:
-                return 0
-            rows = np.flatnonzero(self.when_published & ~self.answered & ~self.failed) if robots is None \
-                else [i for i in (self._index[r] for r in robots)
-                      if self.when_published[i] and not self.answered[i] and not self.failed[i]]
-            for i in rows:
-                self._settle(i)
-                self._last_accepted_s[i] = time.monotonic()     # quiet by design, not unresponsive
-            return len(rows)
-
-    def _settle(self, i: int) -> None:
-        # A robot failed while its answer was handled (its last violation) is no longer expected
-        # (_fail took it out of the count): settling it too would close the tick one answer early.
-        if not self.answered[i] and not self.failed[i]:
-            self.answered[i] = True
-            self._n_answered += 1
-            if self._n_answered >= self._n_expected:
-                self._all_answered.set()
-
-    def _fail(self, i: int, reason: str) -> None:
-        if self.failed[i]:
-            return
-        self.failed[i] = True
-        self._record(self._current_tick, i, FAILED + reason)
-        if not self.answered[i]:
-            self._n_expected -= 1
-            if self._n_answered >= self._n_expected:
-                self._all_answered.set()
-        for hook in self.on_failed:
-            hook(self._names[i])
+        """The quiet robots whose nodes are done with the open tick keep their last command
+        (ros/answer_ledger.py); how many."""
+        return self._ledger.settle_idle(robots)
 
     # --- the tick exchange ----------------------------------------------------------------
 
@@ -390,23 +310,10 @@ class SimulatorNode(Node):
         stamp = c.stamp_of(frame.tick, self._tick_ns)
         if not self._controllers.noted:
             self._controllers.note()
-        with self._lock:
+        key = c.stamp_key(stamp)
+        with self._ledger.lock:
             self._foreign_noted.clear()
-            # Robots answering every k-th tick are settled, keeping their last command, in between.
-            self.answered[:] = False if self._every is None else frame.tick % self._every != 0
-            self.rejected[:] = False
-            self._n_answered = 0
-            self._n_expected = int(np.count_nonzero(~self.failed & ~self.answered))
-            if self._n_expected == 0:
-                self._all_answered.set()
-            else:
-                self._all_answered.clear()
-            self._current_key = self._tick_key = c.stamp_key(stamp)
-            self._current_tick = frame.tick
-            # Wall time the sensors went out (DDS source timestamps use it); nothing precedes tick 0.
-            self._opened_ns = time.time_ns() if frame.tick > 0 else None
-            if frame.tick == 0:   # unresponsiveness counts from the first tick on
-                self._last_accepted_s[:] = time.monotonic()
+            self._ledger.open_tick(frame.tick, key)
         if self._clock_pub is not None:
             self._clock_msg.clock = stamp
             self._clock_pub.publish(self._clock_msg)
@@ -417,7 +324,7 @@ class SimulatorNode(Node):
         for handle in self._driven_clock_handles:
             handle.set_ros_time_override(now)
         failed = self.failed.tolist()
-        out = Outgoing(stamp.sec, stamp.nanosec, self._current_key, cdr.stamp_bytes(stamp.sec, stamp.nanosec),
+        out = Outgoing(stamp.sec, stamp.nanosec, key, cdr.stamp_bytes(stamp.sec, stamp.nanosec),
                        failed, failed.count(True))
         for plan in self._plans if self._plans is not None else self._make_plans(frame):
             for publisher in self._device_publishers:
@@ -464,15 +371,15 @@ class SimulatorNode(Node):
                    f"({', '.join(p.topic_name for p in self._sensor_pubs[i])})"))
 
     def wait_for_answers(self, timeout_s: float) -> bool:
-        return self._all_answered.wait(timeout_s)
+        return self._ledger.wait_for_answers(timeout_s)
 
     @property
     def all_answered(self) -> bool:
-        return self._all_answered.is_set()
+        return self._ledger.all_answered
 
     @property
     def answered_count(self) -> int:
-        return self._n_answered
+        return self._ledger.answered_count
 
     def _on_unstamped_cmd_vel(self, i: int, data: bytes, gid: bytes) -> None:
         """A Twist answers the tick whose sensors it follows: the open one. One that arrives while
@@ -480,8 +387,8 @@ class SimulatorNode(Node):
         if not self._from_controller(i, gid):
             return
         linear, angular = decoding.decode_unstamped_answer_cdr(data)
-        with self._lock:
-            key = self._current_key
+        with self._ledger.lock:
+            key = self._ledger.current_key
             if key < 0:
                 return
             self._answer(i, key, linear, angular, data)
@@ -490,58 +397,20 @@ class SimulatorNode(Node):
         if not self._from_controller(i, gid):
             return
         key, linear, angular = decoding.decode_answer_cdr(data)
-        with self._lock:
+        with self._ledger.lock:
             self._answer(i, key, linear, angular, data)
 
     def _answer(self, i: int, key: int, linear: float, angular: float, data: bytes) -> None:
-        """Called with the lock held."""
-        if self.failed[i]:
+        """Called with the ledger's lock held."""
+        if not self._ledger.accepts(i, key, self._tick_ns):
             return
-        if key != self._current_key:
-            # An answer to an earlier tick comes from a robot whose miss of that tick is
-            # recorded already; any other stamp is a contract violation of its own.
-            if not (key <= self._tick_key and key % self._tick_ns == 0):
-                self._record(self._current_tick, i, f"answer stamped {key} ns answers no tick "
-                             f"published so far (the last is {self._tick_key} ns)")
-            return
-        if self.answered[i]:
-            return  # a second answer to the same tick, or one already rejected: the first counts
-        if self._tap is not None:
-            self.tap_message(c.CMD_VEL, i, data, key, self._answer_types[i])
-        if not (math.isfinite(linear) and math.isfinite(angular)):
-            self.rejected[i] = True
-            self._record(self._current_tick, i, f"non-finite velocity command rejected "
-                         f"(linear {linear}, angular {angular})")
-        else:
-            self.linear[i] = linear
-            self.angular[i] = angular
-            self._last_accepted_s[i] = time.monotonic()
-        self._settle(i)
+        self._taps.message(c.CMD_VEL, i, data, key, self._answer_types[i])
+        self._ledger.take(i, linear, angular)
 
     def close_tick(self, fallback: str, previous: tuple[np.ndarray, np.ndarray],
                    commands: tuple[np.ndarray, np.ndarray]) -> None:
-        """End the answer window and write this node's robots' commands into ``commands``
-        (linear [N], angular [N], indexed by simulation row). Robots that did not answer get the
-        fallback (zero, or ``previous``), recorded as a violation unless already failed."""
-        with self._lock:
-            self._current_key = -1   # later answers to this tick are stale
-            tick = self._current_tick
-            for i in np.flatnonzero(~self.answered & ~self.failed):
-                self._record(tick, i, "no answer before the watchdog")
-            good = self.answered & ~self.rejected & ~self.failed
-            now = time.monotonic()
-            for i in np.flatnonzero(~good & (now - self._last_accepted_s >= self._unresponsive_s)):
-                self._fail(i, f"unresponsive: no accepted answer for {now - self._last_accepted_s[i]:.1f} s")
-            linear, angular = self.linear.copy(), self.angular.copy()
-            stopped = self.failed.copy()
-        bad = ~good & ~stopped
-        if fallback == "previous":
-            linear[bad], angular[bad] = previous[0][self.rows[bad]], previous[1][self.rows[bad]]
-        else:
-            linear[bad], angular[bad] = 0.0, 0.0
-        linear[stopped], angular[stopped] = 0.0, 0.0
-        commands[0][self.rows] = linear
-        commands[1][self.rows] = angular
+        """End the answer window; this node's robots' commands into ``commands`` (ros/answer_ledger.py)."""
+        self._ledger.close_tick(fallback, previous, commands)
 
     def take_led_commands(self) -> dict[int, np.ndarray]:
         """Drain the LED inbox: the latest valid colours per simulation row that sent any.
@@ -584,25 +453,17 @@ class SimulatorNode(Node):
 
     def _drained(self, i: int, topic: c.Topic, late: str, decode: Callable, msg, published_ns: int, out: dict) -> None:
         """Robot i's message ``msg`` on an inbox topic, published at ``published_ns`` (wall)."""
-        if self.failed[i]:
+        ledger = self._ledger
+        if ledger.failed[i]:
             return
-        self.tap_message(topic, i, msg, self._tick_key)
-        with self._lock:
-            if self._opened_ns is not None and published_ns < self._opened_ns:
-                self._record(self._current_tick, i, late)
+        self._taps.message(topic, i, msg, ledger.tick_key)
+        with ledger.lock:
+            if ledger.opened_ns is not None and published_ns < ledger.opened_ns:
+                ledger.record(ledger.current_tick, i, late)
             try:
                 out[int(self.rows[i])] = decode(i, msg)
             except ValueError as e:
-                self._record(self._current_tick, i, f"{topic.name}: {e}")
-
-    def _record(self, tick: int, i: int, reason: str, counts: bool = True) -> None:
-        """Called with the lock held. ``counts``: towards the robot's max_violations."""
-        self.violations.append(Violation(tick, self._names[i], reason))
-        if not counts:
-            return
-        self._violation_counts[i] += 1
-        if self._max_violations is not None and self._violation_counts[i] >= self._max_violations:
-            self._fail(i, f"stopped after {self._violation_counts[i]} violations (max_violations)")
+                ledger.record(ledger.current_tick, i, f"{topic.name}: {e}")
 
     def destroy_node(self) -> None:
         for sub in self._cmd_subs:

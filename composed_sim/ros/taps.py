@@ -7,7 +7,13 @@ from __future__ import annotations
 
 import fnmatch
 import re
-from typing import Iterable
+from typing import Iterable, Protocol
+
+
+class MessageTap(Protocol):
+    """Where the simulator node hands the messages of the topics it ``wants`` (robot_taps.py)."""
+    def wants(self, topic: str) -> bool: ...
+    def write_serialized(self, topic: str, msgtype: str, data: bytes, stamp_ns: int) -> object: ...
 
 
 class TopicGlobs:
