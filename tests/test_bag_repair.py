@@ -22,8 +22,8 @@ from mcap.stream_reader import StreamReader
 from mcap_ros2.decoder import DecoderFactory
 from rosbags.rosbag2 import Reader
 
-from composed_sim.outputs import recording
-from composed_sim.outputs.bag_repair import is_unfinished, repair
+from composed_sim.outputs.recording import writer as recording
+from composed_sim.outputs.recording.repair import is_unfinished, repair
 from composed_sim.cli import main
 from composed_sim.outputs.recording import (CLOCK_TOPIC, FLUSH_EVERY_TICKS, SWARM_STATE_TOPIC, UNFINISHED, BagRecorder,
                                     RecordingError, read_recording)

@@ -42,7 +42,7 @@ def cmd_render(args) -> int:
 
 
 def cmd_bag_repair(args) -> int:
-    from composed_sim.outputs.bag_repair import is_unfinished
+    from composed_sim.outputs.recording.repair import is_unfinished
     if not is_unfinished(args.recording) and (args.recording / "metadata.yaml").exists():
         rec = _read_recording(args.recording)
         print(f"{args.recording}: complete already (ticks 0…{rec.ticks_done}): nothing to repair")
@@ -53,7 +53,7 @@ def cmd_bag_repair(args) -> int:
 
 def _repair(path: Path):
     """What the repair of an unfinished recording recovered; a UserError when it cannot."""
-    from composed_sim.outputs.bag_repair import repair
+    from composed_sim.outputs.recording.repair import repair
     from composed_sim.outputs.recording import RecordingError
     try:
         return repair(path)
@@ -64,7 +64,7 @@ def _repair(path: Path):
 
 
 def cmd_replay(args) -> int:
-    from composed_sim.outputs.bag_repair import is_unfinished
+    from composed_sim.outputs.recording.repair import is_unfinished
     from composed_sim.outputs.render import render
     out = _render_target(args.out) if args.out else None
     if is_unfinished(args.recording):       # its run was killed: what it left is repaired first

@@ -172,7 +172,7 @@ def _kept(folder) -> bool:
 
 def _disk_full_line(settings: RunSettings, error: OSError) -> str:
     """One line: the file that could not be written, the tick reached, what is kept."""
-    from composed_sim.outputs.bag_repair import is_unfinished
+    from composed_sim.outputs.recording.repair import is_unfinished
     from composed_sim.outputs.results import SUMMARY
     out, record = settings.outputs.out, settings.outputs.record
     partial = getattr(error, "partial_result", None)

@@ -1,202 +1,36 @@
-"""Record a run as a rosbag2 directory (MCAP storage, sim-time stamps) and read it back.
-
-A recording is what ``ros2 bag info``, ``ros2 bag play`` and Foxglove open: ``DIR/metadata.yaml``
-plus ``DIR/DIR.mcap``. Every message is logged at its sim time (tick ``k`` at ``k * tick_ns``
-nanoseconds), so a bag starts at time 0, not at the wall-clock time of the run.
-
-Topics
-  /clock         rosgraph_msgs/msg/Clock          once per tick (``write_clock``)
-  /swarm/state   sensor_msgs/msg/PointCloud2      once per tick, every robot in one message
-                                                  (``write_swarm_state``; layout below)
-  /swarm/markers visualization_msgs/msg/MarkerArray  once per tick in a run's bag: the scene
-                                                  Foxglove draws (live/markers.py, live/observers.py)
-  any other      whatever rclpy message is given   only topics matching the recorder's globs
-                                                  (``wants``, ``write_message``)
-
-The swarm state is one PointCloud2 per tick, one point per robot in the order of
-``robot_names`` (frame ``world``): a standard type that Foxglove and RViz draw as coloured
-points without any plugin, that carries poses and colours of all robots in one message (one
-PoseArray would need a second message for the colours), and whose payload is one numpy
-buffer, so writing it costs the same for 10 or 1280 robots apart from the copy. Fields,
-``STATE_DTYPE`` (40 bytes per robot, little-endian):
-
-  x, y, z  float64  position in m (z = 0: the simulation is planar)
-  yaw      float64  heading in rad, CCW from the x axis
-  rgb      uint32   0x00RRGGBB, the robot's display LED colour (``display_colors``); 0 = no LED lit
-  id       uint32   the robot's index in ``robot_names``
-
-float64 keeps the recorded poses bit-identical to the run's trajectories, so a replay
-recomputes the same figures; the extra 16 bytes per robot are negligible (51 kB per tick
-at 1280 robots before zstd chunk compression).
-
-The recorder also stores, as rosbag2 ``custom_data`` (in metadata.yaml and in the MCAP's
-metadata record), what a replay needs without the results directory:
-``composed_sim.robot_names`` (JSON list), ``composed_sim.tick_s``, ``composed_sim.ticks``
-(the ticks simulated, as summary.json counts them), ``composed_sim.world`` (the resolved world as
-YAML, when given) and ``composed_sim.executor`` (what ``replay --check`` re-simulates with).
-
-A recording survives a kill. Every ``FLUSH_EVERY_TICKS`` ticks, or ``FLUSH_EVERY_S`` of wall time,
-whichever comes first, the chunk in progress is ended and the file synced to disk (``flush``):
-the MCAP file then ends on a complete record, so a process killed with SIGKILL, or a machine
-losing power, leaves every tick up to the last flush readable by an MCAP stream reader. What
-``close`` writes at the end (the MCAP summary and index, metadata.yaml) is what such a bag lacks;
-``composed-sim bag repair`` writes it (outputs/bag_repair.py) from the chunks and from ``UNFINISHED``, the
-custom_data kept beside the MCAP file from the start and deleted by ``close``: its presence, with
-no metadata.yaml, marks a recording that was never closed. A write that fails (a full disk) cuts
-the MCAP file back to its last flush and raises an OSError naming the file.
-
-rosbags (pure Python) writes and reads the bag; message definitions and type hashes come from
-its ROS 2 Jazzy typestore, so the MCAP schemas are the real ``ros2msg`` definitions. A type the
-typestore lacks is loaded from the ``share/<package>/msg/<Type>.msg`` file of the installed
-interface package (the venv or $AMENT_PREFIX_PATH).
-"""
+"""Writing a run's recording as a rosbag2 directory (MCAP storage, sim-time stamps) that survives
+a kill: every FLUSH_EVERY_TICKS ticks or FLUSH_EVERY_S, whichever comes first, the chunk in
+progress is ended and the file synced (``flush``), so the MCAP file ends on a complete record;
+``UNFINISHED`` beside it marks a recording never closed (``composed-sim bag repair``, repair.py)."""
 from __future__ import annotations
 
 import errno
-import functools
 import json
 import math
 import os
-import re
-import sys
 import time
-from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Iterable, Optional
 
 import numpy as np
 
 from composed_sim.devices.common.poses import checked_poses
-from composed_sim.world.robot_models import display_colors
-from composed_sim.ros.global_topics import CLOCK_TOPIC, SWARM_STATE_TOPIC
-from composed_sim.ros.global_topics import WORLD_FRAME as FRAME_ID
+from composed_sim.outputs.recording.messages import (CLOCK_TOPIC, CLOCK_TYPE, CUSTOM_PREFIX, NS_PER_S, STATE_DTYPE,
+                                                     SWARM_STATE_TOPIC, SWARM_STATE_TYPE, UNFINISHED, FRAME_ID,
+                                                     RecordingError, message_definition, new_typestore, pack_rgb,
+                                                     ros_type_name)
 from composed_sim.ros.taps import TopicGlobs
+from composed_sim.world.robot_models import display_colors
 
 if TYPE_CHECKING:
     from composed_sim.world.schema import World
 
-SWARM_STATE_TYPE = "sensor_msgs/msg/PointCloud2"
-CLOCK_TYPE = "rosgraph_msgs/msg/Clock"
-
-# One point per robot; 40 bytes keeps every float64 8-byte aligned from point to point.
-STATE_DTYPE = np.dtype([("x", "<f8"), ("y", "<f8"), ("z", "<f8"), ("yaw", "<f8"),
-                        ("rgb", "<u4"), ("id", "<u4")])
-
-CUSTOM_PREFIX = "composed_sim."     # of our custom_data keys
-_NS_PER_S = 1_000_000_000
-_BAG_VERSION = 9            # the rosbag2 metadata version of ROS 2 Jazzy
-
+BAG_VERSION = 9            # the rosbag2 metadata version of ROS 2 Jazzy
 # How much a killed run may lose from its recording: each flush ends a chunk (so compression
 # works on smaller chunks) and syncs the file (docs/faults.md gives the cost).
 FLUSH_EVERY_TICKS = 50
 FLUSH_EVERY_S = 5.0
-UNFINISHED = "unfinished.yaml"      # the custom_data of a recording not yet closed
 
-
-class RecordingError(Exception):
-    """A recording that cannot be written or read; the message names the bag and the problem."""
-
-
-# --- colours -----------------------------------------------------------------------------
-
-def pack_rgb(colors: np.ndarray) -> np.ndarray:
-    """[n, 3] uint8 → [n] uint32 0x00RRGGBB."""
-    c = colors.astype(np.uint32)
-    return (c[:, 0] << 16) | (c[:, 1] << 8) | c[:, 2]
-
-
-def unpack_rgb(rgb: np.ndarray) -> np.ndarray:
-    """[...] uint32 0x00RRGGBB → [..., 3] uint8."""
-    rgb = np.asarray(rgb, dtype=np.uint32)
-    return np.stack([(rgb >> 16) & 0xFF, (rgb >> 8) & 0xFF, rgb & 0xFF], axis=-1).astype(np.uint8)
-
-
-# --- message types -----------------------------------------------------------------------
-
-def ros_type_name(msg: Any) -> str:
-    """'geometry_msgs/msg/TwistStamped' for an rclpy message (or its class)."""
-    cls = msg if isinstance(msg, type) else type(msg)
-    parts = cls.__module__.split(".")
-    if len(parts) < 2 or parts[1] not in ("msg", "srv", "action"):
-        raise ValueError(f"not an rclpy message: {cls.__module__}.{cls.__qualname__}")
-    return f"{parts[0]}/{parts[1]}/{cls.__name__}"
-
-
-def _new_typestore():
-    from rosbags.typesys import Stores, get_typestore
-    return get_typestore(Stores.ROS2_JAZZY)
-
-
-@functools.lru_cache(maxsize=None)
-def message_definition(msgtype: str) -> tuple[str, str]:
-    """(the ``ros2msg`` definition with its dependencies, the RIHS01 type hash) of a ROS 2
-    message type: what a bag's schema holds, and what a Foxglove server advertises."""
-    typestore = _definitions_typestore()
-    if msgtype not in typestore.fielddefs:
-        _ensure_type(typestore, msgtype)
-    msgdef, _ = typestore.generate_msgdef(msgtype, ros_version=2)   # ~5 ms: once per type
-    return msgdef, typestore.hash_rihs01(msgtype)
-
-
-@functools.lru_cache(maxsize=1)
-def _definitions_typestore():
-    return _new_typestore()
-
-
-def _interface_dirs() -> list[Path]:
-    """Where installed interface packages keep their .msg files (share/<pkg>/msg)."""
-    prefixes = [p for p in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep) if p]
-    prefixes.append(sys.prefix)
-    return [Path(p) / "share" for p in prefixes]
-
-
-def _ensure_type(typestore, name: str) -> None:
-    """Register ``name`` (and the types it uses) from its .msg file if the typestore lacks it."""
-    from rosbags.typesys import get_types_from_msg
-
-    pending, found = [name], {}
-    while pending:
-        typ = pending.pop()
-        if typ in typestore.fielddefs or typ in found:
-            continue
-        pkg, kind, short = typ.split("/")
-        path = next((d / pkg / kind / f"{short}.msg" for d in _interface_dirs()
-                     if (d / pkg / kind / f"{short}.msg").is_file()), None)
-        if path is None:
-            raise RecordingError(f"message type {typ}: not in the rosbags typestore and no "
-                                 f"{pkg}/{kind}/{short}.msg under {', '.join(map(str, _interface_dirs()))}")
-        parsed = get_types_from_msg(path.read_text(encoding="utf-8"), typ)
-        found.update(parsed)
-        pending += [t for t in _referenced_types(parsed) if t not in typestore.fielddefs]
-    typestore.register(found)
-
-
-def _referenced_types(typesdict: dict) -> set[str]:
-    """Every 'pkg/msg/Type' named inside parsed field definitions."""
-    out: set[str] = set()
-    stack: list = list(typesdict.values())
-    while stack:
-        item = stack.pop()
-        if isinstance(item, str):
-            if re.fullmatch(r"[A-Za-z]\w*/(msg|srv|action)/\w+", item):
-                out.add(item)
-        elif isinstance(item, (tuple, list)):
-            stack.extend(item)
-    return out
-
-
-def _qos_profiles():
-    """The contract's QoS (reliable, keep last 10, volatile), for `ros2 bag play`."""
-    from rosbags.interfaces import (Qos, QosDurability, QosHistory, QosLiveliness,
-                                    QosReliability, QosTime)
-    never = QosTime(sec=0, nsec=0)
-    return [Qos(history=QosHistory.KEEP_LAST, depth=10, reliability=QosReliability.RELIABLE,
-                durability=QosDurability.VOLATILE, deadline=never, lifespan=never,
-                liveliness=QosLiveliness.AUTOMATIC, liveliness_lease_duration=never,
-                avoid_ros_namespace_conventions=False)]
-
-
-# --- writing -----------------------------------------------------------------------------
 
 class BagRecorder:
     """A rosbag2/MCAP recording of one run; a context manager that always leaves a readable bag.
@@ -228,13 +62,13 @@ class BagRecorder:
         if not (math.isfinite(seconds) and seconds > 0):
             raise ValueError(f"tick_s must be a positive number of seconds (got {tick_s!r})")
         self.tick_s = seconds
-        self.tick_ns = round(self.tick_s * _NS_PER_S)
+        self.tick_ns = round(self.tick_s * NS_PER_S)
         self._globs = TopicGlobs(topics_globs)
         self.topics_globs = self._globs.topics_globs
         if self.path.exists():
             raise RecordingError(f"{self.path}: already exists; a recording needs a new directory")
-        self._typestore = _new_typestore()
-        self._writer = Writer(self.path, version=_BAG_VERSION, storage_plugin=StoragePlugin.MCAP)
+        self._typestore = new_typestore()
+        self._writer = Writer(self.path, version=BAG_VERSION, storage_plugin=StoragePlugin.MCAP)
         if compress:
             self._writer.set_compression(CompressionMode.STORAGE, CompressionFormat.ZSTD)
         self._custom: dict[str, str] = {CUSTOM_PREFIX + "robot_names": json.dumps(self.robot_names),
@@ -442,7 +276,7 @@ class BagRecorder:
             raise OSError(e.errno, e.strerror, str(self.path / UNFINISHED)) from None
 
     def _stamp(self, ns: int):
-        return self._Time(sec=ns // _NS_PER_S, nanosec=ns % _NS_PER_S)
+        return self._Time(sec=ns // NS_PER_S, nanosec=ns % NS_PER_S)
 
     def _connection(self, topic: str, msgtype: str):
         conn = self._connections.get(topic)
@@ -492,101 +326,14 @@ def _fsync_directory(path: Path) -> None:
         os.close(fd)
 
 
-# --- reading -----------------------------------------------------------------------------
-
-@dataclass
-class Recording:
-    """A recording's swarm state, Trajectories-like (``positions``, ``headings``, ``names``)."""
-    names: list[str]
-    tick_s: float
-    stamps_ns: np.ndarray       # [T] sim time of each swarm state
-    positions: np.ndarray       # [T, n, 2] m
-    headings: np.ndarray        # [T, n] rad
-    led_colors: np.ndarray      # [T, n, 3] uint8 display colours (0 = no LED lit)
-    world: Optional["World"]    # the world stored at record time, if any
-    topics: dict[str, tuple[str, int]]    # topic -> (message type, message count)
-    executor: Optional[str] = None        # the executor that ran the recorded run, if stored
-
-    @property
-    def ticks(self) -> np.ndarray:
-        """[T] tick number of each swarm state."""
-        return np.rint(self.stamps_ns / (self.tick_s * _NS_PER_S)).astype(int)
-
-    @property
-    def ticks_done(self) -> int:
-        """The last recorded tick (0 for an empty bag)."""
-        return int(self.ticks[-1]) if len(self.stamps_ns) else 0
+def _qos_profiles():
+    """The contract's QoS (reliable, keep last 10, volatile), for `ros2 bag play`."""
+    from rosbags.interfaces import (Qos, QosDurability, QosHistory, QosLiveliness,
+                                    QosReliability, QosTime)
+    never = QosTime(sec=0, nsec=0)
+    return [Qos(history=QosHistory.KEEP_LAST, depth=10, reliability=QosReliability.RELIABLE,
+                durability=QosDurability.VOLATILE, deadline=never, lifespan=never,
+                liveliness=QosLiveliness.AUTOMATIC, liveliness_lease_duration=never,
+                avoid_ros_namespace_conventions=False)]
 
 
-def read_recording(path: str | os.PathLike) -> Recording:
-    """Read a bag written by ``BagRecorder``: the swarm state of every tick and what it stored."""
-    from rosbags.rosbag2 import Reader
-
-    path = Path(path)
-    custom = _custom_data(path)
-    typestore = _new_typestore()
-    try:
-        with Reader(path) as reader:
-            topics = {name: (info.msgtype, info.msgcount) for name, info in reader.topics.items()}
-            conns = [c for c in reader.connections if c.topic == SWARM_STATE_TOPIC]
-            stamps, clouds = [], []
-            for conn, ns, raw in reader.messages(connections=conns):
-                msg = typestore.deserialize_cdr(raw, conn.msgtype)
-                stamps.append(ns)
-                clouds.append(_decode_state(msg, path, ns))
-    except RecordingError:
-        raise
-    except Exception as e:    # noqa: BLE001 - rosbags' reader errors and file-system errors alike
-        raise RecordingError(f"{path}: not a readable rosbag2 recording: {e}") from None
-    names = json.loads(custom[CUSTOM_PREFIX + "robot_names"]) if CUSTOM_PREFIX + "robot_names" in custom else \
-        [f"robot{i}" for i in range(len(clouds[0]) if clouds else 0)]
-    n = len(names)
-    if any(len(c) != n for c in clouds):
-        raise RecordingError(f"{path}: a swarm state does not hold the {n} recorded robots")
-    tick_s = float(custom.get(CUSTOM_PREFIX + "tick_s", "nan"))
-    if not math.isfinite(tick_s):
-        tick_s = (stamps[1] - stamps[0]) / _NS_PER_S if len(stamps) > 1 else 0.1
-    order = np.argsort(stamps, kind="stable")
-    pts = np.stack([clouds[i] for i in order]) if clouds else np.zeros((0, n), STATE_DTYPE)
-    world = None
-    if CUSTOM_PREFIX + "world" in custom:
-        import yaml
-        from composed_sim.world.loader import world_from_dict
-        world = world_from_dict(yaml.safe_load(custom[CUSTOM_PREFIX + "world"]),
-                                source=f"{path}/metadata.yaml custom_data {CUSTOM_PREFIX}world")
-    return Recording(names=names, tick_s=tick_s,
-                     stamps_ns=np.asarray(stamps, dtype=np.int64)[order],
-                     positions=np.stack([pts["x"], pts["y"]], axis=-1),
-                     headings=pts["yaw"].copy(), led_colors=unpack_rgb(pts["rgb"]),
-                     world=world, topics=topics, executor=custom.get(CUSTOM_PREFIX + "executor"))
-
-
-def read_swarm_states(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """(stamps_ns [T], positions [T, n, 2], headings [T, n], led_colors [T, n, 3] uint8)."""
-    r = read_recording(path)
-    return r.stamps_ns, r.positions, r.headings, r.led_colors
-
-
-def _custom_data(path: Path) -> dict[str, str]:
-    import yaml
-    meta = path / "metadata.yaml"
-    try:
-        data = yaml.safe_load(meta.read_text(encoding="utf-8"))
-        return dict(data["rosbag2_bagfile_information"].get("custom_data") or {})
-    except FileNotFoundError:
-        hint = f"; its run was killed before closing it: composed-sim bag repair {path}" \
-            if (path / UNFINISHED).exists() else "; not a rosbag2 directory"
-        raise RecordingError(f"{path}: no metadata.yaml{hint}") from None
-    except Exception as e:    # noqa: BLE001
-        raise RecordingError(f"{meta}: unreadable rosbag2 metadata: {e}") from None
-
-
-def _decode_state(msg: Any, path: Path, ns: int) -> np.ndarray:
-    layout = [(f.name, f.offset, f.datatype) for f in msg.fields]
-    expected = [(name, STATE_DTYPE.fields[name][1], None) for name in STATE_DTYPE.names]
-    if [(a, b) for a, b, _ in layout] != [(a, b) for a, b, _ in expected] \
-            or msg.point_step != STATE_DTYPE.itemsize or msg.is_bigendian:
-        raise RecordingError(f"{path}: {SWARM_STATE_TOPIC} at {ns} ns: unexpected point layout "
-                             f"{[(a, b) for a, b, _ in layout]} (point_step {msg.point_step})")
-    return np.frombuffer(np.asarray(msg.data, dtype=np.uint8).tobytes(), dtype=STATE_DTYPE,
-                         count=msg.width * msg.height)

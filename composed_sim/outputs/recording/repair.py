@@ -1,7 +1,7 @@
 """Repair a recording that was never closed (a run killed with SIGKILL, a power loss, a full
 disk): ``composed-sim bag repair DIR``, and ``replay`` by itself.
 
-Such a bag (outputs/recording.py) has its MCAP file synced up to a complete record at its last flush,
+Such a bag (outputs/recording/writer.py) has its MCAP file synced up to a complete record at its last flush,
 but neither the MCAP summary and index nor metadata.yaml, which only ``close`` writes; its
 custom_data is in ``UNFINISHED``. The repair reads the file's records in order with the mcap
 library's stream reader, up to the first incomplete one (where the kill cut), keeps every
