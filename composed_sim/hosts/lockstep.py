@@ -155,6 +155,51 @@ def acted_commands(tick: int, commands: tuple[np.ndarray, np.ndarray]) -> tuple[
 CHECKPOINT_EVERY = 100   # ticks between two checkpoints (docs/faults.md gives what one costs)
 
 
+class LoopBook:
+    """What a run of the tick loop keeps besides the tick order: the time spent (wall, CPU, per
+    phase), memory samples, checkpoints, and the result, whole or so far."""
+
+    def __init__(self, traj: Trajectories, exchange: Exchange, hooks: LoopHooks, ticks: int,
+                 checkpoint: Optional[Callable[[LoopResult], None]]):
+        self.traj, self._exchange, self._hooks, self._checkpoint = traj, exchange, hooks, checkpoint
+        self.times = LoopTimes()
+        self.memory = [(0, resident_mb())]
+        self._sample_every = max(1, ticks // MEMORY_SAMPLES)
+        self._t_start = time.perf_counter()
+        self._cpu_start, self._controllers_start = time.process_time(), exchange.controllers_time_s()
+        if checkpoint is not None:
+            checkpoint(self.so_far())
+
+    def so_far(self) -> LoopResult:
+        """What was simulated until now, as an interrupted run's result."""
+        self._count_time()
+        return LoopResult(self.traj.filled(), list(self._exchange.violations), self.times, True, self.memory,
+                          list(self._hooks.rows))
+
+    def tick_done(self, sim: Simulation) -> None:
+        if sim.tick % self._sample_every == 0:
+            self.memory.append((sim.tick, resident_mb()))
+        if self._checkpoint is not None and sim.tick % CHECKPOINT_EVERY == 0:
+            self._checkpoint(self.so_far())
+
+    def result(self, sim: Simulation, interrupted: bool) -> LoopResult:
+        self._count_time()
+        if self.memory[-1][0] != sim.tick:
+            self.memory.append((sim.tick, resident_mb()))
+        return LoopResult(self.traj.filled(), list(self._exchange.violations), self.times, interrupted, self.memory,
+                          self._hooks.rows, self._hooks.finished)
+
+    def _count_time(self) -> None:
+        times = self.times
+        times.ticks_wall_s = time.perf_counter() - self._t_start
+        cpu_elsewhere, node_code = self._exchange.controllers_time_s()
+        times.main_cpu_s = time.process_time() - self._cpu_start
+        times.cpu_s = times.main_cpu_s + cpu_elsewhere - self._controllers_start[0]
+        times.node_code_s = node_code - self._controllers_start[1]
+        phases = times.phases_s
+        phases["other"] = times.ticks_wall_s - sum(v for k, v in phases.items() if k != "other")
+
+
 def run_lockstep(sim: Simulation, exchange: Exchange, wait_for_answers: Callable[[float], bool],
                  ticks: int, *, progress: Optional[Callable[[int], None]] = None,
                  should_stop: Callable[[], bool] = lambda: False,
@@ -166,7 +211,6 @@ def run_lockstep(sim: Simulation, exchange: Exchange, wait_for_answers: Callable
     run killed outright, or quit by a second Ctrl-C, leaves behind."""
     lockstep = sim.world.lockstep
     traj = Trajectories.allocate(sim, ticks)
-    times = LoopTimes()
     previous = (np.zeros(sim.n), np.zeros(sim.n))
     hooks = LoopHooks(sim)      # the world's loop functions (composed_sim/loop_functions.py)
     hooks.start(sim)
@@ -174,59 +218,16 @@ def run_lockstep(sim: Simulation, exchange: Exchange, wait_for_answers: Callable
     hooks.at_tick_0(sim)
     for observer in observers:
         observer.on_tick(sim)
+    book = LoopBook(traj, exchange, hooks, ticks, checkpoint)
     interrupted = False
-    memory = [(0, resident_mb())]
-    sample_every = max(1, ticks // MEMORY_SAMPLES)
-    t_start = time.perf_counter()
-    cpu_start, controllers_start = time.process_time(), exchange.controllers_time_s()
-    phases = times.phases_s
-
-    def so_far() -> LoopResult:
-        """What was simulated until now, as an interrupted run's result."""
-        count_time()
-        return LoopResult(traj.filled(), list(exchange.violations), times, True, memory, list(hooks.rows))
-
-    def count_time() -> None:
-        times.ticks_wall_s = time.perf_counter() - t_start
-        cpu_elsewhere, node_code = exchange.controllers_time_s()
-        times.main_cpu_s = time.process_time() - cpu_start
-        times.cpu_s = times.main_cpu_s + cpu_elsewhere - controllers_start[0]
-        times.node_code_s = node_code - controllers_start[1]
-        phases["other"] = times.ticks_wall_s - sum(v for k, v in phases.items() if k != "other")
-
-    if checkpoint is not None:
-        checkpoint(so_far())
     try:
         for _ in range(ticks):
             if should_stop():
                 interrupted = True
                 break
-            clock = PhaseClock(phases)
-            sensed = sim.times.sensing_s
-            if exchange.senses_itself:
-                exchange.publish_state(sim)
-            else:
-                exchange.publish_tick(sim.frame)      # the frame is read here, on first use
-            clock.lap("sending_frames")
-            clock.recharge("sending_frames", "sensing", sim.times.sensing_s - sensed)
-            gathered = exchange.gathering_s()
-            wait_for_answers(lockstep.watchdog_s)
-            if (other := exchange.another_simulator()) is not None:
-                raise AnotherSimulator(
-                    f"another simulator joined the run's ROS domain at tick {sim.tick}: {other} publishes "
-                    f"/clock there too, so this run's robots hear its topics and the run stopped; give each "
-                    f"run its own domain (leave --domain-id and ROS_DOMAIN_ID unset to pick a free one)")
-            clock.lap("waiting")
-            # What was received and unpacked while waiting was not waiting.
-            clock.recharge("waiting", "gathering_answers", exchange.gathering_s() - gathered)
-            commands = (np.empty(sim.n), np.empty(sim.n))
-            exchange.close_tick(lockstep.fallback, previous, commands)
-            for robot, colors in exchange.take_led_commands().items():
-                sim.set_led_colors(robot, colors)
-            for robot, payload in exchange.take_rab_payloads().items():
-                sim.set_rab_payload(robot, payload)
-            times.ros_exchange_s += time.perf_counter() - clock.started
-            commands = acted_commands(sim.tick, commands)
+            clock = PhaseClock(book.times.phases_s)
+            commands = acted_commands(sim.tick, exchange_tick(sim, exchange, wait_for_answers, lockstep, previous, clock))
+            book.times.ros_exchange_s += time.perf_counter() - clock.started
             sim.set_velocity_commands(*commands)
             previous = commands
             clock.lap("gathering_answers")
@@ -244,10 +245,7 @@ def run_lockstep(sim: Simulation, exchange: Exchange, wait_for_answers: Callable
                 observer.on_tick(sim)
             if progress is not None:
                 progress(1)
-            if sim.tick % sample_every == 0:
-                memory.append((sim.tick, resident_mb()))
-            if checkpoint is not None and sim.tick % CHECKPOINT_EVERY == 0:
-                checkpoint(so_far())
+            book.tick_done(sim)
             clock.lap("recording")
             if finished:
                 break
@@ -255,10 +253,36 @@ def run_lockstep(sim: Simulation, exchange: Exchange, wait_for_answers: Callable
         exchange.publish_clock(sim.tick)      # the last state simulated is on the wire too
     except BaseException as e:
         # Nothing is lost: whoever handles the error can still write what was simulated so far.
-        e.partial_result = so_far()
+        e.partial_result = book.so_far()
         raise
-    count_time()
-    if memory[-1][0] != sim.tick:
-        memory.append((sim.tick, resident_mb()))
-    return LoopResult(traj.filled(), list(exchange.violations), times, interrupted, memory, hooks.rows,
-                      hooks.finished)
+    return book.result(sim, interrupted)
+
+
+def exchange_tick(sim: Simulation, exchange: Exchange, wait_for_answers: Callable[[float], bool], lockstep,
+                  previous: tuple[np.ndarray, np.ndarray], clock: PhaseClock) -> tuple[np.ndarray, np.ndarray]:
+    """The tick's ROS part: the sensors out, the controllers' answers in (or the watchdog's
+    fallback under ``lockstep``), their LEDs and payloads set; the commands the answers give."""
+    sensed = sim.times.sensing_s
+    if exchange.senses_itself:
+        exchange.publish_state(sim)
+    else:
+        exchange.publish_tick(sim.frame)      # the frame is read here, on first use
+    clock.lap("sending_frames")
+    clock.recharge("sending_frames", "sensing", sim.times.sensing_s - sensed)
+    gathered = exchange.gathering_s()
+    wait_for_answers(lockstep.watchdog_s)
+    if (other := exchange.another_simulator()) is not None:
+        raise AnotherSimulator(
+            f"another simulator joined the run's ROS domain at tick {sim.tick}: {other} publishes "
+            f"/clock there too, so this run's robots hear its topics and the run stopped; give each "
+            f"run its own domain (leave --domain-id and ROS_DOMAIN_ID unset to pick a free one)")
+    clock.lap("waiting")
+    # What was received and unpacked while waiting was not waiting.
+    clock.recharge("waiting", "gathering_answers", exchange.gathering_s() - gathered)
+    commands = (np.empty(sim.n), np.empty(sim.n))
+    exchange.close_tick(lockstep.fallback, previous, commands)
+    for robot, colors in exchange.take_led_commands().items():
+        sim.set_led_colors(robot, colors)
+    for robot, payload in exchange.take_rab_payloads().items():
+        sim.set_rab_payload(robot, payload)
+    return commands
