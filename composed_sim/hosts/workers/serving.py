@@ -12,7 +12,7 @@ import resource
 import sys
 import time
 from multiprocessing.connection import Connection
-from typing import Callable
+from typing import Callable, Optional
 
 import numpy as np
 
@@ -55,18 +55,8 @@ def serve(fd: int, adopted: Callable[[], None]) -> int:
         conn.send(("error", type(e).__name__, str(e), getattr(e, "field", ())))
         return EXIT_SETUP
     conn.send(("ready", groups.nodes, groups.close_run_wide(0)))
-
-    m = setup.stop - setup.start
-    (node,), exchange = groups.simulator_nodes, groups.exchange    # one participant group, one simulator node
-    lockstep = world.lockstep
-    previous = (np.zeros(m), np.zeros(m))
-    seen = 0                       # violations already sent
-    tap = None
     wait, interrupting_hangs = groups.start_serving()
-    first_tick = None              # (CPU seconds, node code seconds) when the ticks began
-    senses, block = Senses(world), slice(setup.start, setup.stop)     # this block's sensors are read here
-    shared = SharedState(senses, world.range_and_bearing.payload_bytes, setup.shared_state)
-    kept: dict = {}                # the scene, floor and lights as last sent (core/senses.py)
+    block = Block(setup, groups, logs, wait)
     with interrupting_hangs:
         while True:
             try:
@@ -74,36 +64,12 @@ def serve(fd: int, adopted: Callable[[], None]) -> int:
             except EOFError:       # the main process is gone
                 break
             if message[0] == "tick":
-                _, tick, route_messages, changed, batch = message
-                if first_tick is None:
-                    first_tick = (time.process_time(), groups.node_time.seconds)
-                kept.update(changed)
-                frame = senses.frame(shared.inputs(tick, route_messages, **kept), shared.rows(block), block)
-                groups.open_tick(frame.tick, batch)
-                exchange.publish_tick(frame)
-                wait(lockstep.watchdog_s)
-                commands = (np.empty(m), np.empty(m))
-                exchange.close_tick(lockstep.fallback, previous, commands)
-                previous = acted_commands(frame.tick, commands)     # what the main process acts on
-                shared.write_commands(block, *commands)
-                answers = TickAnswers(frame.tick, exchange.take_led_commands(), exchange.take_rab_payloads())
-                answers.violations = [(v.tick, v.robot, v.reason) for v in node.violations[seen:]]
-                seen = len(node.violations)
-                if tap is not None:
-                    answers.tapped = tap.drain()
-                answers.run_wide = groups.close_run_wide(frame.tick + 1)
-                answers.peak_rss_kb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
-                answers.another_simulator = exchange.another_simulator()
-                if logs is not None:
-                    answers.logs = logs.drain()
-                answers.cpu_s = time.process_time() - first_tick[0]
-                answers.node_code_s = groups.node_time.seconds - first_tick[1]
-                conn.send(("answers", answers))
+                conn.send(("answers", block.tick(*message[1:])))
             elif message[0] == "clock":
-                exchange.publish_clock(message[1])
+                groups.exchange.publish_clock(message[1])
             elif message[0] == "tap":
-                tap = TapBuffer(message[1])
-                node.set_message_tap(tap)
+                block.tap = TapBuffer(message[1])
+                block.node.set_message_tap(block.tap)
             elif message[0] == "stop":
                 break
     # Destroying hundreds of nodes one by one takes long (each republishes its participant's
@@ -113,3 +79,50 @@ def serve(fd: int, adopted: Callable[[], None]) -> int:
     sys.stdout.flush()
     sys.stderr.flush()
     os._exit(0)
+
+
+class Block:
+    """The worker's robots in their participant group: a tick's sensors read from the shared
+    state, published, answered, and the answers sent back, as in the single-process host."""
+
+    def __init__(self, setup, groups: ParticipantGroups, logs: Optional[NodeLogs], wait: Callable[[float], bool]):
+        world = setup.world
+        self.groups, self.logs, self.wait = groups, logs, wait
+        (self.node,), self.exchange = groups.simulator_nodes, groups.exchange   # one group, one simulator node
+        self.lockstep = world.lockstep
+        self.m = setup.stop - setup.start
+        self.previous = (np.zeros(self.m), np.zeros(self.m))
+        self.seen = 0                       # violations already sent
+        self.tap: Optional[TapBuffer] = None
+        self.first_tick = None              # (CPU seconds, node code seconds) when the ticks began
+        self.senses, self.rows = Senses(world), slice(setup.start, setup.stop)   # this block's sensors are read here
+        self.shared = SharedState(self.senses, world.range_and_bearing.payload_bytes, setup.shared_state)
+        self.kept: dict = {}                # the scene, floor and lights as last sent (core/senses.py)
+
+    def tick(self, tick: int, route_messages: bool, changed: dict, batch: list) -> TickAnswers:
+        groups, exchange, node = self.groups, self.exchange, self.node
+        if self.first_tick is None:
+            self.first_tick = (time.process_time(), groups.node_time.seconds)
+        self.kept.update(changed)
+        frame = self.senses.frame(self.shared.inputs(tick, route_messages, **self.kept), self.shared.rows(self.rows),
+                                  self.rows)
+        groups.open_tick(frame.tick, batch)
+        exchange.publish_tick(frame)
+        self.wait(self.lockstep.watchdog_s)
+        commands = (np.empty(self.m), np.empty(self.m))
+        exchange.close_tick(self.lockstep.fallback, self.previous, commands)
+        self.previous = acted_commands(frame.tick, commands)     # what the main process acts on
+        self.shared.write_commands(self.rows, *commands)
+        answers = TickAnswers(frame.tick, exchange.take_led_commands(), exchange.take_rab_payloads())
+        answers.violations = [(v.tick, v.robot, v.reason) for v in node.violations[self.seen:]]
+        self.seen = len(node.violations)
+        if self.tap is not None:
+            answers.tapped = self.tap.drain()
+        answers.run_wide = groups.close_run_wide(frame.tick + 1)
+        answers.peak_rss_kb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+        answers.another_simulator = exchange.another_simulator()
+        if self.logs is not None:
+            answers.logs = self.logs.drain()
+        answers.cpu_s = time.process_time() - self.first_tick[0]
+        answers.node_code_s = groups.node_time.seconds - self.first_tick[1]
+        return answers
