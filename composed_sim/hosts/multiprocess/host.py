@@ -42,12 +42,10 @@ from composed_sim.hosts.multiprocess.hosted_robot import GID_PREFIX, RUN_WIDE_PR
 from composed_sim.hosts.processes import InterruptWatch, exit_reason, last_words, reap, signal_group
 from composed_sim.hosting.nodes_exchange import NodesExchange
 from composed_sim.hosting.node_logs import failure_from_output
-from composed_sim.hosting.run_wide.nodes import RunWideNodes
 from composed_sim.ros import contract as c
 from composed_sim.hosting.executors.lockstep import LockstepExecutor
 from composed_sim.ros.robot_settings import robot_settings
-from composed_sim.hosting.run_wide.relay import RunWideRelay
-from composed_sim.hosting.run_wide.link import SimulatorLink
+from composed_sim.hosts.multiprocess.exchange import LinkedExchange, RunWideLinks
 from composed_sim.ros.simulator_node import AnswerTypeError, SimulatorNode
 from composed_sim.world.loader import dump_world
 from composed_sim.world.schema import World
@@ -149,9 +147,7 @@ class MultiProcessHost(ControllersElsewhere):
         self._tmp: Optional[Path] = None
         self._last_check = 0.0
         self._startup_interrupted = False
-        self.relay = RunWideRelay(world.robot_names())
-        self.run_wide: Optional[RunWideNodes] = None
-        self._links: dict[int, SimulatorLink] = {}      # per domain, once a robot there uses run-wide topics
+        self.run_wide = RunWideLinks(world, logs)     # the run-wide topics between the processes
 
     # --- start-up ---------------------------------------------------------------------------
 
@@ -177,9 +173,10 @@ class MultiProcessHost(ControllersElsewhere):
                                                **robot_settings(self.world, rows))
                 self._nodes[d].on_failed.append(self._stop_failed)
             if self.world.nodes:
-                self.run_wide = create_run_wide_nodes(self.world, self._contexts[0], classes=classes,
-                                                      relay=self.relay, logs=self.logs)
-            self.exchange = LinkedExchange(self, list(self._nodes.values()), self._check_children)
+                self.run_wide.nodes = create_run_wide_nodes(self.world, self._contexts[0], classes=classes,
+                                                            relay=self.run_wide.relay, logs=self.logs)
+            self.exchange = LinkedExchange(self._nodes, self.domains, self.sim.names, self.world.tick_ns, self.run_wide,
+                                           self._check_children)
             with InterruptWatch() as interrupts:
                 self._start_controllers(world_file, interrupts)
             self._startup_interrupted = interrupts.requested
@@ -226,8 +223,9 @@ class MultiProcessHost(ControllersElsewhere):
                 self._subscribe_answers(unmatched.values(), endpoints, detect)
                 for p in unmatched.values():
                     if p.created and p.run_wide_topics and not p.linked:
-                        endpoints[p.domain].update(self._link(p.domain).add_robot(
-                            self.sim.names.index(p.robot), p.robot, p.run_wide_topics))
+                        link = self.run_wide.link(p.domain, self._nodes[p.domain].context)
+                        endpoints[p.domain].update(link.add_robot(self.sim.names.index(p.robot), p.robot,
+                                                                  p.run_wide_topics))
                         p.linked = True
                 for robot, p in list(unmatched.items()):
                     if p.topics is not None and self._nodes[p.domain].answer_subscription(robot) is not None and all(matched(endpoints[p.domain].get(t)) for t in p.topics):
@@ -242,21 +240,6 @@ class MultiProcessHost(ControllersElsewhere):
                                     f"subscribe to a sensor; seen: {seen}); {len(waiting)} more not started")
         for node in self._nodes.values():
             node.note_controllers({p.robot: p.gids for p in self.processes})
-
-    def _link(self, domain: int) -> SimulatorLink:
-        if domain not in self._links:
-            self._links[domain] = SimulatorLink(self._nodes[domain].context, f"composed_sim_run_wide_d{domain}",
-                                                self.logs)
-        return self._links[domain]
-
-    def run_wide_batch(self, tick: int, sent: dict[int, list]) -> list:
-        """The batch that opens ``tick``: the run-wide nodes' part of it, then what the robots sent
-        during the tick before, in robot order (hosting/run_wide/relay.py)."""
-        if self.run_wide is not None:
-            if self.logs is not None:
-                self.logs.tick = tick
-            self.run_wide.start_tick(tick)
-        return self.relay.take_outbox() + [m for i in sorted(sent) for m in sent[i]]
 
     def _subscribe_answers(self, children: Iterable[ControllerProcess], endpoints: dict, detect: bool) -> None:
         """Subscribe to each created child's robot's cmd_vel with the type the child reported; with
@@ -381,12 +364,7 @@ class MultiProcessHost(ControllersElsewhere):
         for spinning in self._spinning:
             spinning.stop()
         self._spinning = []
-        if self.run_wide is not None:
-            self.run_wide.destroy()
-            self.run_wide = None
-        for link in self._links.values():
-            link.destroy()
-        self._links = {}
+        self.run_wide.destroy()
         for node in self._nodes.values():
             node.destroy_node()
         self._nodes = {}
@@ -404,70 +382,3 @@ class MultiProcessHost(ControllersElsewhere):
         for p in self.processes:      # a failed robot's still there did not heed its SIGTERM
             signal_group(p.popen, signal.SIGTERM if p.stopping_since is None else signal.SIGKILL)
         reap([p.popen for p in self.processes], TERM_GRACE_S)
-
-
-class LinkedExchange(NodesExchange):
-    """The per-domain simulator nodes, and the run-wide relay between the controller processes
-    (hosting/run_wide/link.py): each tick's batch goes to every domain before the tick's sensors, and a
-    tick closes once every robot that publishes run-wide messages has sent its part."""
-
-    def __init__(self, host: MultiProcessHost, nodes: list[SimulatorNode], check):
-        super().__init__(nodes, check)
-        self._host = host
-        self._batch: Optional[list] = None
-        self._tick = 0
-        self._stamp = 0
-
-    def publish_tick(self, frame) -> None:
-        host = self._host
-        if self._batch is None:               # tick 0: what the run-wide nodes publish at its start
-            self._batch = host.run_wide_batch(frame.tick, {})
-        self._tick, self._stamp = frame.tick, frame.tick * host.world.tick_ns
-        host.relay.deliver(self._batch)       # the run-wide nodes' subscriptions
-        if self._batch:
-            self.nodes[0].mirror_run_wide(self._batch, self._stamp)
-        for link in host._links.values():
-            link.publish(self._stamp, self._batch)
-        super().publish_tick(frame)
-
-    def wait_for_answers(self, timeout_s: float) -> bool:
-        """Every robot's answer, and the part of the tick that each robot using the link sent once
-        its nodes were idle (its run-wide messages; for a robot that answers when published, the
-        sign that its nodes are done with the tick: it keeps its last command)."""
-        host = self._host
-        deadline = time.monotonic() + timeout_s
-        while True:
-            waiting = False
-            for link in host._links.values():
-                pending = [i for i in link.senders if not link.done(i) and not self._failed(i)]
-                link.take(self._stamp, pending)
-                for i in pending:
-                    if not link.done(i):
-                        waiting = True
-                    elif i not in link.answered:      # idle without an answer: keeps its command
-                        name = host.sim.names[i]
-                        host._nodes[host.domains[name]].settle_idle([name])
-            if (self.all_answered and not waiting) or time.monotonic() > deadline:
-                return self.all_answered
-            # The domains' nodes take their answers in threads of their own: the last one may come
-            # in between the look above and this one.
-            unanswered = next((n for n in self.nodes if not n.all_answered), None)
-            if unanswered is not None:
-                if not unanswered.wait_for_answers(min(self.POLL_S, max(0.0, deadline - time.monotonic()))):
-                    self._check()
-            else:
-                time.sleep(0.0002)
-
-    def _failed(self, index: int) -> bool:
-        name = self._host.sim.names[index]
-        node = self._host._nodes[self._host.domains[name]]
-        return bool(node.failed[node.row_of(name)])
-
-    def close_tick(self, fallback, previous, commands) -> None:
-        super().close_tick(fallback, previous, commands)
-        sent = {}
-        for link in self._host._links.values():
-            # A robot failed in the tick may have sent its last part (its last log lines) as it ended.
-            link.take(self._stamp, [i for i in link.senders if self._failed(i)])
-            sent.update(link.collect())
-        self._batch = self._host.run_wide_batch(self._tick + 1, sent)

@@ -1,0 +1,116 @@
+"""Multi-process mode's tick exchange: the simulator's per-domain nodes as one, and the run-wide
+topics relayed between the controller processes (hosting/run_wide/link.py)."""
+from __future__ import annotations
+
+import time
+from typing import Callable, Optional
+
+from composed_sim.hosting.nodes_exchange import NodesExchange
+from composed_sim.hosting.run_wide.link import SimulatorLink
+from composed_sim.hosting.run_wide.nodes import RunWideNodes
+from composed_sim.hosting.run_wide.relay import RunWideRelay
+from composed_sim.ros.simulator_node import SimulatorNode
+from composed_sim.world.schema import World
+
+
+class RunWideLinks:
+    """The run-wide topics of a multi-process run: the world's run-wide nodes, here, and a link
+    into each domain whose robots use run-wide topics."""
+
+    def __init__(self, world: World, logs=None):
+        self.relay = RunWideRelay(world.robot_names())
+        self.nodes: Optional[RunWideNodes] = None
+        self.links: dict[int, SimulatorLink] = {}      # per domain, once a robot there uses run-wide topics
+        self._logs = logs
+
+    def link(self, domain: int, context) -> SimulatorLink:
+        """The link into ``domain``, in ``context`` (the simulator's there)."""
+        if domain not in self.links:
+            self.links[domain] = SimulatorLink(context, f"composed_sim_run_wide_d{domain}", self._logs)
+        return self.links[domain]
+
+    def batch(self, tick: int, sent: dict[int, list]) -> list:
+        """The batch that opens ``tick``: the run-wide nodes' part of it, then what the robots sent
+        during the tick before, in robot order (hosting/run_wide/relay.py)."""
+        if self.nodes is not None:
+            if self._logs is not None:
+                self._logs.tick = tick
+            self.nodes.start_tick(tick)
+        return self.relay.take_outbox() + [m for i in sorted(sent) for m in sent[i]]
+
+    def destroy(self) -> None:
+        if self.nodes is not None:
+            self.nodes.destroy()
+            self.nodes = None
+        for link in self.links.values():
+            link.destroy()
+        self.links = {}
+
+
+class LinkedExchange(NodesExchange):
+    """The per-domain simulator nodes, and the run-wide relay between the controller processes:
+    each tick's batch goes to every domain before the tick's sensors, and a tick closes once every
+    robot that publishes run-wide messages has sent its part."""
+
+    def __init__(self, nodes: dict[int, SimulatorNode], domains: dict[str, int], names: list[str], tick_ns: int,
+                 run_wide: RunWideLinks, check: Callable[[], None]):
+        """``nodes``: the simulator's node in each domain; ``domains``: each robot's."""
+        super().__init__(list(nodes.values()), check)
+        self._by_domain, self._domains, self._names, self._tick_ns = nodes, domains, names, tick_ns
+        self._run_wide = run_wide
+        self._batch: Optional[list] = None
+        self._tick = 0
+        self._stamp = 0
+
+    def publish_tick(self, frame) -> None:
+        run_wide = self._run_wide
+        if self._batch is None:               # tick 0: what the run-wide nodes publish at its start
+            self._batch = run_wide.batch(frame.tick, {})
+        self._tick, self._stamp = frame.tick, frame.tick * self._tick_ns
+        run_wide.relay.deliver(self._batch)       # the run-wide nodes' subscriptions
+        if self._batch:
+            self.nodes[0].mirror_run_wide(self._batch, self._stamp)
+        for link in run_wide.links.values():
+            link.publish(self._stamp, self._batch)
+        super().publish_tick(frame)
+
+    def wait_for_answers(self, timeout_s: float) -> bool:
+        """Every robot's answer, and the part of the tick that each robot using the link sent once
+        its nodes were idle (its run-wide messages; for a robot that answers when published, the
+        sign that its nodes are done with the tick: it keeps its last command)."""
+        deadline = time.monotonic() + timeout_s
+        while True:
+            waiting = False
+            for link in self._run_wide.links.values():
+                pending = [i for i in link.senders if not link.done(i) and not self._failed(i)]
+                link.take(self._stamp, pending)
+                for i in pending:
+                    if not link.done(i):
+                        waiting = True
+                    elif i not in link.answered:      # idle without an answer: keeps its command
+                        name = self._names[i]
+                        self._by_domain[self._domains[name]].settle_idle([name])
+            if (self.all_answered and not waiting) or time.monotonic() > deadline:
+                return self.all_answered
+            # The domains' nodes take their answers in threads of their own: the last one may come
+            # in between the look above and this one.
+            unanswered = next((n for n in self.nodes if not n.all_answered), None)
+            if unanswered is not None:
+                if not unanswered.wait_for_answers(min(self.POLL_S, max(0.0, deadline - time.monotonic()))):
+                    self._check()
+            else:
+                time.sleep(0.0002)
+
+    def _failed(self, index: int) -> bool:
+        name = self._names[index]
+        node = self._by_domain[self._domains[name]]
+        return bool(node.failed[node.row_of(name)])
+
+    def close_tick(self, fallback, previous, commands) -> None:
+        super().close_tick(fallback, previous, commands)
+        sent = {}
+        for link in self._run_wide.links.values():
+            # A robot failed in the tick may have sent its last part (its last log lines) as it ended.
+            link.take(self._stamp, [i for i in link.senders if self._failed(i)])
+            sent.update(link.collect())
+        self._batch = self._run_wide.batch(self._tick + 1, sent)
