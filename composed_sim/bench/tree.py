@@ -46,30 +46,25 @@ class _Tracked:
         self.cpu_s = 0.0
 
 
-def measure_tree(cmd: list[str], *, env: dict, timeout_s: float, sample_s: float = SAMPLE_S,
-                 leftover_grace_s: float = LEFTOVER_GRACE_S) -> TreeMeasurement:
-    """Run ``cmd`` and watch its process tree until it and every descendant are gone.
+class _TreeSampler:
+    """Samples a process tree: each process's last CPU time, and the peaks of RSS, PSS and of the
+    number of processes alive."""
 
-    CPU: each process's last sampled user+system time is kept (so processes that exit between
-    samples still count up to their last sample); the root is detected at exit without being
-    reaped (waitid WNOWAIT), its final own and reaped-children times read, then it is reaped with
-    wait4. cpu_core_s = max(root's own + reaped descendants' exact times + last samples of
-    descendants that outlived it, sum of last samples of everything): both are lower bounds of
-    the truth, the first exact unless some descendant was never waited for by its parent."""
-    import psutil
+    def __init__(self, root):
+        self.root = root
+        self.tracked: dict[int, _Tracked] = {root.pid: _Tracked(root)}
+        self.retired: list[_Tracked] = []      # processes whose pid was reused by a later one
+        self.peak_tree = self.peak_root = self.peak_others = 0
+        self.peak_pss = self.peak_others_pss = 0
+        self.max_processes = 0
+        self._next_pss = 0.0
 
-    tracked: dict[int, _Tracked] = {}
-    retired: list[_Tracked] = []      # processes whose pid was reused by a later one
-    peak_tree = peak_root = peak_others = 0
-    peak_pss = peak_others_pss = 0
-    next_pss = 0.0
-    max_processes = 0
-
-    def sample(root_alive: bool) -> None:
-        nonlocal peak_tree, peak_root, peak_others, max_processes, peak_pss, peak_others_pss, next_pss
-        with_pss = time.perf_counter() >= next_pss
+    def sample(self, root_alive: bool) -> None:
+        import psutil
+        with_pss = time.perf_counter() >= self._next_pss
         if with_pss:
-            next_pss = time.perf_counter() + PSS_SAMPLE_S
+            self._next_pss = time.perf_counter() + PSS_SAMPLE_S
+        root = self.root
         procs = []
         if root_alive:
             try:
@@ -77,14 +72,14 @@ def measure_tree(cmd: list[str], *, env: dict, timeout_s: float, sample_s: float
             except psutil.Error:
                 procs = [root]
         else:
-            procs = [t.proc for t in tracked.values() if t.proc is not root]
+            procs = [t.proc for t in self.tracked.values() if t.proc is not root]
         rss_root = rss_others = alive = pss_root = pss_others = 0
         for p in procs:
-            t = tracked.get(p.pid)
+            t = self.tracked.get(p.pid)
             if t is None or t.proc is not p and not _same_process(t.proc, p):
                 if t is not None:
-                    retired.append(t)
-                t = tracked[p.pid] = _Tracked(p)
+                    self.retired.append(t)
+                t = self.tracked[p.pid] = _Tracked(p)
             try:
                 with t.proc.oneshot():
                     times = t.proc.cpu_times()
@@ -100,12 +95,45 @@ def measure_tree(cmd: list[str], *, env: dict, timeout_s: float, sample_s: float
             else:
                 rss_others += rss
                 pss_others += pss
-        peak_root = max(peak_root, rss_root)
-        peak_others = max(peak_others, rss_others)
-        peak_tree = max(peak_tree, rss_root + rss_others)
-        peak_pss = max(peak_pss, pss_root + pss_others)
-        peak_others_pss = max(peak_others_pss, pss_others)
-        max_processes = max(max_processes, alive)
+        self.peak_root = max(self.peak_root, rss_root)
+        self.peak_others = max(self.peak_others, rss_others)
+        self.peak_tree = max(self.peak_tree, rss_root + rss_others)
+        self.peak_pss = max(self.peak_pss, pss_root + pss_others)
+        self.peak_others_pss = max(self.peak_others_pss, pss_others)
+        self.max_processes = max(self.max_processes, alive)
+
+    def end_leftovers(self, grace_s: float, sample_s: float) -> tuple[int, float]:
+        """Descendants that outlived the root (orphans, which its times cannot hold): given
+        ``grace_s``, then ended. (How many were killed, their CPU seconds.)"""
+        root = self.root
+        leftovers = [t.proc for t in self.tracked.values() if t.proc is not root and _alive(t.proc)]
+        orphan_pids = {p.pid for p in leftovers}
+        deadline = time.perf_counter() + grace_s
+        while leftovers and time.perf_counter() < deadline:
+            self.sample(root_alive=False)
+            time.sleep(sample_s)
+            leftovers = [p for p in leftovers if _alive(p)]
+        if leftovers:
+            _kill_all(leftovers)
+            _wait_gone(leftovers, 5.0)
+        return len(leftovers), sum(t.cpu_s for pid, t in self.tracked.items() if pid in orphan_pids)
+
+    @property
+    def sampled_cpu_s(self) -> float:
+        return sum(t.cpu_s for t in [*self.tracked.values(), *self.retired])
+
+
+def measure_tree(cmd: list[str], *, env: dict, timeout_s: float, sample_s: float = SAMPLE_S,
+                 leftover_grace_s: float = LEFTOVER_GRACE_S) -> TreeMeasurement:
+    """Run ``cmd`` and watch its process tree until it and every descendant are gone.
+
+    CPU: each process's last sampled user+system time is kept (so processes that exit between
+    samples still count up to their last sample); the root is detected at exit without being
+    reaped (waitid WNOWAIT), its final own and reaped-children times read, then it is reaped with
+    wait4. cpu_core_s = max(root's own + reaped descendants' exact times + last samples of
+    descendants that outlived it, sum of last samples of everything): both are lower bounds of
+    the truth, the first exact unless some descendant was never waited for by its parent."""
+    import psutil
 
     timed_out = interrupted = False
     with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err:
@@ -113,23 +141,23 @@ def measure_tree(cmd: list[str], *, env: dict, timeout_s: float, sample_s: float
         t0 = time.perf_counter()
         proc = subprocess.Popen(cmd, stdout=out, stderr=err, stdin=subprocess.DEVNULL, env=env)
         root = psutil.Process(proc.pid)
-        tracked[proc.pid] = _Tracked(root)
+        tree = _TreeSampler(root)
         term_sent_at: Optional[float] = None
         try:
             while os.waitid(os.P_PID, proc.pid, os.WEXITED | os.WNOHANG | os.WNOWAIT) is None:
-                sample(root_alive=True)
+                tree.sample(root_alive=True)
                 elapsed = time.perf_counter() - t0
                 if term_sent_at is None and elapsed > timeout_s:
                     timed_out, term_sent_at = True, elapsed
                     _signal(root, signal.SIGTERM)      # the run stops at the next tick and writes
                 elif term_sent_at is not None and elapsed > term_sent_at + TERM_GRACE_S:
-                    _kill_all(t.proc for t in tracked.values())
+                    _kill_all(t.proc for t in tree.tracked.values())
                 time.sleep(sample_s)
         except KeyboardInterrupt:
             interrupted = True
             _signal(root, signal.SIGTERM)
             if not _wait_exit(proc.pid, TERM_GRACE_S / 3):
-                _kill_all(t.proc for t in tracked.values())
+                _kill_all(t.proc for t in tree.tracked.values())
         wall_s = time.perf_counter() - t0
         busy1 = _machine_busy_s()
         # The root is a zombie now: its own times are final, and so are those of the descendants
@@ -142,40 +170,26 @@ def measure_tree(cmd: list[str], *, env: dict, timeout_s: float, sample_s: float
             pass
         _, status, usage = os.wait4(proc.pid, 0)
         proc.returncode = exit_code = os.waitstatus_to_exitcode(status)
-        tracked[proc.pid].cpu_s = max(tracked[proc.pid].cpu_s, root_own)
+        tree.tracked[proc.pid].cpu_s = max(tree.tracked[proc.pid].cpu_s, root_own)
         exact = max(usage.ru_utime + usage.ru_stime, root_own + root_children)
-
-        # Descendants that outlived the root (orphans, which its times cannot hold): give them
-        # time, then end them.
-        leftovers = [t.proc for t in tracked.values() if t.proc is not root and _alive(t.proc)]
-        orphan_pids = {p.pid for p in leftovers}
-        deadline = time.perf_counter() + leftover_grace_s
-        while leftovers and time.perf_counter() < deadline:
-            sample(root_alive=False)
-            time.sleep(sample_s)
-            leftovers = [p for p in leftovers if _alive(p)]
-        if leftovers:
-            _kill_all(leftovers)
-            _wait_gone(leftovers, 5.0)
-        orphans_cpu = sum(t.cpu_s for pid, t in tracked.items() if pid in orphan_pids)
-        sampled = sum(t.cpu_s for t in [*tracked.values(), *retired])
+        leftovers_killed, orphans_cpu = tree.end_leftovers(leftover_grace_s, sample_s)
         out.seek(0)
         err.seek(0)
         stdout = out.read().decode(errors="replace")
         stderr = err.read().decode(errors="replace")
-    peak_tree = max(peak_tree, usage.ru_maxrss * 1024)   # a run shorter than a sample period
-    cpu_core_s = max(exact + orphans_cpu, sampled)
+    peak_tree = max(tree.peak_tree, usage.ru_maxrss * 1024)   # a run shorter than a sample period
+    cpu_core_s = max(exact + orphans_cpu, tree.sampled_cpu_s)
     other = None
     if busy0 is not None and busy1 is not None and wall_s > 0:
         other = max(busy1 - busy0 - cpu_core_s, 0.0) / wall_s
     return TreeMeasurement(
         exit_code=exit_code, wall_s=wall_s, cpu_core_s=cpu_core_s, other_cores=other,
-        root_cpu_s=max(root_own, tracked[proc.pid].cpu_s),
-        peak_tree_rss_kb=peak_tree // 1024, peak_root_rss_kb=peak_root // 1024,
-        peak_others_rss_kb=peak_others // 1024, max_processes=max_processes,
-        peak_tree_pss_kb=peak_pss // 1024, peak_others_pss_kb=peak_others_pss // 1024,
+        root_cpu_s=max(root_own, tree.tracked[proc.pid].cpu_s),
+        peak_tree_rss_kb=peak_tree // 1024, peak_root_rss_kb=tree.peak_root // 1024,
+        peak_others_rss_kb=tree.peak_others // 1024, max_processes=tree.max_processes,
+        peak_tree_pss_kb=tree.peak_pss // 1024, peak_others_pss_kb=tree.peak_others_pss // 1024,
         stdout=stdout, stderr=stderr, timed_out=timed_out, interrupted=interrupted,
-        leftovers_killed=len(leftovers))
+        leftovers_killed=leftovers_killed)
 
 
 def _wait_exit(pid: int, timeout_s: float) -> bool:
