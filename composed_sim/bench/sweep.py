@@ -303,34 +303,8 @@ def run(args) -> int:
           f"→ {args.out}/", file=sys.stderr)
 
     rows: list[dict] = []
-    interrupted = False
     t_start = time.perf_counter()
-    old_term = _sigterm_interrupts()
-    try:
-        for i, (name, n, trial, mode, executor, workers) in enumerate(plan, 1):
-            sweep = sweeps[name]
-            first_multi = mode == "multi-process" and not any(r["mode"] == mode for r in rows)
-            if first_multi and n > CALIBRATION_ABOVE:
-                print(f"bench: calibrating the multi-process memory cost with {CALIBRATION_ROBOTS} robots",
-                      file=sys.stderr)
-                sweep.calibrate(executor)
-                cal = sweep.calibration[-1]
-                print(f"bench: calibration {cal['status']}: {sweep.estimate.per_process_mb:.1f} MB per process "
-                      f"({sweep.estimate.source})" + (f" — {cal['reason']}" if cal["reason"] else ""), file=sys.stderr)
-                if sweep.interrupted:
-                    interrupted = True
-                    break
-            row = sweep.one(n, mode, executor, trial, workers=workers)
-            rows.append(row)
-            print(_progress_line(i, len(plan), row, args.trials), file=sys.stderr)
-            if sweep.interrupted:
-                interrupted = True
-                break
-    except KeyboardInterrupt:
-        interrupted = True
-    finally:
-        if old_term is not None:
-            signal.signal(signal.SIGTERM, old_term)
+    interrupted = _run_plan(plan, sweeps, rows, args.trials)
     elapsed = time.perf_counter() - t_start
 
     doc = {"command": command, "machine": machine, "settings": settings, "elapsed_s": round(elapsed, 1),
@@ -346,6 +320,36 @@ def run(args) -> int:
     if interrupted:
         return 130
     return 1 if bad else 0
+
+
+def _run_plan(plan: list[tuple], sweeps: dict, rows: list[dict], trials: int) -> bool:
+    """Run the plan's runs one after the other, appending their rows; True when interrupted
+    (Ctrl-C or SIGTERM: the run going on is ended, what ran so far stays)."""
+    old_term = _sigterm_interrupts()
+    try:
+        for i, (name, n, trial, mode, executor, workers) in enumerate(plan, 1):
+            sweep = sweeps[name]
+            first_multi = mode == "multi-process" and not any(r["mode"] == mode for r in rows)
+            if first_multi and n > CALIBRATION_ABOVE:
+                print(f"bench: calibrating the multi-process memory cost with {CALIBRATION_ROBOTS} robots",
+                      file=sys.stderr)
+                sweep.calibrate(executor)
+                cal = sweep.calibration[-1]
+                print(f"bench: calibration {cal['status']}: {sweep.estimate.per_process_mb:.1f} MB per process "
+                      f"({sweep.estimate.source})" + (f" — {cal['reason']}" if cal["reason"] else ""), file=sys.stderr)
+                if sweep.interrupted:
+                    return True
+            row = sweep.one(n, mode, executor, trial, workers=workers)
+            rows.append(row)
+            print(_progress_line(i, len(plan), row, trials), file=sys.stderr)
+            if sweep.interrupted:
+                return True
+    except KeyboardInterrupt:
+        return True
+    finally:
+        if old_term is not None:
+            signal.signal(signal.SIGTERM, old_term)
+    return False
 
 
 def _sigterm_interrupts():
