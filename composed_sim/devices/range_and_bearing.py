@@ -106,14 +106,7 @@ def range_and_bearing(positions: np.ndarray, headings: np.ndarray, radii: np.nda
     positions = np.asarray(positions, dtype=np.float64)
     n = len(positions)
     payloads = np.asarray(payloads, dtype=np.uint8)
-    if payloads.ndim != 2 or len(payloads) != n:
-        raise ValueError(f"payloads must have shape ({n}, B), got {payloads.shape}")
-    for name, a in (("headings", headings), ("radii", radii), ("heights", heights),
-                    ("equipped", equipped), ("elevations", elevations), ("ranges", ranges)):
-        if np.shape(a) != (n,):
-            raise ValueError(f"{name} must have shape ({n},), got {np.shape(a)}")
-    if mode not in ("local", "global"):
-        raise ValueError(f"mode must be 'local' or 'global', got {mode!r}")
+    _check_inputs(n, payloads, headings, radii, heights, equipped, elevations, ranges, mode)
     noisy = noise_std_m is not None and np.any(noise_std_m > 0.0)
     dropping = drop_probability is not None and np.any(drop_probability > 0.0)
     if (noisy or dropping) and rng is None:
@@ -124,41 +117,13 @@ def range_and_bearing(positions: np.ndarray, headings: np.ndarray, radii: np.nda
     if len(members) < 2:
         return RangeAndBearingReadings.empty(rows.stop - rows.start, payloads.shape[1])
     emitters = np.column_stack([positions, np.asarray(elevations, dtype=np.float64)])   # [n, 3]
-
     if mode == "global":
         rx, tx = np.meshgrid(members, members, indexing="ij")     # receiver-major, sender order
         keep = rx != tx
         rx, tx = rx[keep], tx[keep]
     else:
-        tree = kd_tree(positions) if tree is None else tree
-        # Planar pairs within the longest range; the 3D test below is exact (emitters differ in height).
-        reach = float(np.max(ranges[members]))
-        if receivers is None:
-            pairs = tree.query_pairs(reach, output_type="ndarray").astype(np.intp)
-            a, b = pairs[:, 0], pairs[:, 1]
-        else:    # only the pairs with a receiver in the block, found from the block (a worker's)
-            a, b = near_pairs(tree, positions, reach, np.arange(rows.start, rows.stop))
-            once = (a < b) | (b < rows.start) | (b >= rows.stop)       # a pair inside the block once
-            a, b = np.minimum(a[once], b[once]), np.maximum(a[once], b[once])   # lower index first, as above
-        both = np.flatnonzero(equipped[a] & equipped[b])
-        a, b = a[both], b[both]
-        v = emitters[b] - emitters[a]
-        d2 = np.einsum("ij,ij->i", v, v)
-        a_hears_b, b_hears_a = d2 < ranges[b] ** 2, d2 < ranges[a] ** 2
-        either = np.flatnonzero(a_hears_b | b_hears_a)
-        a, b, a_hears_b, b_hears_a = a[either], b[either], a_hears_b[either], b_hears_a[either]
-        if check_occlusions and len(a):
-            # The segment between two emitters is the same both ways: test each pair once.
-            p0, p1 = emitters[a], emitters[b]
-            clear = ~(scene.blocks(p0, p1) | blocked_by_robots(p0, p1, a, b, positions, np.asarray(radii, float),
-                                                                np.asarray(heights, float), tree))
-            a_hears_b &= clear
-            b_hears_a &= clear
-        rx = np.concatenate([a[a_hears_b], b[b_hears_a]])
-        tx = np.concatenate([b[a_hears_b], a[b_hears_a]])
-        order = _pair_order(rx, tx, n)
-        rx, tx = rx[order], tx[order]
-
+        rx, tx = _heard_locally(positions, emitters, radii, heights, equipped, members, ranges, scene,
+                                check_occlusions, kd_tree(positions) if tree is None else tree, receivers, rows)
     if receivers is not None:        # sorted by receiver: the block's messages are contiguous
         first, last = np.searchsorted(rx, [rows.start, rows.stop])
         rx, tx = rx[first:last], tx[first:last]
@@ -185,6 +150,52 @@ def range_and_bearing(positions: np.ndarray, headings: np.ndarray, radii: np.nda
         horizontal_bearings=wrap_angle(np.arctan2(v[:, 1], v[:, 0]) - headings[rx]),
         vertical_bearings=np.arctan2(v[:, 2], planar),
         payloads=payloads[tx])
+
+
+def _check_inputs(n: int, payloads: np.ndarray, headings, radii, heights, equipped, elevations, ranges,
+                  mode: str) -> None:
+    if payloads.ndim != 2 or len(payloads) != n:
+        raise ValueError(f"payloads must have shape ({n}, B), got {payloads.shape}")
+    for name, a in (("headings", headings), ("radii", radii), ("heights", heights),
+                    ("equipped", equipped), ("elevations", elevations), ("ranges", ranges)):
+        if np.shape(a) != (n,):
+            raise ValueError(f"{name} must have shape ({n},), got {np.shape(a)}")
+    if mode not in ("local", "global"):
+        raise ValueError(f"mode must be 'local' or 'global', got {mode!r}")
+
+
+def _heard_locally(positions: np.ndarray, emitters: np.ndarray, radii, heights, equipped: np.ndarray,
+                   members: np.ndarray, ranges: np.ndarray, scene: StaticScene, check_occlusions: bool,
+                   tree: cKDTree, receivers: Optional[slice], rows: slice) -> tuple[np.ndarray, np.ndarray]:
+    """(receivers [m], senders [m]) of the messages heard, by receiver then sender: each pair of
+    equipped robots within range (3D, emitters at their heights), not occluded."""
+    # Planar pairs within the longest range; the 3D test below is exact (emitters differ in height).
+    reach = float(np.max(ranges[members]))
+    if receivers is None:
+        pairs = tree.query_pairs(reach, output_type="ndarray").astype(np.intp)
+        a, b = pairs[:, 0], pairs[:, 1]
+    else:    # only the pairs with a receiver in the block, found from the block (a worker's)
+        a, b = near_pairs(tree, positions, reach, np.arange(rows.start, rows.stop))
+        once = (a < b) | (b < rows.start) | (b >= rows.stop)       # a pair inside the block once
+        a, b = np.minimum(a[once], b[once]), np.maximum(a[once], b[once])   # lower index first, as above
+    both = np.flatnonzero(equipped[a] & equipped[b])
+    a, b = a[both], b[both]
+    v = emitters[b] - emitters[a]
+    d2 = np.einsum("ij,ij->i", v, v)
+    a_hears_b, b_hears_a = d2 < ranges[b] ** 2, d2 < ranges[a] ** 2
+    either = np.flatnonzero(a_hears_b | b_hears_a)
+    a, b, a_hears_b, b_hears_a = a[either], b[either], a_hears_b[either], b_hears_a[either]
+    if check_occlusions and len(a):
+        # The segment between two emitters is the same both ways: test each pair once.
+        p0, p1 = emitters[a], emitters[b]
+        clear = ~(scene.blocks(p0, p1) | blocked_by_robots(p0, p1, a, b, positions, np.asarray(radii, float),
+                                                            np.asarray(heights, float), tree))
+        a_hears_b &= clear
+        b_hears_a &= clear
+    rx = np.concatenate([a[a_hears_b], b[b_hears_a]])
+    tx = np.concatenate([b[a_hears_b], a[b_hears_a]])
+    order = _pair_order(rx, tx, len(positions))
+    return rx[order], tx[order]
 
 
 # --- its topics -----------------------------------------------------------------------------------
