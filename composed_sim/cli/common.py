@@ -64,7 +64,8 @@ def check_plugins(world_path, world) -> None:
 
 def located(world_path, error: Exception) -> str:
     """The error's message, prefixed with the world file's line of the field it concerns."""
-    from composed_sim.world.loader import field_line, format_path
+    from composed_sim.world.loader import field_line
+    from composed_sim.world.problems import format_path
     field = getattr(error, "field", ())
     if not field and getattr(error, "group_index", None) is not None:    # a PlacementError
         field = ("robots", error.group_index, "placement")

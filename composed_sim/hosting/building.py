@@ -24,7 +24,7 @@ from composed_sim.hosting.node_options import HostedNodeOptions, construct
 from composed_sim.hosting.run_wide.nodes import RunWideNodes
 from composed_sim.hosting.run_wide.relay import RUN_WIDE_ORIGIN, RunWideRelay
 from composed_sim.hosting.sim_timers import SimTimers
-from composed_sim.world.loader import format_path
+from composed_sim.world.problems import format_path
 from composed_sim.world.schema import NodeSpec, RobotGroup, World
 
 

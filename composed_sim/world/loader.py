@@ -6,20 +6,17 @@ Only ``yaml.SafeLoader`` is used: a world file can never construct Python object
 """
 from __future__ import annotations
 
-import json
 import numbers
 import os
-import reprlib
-import types
 from pathlib import Path
-from typing import Annotated, Any, NoReturn, Optional, Union, get_args, get_origin
+from typing import Any, NoReturn, Optional
 
 import yaml
-from pydantic import BaseModel, ValidationError
+from pydantic import ValidationError
 
+from composed_sim.world.problems import (FieldPath, field_at, format_path, got_text, kind_of, line_of, problems_of,
+                                         show)
 from composed_sim.world.schema import World
-
-FieldPath = tuple[Union[str, int], ...]      # a field path, e.g. ("robots", 0, "count")
 
 # Largest values of the command-line overrides, given as exclusive upper bounds.
 _SEED_LIMIT = 2**32
@@ -70,7 +67,7 @@ def field_line(source: str | os.PathLike, path: FieldPath) -> str:
         _, lines = _parse(read_file(source), source)
     except WorldFileError:
         return source
-    line = _line(lines, path)
+    line = line_of(lines, path)
     return f"{source}:{line}" if line else source
 
 
@@ -215,13 +212,13 @@ def validate(data: Any, source: str, lines: dict[FieldPath, int]) -> World:
     if data is None:
         raise WorldFileError(f"{source}: the world file is empty; it needs at least `robots:`")
     if not isinstance(data, dict):
-        raise WorldFileError(f"{_where(source, lines, ())}: the top level must be a mapping of "
-                             f"world fields (name, seed, robots, ...), got {_kind(data)} "
-                             f"{_show(data)}")
+        raise WorldFileError(f"{field_at(source, lines, ())}: the top level must be a mapping of "
+                             f"world fields (name, seed, robots, ...), got {kind_of(data)} "
+                             f"{show(data)}")
     try:
         world = World.model_validate(data)
     except ValidationError as exc:
-        problems = [p for err in exc.errors() for p in _problems(err)]
+        problems = [p for err in exc.errors() for p in problems_of(err)]
     except RecursionError:      # a pathological alias structure
         raise WorldFileError(f"{source}: the world refers to itself too deeply "
                              f"(recursive YAML aliases?)") from None
@@ -234,7 +231,7 @@ def validate(data: Any, source: str, lines: dict[FieldPath, int]) -> World:
 
 def _raise(problems: list[tuple[FieldPath, str, str]], source: str, lines: dict[FieldPath, int]) -> NoReturn:
     """One WorldFileError for the problems, each as file:line: field: message (got value)."""
-    rows = sorted({(_line(lines, path), format_path(path), message, got)
+    rows = sorted({(line_of(lines, path), format_path(path), message, got)
                    for path, message, got in problems}, key=lambda r: (r[0] or 0, r[1], r[2]))
     texts = [f"{source}{f':{line}' if line else ''}: {path}{': ' if path else ''}{message}{got}"
              for line, path, message, got in rows]
@@ -263,9 +260,9 @@ def _with_floor_image(world: World, source: str, lines: dict[FieldPath, int]) ->
     if image is None:
         return world
     path = _relative_to(source, image)
-    where = f"{_where(source, lines, ('floor', 'image'))}: floor.image"
+    where = f"{field_at(source, lines, ('floor', 'image'))}: floor.image"
     if not os.path.isfile(path):
-        raise WorldFileError(f"{where}: no such image file {path}{_got(image)}")
+        raise WorldFileError(f"{where}: no such image file {path}{got_text(image)}")
     try:
         import imageio.v3 as iio     # only worlds with an image floor pay for the import
         shape = tuple(iio.improps(path).shape)
@@ -277,7 +274,7 @@ def _with_floor_image(world: World, source: str, lines: dict[FieldPath, int]) ->
         problem = f"pixels of shape {list(shape)}, not [rows, columns] grey or [rows, columns, 3 or 4]"
     if problem is not None:
         raise WorldFileError(f"{where}: cannot read {path} as a grey or RGB(A) image: {problem}"
-                             f"{_got(image)}")
+                             f"{got_text(image)}")
     return world.model_copy(update={"floor": world.floor.model_copy(update={"image": path})})
 
 
@@ -297,11 +294,11 @@ def _with_params_files(world: World, source: str, lines: dict[FieldPath, int]) -
         if spec.params_file is None:
             continue
         field = path + ("params_file",)
-        where = f"{_where(source, lines, field)}: {format_path(field)}"
+        where = f"{field_at(source, lines, field)}: {format_path(field)}"
         resolved = _relative_to(source, spec.params_file)
         problem = params_file_problem(resolved)
         if problem is not None:
-            raise WorldFileError(f"{where}: {problem}{_got(spec.params_file)}")
+            raise WorldFileError(f"{where}: {problem}{got_text(spec.params_file)}")
         data = data if data is not None else world.model_dump()
         target = data
         for key in path:
@@ -352,168 +349,19 @@ def _with_interfaces(world: World, source: str, lines: dict[FieldPath, int]) -> 
         try:
             read_package(path)
         except InterfaceError as e:
-            raise WorldFileError(f"{_where(source, lines, ('interfaces', i))}: interfaces[{i}]: {e}{_got(entry)}") from None
+            raise WorldFileError(f"{field_at(source, lines, ('interfaces', i))}: interfaces[{i}]: {e}{got_text(entry)}") from None
         paths.append(path)
     return world.model_copy(update={"interfaces": paths})
-
-
-def _problems(err: dict) -> list[tuple[FieldPath, str, str]]:
-    """(path the user wrote, message, " (got value)" or "") for one pydantic error."""
-    ctx = err.get("ctx") or {}
-    if err["type"] == "world":      # the schema's own checks, possibly several at once
-        out = []
-        for sub, message, value in ctx["problems"]:
-            path, _, _ = _resolve(tuple(err["loc"]) + tuple(sub))
-            out.append((path, message, "" if value is ... else _got(value)))   # ...: no value to show
-        return out
-    path, owner, tp = _resolve(tuple(err["loc"]))
-    kind, value = err["type"], err.get("input")
-    if kind == "missing" and path and isinstance(path[-1], int):    # a tuple too short
-        parent = _resolve(tuple(err["loc"])[:-1])[2]
-        return [(path[:-1], f"must have exactly {len(get_args(parent))} items", _got(value))]
-    if kind == "too_long" and get_origin(tp) is tuple and Ellipsis not in get_args(tp):
-        return [(path, f"must have exactly {len(get_args(tp))} items", _got(value))]
-    if kind == "missing":
-        return [(path, "is required", "")]
-    if kind == "extra_forbidden":
-        allowed = ", ".join(owner.model_fields) if owner else "?"
-        return [(path, f"unknown field (allowed here: {allowed})", _got(value))]
-    if kind == "union_tag_invalid":
-        return [(path + ("type",), f"must be one of {ctx['expected_tags']}", _got(ctx["tag"]))]
-    if kind == "union_tag_not_found":
-        return [(path + ("type",), f"is required: one of {', '.join(map(repr, _tags(tp)))}", "")]
-    if kind == "invalid_key":
-        return [(path[:-1], "field names must be text", _got(value))]
-    return [(path, _MESSAGES.get(kind, _rephrase)(ctx, err["msg"]), _got(value))]
-
-
-_MESSAGES = {
-    "greater_than": lambda c, m: f"must be > {c['gt']}",
-    "greater_than_equal": lambda c, m: f"must be >= {c['ge']}",
-    "less_than": lambda c, m: f"must be < {c['lt']}",
-    "less_than_equal": lambda c, m: f"must be <= {c['le']}",
-    "int_type": lambda c, m: "must be a whole number",
-    "int_parsing": lambda c, m: "must be a whole number",
-    "int_from_float": lambda c, m: "must be a whole number",
-    "float_type": lambda c, m: "must be a number",
-    "float_parsing": lambda c, m: "must be a number",
-    "finite_number": lambda c, m: "must be a finite number",
-    "bool_type": lambda c, m: "must be true or false",
-    "bool_parsing": lambda c, m: "must be true or false",
-    "string_type": lambda c, m: "must be text",
-    "string_too_short": lambda c, m: "must not be empty",
-    "list_type": lambda c, m: "must be a list",
-    "tuple_type": lambda c, m: "must be a list",
-    "too_long": lambda c, m: f"must have at most {c['max_length']} items",
-    "too_short": lambda c, m: f"must have at least {c['min_length']} items",
-    "literal_error": lambda c, m: f"must be one of {c['expected']}",
-    "dict_type": lambda c, m: "must be a mapping (key: value lines)",
-    "model_type": lambda c, m: "must be a mapping (key: value lines)",
-    "model_attributes_type": lambda c, m: "must be a mapping (key: value lines)",
-    "recursion_loop": lambda c, m: "refers to itself (a recursive YAML alias)",
-}
-
-
-def _rephrase(ctx: dict, msg: str) -> str:
-    return msg.replace("Input should be", "must be").replace("Input should", "must")
-
-
-def _resolve(loc: tuple) -> tuple[FieldPath, Optional[type[BaseModel]], Any]:
-    """Walk the schema along a pydantic loc.
-
-    Returns the path as the user wrote it (pydantic inserts the name of the union member it
-    tried, e.g. ``obstacles.0.box.size``: dropped), the model owning the last element, and
-    the type found at the end of the path (None once the path leaves the schema).
-    """
-    path: list = []
-    tp: Any = World
-    owner = None
-    for item in loc:
-        tp, owner = _unwrap(tp), None
-        if isinstance(tp, type) and issubclass(tp, BaseModel):
-            owner = tp
-            field = tp.model_fields.get(item) if isinstance(item, str) else None
-            tp = field.annotation if field else None
-        elif get_origin(tp) is Union and isinstance(item, str):
-            tp = {t: m for m in get_args(tp) for t in _tags(m)}.get(item)
-            continue            # a union member's name, not part of the user's path
-        elif get_origin(tp) in (list, tuple) and isinstance(item, int):
-            args = [a for a in get_args(tp) if a is not Ellipsis]
-            tp = args[min(item, len(args) - 1)] if args else None
-        elif get_origin(tp) is dict:
-            tp = get_args(tp)[1]
-        else:
-            tp = None
-        path.append(item)
-    return tuple(path), owner, _unwrap(tp)
-
-
-def _unwrap(tp: Any) -> Any:
-    """Strip Annotated[...] and Optional[...] wrappers."""
-    while True:
-        if get_origin(tp) is Annotated:
-            tp = get_args(tp)[0]
-        elif get_origin(tp) in (Union, types.UnionType) and type(None) in get_args(tp):
-            rest = [a for a in get_args(tp) if a is not type(None)]
-            tp = rest[0] if len(rest) == 1 else Union[tuple(rest)]
-        else:
-            return tp
-
-
-def _tags(tp: Any) -> list[str]:
-    """Discriminator values (the ``type`` field) of a model or of a union of models."""
-    members = get_args(tp) if get_origin(tp) is Union else (tp,)
-    return [m.model_fields["type"].default for m in members
-            if isinstance(m, type) and issubclass(m, BaseModel) and "type" in m.model_fields]
-
-
-def _line(lines: dict[FieldPath, int], path: FieldPath) -> Optional[int]:
-    """Line of the path, or of its nearest ancestor that the file has (e.g. a missing field)."""
-    for end in range(len(path), 0, -1):
-        line = lines.get(path[:end])
-        if line is not None:
-            return line
-    return None     # the top level: a line number would say nothing
-
-
-def _where(source: str, lines: dict[FieldPath, int], path: FieldPath) -> str:
-    line = lines.get(path)
-    return f"{source}:{line}" if line else source
-
-
-def format_path(path: FieldPath) -> str:
-    """``robots[0].placement``"""
-    out = ""
-    for item in path:
-        out += f"[{item}]" if isinstance(item, int) and not isinstance(item, bool) else \
-            (f".{item}" if out else str(item))
-    return out
 
 
 def _check_override(name: str, value: Any, low: int, high: Optional[int]) -> None:
     if value is None:
         return
     if isinstance(value, bool) or not isinstance(value, numbers.Integral):
-        raise WorldFileError(f"--{name}: must be a whole number (got {_show(value)})")
+        raise WorldFileError(f"--{name}: must be a whole number (got {show(value)})")
     if value < low:
         raise WorldFileError(f"--{name}: must be >= {low} (got {value})")
     if high is not None and value >= high:
         raise WorldFileError(f"--{name}: must be < {high} (got {value})")
 
 
-def _got(value: Any) -> str:
-    return f" (got {_show(value)})"
-
-
-def _show(value: Any, limit: int = 80) -> str:
-    """The value as the user would write it in YAML/JSON, shortened."""
-    try:
-        text = json.dumps(value, ensure_ascii=False, default=str)
-    except Exception:   # noqa: BLE001 - recursive or odd keys: Python's repr copes with all
-        text = reprlib.repr(value)
-    return text if len(text) <= limit else text[:limit - 3] + "..."
-
-
-def _kind(value: Any) -> str:
-    return {list: "a list", str: "text", bool: "true/false", int: "a number",
-            float: "a number"}.get(type(value), f"a {type(value).__name__}")
