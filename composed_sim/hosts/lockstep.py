@@ -226,7 +226,8 @@ def run_lockstep(sim: Simulation, exchange: Exchange, wait_for_answers: Callable
                 interrupted = True
                 break
             clock = PhaseClock(book.times.phases_s)
-            commands = acted_commands(sim.tick, exchange_tick(sim, exchange, wait_for_answers, lockstep, previous, clock))
+            answers = exchange_tick(sim, exchange, wait_for_answers, lockstep, previous, clock)
+            commands = acted_commands(sim.tick, answers)
             book.times.ros_exchange_s += time.perf_counter() - clock.started
             sim.set_velocity_commands(*commands)
             previous = commands

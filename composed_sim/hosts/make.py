@@ -23,8 +23,8 @@ def make_host(settings: HostSettings, world: World, logs: Optional[NodeLogs] = N
     if settings.discovery is not None:
         from composed_sim.hosts.distributed.discovery import describe
         from composed_sim.hosts.distributed.external import ExternalControllersHost
-        return ExternalControllersHost(world, domain_id=settings.domain_id, discovery_timeout_s=settings.discovery.timeout_s,
-                                       discovery=describe())
+        return ExternalControllersHost(world, domain_id=settings.domain_id,
+                                       discovery_timeout_s=settings.discovery.timeout_s, discovery=describe())
     if settings.mode == "multi-process":
         from composed_sim.hosts.multiprocess.host import MultiProcessHost
         return MultiProcessHost(world, executor=settings.executor, domain_id=settings.domain_id,

@@ -46,6 +46,6 @@ from composed_sim.outputs.recording.reader import Recording, read_recording, rea
 from composed_sim.outputs.recording.writer import FLUSH_EVERY_S, FLUSH_EVERY_TICKS, BagRecorder
 from composed_sim.world.robot_models import display_colors
 
-__all__ = ["BagRecorder", "CLOCK_TOPIC", "CLOCK_TYPE", "CUSTOM_PREFIX", "FLUSH_EVERY_S", "FLUSH_EVERY_TICKS", "FRAME_ID",
-           "Recording", "RecordingError", "STATE_DTYPE", "SWARM_STATE_TOPIC", "UNFINISHED", "display_colors",
+__all__ = ["BagRecorder", "CLOCK_TOPIC", "CLOCK_TYPE", "CUSTOM_PREFIX", "FLUSH_EVERY_S", "FLUSH_EVERY_TICKS",
+           "FRAME_ID", "Recording", "RecordingError", "STATE_DTYPE", "SWARM_STATE_TOPIC", "UNFINISHED", "display_colors",
            "message_definition", "pack_rgb", "read_recording", "read_swarm_states", "ros_type_name", "unpack_rgb"]
