@@ -86,14 +86,17 @@ def _describe(field: tuple, spec: NodeSpec) -> str:
 def create_robot_nodes(world: World, group_index: int, name: str, context: Context, *,
                        classes: Mapping[str, type[Node]], relay: Optional[RunWideRelay] = None,
                        origin: int = 0, use_sim_time: bool = False, robots: Optional[Container[str]] = None,
-                       clock_from_stamps: bool = False, logs: Optional[NodeLogs] = None) -> BuiltNodes:
+                       clock_from_stamps: bool = False, logs: Optional[NodeLogs] = None,
+                       warnings: Optional[SetupWarnings] = None) -> BuiltNodes:
     """Build robot ``name``'s nodes (its group's ``node_specs``) in its namespace, with their
     timers on sim time (hosting/sim_timers.py), their run-wide topics through ``relay`` (``origin``:
     the robot's index in the run), and check the world's parameters exist and the cmd_vel type.
     ``robots``: every robot's name (a set; computed from ``world`` when not given).
     ``clock_from_stamps``: the nodes' clocks follow a /clock that may arrive after the sensors (another
     process than the simulator's): a sensor stamp ahead of it moves it (``use_sim_time`` implies it).
-    ``logs``: where the nodes' log lines go (``<robot>.log``, hosting/node_logs.py); rclpy's loggers without."""
+    ``logs``: where the nodes' log lines go (``<robot>.log``, hosting/node_logs.py); rclpy's loggers without.
+    ``warnings``: the set-up warnings of the robots built so far (a new one without)."""
+    warnings = SetupWarnings() if warnings is None else warnings
     group = world.robots[group_index]
     robots = frozenset(world.robot_names()) if robots is None else robots
     sensors = [c.topic_name(name, t) for t in c.robot_topics(group.devices.published(get_model(group.model)))
@@ -137,7 +140,7 @@ def create_robot_nodes(world: World, group_index: int, name: str, context: Conte
         if not timers.follows_sensors:
             built.tick_timers.append(timers)
         for warning in timers.period_warnings(spec.node, every):
-            warn_once(warning)
+            warnings.say(warning)
     return built
 
 
@@ -275,11 +278,14 @@ def load_classes(world: World) -> dict[str, type[Node]]:
     return {name: plugins.load(name) for name in dict.fromkeys(names)}
 
 
-_warned: set[str] = set()
+class SetupWarnings:
+    """The set-up warnings of a process's robots, each said once (it would otherwise repeat for
+    every robot of a group)."""
 
+    def __init__(self) -> None:
+        self._said: set[str] = set()
 
-def warn_once(message: str) -> None:
-    """A set-up warning, once per process (it would otherwise repeat for every robot of a group)."""
-    if message not in _warned:
-        _warned.add(message)
-        print(f"composed-sim: warning: {message}", file=sys.stderr)
+    def say(self, message: str) -> None:
+        if message not in self._said:
+            self._said.add(message)
+            print(f"composed-sim: warning: {message}", file=sys.stderr)

@@ -29,7 +29,8 @@ from composed_sim.hosting import callback_guard
 from composed_sim.hosting.callback_guard import CallbackGuard, refuse_shutdown_from_callbacks
 from composed_sim.hosting.options import ROBOTS_PER_PARTICIPANT, ProcessHosting
 from composed_sim.hosting import HostError
-from composed_sim.hosting.building import answer_type, create_robot_nodes, create_run_wide_nodes, load_classes
+from composed_sim.hosting.building import (SetupWarnings, answer_type, create_robot_nodes, create_run_wide_nodes,
+                                           load_classes)
 from composed_sim.hosting.executors.running import (SETTLE_ROUNDS, Spinning, check_executor, driven_by_caller, is_idle,
                                                    make_executor, run_until_idle)
 from composed_sim.hosting.node_logs import NodeLogs
@@ -118,6 +119,7 @@ class ParticipantGroups:
                 robot, type(node), node.get_logger().name, error, skip=callback_guard.__file__)
         names, groups = world.robot_names(), world.group_of_robot()
         robots = frozenset(names)
+        warnings = SetupWarnings()
         first_robots = []                    # per group: the index of its first robot in robot_nodes
         for k, first in enumerate(range(self.start, self.stop, self.robots_per_participant)):
             block = range(first, min(self.stop, first + self.robots_per_participant))
@@ -134,7 +136,7 @@ class ParticipantGroups:
             first_robots.append(first_robot)
             for i in block:
                 built = create_robot_nodes(world, groups[i], names[i], context, classes=classes, relay=self.relay,
-                                           origin=i, robots=robots, logs=logs)
+                                           origin=i, robots=robots, logs=logs, warnings=warnings)
                 self.robot_nodes.append(built.nodes)
                 self.controllers += built.nodes
                 self._tick_timers += built.tick_timers

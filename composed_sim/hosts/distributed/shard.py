@@ -29,7 +29,7 @@ from rclpy.time import Time as RosTime
 
 from composed_sim.hosting.options import DEFAULT_EXECUTOR
 from composed_sim.hosting import HostError
-from composed_sim.hosting.building import create_robot_nodes, load_classes
+from composed_sim.hosting.building import SetupWarnings, create_robot_nodes, load_classes
 from composed_sim.hosting.matching import contract_endpoints, matched, poll_until
 from composed_sim.hosting.executors.running import Spinning, check_executor, driven_by_caller, make_executor
 from composed_sim.hosts.distributed.robot_ranges import format_ranges
@@ -79,12 +79,13 @@ class ShardHost:
             # First: the lockstep executor's ordered walk then moves the clocks to a tick's time
             # before the controllers read that tick's sensors.
             self.spinning.executor.add_node(self.announcer.node)
+            warnings = SetupWarnings()
             for i in self.robots:
                 if self.should_stop():
                     break
                 group = groups[i]
                 built = create_robot_nodes(self.world, group, names[i], self.context, classes=classes,
-                                           robots=robot_names, clock_from_stamps=True)
+                                           robots=robot_names, clock_from_stamps=True, warnings=warnings)
                 nodes = built.nodes
                 sensors = {c.topic_name(names[i], t) for t in c.SENSOR_TOPICS}
                 before_each_tick([s for n in nodes for s in n.subscriptions if s.topic_name in sensors],
