@@ -5,23 +5,10 @@ process tree; write CSV, JSON, figures and a markdown report side by side with t
 other (rows and report grouped by experiment); ``--world`` sweeps a world file of yours.
 
 Each run is its own ``composed-sim run ... --json`` subprocess on a ROS domain (a block of domains
-in multi-process mode) that the previous run did not use, watched with psutil every ``SAMPLE_S``:
-
-WallTime(s)  spawn to exit of the run's root process: interpreter start, imports, setup, the ticks,
-             writing the results; what the paper timed.
-CPU(%)       core-seconds of the whole tree / WallTime × 100 (% of one core, the paper's convention).
-MaxMem(kB)   peak over the samples of the summed RSS of every process of the tree (pages shared
-             between processes count once per process: an upper bound with many processes).
-MaxPss(kB)   peak over the samples of the summed PSS of every process of the tree (each shared page
-             split among the processes that map it: the tree's real footprint), sampled at most
-             every PSS_SAMPLE_S.
-setup_s, ticks_wall_s, real_time_factor, violations …  from the run's own JSON summary.
-
-Outputs in --out: runs.csv (one row per run; the paper's nine columns first, then ours), runs.json
-(the same rows, the machine, the exact command, the memory estimate of the skip rule), and
-wall_time.png, cpu.png, memory.png (log-log against N, with the paper's means and the real-time
-line, like the paper's Figure 5). ``--report FILE.md`` also writes the report, its figures and
-raw rows in ``FILE's folder/figures/``. ``--replot runs.json …`` redraws all that from the stored
+in multi-process mode) that the previous run did not use, its whole process tree watched with
+psutil. What each column measures is written in the report itself ("What is measured",
+docs/benchmarks.md); the rows go to runs.csv and runs.json in --out, with the figures, and
+``--report FILE.md`` writes the report. ``--replot runs.json …`` redraws all that from the stored
 rows of one or several sweeps.
 
 The package: ``arguments`` (the options), ``experiments`` (the experiments --experiments names,

@@ -113,8 +113,8 @@ class Senses:
         t0 = time.perf_counter()
         block = slice(0, self.n) if block is None else block
         p, h = inputs.positions, inputs.headings
-        # One neighbour index per tick, shared by every sensor. (Unbalanced, it builds 2.3× faster
-        # at 10 240 robots, but finds all pairs within 3.7 m, a LiDAR's reach, 9× slower.)
+        # One neighbour index per tick, shared by every sensor. (Balanced: unbalanced, it builds
+        # faster but finds all pairs within a LiDAR's reach much slower, docs/speed.md.)
         tree = kd_tree(p)
         tick = inputs.tick
         sensing = Sensing(p, h, self.radii, self.heights, inputs.scene, tree,

@@ -347,8 +347,8 @@ class ParticipantGroups:
             if time.monotonic() < deadline:
                 # A constant timeout: a stock executor keeps the ready callbacks of one wait only
                 # while spin_once's arguments stay the same, and rebuilds its wait set over every
-                # entity otherwise (with a changing timeout: once per callback, 10 s a tick at 320
-                # robots). The deadline is then met to within one slice.
+                # entity otherwise (with a changing timeout: once per callback, which took seconds
+                # a tick at a few hundred robots). The deadline is then met to within one slice.
                 self.executor.spin_once(timeout_sec=WAIT_SLICE_S)
                 continue
             before = (self.guard.calls, self.exchange.answered_count)

@@ -2,7 +2,7 @@
 
 Fast DDS matches each new endpoint against every local endpoint of the other kind, copying each
 one's discovery data first (EDP ``pairing_*_with_any_local_*``), so creating E endpoints in one
-participant costs O(E²): 70 s for the 11,500 endpoints of 1280 robots. Participants that discover
+participant costs O(E²) (a minute at 1280 robots: docs/speed.md). Participants that discover
 one another do the same work for each other's endpoints, so splitting the endpoints over
 participants does not help by itself. With Fast DDS's ``ignoreParticipantFlags =
 FILTER_SAME_PROCESS`` the participants of this process skip one another's discovery traffic: a
@@ -11,9 +11,9 @@ participant) pays O(E²/K). Other processes still discover every participant, so
 echo /bot7/light`` or a recorder elsewhere sees every topic as before.
 
 The same profile (data/fastdds_participants.xml) starts every DataWriter's and DataReader's
-history with room for one sample instead of Fast DDS's 100, grown when needed: a robot's endpoints
-took 0.7 MB, 0.3 MB of it those unused samples (1280 flocking robots in one process: peak RSS 994
--> 599 MB, trajectories identical, ticks no slower in 6 alternated pairs).
+history with room for one sample instead of Fast DDS's 100, grown when needed: those unused
+samples were close to half of a robot's endpoints' memory (docs/speed.md), and trajectories and
+ticks are the same without them.
 
 Fast DDS reads its default profile when the process creates its first participant, from the file
 named by ``FASTRTPS_DEFAULT_PROFILES_FILE``.

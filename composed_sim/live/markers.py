@@ -21,9 +21,9 @@ Frame ``world`` (``composed_sim.outputs.recording.FRAME_ID``), the same fixed fr
 as the fixed frame in RViz/Foxglove. Markers never expire (lifetime 0): each message replaces the
 previous one (same ns and id).
 
-Building the message object costs about 12 ms at 1280 robots (one rclpy Point and ColorRGBA
-object per robot) plus 5 ms to serialise it; ``swarm_markers_cdr`` writes the same message's CDR
-bytes straight from the arrays in about 0.3 ms. ``Publisher.publish`` accepts those bytes as
+Building the message object (one rclpy Point and ColorRGBA object per robot) and serialising it
+cost milliseconds a tick at 1280 robots; ``swarm_markers_cdr`` writes the same message's CDR bytes
+straight from the arrays, for a fraction of that (docs/speed.md). ``Publisher.publish`` accepts those bytes as
 they are (``publish_raw``), and so does ``BagRecorder.write_serialized``. A test checks that the
 bytes deserialise to a message equal to ``swarm_markers``'s (only CDR padding bytes, which
 rmw leaves unset, can differ).

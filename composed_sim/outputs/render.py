@@ -377,8 +377,8 @@ def _box_corners(box) -> np.ndarray:
 
 def _write_mp4(out: Path, frames, fps: float) -> None:
     """H.264 in MP4 through PyAV (the library under imageio's video plugin, used directly for
-    the encoder options): x264 preset "veryfast" encodes an 800 px frame about 2.5× faster than
-    the default "medium" at the same quality (crf 23), with a file no larger."""
+    the encoder options): x264 preset "veryfast" encodes a frame faster than the default
+    "medium" at the same quality (crf 23), with a file no larger (docs/speed.md)."""
     import av
     with av.open(str(out), mode="w", format="mp4") as container:
         stream = None

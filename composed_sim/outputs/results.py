@@ -117,9 +117,9 @@ def host_cost(times, robot_ticks: int, *, in_host: bool) -> dict[str, Optional[f
 
 def _save_npz(f, compress: bool, **arrays: np.ndarray) -> None:
     """``np.savez`` into ``f``, with the arrays that shrink compressed (LED colours, names) and the
-    floats stored as they are. Poses barely compress (16.3 instead of 18.5 MB for 1280 robots ×
-    600 ticks) and deflating them took 0.45 s of the run's end (3.6 s at 10 240 robots); a
-    checkpoint, written often and replaced, is not compressed at all."""
+    floats stored as they are. Poses barely compress, and deflating them took a noticeable part of
+    a large run's end (docs/speed.md); a checkpoint, written often and replaced, is not compressed
+    at all."""
     with zipfile.ZipFile(f, "w", allowZip64=True) as z:
         for name, array in arrays.items():
             method = zipfile.ZIP_DEFLATED if compress and array.dtype.kind not in "fc" else zipfile.ZIP_STORED

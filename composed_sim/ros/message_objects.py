@@ -2,8 +2,8 @@
 the in-process links that take objects (a plain node's, ros/in_process.py).
 
 ``rclpy.serialization.deserialize_message`` converts the bytes into a C struct and that into the
-Python object; a LaserScan of 360 rays cost 8.5 µs so, against 3.8 µs for the object filled from
-the bytes with ``struct`` and ``array`` (measured alone). LaserScan is what a plain node reads of
+Python object, twice as long as filling the object from the bytes with ``struct`` and ``array``
+(docs/speed.md). LaserScan is what a plain node reads of
 the simulator most (a LiDAR, a proximity or light ring): its builder here gives the very object
 ``deserialize_message`` gives (tests/ros/test_message_objects.py). Any other type, and bytes
 that are not little-endian CDR (XCDR1, what rmw_fastrtps writes), go through rclpy.

@@ -4,8 +4,8 @@ rcl triggers a node's graph guard condition whenever its participant's view of t
 changes (an endpoint or a node discovered or gone, in this process or another); rclpy does not
 expose it. A thread of its own waits on the graph guard conditions of the process's participants
 (a wait consumes the triggers) and counts each one's changes; the tick reads the counts. Asking
-rcl instead with a timeout of 0 on every tick cost 18 µs of CPU and a timer-slack sleep of about
-55 µs per participant (16 participants at 1280 robots: 1.2 ms of every tick, measured). The
+rcl instead with a timeout of 0 on every tick cost CPU and a timer-slack sleep per participant,
+every tick (docs/speed.md). The
 structs are laid out as in rcl's ``wait.h`` and rcutils' ``allocator.h`` that ship with the ROS
 wheels; rclpy's extension module has loaded librcl already.
 """

@@ -41,8 +41,8 @@ ACCEPTED_ANSWERS: dict[str, type] = {c.type_name(t): t for t in c.ANSWER_TYPES.v
 
 
 # How often a node that publishes /clock asks the ROS graph for another /clock publisher in its
-# domain (``another_simulator``): a count in its participant's graph cache, 25 µs with the 1602
-# topics of 320 robots in one participant.
+# domain (``another_simulator``): a count in its participant's graph cache, cheap but not free
+# (docs/speed.md).
 CLOCK_WATCH_S = 1.0
 
 LATE_LEDS = "leds answering an earlier tick arrived after that tick closed: applied one tick late"
@@ -318,7 +318,7 @@ class SimulatorNode(Node):
             self._clock_msg.clock = stamp
             self._clock_pub.publish(self._clock_msg)
         # Through the clocks' handles: rclpy's ``set_ros_time_override`` checks the type and
-        # takes the handle's guard on each call (0.5 µs against 0.13 per hosted node and tick);
+        # takes the handle's guard on each call, several times the cost (docs/speed.md);
         # the driven nodes live as long as this node serves them, and this thread drives them.
         now = RosTime.from_msg(stamp)._time_handle
         for handle in self._driven_clock_handles:

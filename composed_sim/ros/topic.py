@@ -26,7 +26,7 @@ _QOS = {"reliable": QOS, "latched": STATIC_QOS}
 # The simulator's and the base class's endpoints create no QoS event handlers. rclpy's default
 # ones (a warning on an incompatible QoS or type; the other side still warns) are waitables, and
 # the stock executors look each one up in the list of all waitables on every wait: with thousands
-# of endpoints that made a single-threaded tick at 320 robots take 10 s.
+# of endpoints that made a single-threaded tick take seconds (docs/speed.md).
 PUBLISHER_EVENTS = PublisherEventCallbacks(use_default_callbacks=False)
 SUBSCRIPTION_EVENTS = SubscriptionEventCallbacks(use_default_callbacks=False)
 

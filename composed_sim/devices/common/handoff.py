@@ -2,9 +2,8 @@
 
 A simulator node encodes each robot's sensor messages from its group's readings, and the robot's
 controller (``SwarmController``, through its device's reader) decodes them back into arrays. In
-one process that round trip is the host's work twice over: decoding alone was about 4 µs of the
-host's 37 µs per robot-tick at 1280 flocking foot-bots (the camera's cloud 2.9 µs, the light
-ring's scan 1.0 µs, each measured alone). Where a topic's messages go in process (ros/in_process.py)
+one process that round trip is the host's work twice over (decoding alone was a tenth of the
+host's cost per robot-tick: docs/speed.md). Where a topic's messages go in process (ros/in_process.py)
 to subscriptions that take the bytes (a controller's readers; a plain node's subscription gets
 a message object instead), its device publisher therefore also decodes the whole group's messages
 at once, with the numpy operations its reader applies to one message, over the very
@@ -22,7 +21,7 @@ tick's messages are taken before the next tick is published; one taken later is 
 the messages are held until then, so that no other object can take an identity over. No object
 is made per message: thousands of short-lived objects per tick that outlive a young-generation
 collection (they wait in the inboxes) were promoted into the collector's old generations, and
-full collections then walked every robot's nodes (0.2 s each at 1280 robots, measured).
+full collections then walked every robot's nodes (docs/speed.md).
 """
 from __future__ import annotations
 

@@ -8,7 +8,7 @@ import numpy as np
 
 def wrap_angle(a: np.ndarray) -> np.ndarray:
     """Angles [any shape] wrapped to (-pi, pi]; an angle already in range comes back unchanged,
-    bit for bit (``np.mod(a + pi, 2 pi) - pi`` rounds it twice, and is about 7× slower)."""
+    bit for bit (``np.mod(a + pi, 2 pi) - pi`` rounds it twice, and is several times slower)."""
     w = a - 2.0 * math.pi * np.floor((a + math.pi) / (2.0 * math.pi))
     return np.where(w <= -math.pi, w + 2.0 * math.pi, w)
 

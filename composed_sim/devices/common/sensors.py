@@ -95,7 +95,7 @@ def _both_ways(pairs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def _pair_order(a: np.ndarray, b: np.ndarray, n: int) -> np.ndarray:
     """The permutation sorting pairs by (a, b), indices < n."""
     if n <= np.iinfo(np.uint16).max:
-        # Two stable passes of numpy's radix sort (used for 16-bit keys): O(m), ~10x faster
+        # Two stable passes of numpy's radix sort (used for 16-bit keys): O(m), many times faster
         # than a comparison sort of a combined int64 key.
         by_b = np.argsort(b.astype(np.uint16), kind="stable")
         return by_b[np.argsort(a[by_b].astype(np.uint16), kind="stable")]
@@ -132,7 +132,7 @@ def blocked_by_robots(p0: np.ndarray, p1: np.ndarray, skip_a: np.ndarray, skip_b
     todo = np.flatnonzero(low0 | low1)
     if len(todo) == 0:
         return blocked
-    q0, q1 = p0.take(todo, axis=0), p1.take(todo, axis=0)   # take: ~15x faster than q[idx] on [m, k]
+    q0, q1 = p0.take(todo, axis=0), p1.take(todo, axis=0)   # take: many times faster than q[idx] on [m, k]
     with np.errstate(divide="ignore", invalid="ignore"):
         t_cross = (h_max - q0[:, 2]) / (q1[:, 2] - q0[:, 2])
     d = q1[:, :2] - q0[:, :2]
@@ -153,7 +153,7 @@ def blocked_by_robots(p0: np.ndarray, p1: np.ndarray, skip_a: np.ndarray, skip_b
         rows = active[rows]
         frac = (start + within + 0.5) / n_samples[rows]
         pts = a.take(rows, axis=0) + frac[:, None] * ab.take(rows, axis=0)
-        # A throw-away tree: unbalanced builds ~2x faster and queries as fast here.
+        # A throw-away tree: unbalanced builds faster and queries as fast here.
         samples = kd_tree(pts, balanced_tree=False, compact_nodes=False)
         hits = samples.sparse_distance_matrix(tree, radius, output_type="ndarray")
         cand, robot = rows[hits["i"]], hits["j"].astype(np.intp)

@@ -1,7 +1,7 @@
 """An rclpy executor made for lockstep ticks.
 
 The stock executors rebuild a wait set over every entity of every node on each spin: with
-thousands of hosted nodes that dominates the tick (docs/architecture.md: 360–770 µs per robot-tick). In a
+thousands of hosted nodes that dominates the tick (docs/architecture.md has the figures). In a
 lockstep tick the work is known: the simulator publishes every robot's sensors, and inside one
 DDS participant a published message is ready to take at once. So this executor first walks the
 subscriptions and timers of its nodes in a fixed order (nodes in the order they were added, each

@@ -340,8 +340,7 @@ class WorkerHost(ControllersElsewhere):
         ready: dict[int, int] = {}      # worker → its nodes
         run_wide: dict[int, list] = {}  # worker → what its nodes published before tick 0
         # At most one worker per core builds its nodes at a time: more would only take turns on
-        # the cores and thrash their caches (1280 robots in 8 workers on 2 cores, all at once:
-        # 1.26 s of CPU per worker of 160 robots; two at a time: 0.78 s).
+        # the cores and thrash their caches (docs/speed.md, "Set-up").
         cores, sent = usable_cores(), 0
         deadline = time.monotonic() + STARTUP_TIMEOUT_S
         while len(ready) < len(self.workers) and not interrupted():
@@ -424,15 +423,12 @@ class WorkerHost(ControllersElsewhere):
             self._tmp = None
 
 
-# --workers auto (docs/speed.md, "Workers", has the measurements behind both numbers):
-# Flocking, 300 ticks, K=2 against K=1: 80 robots 0.96× the ticks (and 0.8 s more set-up), 160
-# robots 0.66×: below this many robots a worker, a process of its own does not pay.
+# --workers auto (docs/speed.md, "Workers", has the measurements behind both numbers): below
+# this many robots a worker, a process of its own does not pay.
 MIN_ROBOTS_PER_WORKER = 64
 # A worker's robots share one participant, whose set-up grows with the square of its endpoints;
 # fewer workers cost less per tick (each senses its block against the whole swarm, each has its
-# DDS threads). On 2 cores, alternated: 1280 robots in 4 workers of 320 against 8 of 160, 600
-# ticks, whole 30.1, 28.5 against 31.4, 31.5 s (set-up 4.1 against 3.2 s); 10 240 robots in 32
-# against 64, 300 ticks, whole 155.4 against 181.1 s (set-up 32.1 against 24.7 s).
+# DDS threads): above this many robots a worker, more workers set up faster for about the same run.
 MAX_ROBOTS_PER_WORKER = 320
 
 

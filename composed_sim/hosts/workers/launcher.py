@@ -3,8 +3,8 @@
 ``python -m composed_sim.hosts.workers.launcher --fds N1,N2,… --logs DIR --parent-pid P`` is started
 by ``hosts/workers/host.py`` as a launcher: it imports what a worker needs once (serving.py),
 forks one worker per socket, prints their pids and exits. Forking spares each worker the
-interpreter's start and the imports, about 0.7 s of CPU (5.6 s for 8 workers on 2 cores before
-the first could start its nodes), and the workers share those pages in memory. The main process,
+interpreter's start and the imports (docs/speed.md, "Set-up"), and the workers share those pages
+in memory. The main process,
 a subreaper, adopts the workers when the launcher exits (hosts/processes.py, ``AdoptedChild``).
 
 A worker talks to the main process over its socket (pickled messages,

@@ -3,7 +3,7 @@ participant group, then one tick after another, as the main process sends them.
 
 Everything a worker needs is imported here, at the top: the launcher imports this module once,
 before it forks the workers, so that none of them pays for the imports (numpy, scipy, rclpy,
-pydantic: about 0.6 s of CPU each).
+pydantic).
 """
 from __future__ import annotations
 

@@ -70,7 +70,7 @@ def message_definition(msgtype: str) -> tuple[str, str]:
     typestore = _definitions_typestore()
     if msgtype not in typestore.fielddefs:
         _ensure_type(typestore, msgtype)
-    msgdef, _ = typestore.generate_msgdef(msgtype, ros_version=2)   # ~5 ms: once per type
+    msgdef, _ = typestore.generate_msgdef(msgtype, ros_version=2)   # milliseconds: once per type
     return msgdef, typestore.hash_rihs01(msgtype)
 
 
