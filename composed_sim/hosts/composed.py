@@ -15,7 +15,6 @@ from composed_sim.hosts.host import HostBase, SetupInfo
 from composed_sim.hosting.node_logs import NodeLogs
 from composed_sim.hosts.lockstep import LoopResult, TickObserver, run_lockstep
 from composed_sim.hosting.participant_groups import ParticipantGroups, RelayingExchange
-from composed_sim.ros.taps import MessageTap
 from composed_sim.world.schema import World
 
 
@@ -60,13 +59,6 @@ class ComposedHost(HostBase):
         with interrupting_hangs:
             return run_lockstep(self.sim, RelayingExchange(self.groups), wait, ticks, progress=progress,
                                 should_stop=should_stop, observers=observers, checkpoint=checkpoint)
-
-    def set_message_tap(self, tap: MessageTap) -> None:
-        for node in self.groups.simulator_nodes:
-            node.set_message_tap(tap)
-
-    def observer_node(self):
-        return self.groups.simulator_nodes[0]
 
     def end_before_exit(self) -> bool:
         return True          # nothing of it lives in another process

@@ -74,9 +74,18 @@ class Host(Protocol):
 
 
 class HostBase:
-    """What the hosts share: a run in one ROS domain, no worker processes, and leaving through
-    ``__exit__`` (the ``Host`` methods a host of its own overrides where it differs)."""
+    """What the hosts share: their simulator nodes in this process, a run in one ROS domain, no
+    worker processes, and leaving through ``__exit__`` (the ``Host`` methods a host of its own
+    overrides where it differs)."""
     domain_id: int = 0
+    simulator_nodes: list
+
+    def set_message_tap(self, tap: MessageTap) -> None:
+        for node in self.simulator_nodes:
+            node.set_message_tap(tap)
+
+    def observer_node(self):
+        return self.simulator_nodes[0]
 
     def ros_domains(self) -> list[int]:
         return [self.domain_id]

@@ -3,8 +3,9 @@ a thread of its own (``Spinning``), and until nothing is ready (``run_until_idle
 from __future__ import annotations
 
 import threading
-from typing import Callable, Optional
+from typing import Callable, Iterable, Optional
 
+import rclpy
 from rclpy.context import Context
 from rclpy.executors import Executor, ExternalShutdownException, MultiThreadedExecutor, SingleThreadedExecutor
 
@@ -66,6 +67,18 @@ class Spinning:
         self.executor.shutdown(timeout_sec=shutdown_timeout_s)
         if self.thread is not None:
             self.thread.join(timeout=join_timeout_s)
+
+
+def shut_down(spinning: Optional[Spinning], nodes: Iterable, context: Optional[Context], **stop) -> None:
+    """A process's hosted side ended in order: the executor stopped (``stop``: ``Spinning.stop``'s
+    timeouts), then the nodes destroyed (anything with ``destroy_node``, else ``destroy``), then
+    their context shut down."""
+    if spinning is not None:
+        spinning.stop(**stop)
+    for node in nodes:
+        (node.destroy_node if hasattr(node, "destroy_node") else node.destroy)()
+    if context is not None and context.ok():
+        rclpy.shutdown(context=context)
 
 
 def is_idle(executor: Executor, callbacks_run: Optional[Callable[[], int]] = None) -> bool:

@@ -23,7 +23,7 @@ from composed_sim.hosting.nodes_exchange import NodesExchange
 from composed_sim.hosting import HostError
 from composed_sim.hosts.settings import DEFAULT_DISCOVERY_TIMEOUT_S
 from composed_sim.hosting.matching import matched
-from composed_sim.hosting.executors.running import Spinning
+from composed_sim.hosting.executors.running import Spinning, shut_down
 from composed_sim.hosts.processes import InterruptWatch
 from composed_sim.hosts.distributed.robot_ranges import format_ranges
 from composed_sim.hosts.distributed.announce import ShardInfo, ShardRegistry, world_fingerprint
@@ -84,13 +84,6 @@ class ExternalControllersHost(ControllersElsewhere):
     @property
     def simulator_nodes(self) -> list[SimulatorNode]:
         return [self.sim_node]
-
-    def set_message_tap(self, tap) -> None:
-        for node in self.simulator_nodes:
-            node.set_message_tap(tap)
-
-    def observer_node(self):
-        return self.simulator_nodes[0]
 
     # --- before tick 0 ----------------------------------------------------------------------
 
@@ -161,18 +154,8 @@ class ExternalControllersHost(ControllersElsewhere):
         return 0 if sub is None else sub.get_publisher_count()
 
     def __exit__(self, *exc) -> None:
-        if self._spinning is not None:
-            self._spinning.stop()
-            self._spinning = None
-        if self._registry is not None:
-            self._registry.destroy()
-            self._registry = None
-        if self.sim_node is not None:
-            self.sim_node.destroy_node()
-            self.sim_node = None
-        if self._context is not None and self._context.ok():
-            rclpy.shutdown(context=self._context)
-        self._context = None
+        shut_down(self._spinning, [x for x in (self._registry, self.sim_node) if x is not None], self._context)
+        self._spinning, self._registry, self.sim_node, self._context = None, None, None, None
 
 
 def _names(names: list[str], rows: list[int]) -> str:

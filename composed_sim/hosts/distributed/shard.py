@@ -31,7 +31,7 @@ from composed_sim.hosting.options import DEFAULT_EXECUTOR
 from composed_sim.hosting import HostError
 from composed_sim.hosting.building import SetupWarnings, create_robot_nodes, load_classes
 from composed_sim.hosting.matching import contract_endpoints, matched, poll_until
-from composed_sim.hosting.executors.running import Spinning, check_executor, driven_by_caller, make_executor
+from composed_sim.hosting.executors.running import Spinning, check_executor, driven_by_caller, make_executor, shut_down
 from composed_sim.hosts.distributed.robot_ranges import format_ranges
 from composed_sim.hosts.distributed.announce import ShardAnnouncer, ShardInfo, world_fingerprint
 from composed_sim.hosting.sim_timers import before_each_tick
@@ -160,14 +160,6 @@ class ShardHost:
                 time.sleep(LIVENESS_PERIOD_S / 4)
 
     def __exit__(self, *exc) -> None:
-        if self.spinning is not None:
-            self.spinning.stop()
-        for node in (n for nodes in self.robot_nodes for n in nodes):
-            node.destroy_node()
-        self.robot_nodes = []
-        if self.announcer is not None:
-            self.announcer.destroy()
-            self.announcer = None
-        if self.context is not None and self.context.ok():
-            rclpy.shutdown(context=self.context)
-        self.context = None
+        shut_down(self.spinning, [*(n for nodes in self.robot_nodes for n in nodes),
+                                  *([self.announcer] if self.announcer is not None else [])], self.context)
+        self.robot_nodes, self.announcer, self.context = [], None, None

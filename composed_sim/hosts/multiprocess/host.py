@@ -303,13 +303,6 @@ class MultiProcessHost(ControllersElsewhere):
     def simulator_nodes(self) -> list[SimulatorNode]:
         return list(self.exchange.nodes)
 
-    def set_message_tap(self, tap) -> None:
-        for node in self.simulator_nodes:
-            node.set_message_tap(tap)
-
-    def observer_node(self):
-        return self.simulator_nodes[0]
-
     def _check_children(self) -> None:
         """A child that ended mid-run: its robot is marked failed (violation recorded once) and
         gets the fallback every tick after. poll() also reaps it."""

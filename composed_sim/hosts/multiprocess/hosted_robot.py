@@ -15,7 +15,8 @@ from rclpy.context import Context
 from composed_sim import plugins
 from composed_sim.hosting import HostError
 from composed_sim.hosting.building import create_robot_nodes, load_classes, published_answer_type
-from composed_sim.hosting.executors.running import Spinning, driven_by_caller, make_executor, run_until_idle
+from composed_sim.hosting.executors.running import (Spinning, driven_by_caller, make_executor, run_until_idle,
+                                                   shut_down)
 from composed_sim.hosting.matching import contract_endpoints, matched, poll_until
 from composed_sim.hosting.node_logs import FAILURE_MARK, Console, NodeLogs, node_label, raising_node
 from composed_sim.hosting.options import ProcessHosting
@@ -168,14 +169,8 @@ class HostedRobot:
         # (its shared-memory port, say) must not keep this process alive. SIGALRM has no handler
         # here, so the kernel ends the process even while a C call holds the interpreter.
         signal.alarm(CLEANUP_LIMIT_S)
-        if self.spinning is not None:
-            self.spinning.stop(shutdown_timeout_s=1.0, join_timeout_s=2.0)
-        for node in self.nodes:
-            node.destroy_node()
-        if self.link is not None:
-            self.link.destroy()
-        if self.context.ok():
-            rclpy.shutdown(context=self.context)
+        shut_down(self.spinning, [*self.nodes, *([self.link] if self.link is not None else [])], self.context,
+                  shutdown_timeout_s=1.0, join_timeout_s=2.0)
 
 
 def host_frames() -> str:
