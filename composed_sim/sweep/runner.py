@@ -17,14 +17,14 @@ from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 from typing import Iterable, Iterator
 
-from composed_sim.hosts.settings import HostSettings
 from composed_sim.sweep.grid import RunSpec
 
 SPEC = "spec.sha256"       # written once the run ended well: what a resumed sweep compares
 INPUT = "input.yaml"       # the world the child runs (the overrides applied)
 LOG = "run.log"            # the child's stdout and stderr
-# One process per run: runs share cores.
-RUN_ARGS = [*HostSettings(workers=1).argv(), "--no-progress", "--no-picture"]
+# One process per run: runs share cores. Written out: these words are part of each run's spec hash
+# (a resumed sweep reruns a run whose hash changed).
+RUN_ARGS = ["--workers", "1", "--no-progress", "--no-picture"]
 ERROR_TAIL = 2000          # characters of a failed run's log kept in its row
 
 
