@@ -17,12 +17,12 @@ each a shipped world), ``rules`` (the paper's figures, the skip rule, domains, a
 report), ``figures``, ``sections`` (the report's per-tick phases, host cost and paper comparison) and
 ``cells`` (its table cells).
 """
-from composed_sim.bench.arguments import add_arguments, command_line
+from composed_sim.bench.arguments import BenchSettings, add_arguments, command_line
 from composed_sim.bench.experiments import EXPERIMENTS
 from composed_sim.bench.rules import (COLUMNS, PHASE_COLUMNS, PHASES, SAFE_DOMAIN_MAX, DomainAllocator, domains_needed,
                                       load_paper_results, paper_results_dir, skip_reason)
 from composed_sim.bench.sweep import run
 from composed_sim.bench.tree import measure_tree, parse_summary
 
-__all__ = ["COLUMNS", "EXPERIMENTS", "PHASES", "PHASE_COLUMNS", "SAFE_DOMAIN_MAX", "DomainAllocator", "add_arguments", "command_line", "domains_needed",
+__all__ = ["BenchSettings", "COLUMNS", "EXPERIMENTS", "PHASES", "PHASE_COLUMNS", "SAFE_DOMAIN_MAX", "DomainAllocator", "add_arguments", "command_line", "domains_needed",
            "load_paper_results", "measure_tree", "paper_results_dir", "parse_summary", "run", "skip_reason"]

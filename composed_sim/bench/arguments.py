@@ -3,8 +3,9 @@ from __future__ import annotations
 
 import argparse
 import shlex
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
+from typing import Callable, Optional
 
 from composed_sim.bench.experiments import DEFAULT_EXPERIMENT, EXPERIMENTS
 from composed_sim.bench.rules import DEFAULT_MEMORY_FRACTION, DEFAULT_TIMEOUT_S, PAPER_SIZES
@@ -56,6 +57,26 @@ def _fraction(text: str) -> float:
     return value
 
 
+@dataclass(frozen=True)
+class BenchSettings:
+    """``composed-sim bench``'s options, as ``add_arguments`` declares and parses them."""
+    sizes: tuple[int, ...]
+    modes: tuple[str, ...]
+    executors: tuple[str, ...]
+    workers: tuple[str, ...]
+    trials: int
+    ticks: int
+    experiments: Optional[tuple[str, ...]]
+    world: Optional[Path]
+    out: Path
+    timeout: float
+    report: Optional[Path]
+    domain_id: Optional[int]
+    robots_per_domain: Optional[int]
+    memory_fraction: float
+    replot: Optional[list[Path]]
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     from composed_sim.hosting.options import EXECUTORS as executors
     from composed_sim.hosts.settings import MODES as modes
@@ -100,7 +121,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "count run apart (their rows together, each command listed)")
 
 
-def command_line(args) -> str:
+def command_line(args: BenchSettings) -> str:
     """The ``composed-sim bench`` command that reproduces this sweep (what was given, spelled out)."""
     parts = ["composed-sim", "bench",
              "--sizes", ",".join(map(str, args.sizes)), "--modes", ",".join(args.modes),

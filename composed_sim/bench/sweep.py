@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Optional
 
-from composed_sim.bench.arguments import command_line
+from composed_sim.bench.arguments import BenchSettings, command_line
 from composed_sim.bench.experiments import DEFAULT_EXPERIMENT, EXPERIMENTS, experiment_of_world, shipped_world
 from composed_sim.bench.report import write_outputs
 from composed_sim.bench.rules import (CALIBRATION_ABOVE, CALIBRATION_ROBOTS, COLUMNS, FALLBACK_PROCESS_MB, PHASE_COLUMNS,
@@ -252,7 +252,7 @@ def resolve_worlds(args) -> dict[str, Path]:
     return worlds
 
 
-def run(args) -> int:
+def run(args: BenchSettings) -> int:
     from composed_sim.command_line import UserError, check_writable
     if args.replot is not None:
         return _replot(args)

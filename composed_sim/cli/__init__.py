@@ -13,7 +13,7 @@ from composed_sim.cli.files import cmd_bag_repair, cmd_export, cmd_plugins, cmd_
 from composed_sim.cli.interfaces import cmd_interfaces
 from composed_sim.cli.report import JsonStdout
 from composed_sim.cli.run import cmd_run
-from composed_sim.cli.settings import LiveSettings, OutputSettings, run_settings
+from composed_sim.cli.settings import LiveSettings, OutputSettings, run_settings, typed
 from composed_sim.command_line import EXIT_FAILED, EXIT_USAGE, RunStopped, UserError, number_arg
 
 _positive_int = number_arg(int, minimum=1)
@@ -241,10 +241,10 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if args.command == "bench":
             from composed_sim import bench
-            return bench.run(args)
+            return bench.run(typed(bench.BenchSettings, args))
         if args.command == "sweep":
             from composed_sim.sweep import command as sweep_command
-            return sweep_command.run(args)
+            return sweep_command.run(typed(sweep_command.SweepSettings, args))
         if args.command in COMMANDS:
             return COMMANDS[args.command](args)
         settings = run_settings(args, exit_when_done=exit_when_done)

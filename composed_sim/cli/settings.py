@@ -4,6 +4,7 @@ reads them from here)."""
 from __future__ import annotations
 
 import argparse
+import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Optional
@@ -74,6 +75,12 @@ class RunSettings:
     def mode(self) -> str:
         """The mode summary.json names: composed, multi-process or external-controllers."""
         return "external-controllers" if self.hosting.discovery is not None else self.hosting.mode
+
+
+def typed(cls, args: argparse.Namespace):
+    """A frozen settings dataclass (``BenchSettings``, ``SweepSettings``) from the arguments of its
+    fields' names."""
+    return cls(**{f.name: getattr(args, f.name) for f in dataclasses.fields(cls)})
 
 
 def run_domain(arg: Optional[int]) -> tuple[int, bool]:

@@ -5,13 +5,29 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Optional
 
 from composed_sim.command_line import UserError, check_writable, number_arg
 from composed_sim.sweep import report
 from composed_sim.sweep.grid import Grid, GridError, parse_list, parse_set, whole_numbers
 from composed_sim.sweep.runner import dask_cluster, local_pool
 from composed_sim.world.loader import WorldFileError, read_yaml
+
+
+@dataclass(frozen=True)
+class SweepSettings:
+    """``composed-sim sweep``'s options, as ``add_arguments`` declares and parses them."""
+    spec: Path
+    seeds: Optional[str]
+    robots: Optional[str]
+    set: list[str]
+    ticks: Optional[int]
+    jobs: Optional[int]
+    cluster: Optional[str]
+    out: Path
+    no_plots: bool
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -73,7 +89,7 @@ def _sweep_file(path: Path) -> dict:
     return loaded
 
 
-def run(args) -> int:
+def run(args: SweepSettings) -> int:
     try:
         grid = grid_from(args)
         specs = grid.specs()       # every world checked before any run starts
