@@ -35,7 +35,7 @@ class ProcessHosting:
     @staticmethod
     def add_arguments(parser: argparse.ArgumentParser) -> None:
         parser.add_argument("--domain", type=int, required=True, help="ROS domain id")
-        parser.add_argument("--executor", choices=EXECUTORS, default=DEFAULT_EXECUTOR)
+        parser.add_argument("--executor", default=DEFAULT_EXECUTOR)
         parser.add_argument("--log-dir", default=None, help="write the nodes' log lines to LOG_DIR/<robot>.log")
         parser.add_argument("--log-level", type=int, default=WARN, help="the nodes' console level (a LoggingSeverity)")
         parser.add_argument("--rosout", action="store_true",
