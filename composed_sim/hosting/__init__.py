@@ -20,3 +20,7 @@ above it, ``hosts/`` holds the tick loop and the host modes that use all this.
 
 class HostError(Exception):
     """The host cannot start: the message says what and why."""
+
+
+class ContractViolation(Exception):
+    """A hosted node made what the topic contract does not allow it to."""

@@ -4,6 +4,7 @@ multi-process host and the shards (which therefore import no physics)."""
 from __future__ import annotations
 
 import sys
+import dataclasses
 from dataclasses import dataclass
 from typing import Collection, Container, Mapping, Optional, Sequence
 
@@ -13,17 +14,19 @@ from rclpy.parameter import Parameter
 from rclpy.type_description_service import START_TYPE_DESCRIPTION_SERVICE_PARAM
 
 from composed_sim import plugins
-from composed_sim.hosting import HostError
+from composed_sim.hosting import ContractViolation, HostError
 from composed_sim.hosting.node_logs import NodeLogs
 from composed_sim.interfaces import InterfaceError, activate
 from composed_sim.ros import contract as c
 from composed_sim.world.robot_models import RANGE_AND_BEARING, get_model
 from composed_sim.ros.controller import (PARAM_RAB_PAYLOAD_BYTES, PARAM_ROBOT_MODEL, PARAM_RUN_SEED,
                                          PARAM_SENSOR_TOPICS)
+from composed_sim.hosting.lifecycle import AUTOSTART, LifecycleError, autostart, inactive_nodes
 from composed_sim.hosting.node_options import HostedNodeOptions, construct
 from composed_sim.hosting.run_wide.nodes import RunWideNodes
 from composed_sim.hosting.run_wide.relay import RUN_WIDE_ORIGIN, RunWideRelay
 from composed_sim.hosting.sim_timers import SimTimers
+from composed_sim.hosting.waiting import host_clock_sleeps, host_rates
 from composed_sim.world.problems import format_path
 from composed_sim.world.schema import NodeSpec, RobotGroup, World
 
@@ -37,10 +40,6 @@ def controller_parameters(world: World, group_index: int) -> list[Parameter]:
     return params + [Parameter(PARAM_ROBOT_MODEL, value=group.model), Parameter(PARAM_RUN_SEED, value=world.seed),
                      Parameter(PARAM_SENSOR_TOPICS, Parameter.Type.STRING_ARRAY, sensors),
                      Parameter(PARAM_RAB_PAYLOAD_BYTES, value=rab_bytes)]
-
-
-class ContractViolation(Exception):
-    """A controller tried to publish what the topic contract does not allow it to."""
 
 
 def guard_publishers(node: Node, robot: str, robots: Container[str], answer_type: Optional[type],
@@ -68,6 +67,9 @@ class BuiltNodes:
     # The timers of the nodes that do not follow the robot's sensors: the host moves them to each
     # tick's time (hosting/sim_timers.py).
     tick_timers: list[SimTimers]
+    # Lifecycle nodes not active yet (their transitions to come from themselves or another node):
+    # the robot's wiring is checked at tick 0 (``wiring_problem``), not now.
+    inactive: list[tuple[Node, str]] = dataclasses.field(default_factory=list)
 
 
 def node_field(group: RobotGroup, group_index: int, node_index: int) -> tuple:
@@ -99,8 +101,7 @@ def create_robot_nodes(world: World, group_index: int, name: str, context: Conte
     warnings = SetupWarnings() if warnings is None else warnings
     group = world.robots[group_index]
     robots = frozenset(world.robot_names()) if robots is None else robots
-    sensors = [c.topic_name(name, t) for t in c.robot_topics(group.devices.published(get_model(group.model)))
-               if t.direction == "sensor"]
+    sensors = robot_sensor_topics(group, name)
     overrides = controller_parameters(world, group_index)
     if use_sim_time:
         overrides.append(Parameter("use_sim_time", value=True))
@@ -121,9 +122,15 @@ def create_robot_nodes(world: World, group_index: int, name: str, context: Conte
                                         for pub in node.publishers) if p), None)
             if problem is not None:
                 raise plugins.PluginError(f"{_describe(field, spec)} for {name}: {problem}", field)
-        run_wide = {t for node in built.nodes for t in relay.topics_published_by(node)} if relay is not None else set()
-        problem = wiring_problem(built.nodes, name, sensors, run_wide) \
-            or answer_type_problem(built.nodes, name, group.cmd_vel)
+        for ni, (node, spec) in enumerate(zip(built.nodes, group.node_specs)):
+            if spec.lifecycle == AUTOSTART:
+                field_of = node_field(group, group_index, ni)
+                try:
+                    autostart(node, f"{_describe(field_of, spec)} of {name}")
+                except LifecycleError as e:
+                    raise plugins.PluginError(str(e), field_of) from None
+        built.inactive = inactive_nodes(built.nodes)
+        problem = None if built.inactive else robot_wiring_problem(world, group_index, name, built.nodes, relay)
         if problem is not None:
             raise plugins.PluginError(f"{_describe(node_field(group, group_index, 0), group.node_specs[0])} "
                                       f"for {name}: {problem}", node_field(group, group_index, 0))
@@ -142,6 +149,22 @@ def create_robot_nodes(world: World, group_index: int, name: str, context: Conte
         for warning in timers.period_warnings(spec.node, every):
             warnings.say(warning)
     return built
+
+
+def robot_sensor_topics(group: RobotGroup, name: str) -> list[str]:
+    """Robot ``name``'s sensor topics (resolved), as its group's devices publish them."""
+    return [c.topic_name(name, t) for t in c.robot_topics(group.devices.published(get_model(group.model)))
+            if t.direction == "sensor"]
+
+
+def robot_wiring_problem(world: World, group_index: int, name: str, nodes: Sequence[Node],
+                         relay: Optional[RunWideRelay]) -> Optional[str]:
+    """Why robot ``name``'s nodes cannot answer its ticks (``wiring_problem``), or its cmd_vel type
+    differs from the world file's (``answer_type_problem``); None if they can."""
+    group = world.robots[group_index]
+    sensors = robot_sensor_topics(group, name)
+    run_wide = {t for node in nodes for t in relay.topics_published_by(node)} if relay is not None else set()
+    return wiring_problem(nodes, name, sensors, run_wide) or answer_type_problem(nodes, name, group.cmd_vel)
 
 
 def create_run_wide_nodes(world: World, context: Context, *, classes: Mapping[str, type[Node]],
@@ -183,10 +206,12 @@ def _construct(cls: type[Node], spec: NodeSpec, field: tuple, owner: str, option
     """One node built by ``node_options.construct``; an error names the world file's field."""
     def prepare(node: Node) -> None:
         timers.prepare(node)
+        host_rates(node)
         if relay is not None:
             relay.adopt(node, origin)
     try:
         node = construct(cls, options, prepare)
+        host_clock_sleeps(node)
     except Exception as e:
         raise plugins.PluginError(f"{_describe(field, spec)} failed to construct for {owner}: "
                                   f"{type(e).__name__}: {e}", field) from e

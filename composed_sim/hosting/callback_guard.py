@@ -20,6 +20,10 @@ subscription and timer callbacks:
   exception in its thread, which takes effect as soon as it runs Python code again (a callback
   blocked forever inside C keeps its worker thread).
 - a failed robot's callbacks are not run any more;
+- the same holds for what a node creates after its constructor (``guard_new``: a lifecycle
+  node's transition, a callback), its services' callbacks, ``async def`` callbacks (wrapped as
+  coroutines, so that every executor still awaits them) and the tasks the lockstep executor runs
+  for a robot (a future's done callback, an action's execution: ``CallbackWatcher``);
 - ``on_exception(robot, node, error)``, when set, gets the exception that failed a robot (its
   traceback goes to the robot's log, hosting/node_logs.py).
 """
@@ -27,6 +31,7 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
+import inspect
 import signal
 import threading
 import time
@@ -36,6 +41,7 @@ import numpy as np
 from rclpy.node import Node
 from rclpy.subscription import Subscription
 
+from composed_sim.hosting.executors.lockstep import CallbackWatcher
 from composed_sim.hosting.node_time import NodeTime
 
 
@@ -63,7 +69,7 @@ class ControllerHung(BaseException):
     ``except Exception`` does not swallow it."""
 
 
-class CallbackGuard:
+class CallbackGuard(CallbackWatcher):
     def __init__(self, watchdog_s: float, unresponsive_s: float, node_time: NodeTime):
         """``node_time``: where the CPU time of the nodes' own code goes (node_time.py)."""
         self.node_time = node_time
@@ -79,23 +85,41 @@ class CallbackGuard:
         self.calls_of: dict[str, int] = {}             # per robot: its callbacks run so far
         self._depth = threading.local()                # per worker thread: inside a guarded callback?
         self.on_exception: Optional[Callable[[str, Node, BaseException], None]] = None
+        self._robots: dict[str, tuple[ServedRobots, Node]] = {}   # robot → who serves it, its first node
+        self._robot_of: dict[int, str] = {}            # id(node) → its robot
+        self._wrapped: set[int] = set()                # ids of the entities whose callbacks are wrapped
 
     def guard(self, node: Node, robot: str, sim_node: ServedRobots, relayed: Sequence = ()) -> None:
-        """Wrap the callbacks of every subscription and timer ``node`` has (a controller creates
-        them in its constructor), and of its subscriptions on run-wide topics (``relayed``,
+        """Wrap the callbacks of every subscription, timer and service ``node`` has (a controller
+        creates them in its constructor), and of its subscriptions on run-wide topics (``relayed``,
         hosting/run_wide/relay.py); ``sim_node`` serves ``robot``."""
-        for sub in (*node.subscriptions, *relayed):
-            with_info = sub._callback_type is Subscription.CallbackType.WithMessageInfo
-            sub.callback = self._wrap(sub.callback, node, robot, sim_node, with_info)
-        for timer in node.timers:
-            timer.callback = self._wrap(timer.callback, node, robot, sim_node, False, arity=0)
+        self._robots.setdefault(robot, (sim_node, node))
+        self._robot_of[id(node)] = robot
+        self.guard_new(node, relayed)
         if isinstance(node, BatchingNode):   # its sensors' messages in one call (ros/controller.py)
             subscriptions, on_sensors = node.sensor_batch()
             node.lockstep_batch = (subscriptions, self._wrap(on_sensors, node, robot, sim_node, False))
             node.node_time = self.node_time
 
-    def _wrap(self, callback: Callable, node: Node, robot: str, sim_node: ServedRobots, with_info: bool,
-              arity: int = 1) -> Callable:
+    def guard_new(self, node: Node, relayed: Sequence = ()) -> None:
+        """Wrap the callbacks of what ``node`` (guarded) created since it was last looked at."""
+        robot = self._robot_of[id(node)]
+        sim_node = self._robots[robot][0]
+        wrapped = self._wrapped
+        for sub in (*node.subscriptions, *relayed):
+            if id(sub) not in wrapped and sub.callback is not None:
+                wrapped.add(id(sub))
+                with_info = sub._callback_type is Subscription.CallbackType.WithMessageInfo
+                sub.callback = self._wrap(sub.callback, node, robot, sim_node, with_info)
+        for entity in (*node.timers, *node.services):
+            if id(entity) not in wrapped and entity.callback is not None:
+                wrapped.add(id(entity))
+                entity.callback = self._wrap(entity.callback, node, robot, sim_node, False)
+
+    def _wrap(self, callback: Callable, node: Node, robot: str, sim_node: ServedRobots, with_info: bool) -> Callable:
+        """``callback`` guarded; an ``async def`` one stays a coroutine function (``_wrap_async``)."""
+        if inspect.iscoroutinefunction(callback):
+            return self._wrap_async(callback, node, robot, sim_node, with_info)
         failed = sim_node.failed         # shared, read-only here
         # The base class times its subclass's own code itself (hosting/node_time.py).
         own_time = not isinstance(node, BatchingNode)
@@ -146,7 +170,9 @@ class CallbackGuard:
                 if self.on_exception is not None:
                     self.on_exception(robot, node, e)
                 return None
-            took = monotonic() - started
+            # A callback set aside while it waited (hosting/executors/scheduler.py) is timed without
+            # the wait: ``take_back`` moved its start on.
+            took = monotonic() - (self._started if in_main else started)
             if own_time:
                 node_time.add(time.thread_time() - cpu)
             # Worker threads (multi-threaded executor) meet the tick's wall-clock deadline instead.
@@ -157,6 +183,89 @@ class CallbackGuard:
         # rclpy picks a subscription's call signature from the callback's: keep the original's
         # (``run`` itself binds one argument, or none for a timer).
         return (lambda msg, info: run(msg, info)) if with_info else run
+
+    def _wrap_async(self, callback: Callable, node: Node, robot: str, sim_node: ServedRobots,
+                    with_info: bool) -> Callable:
+        """An ``async def`` callback: its failure is its robot's. Its steps are timed by whoever
+        runs them (the lockstep executor's ``task_started``), not across its awaits."""
+        failed, row, calls_of = sim_node.failed, sim_node.row_of(robot), self.calls_of
+
+        async def run(*args):
+            if failed[row]:
+                return None
+            self.calls += 1
+            calls_of[robot] = calls_of.get(robot, 0) + 1
+            try:
+                return await callback(*args)
+            except ControllerHung as e:
+                self._fail(robot, node, e, f"hung: callback still running after {self._unresponsive_s:.1f} s, "
+                                           f"interrupted")
+            except (Exception, SystemExit) as e:
+                self._fail(robot, node, e, _failure(e))
+            return None
+        if with_info:
+            async def run_with_info(msg, info):
+                return await run(msg, info)
+            return run_with_info
+        return run
+
+    def _fail(self, robot: str, node: Node, error: BaseException, reason: str) -> None:
+        self._robots[robot][0].mark_failed(robot, reason)
+        if self.on_exception is not None:
+            self.on_exception(robot, node, error)
+
+    # --- what the lockstep executor tells it (hosting/executors/lockstep.py) -------------------
+
+    def owner(self) -> Optional[str]:
+        return self._running
+
+    def robot_of(self, node: Node) -> Optional[str]:
+        return self._robot_of.get(id(node))
+
+    def owner_alive(self, node: Node) -> bool:
+        robot = self._robot_of.get(id(node))
+        if robot is None:
+            return True
+        served = self._robots[robot][0]
+        return not served.failed[served.row_of(robot)]
+
+    def node_failed(self, node: Node, error: BaseException) -> None:
+        robot = self._robot_of.get(id(node))
+        if robot is None:
+            raise error
+        self._fail(robot, node, error, _failure(error))
+
+    def task_started(self, robot: Optional[str]) -> bool:
+        if robot is None:
+            return True
+        served = self._robots.get(robot)
+        if served is not None and served[0].failed[served[0].row_of(robot)]:
+            return False
+        self._running, self._started = robot, time.monotonic()
+        self.calls += 1
+        self.calls_of[robot] = self.calls_of.get(robot, 0) + 1
+        return True
+
+    def task_ended(self) -> None:
+        self._running = None
+
+    def task_failed(self, robot: Optional[str], error: BaseException) -> bool:
+        served = self._robots.get(robot) if robot is not None else None
+        if served is None:
+            return False
+        hung = isinstance(error, ControllerHung)
+        self._fail(robot, served[1], error, "hung: a task of it still running after "
+                   f"{self._unresponsive_s:.1f} s, interrupted" if hung else _failure(error))
+        return True
+
+    def set_aside(self) -> object:
+        state = (self._running, self._started, time.monotonic())
+        self._running = None
+        return state
+
+    def take_back(self, state: object) -> None:
+        running, started, set_aside_at = state
+        self._running, self._started = running, started + (time.monotonic() - set_aside_at)
 
     def in_callback(self) -> bool:
         """Is this thread running a guarded callback now?"""

@@ -30,7 +30,9 @@ from composed_sim.hosting.callback_guard import CallbackGuard, refuse_shutdown_f
 from composed_sim.hosting.options import ROBOTS_PER_PARTICIPANT, ProcessHosting
 from composed_sim.hosting import HostError
 from composed_sim.hosting.building import (SetupWarnings, answer_type, create_robot_nodes, create_run_wide_nodes,
-                                           load_classes)
+                                           load_classes, robot_wiring_problem)
+from composed_sim.hosting.entities import HostedEntities
+from composed_sim.hosting.lifecycle import state_label
 from composed_sim.hosting.executors.running import (SETTLE_ROUNDS, Spinning, check_executor, driven_by_caller, is_idle,
                                                    make_executor, run_until_idle)
 from composed_sim.hosting.node_logs import NodeLogs
@@ -45,7 +47,9 @@ from composed_sim.hosting.executors.lockstep import LockstepExecutor
 from composed_sim.hosting.participants import ignore_participants_of_this_process
 from composed_sim.ros.rcl_graph import GraphChanges
 from composed_sim.ros.robot_settings import robot_settings
+from composed_sim.hosting.run_wide.calls import CallRelay
 from composed_sim.hosting.run_wide.relay import Message, RunWideRelay
+from composed_sim.hosting.services import ServiceDirectory
 from composed_sim.ros.simulator_node import AnswerTypeError, SimulatorNode
 from composed_sim.world.schema import World
 
@@ -85,6 +89,11 @@ class ParticipantGroups:
         self.robot_nodes: list[list[Node]] = []             # per robot of the block: its nodes
         self.controllers: list[Node] = []                   # every robot node, robot by robot
         self.relay = RunWideRelay(world.robot_names())
+        self.calls = CallRelay(world.robot_names())          # service calls between places (robots, run-wide)
+        self.entities: Optional[HostedEntities] = None
+        # Robots with lifecycle nodes not active when built: (robot, its group, its nodes), their
+        # wiring checked once the tick-0 transitions had their chance (``_check_activated``).
+        self._inactive: list[tuple[str, int, list[Node]]] = []
         self.run_wide: Optional[RunWideNodes] = None        # the world's run-wide nodes (block of robot 0)
         self._tick_timers = []                              # SimTimers the host moves to each tick's time
         self._settle = False
@@ -140,6 +149,8 @@ class ParticipantGroups:
                 self.robot_nodes.append(built.nodes)
                 self.controllers += built.nodes
                 self._tick_timers += built.tick_timers
+                if built.inactive:
+                    self._inactive.append((names[i], groups[i], built.nodes))
             block_nodes = self.robot_nodes[first_robot:]
             sim_node = SimulatorNode([names[i] for i in block], [get_model(world.robots[groups[i]].model) for i in block],
                                      context=context, tick_ns=world.tick_ns,
@@ -154,16 +165,18 @@ class ParticipantGroups:
             self.simulator_nodes.append(sim_node)
             for i, nodes in zip(block, block_nodes):
                 for node in nodes:
-                    self.guard.guard(node, names[i], sim_node, self.relay.subscriptions_of(node))
                     sim_node.drive_clock_of(node)
         self.exchange = NodesExchange(self.simulator_nodes, node_time=self.node_time)
         self._quiet_robots = any(node.when_published.any() for node in self.simulator_nodes)
         self.executor = make_executor(self.hosting.executor, self.contexts[0])
+        if isinstance(self.executor, LockstepExecutor):
+            self.executor.watcher = self.guard
         self.spinning = Spinning(self.executor)
         # Simulator nodes last, so that the lockstep executor's one ordered pass runs every
         # controller on its sensors first and then collects the answers they just published.
         for node in (*self.controllers, *self.simulator_nodes):
             self.executor.add_node(node)
+        self._host_entities()
         # A tick's answers may leave work behind (a later node of a chain, a run-wide message
         # published after the answer): run it before the tick closes, so that what the tick
         # sends on does not depend on the walk in which the last robot answered.
@@ -176,6 +189,21 @@ class ParticipantGroups:
         for sim_node in self.simulator_nodes:
             sim_node.note_controllers(gids)
         self._link_in_process(first_robots)
+
+    def _host_entities(self) -> None:
+        """Every node's entities hosted (hosting/entities.py): guarded callbacks, services and
+        calls in process or through the call relay, parameter services."""
+        directory = ServiceDirectory(self.executor, relay=self.calls)
+        self.calls.serve(range(self.start, self.stop), directory)
+        names = self.world.robot_names()
+        self.entities = HostedEntities(directory, self.relay, self.guard, names)
+        robots = iter(range(self.start, self.stop))
+        for sim_node in self.simulator_nodes:
+            for robot, i in zip(sim_node.robots, robots):
+                for node in self.robot_nodes[i - self.start]:
+                    self.entities.adopt(node, robot, i, sim_node)
+        if self.run_wide is not None:
+            self.run_wide.host(self.relay, self.calls)
 
     def _link_in_process(self, first_robots: list[int]) -> None:
         """With the lockstep executor, which takes from inboxes: each group's sensor messages go
@@ -227,10 +255,46 @@ class ParticipantGroups:
             self.logs.tick = tick
         for timers in self._tick_timers:
             timers.advance_to(now_ns)
+        lockstep = isinstance(self.executor, LockstepExecutor)
         if batch:
-            self.relay.deliver(batch)
+            self.relay.deliver(batch, run=self.executor.scheduler.tasks.append if lockstep else None)
             if self.first_group == 0:       # the run's first participant shows them to the world
                 self.simulator_nodes[0].mirror_run_wide(batch, now_ns)
+        # What reached the robots at the tick's start is handled before its sensors: the run-wide
+        # messages, the calls of the run-wide nodes' part of the tick, requests from other processes.
+        self.entities.directory.take_outside_requests()
+        for _ in range(SETTLE_ROUNDS):      # rounds: a manager's configure, then activate, say
+            if lockstep:
+                self.executor.serve_handed_over()
+            if not self._hand_over():
+                break
+        if self._inactive:
+            self._check_activated()
+
+    def _check_activated(self) -> None:
+        """At tick 0, the robots whose lifecycle nodes were not active when built: their nodes'
+        transitions (their own, a lifecycle manager's) have run; each must now answer its ticks."""
+        for robot, group, nodes in self._inactive:
+            problem = robot_wiring_problem(self.world, group, robot, nodes, self.relay)
+            if problem is not None:
+                states = ", ".join(f"{node.get_fully_qualified_name()} ({state})" for node, state in
+                                   ((n, state_label(n)) for n in nodes) if state not in (None, "active"))
+                raise HostError(f"{robot} cannot answer tick 0: {problem}. Its lifecycle nodes not active by "
+                                f"then: {states or 'none'}; activate them before tick 0 (lifecycle: autostart in "
+                                f"their node entries, or a lifecycle manager)")
+        self._inactive = []
+
+    def _hand_over(self) -> bool:
+        """One round of the calls between places (hosting/run_wide/calls.py): the calls made since
+        the last round, to their places in this process (requests queued at their services,
+        responses to their clients); the run-wide nodes then run until idle. False if none was in
+        flight."""
+        if not self.calls.in_flight:
+            return False
+        self.calls.deliver(self.calls.take_outbox())
+        if self.run_wide is not None:
+            self.run_wide.run_until_idle()
+        return True
 
     def close_run_wide(self, next_tick: int) -> list[Message]:
         """After a tick's answers: the run-wide nodes' part of ``next_tick`` (their timers due by
@@ -258,8 +322,9 @@ class ParticipantGroups:
             time.sleep(0.01)
 
     def _unmatched(self) -> list[str]:
+        inactive = {robot for robot, _, _ in self._inactive}
         try:
-            return [r for node in self.simulator_nodes for r in node.unmatched_robots()]
+            return [r for node in self.simulator_nodes for r in node.unmatched_robots() if r not in inactive]
         except AnswerTypeError as e:
             raise HostError(str(e)) from None
 
@@ -344,6 +409,9 @@ class ParticipantGroups:
                 self._take_ready_answers()
                 if self.exchange.settle_idle(self._ran_since_open()):
                     continue
+            if self.calls.in_flight and is_idle(self.executor, self._callbacks_run):
+                self._hand_over()       # every robot is idle: the round's calls go to their places
+                continue
             if time.monotonic() < deadline:
                 # A constant timeout: a stock executor keeps the ready callbacks of one wait only
                 # while spin_once's arguments stay the same, and rebuilds its wait set over every
@@ -358,8 +426,12 @@ class ParticipantGroups:
             idle = idle + 1 if (self.guard.calls, self.exchange.answered_count) == before else 0
             if drain_left <= 0 or idle >= 2:
                 return False
-        if self._settle:      # every robot has answered, but a chain of its nodes may go on
-            run_until_idle(self.executor, self._callbacks_run)
+        # Every robot has answered, but a chain of its nodes, or calls between places, may go on.
+        for _ in range(SETTLE_ROUNDS):
+            if self._settle or self.entities.directory.in_use:
+                run_until_idle(self.executor, self._callbacks_run)
+            if not self._hand_over():
+                break
         return True
 
     def _callbacks_run(self) -> int:

@@ -248,6 +248,12 @@ class ControllerPublishers:
         """Per robot, its controller's GIDs (None: not known, its answers are not checked)."""
         self._gids = list(gids)
 
+    def set_one(self, i: int, gids: Optional[frozenset[bytes]]) -> None:
+        """Robot i's GIDs, once its nodes made another cmd_vel publisher (a lifecycle node's)."""
+        if self._gids is None:
+            self._gids = [None] * len(self._subscriptions)
+        self._gids[i] = gids
+
     def accepts(self, i: int, gid: bytes) -> bool:
         """May this publisher answer for robot i? (Anyone, until the controllers are noted.)"""
         gids = None if self._gids is None else self._gids[i]

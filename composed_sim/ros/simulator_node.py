@@ -196,6 +196,11 @@ class SimulatorNode(Node):
         host before tick 0: the only publishers whose answers move the robot (docs/faults.md)."""
         self._controllers.set([frozenset(gids[name]) if gids.get(name) else None for name in self._names])
 
+    def note_controller(self, robot: str, gids: Collection[bytes]) -> None:
+        """``note_controllers`` for one robot, whose nodes made a cmd_vel publisher after tick 0's
+        set-up (a lifecycle node's, in its configure transition)."""
+        self._controllers.set_one(self._index[robot], frozenset(gids) or None)
+
     def inbox_subscriptions(self) -> list:
         """The LED and rab_tx subscriptions, drained at the act phase (``take_led_commands``)."""
         return [s for s in (*self._led_subs, *self._rab_subs) if s is not None]

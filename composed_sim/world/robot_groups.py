@@ -93,11 +93,12 @@ Devices = create_model("Devices", __base__=_Devices, __module__=__name__,
                        **{name: (Optional[settings], None) for name, settings in _SETTINGS.items()})
 
 
-ParamValue = Union[float, int, str, bool, list[float]]
+ParamValue = Union[float, int, str, bool, list[float], list[str], list[bool]]
 
 
 def _check_param_values(value: Any) -> Any:
-    """A parameters mapping: names are text, values numbers, strings, booleans or number lists.
+    """A parameters mapping: names are text, values numbers, strings, booleans or lists of one of
+    them (a ROS parameter array is of one type).
     Checked by hand rather than by the Union so that a bad value gets one message, not one per
     member of the Union."""
     if not isinstance(value, dict):
@@ -107,12 +108,14 @@ def _check_param_values(value: Any) -> Any:
         scalar = isinstance(item, (bool, int, float, str))
         number_list = isinstance(item, list) and all(
             isinstance(x, (int, float)) and not isinstance(x, bool) for x in item)
+        other_list = isinstance(item, list) and item and any(
+            all(isinstance(x, kind) for x in item) for kind in (str, bool))
         numbers = item if number_list else [item] if isinstance(item, float) else []
         if not isinstance(key, str):
             problems.append(((key,), "parameter names must be text", key))
-        elif not (scalar or number_list):
+        elif not (scalar or number_list or other_list):
             problems.append(((key,), "must be a number, a string, true/false or a list "
-                             "of numbers", item))
+                             "of numbers, of strings or of true/false", item))
         elif not all(finite(x) for x in numbers):
             problems.append(((key,), "must be finite", item))
     if problems:
@@ -129,6 +132,10 @@ class NodeSpec(Strict):
     parameters: dict[str, ParamValue] = {}
     params_file: Optional[str] = None
     remappings: dict[str, str] = {}
+    # A lifecycle node (rclpy.lifecycle): "autostart" configures and activates it before tick 0, as
+    # a lifecycle manager's autostart does; "manual" leaves its transitions to itself or to
+    # another node (through its lifecycle services).
+    lifecycle: Literal["manual", "autostart"] = "manual"
 
     @field_validator("parameters", mode="before")
     @classmethod

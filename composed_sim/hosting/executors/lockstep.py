@@ -1,33 +1,51 @@
-"""An rclpy executor made for lockstep ticks.
+"""The lockstep executor: every hosted node's callbacks in one fixed order, with the execution
+semantics of a process of its own under rclpy's MultiThreadedExecutor.
 
 The stock executors rebuild a wait set over every entity of every node on each spin: with
-thousands of hosted nodes that dominates the tick (docs/architecture.md has the figures). In a
-lockstep tick the work is known: the simulator publishes every robot's sensors, and inside one
-DDS participant a published message is ready to take at once. So this executor first walks the
-subscriptions and timers of its nodes in a fixed order (nodes in the order they were added, each
-node's subscriptions in creation order, then the waitables that can be taken without a wait set
-(the simulator's cmd_vel subscriptions, ros/answer_subscription.py), then its timers), takes one
-ready message from each sensor subscription (a robot's sensors come once per tick) and every ready
-message from any other subscription (a robot's own topics between its nodes), fires each timer
-that is due, and runs the callbacks; a callback's own publishes (a controller's answer, a message
-to a later node of the robot) are picked up by the same walk. A controller whose host set its
-``lockstep_batch`` (ros/controller.py) gets a tick's sensor messages in one call when all of them
-wait in process. Only when a walk finds nothing does it fall
-back to the ordinary wait set, which also serves services, guard conditions and messages from
-other processes.
+thousands of hosted nodes that dominates the tick. In a lockstep tick the work is known: the
+simulator publishes every robot's sensors, and inside one DDS participant a published message is
+ready to take at once. So this executor walks its nodes' entities in a fixed order (nodes in the
+order they were added; per node its subscriptions, the waitables it can take without a wait set,
+its services, action endpoints and clients, then its timers), takes what is ready and runs the
+callbacks; what a callback publishes or calls is picked up by the same walk. One message per
+sensor subscription and walk (a robot's sensors come once per tick), every ready message of any
+other. A controller whose host set its ``lockstep_batch`` (ros/controller.py) gets a tick's sensor
+messages in one call when all wait in process. Only what the walk cannot take (a user's guard
+condition, a waitable of an unknown kind) waits for the ordinary wait set, when a walk finds
+nothing.
 
-Callbacks run in the calling thread, in that fixed order: runs are deterministic and a plugin
-needs no locks.
+What a node's own process gives it, given here in that one order (docs/contract.md, "What a
+node may do"):
+
+- ``async def`` callbacks (subscriptions, timers, services, done callbacks) run as tasks: a
+  coroutine that awaits what is not done is stepped again once it is;
+- futures' done callbacks and ``create_task`` run as tasks (hosting/executors/tasks.py), first in,
+  first out, after the callback that made them ready;
+- a callback may block on a call (``Client.call``, an action's ``send_goal``, a rate's
+  ``sleep``): it is set aside (hosting/executors/scheduler.py) while the walk runs what it waits for;
+- callback groups: while a callback of a mutually exclusive group waits, no other callback of the
+  group starts, and a response is handed to a client only when the client's group may run, as
+  under the MultiThreadedExecutor; a reentrant group runs anything;
+- calls between its nodes are served in process (hosting/services.py).
+
+Callbacks run one at a time, in that order: runs are deterministic and a plugin needs no locks.
 """
 from __future__ import annotations
 
-from typing import Optional
+from collections import deque
+from types import CoroutineType
+from typing import Callable, Optional
 
+from greenlet import GreenletExit, getcurrent
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.event_handler import EventHandler
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.subscription import Subscription
+from rclpy.task import Future, Task
 
+from composed_sim.hosting.executors.scheduler import Scheduler
+from composed_sim.hosting.executors.tasks import CallbackWatcher, HostedTask, awaits_future
 from composed_sim.ros import contract as c
 from composed_sim.ros.in_process import inbox_of
 
@@ -40,12 +58,16 @@ def _once_per_tick(topic: str) -> bool:
     return len(parts) == 3 and parts[2] in _SENSOR_NAMES
 
 
-_WAITABLE = object()     # marks a waitable with dispatch_ready() in the walk's entity list
-_BATCH = object()        # marks a node's sensor subscriptions handled in one call (``lockstep_batch``)
+# What an entry of the walk is (its third field, where a subscription has its message type).
+_WAITABLE = object()     # a waitable with dispatch_ready() (the simulator's answer subscriptions)
+_BATCH = object()        # a node's sensor subscriptions handled in one call (``lockstep_batch``)
+_SERVICE = object()      # a service served in process (hosting/services.py)
+_POLLED = object()       # polled by the service directory: action endpoints, clients' DDS responses
+_UNSET = object()
 
 
 def _batch_entity(node: Node) -> list[tuple]:
-    """The walk's entity for a node's ``lockstep_batch`` (ros/controller.py), set by its host:
+    """The walk's entry for a node's ``lockstep_batch`` (ros/controller.py), set by its host:
     its subscriptions must be the node's first ones, all linked in process."""
     batch = getattr(node, "lockstep_batch", None)
     if not batch or not batch[0]:
@@ -54,76 +76,249 @@ def _batch_entity(node: Node) -> list[tuple]:
     inboxes = tuple(inbox_of(s) for s in subscriptions)
     if list(node.subscriptions)[:len(subscriptions)] != list(subscriptions) or None in inboxes:
         return []
-    return [(callback, None, _BATCH, None, None, len(subscriptions), inboxes)]
+    return [(callback, None, _BATCH, None, None, len(subscriptions), inboxes, subscriptions[0].callback_group, node)]
 
 
 class LockstepExecutor(SingleThreadedExecutor):
-    def __init__(self, *, context=None) -> None:
+    def __init__(self, *, context=None, watcher: Optional[CallbackWatcher] = None) -> None:
         super().__init__(context=context)
+        self.scheduler = Scheduler()
+        self.watcher = watcher or CallbackWatcher()
+        self.services = None                      # its ServiceDirectory (hosting/services.py), if hosted
+        self.on_entities_changed: Optional[Callable[[Node], None]] = None   # the host hosts what is new
+        self.running_group = None                 # the callback group of the callback the walk runs
         self._ordered_nodes: list[Node] = []
         self._entities: Optional[list[tuple]] = None   # rebuilt when entities change
+        self._service_entities: Optional[list[tuple]] = None
         self._covers_all: Optional[bool] = None
+        self._changed: list[Node] = []            # nodes that created or destroyed entities
+        self._held: set = set()                   # mutually exclusive groups whose callback waits
+        self._after_release: dict[object, deque] = {}   # per held group: what waits for it
+        self._polled_tasks: list[HostedTask] = []     # coroutines that await something unknown
+        self._ran = 0                             # callbacks and tasks run (what a walk reports)
+
+    # --- nodes ----------------------------------------------------------------------------------
 
     def add_node(self, node: Node) -> bool:
         added = super().add_node(node)
         if added:
             self._ordered_nodes.append(node)
-            self._entities = self._covers_all = None
+            self._entities = self._service_entities = self._covers_all = None
+            # A node that creates or destroys an entity wakes its executor: before the next walk
+            # the host hosts what is new as it hosted what the node's constructor made.
+            node._wake_executor = lambda node=node: self._entities_changed(node)
         return added
 
     def remove_node(self, node: Node) -> None:
         super().remove_node(node)
         if node in self._ordered_nodes:
             self._ordered_nodes.remove(node)
-        self._entities = self._covers_all = None
+        self._entities = self._service_entities = self._covers_all = None
+
+    def _entities_changed(self, node: Node) -> None:
+        if node not in self._changed:
+            self._changed.append(node)
+        self.wake()
 
     def wake(self) -> None:
-        # Nodes call this when they create or destroy an entity.
-        self._entities = self._covers_all = None
+        self._entities = self._service_entities = self._covers_all = None
         super().wake()
+
+    # --- tasks ----------------------------------------------------------------------------------
+
+    def create_task(self, callback, *args, **kwargs) -> Task:
+        """A task run by the walks, after the callback that made it, in the order made."""
+        task = HostedTask(callback, args, kwargs, executor=self, robot=self.watcher.owner())
+        self.scheduler.tasks.append(task)
+        return task
+
+    def start_coroutine(self, coroutine, group, node: Optional[Node] = None) -> HostedTask:
+        """An ``async def`` callback's coroutine, run as a task of ``node``'s robot: its first step
+        now; its group, if mutually exclusive, held until it is done."""
+        robot = self.watcher.robot_of(node) if node is not None else self.watcher.owner()
+        task = HostedTask(coroutine, executor=self, robot=robot)
+        if isinstance(group, MutuallyExclusiveCallbackGroup):
+            self._held.add(group)
+            task.group = group
+        self._run_task(task)
+        return task
+
+    def _run_task(self, task: HostedTask, polled: bool = False) -> None:
+        watcher = self.watcher
+        if not watcher.task_started(task.robot):
+            task.cancel()
+            self._release(task.group)
+            return
+        try:
+            awaited = task()
+        except GreenletExit:
+            raise
+        except BaseException as e:               # noqa: BLE001 - a hung or exiting task (ControllerHung, SystemExit)
+            task.set_exception(e)
+            awaited = None
+        finally:
+            watcher.task_ended()
+        if not task.done():
+            if awaits_future(awaited):           # stepped again when that is done
+                awaited.add_done_callback(lambda _: self.scheduler.tasks.append(task))
+            else:
+                self._polled_tasks.append(task)
+                if polled:
+                    return                       # still waiting on the same unknown thing: no progress
+        self._ran += 1
+        if task.done():
+            self._release(task.group)
+            if task._exception is not None and not task._exception_fetched \
+                    and not watcher.task_failed(task.robot, task.exception()):
+                raise task.exception()
+
+    # --- callback groups ------------------------------------------------------------------------
+
+    def _release(self, group) -> None:
+        if group is None:
+            return
+        self._held.discard(group)
+        waiting = self._after_release.pop(group, None)
+        if waiting:
+            self.scheduler.tasks.extend(waiting)
+
+    def when_free(self, group, work: Callable[[], None]) -> None:
+        """Run ``work`` (a task) once ``group`` may run a callback: next, or once it is released."""
+        if group in self._held:
+            self._after_release.setdefault(group, deque()).append(work)
+        else:
+            self.scheduler.tasks.append(work)
+
+    def group_of_caller(self):
+        """The callback group of the callback that calls (None for a task)."""
+        group = getattr(getcurrent(), "callback_group", _UNSET)
+        return self.running_group if group is _UNSET else group
+
+    # --- waiting inside a callback --------------------------------------------------------------
+
+    def can_wait(self) -> bool:
+        """Is the caller a callback this executor's walk runs (so it can be set aside)?"""
+        return self.scheduler.in_walk()
+
+    def wait_for(self, future: Future, group=None) -> None:
+        """Set the calling callback aside until ``future`` is done; ``group``, the callback's
+        callback group, is held meanwhile if mutually exclusive."""
+        getcurrent().callback_group = group      # its stack is its own from now on
+        hold = isinstance(group, MutuallyExclusiveCallbackGroup) and group not in self._held
+        if hold:
+            self._held.add(group)
+        state = self.watcher.set_aside()
+        try:
+            self.scheduler.wait(future)
+        finally:
+            self.watcher.take_back(state)
+            if hold:
+                self._release(group)
+
+    # --- spinning -------------------------------------------------------------------------------
 
     def spin_once(self, timeout_sec: Optional[float] = None) -> None:
         if self.dispatch_ready() == 0:
-            super().spin_once(timeout_sec)
+            # What the walk cannot take, through the wait set: in a walker too, so that a callback
+            # run there may wait.
+            self.scheduler.run(lambda: SingleThreadedExecutor.spin_once(self, timeout_sec) or 0)
 
     @property
     def walk_covers_all(self) -> bool:
-        """Does the walk see every entity its nodes have (no services, clients, guard conditions
-        or waitables it cannot take)? Then a walk that runs nothing means that nothing is ready.
-        (A QoS event handler, which rclpy gives most endpoints, only reports a mismatch: it can
-        wait for the next pass over the wait set.) Known afresh whenever the entities change."""
+        """Does the walk see every entity its nodes have? Then a walk that runs nothing means that
+        nothing is ready. (A QoS event handler, which rclpy gives most endpoints, only reports a
+        mismatch: it can wait for the next pass over the wait set.) Known afresh whenever the
+        entities change."""
         if self._covers_all is None:
-            self._covers_all = all(not any(True for _ in node.services) and not any(True for _ in node.clients)
-                                   and not any(True for _ in node.guards)
-                                   and all(hasattr(w, "dispatch_ready") or isinstance(w, EventHandler)
-                                           for w in node.waitables)
-                                   for node in self._ordered_nodes)
+            services = self.services
+            self._covers_all = not self._changed and all(
+                all(services is not None and services.serves(s) for s in node.services)
+                and all(services is not None and services.takes_responses(cl) for cl in node.clients)
+                and not any(True for _ in node.guards)
+                and all(hasattr(w, "dispatch_ready") or isinstance(w, EventHandler)
+                        or (services is not None and services.polls(w)) for w in node.waitables)
+                for node in self._ordered_nodes)
         return self._covers_all
 
+    @property
+    def waiting(self) -> bool:
+        """Is work waiting for something (a callback set aside, a coroutine's future)?"""
+        return bool(self.scheduler.waiting or self._polled_tasks or self._held)
+
     def dispatch_ready(self) -> int:
-        """Take and handle every message ready now, and fire every timer due now, in the fixed
-        order; returns how many callbacks ran."""
+        """Take and handle every message, request and response ready now, fire every timer due
+        now, and run the tasks they make ready, in the fixed order; returns how many callbacks
+        and tasks ran."""
+        before = self._ran
+        self.scheduler.run(self._walk)
+        return self._ran - before
+
+    def serve_handed_over(self) -> int:
+        """Only what the host handed over (tasks: delivered messages, responses; requests queued
+        at the services), not the subscriptions and timers; returns how many ran."""
+        before = self._ran
+        self.scheduler.run(lambda: self._walk(services_only=True))
+        return self._ran - before
+
+    def shutdown(self, timeout_sec: Optional[float] = None) -> bool:
+        self.scheduler.close()
+        return super().shutdown(timeout_sec)
+
+    # --- the walk -------------------------------------------------------------------------------
+
+    def _build_entities(self) -> list[tuple]:
+        """What a walk needs of each entity, resolved once (properties cost a call each). A timer
+        on sim time is due only after its robot's sensor callbacks of the tick
+        (hosting/sim_timers.py), which the walk has just run: its answer is then taken by the
+        simulator node later in the same walk."""
+        changed, self._changed = self._changed, []
+        if self.on_entities_changed is not None:
+            for node in changed:
+                self.on_entities_changed(node)
+        message_only = Subscription.CallbackType.MessageOnly
+        services = self.services
+        entities = []
+        for node in self._ordered_nodes:
+            entities += _batch_entity(node)
+            # A subscription linked in process (ros/in_process.py) takes from its inbox first.
+            entities += [(s, s.handle, s.msg_type, s.raw, s._callback_type is message_only,
+                          _once_per_tick(s.topic_name), inbox_of(s), s.callback_group, node)
+                         for s in node.subscriptions]
+            entities += [(w, None, _WAITABLE, None, None, True, None, None, node)
+                         for w in node.waitables if hasattr(w, "dispatch_ready")]
+            if services is not None:
+                served = services.services_of(node)
+                entities += [(served, None, _SERVICE, None, None, None, None, None, node)] if served is not None else []
+                entities += [(w, None, _POLLED, None, None, None, None, w.callback_group, node)
+                             for w in node.waitables if services.polls(w)]
+                entities += [(cl, None, _POLLED, None, None, None, None, None, node)
+                             for cl in node.clients if services.takes_responses(cl)]
+            entities += [(t, t.handle, None, None, None, True, None, t.callback_group, node) for t in node.timers]
+        return entities
+
+    def _walk(self, services_only: bool = False) -> int:
         entities = self._entities
         if entities is None:
-            # What a walk needs of each entity, resolved once (properties cost a call each): per
-            # node its subscriptions, then its timers. A timer on sim time is due only after its
-            # robot's sensor callbacks of the tick (hosting/sim_timers.py), which the walk has just run:
-            # its answer is then taken by the simulator node later in the same walk, as an answer
-            # published from a sensor callback is.
-            message_only = Subscription.CallbackType.MessageOnly
-            # A subscription linked in process (ros/in_process.py) takes from its inbox first.
-            entities = self._entities = [
-                entity for node in self._ordered_nodes
-                for entity in _batch_entity(node)
-                + [(s, s.handle, s.msg_type, s.raw, s._callback_type is message_only,
-                    _once_per_tick(s.topic_name), inbox_of(s)) for s in node.subscriptions]
-                + [(w, None, _WAITABLE, None, None, True, None) for w in node.waitables if hasattr(w, "dispatch_ready")]
-                + [(t, t.handle, None, None, None, True, None) for t in node.timers]]
-        handled = skip = 0
-        for entity, handle, msg_type, raw, message_only, once, inbox in entities:
+            entities = self._entities = self._build_entities()
+        if services_only:
+            entities = self._service_entities
+            if entities is None:
+                entities = self._service_entities = [e for e in self._entities if e[2] is _SERVICE]
+        scheduler = self.scheduler
+        tasks, held = scheduler.tasks, self._held
+        coroutine = CoroutineType
+        me = getcurrent()       # the walk stops once another greenlet walks (set aside in a callback)
+        skip = 0
+        self._run_tasks()
+        if scheduler.walker is not me:
+            return self._ran
+        for entity, handle, msg_type, raw, message_only, once, inbox, group, node in entities:
             if skip:                               # a batch's subscriptions, handled by it this walk
                 skip -= 1
                 continue
+            if held and group in held:             # a callback of its group waits: later
+                continue
+            result = None
             if msg_type is _BATCH:
                 # A controller's sensor messages of the tick, all waiting in process and none in
                 # DDS: one call with all of them, instead of one per subscription (the entities
@@ -132,47 +327,90 @@ class LockstepExecutor(SingleThreadedExecutor):
                     if not box.queue or box.dds_may_hold():
                         break
                 else:
-                    entity([box.take() for box in inbox])
-                    handled += once
+                    self.running_group = group
+                    result = entity([box.take() for box in inbox])
+                    self._ran += once
                     skip = once
+            elif msg_type is _WAITABLE:
+                self._ran += entity.dispatch_ready()
                 continue
-            if msg_type is _WAITABLE:
-                handled += entity.dispatch_ready()
-                continue
-            if msg_type is None:                   # a timer
+            elif msg_type is _SERVICE:
+                if not entity.pending:
+                    continue
+                self._ran += entity.serve_ready(self, held)
+            elif msg_type is _POLLED:
+                self._ran += self.services.poll(entity, node, self)
+            elif msg_type is None:                 # a timer
                 with handle:
                     if not handle.is_timer_ready():
                         continue
                     handle.call_timer()
-                entity.callback()
-                handled += 1
-                continue
-            # One message per sensor subscription and walk: in a lockstep tick there is one, and
-            # looking for a second would cost an empty take per subscription (any more are taken
-            # by the next walk, in the same order). Every message queued on any other.
-            if inbox is not None:                     # linked: its callback takes the message alone
-                if inbox.queue:
-                    entity.callback(inbox.take())
-                    handled += 1
-                    while not once and inbox.queue:
-                        entity.callback(inbox.take())
-                        handled += 1
-                # DDS is asked only when it may hold a message too (an empty take costs a call
-                # into rcl per subscription and walk).
-                if not inbox.dds_may_hold():
-                    continue
-            while True:
-                with handle:
-                    taken = handle.take_message(msg_type, raw)
-                if taken is None:
-                    if inbox is not None:
-                        inbox.emptied()
-                    break
-                if message_only:
-                    entity.callback(taken[0])
+                self.running_group = group
+                result = entity.callback()
+                self._ran += 1
+            else:
+                self.running_group = group
+                if inbox is not None:              # linked: its callback takes the message alone
+                    if inbox.queue:
+                        result = entity.callback(inbox.take())
+                        self._ran += 1
+                        while not once and inbox.queue and result.__class__ is not coroutine:
+                            result = entity.callback(inbox.take())
+                            self._ran += 1
+                    # DDS is asked only when it may hold a message too (an empty take costs a call
+                    # into rcl per subscription and walk).
+                    if result.__class__ is not coroutine and inbox.dds_may_hold():
+                        result = self._take_from_dds(entity, handle, msg_type, raw, message_only, once, inbox)
                 else:
-                    entity.callback(*taken)
-                handled += 1
-                if once:
-                    break
-        return handled
+                    result = self._take_from_dds(entity, handle, msg_type, raw, message_only, once, None)
+            if result.__class__ is coroutine:
+                self.start_coroutine(result, group, node)
+            if scheduler.walker is not me:         # set aside in a callback, resumed later: stop
+                return self._ran
+            if tasks:
+                self._run_tasks()
+                if scheduler.walker is not me:
+                    return self._ran
+        self._run_tasks()
+        if self._polled_tasks and scheduler.walker is me:
+            polled, self._polled_tasks = self._polled_tasks, []
+            for task in polled:
+                self._run_task(task, polled=True)
+                if scheduler.walker is not me:
+                    return self._ran
+            self._run_tasks()
+        return self._ran
+
+    def _take_from_dds(self, entity, handle, msg_type, raw, message_only, once, inbox):
+        """One message (``once``) or every message DDS holds for a subscription, until a
+        callback returns a coroutine (started by the walk, which takes the rest later)."""
+        while True:
+            with handle:
+                taken = handle.take_message(msg_type, raw)
+            if taken is None:
+                if inbox is not None:
+                    inbox.emptied()
+                return None
+            result = entity.callback(taken[0]) if message_only else entity.callback(*taken)
+            self._ran += 1
+            if once or result.__class__ is CoroutineType:
+                return result
+
+    def _run_tasks(self) -> int:
+        """Run the ready tasks, first in, first out, and the ones they make ready. A task is a
+        ``HostedTask`` or a plain callable the host queued (a delivered message, a response);
+        one that returns a coroutine (an ``async def`` subscription callback) starts it."""
+        tasks, scheduler, me = self.scheduler.tasks, self.scheduler, getcurrent()
+        while tasks:
+            task = tasks.popleft()
+            self.running_group = None
+            if task.__class__ is HostedTask:
+                self._run_task(task)
+            else:
+                result = task()
+                self._ran += 1
+                if result.__class__ is CoroutineType:
+                    self.start_coroutine(result, None)
+            if scheduler.walker is not me:
+                break
+        return self._ran

@@ -12,8 +12,12 @@ from rclpy.context import Context
 from rclpy.node import Node
 from rclpy.time import Time
 
+from composed_sim.hosting.entities import HostedEntities
 from composed_sim.hosting.executors.lockstep import LockstepExecutor
 from composed_sim.hosting.executors.running import run_until_idle
+from composed_sim.hosting.run_wide.calls import CallRelay
+from composed_sim.hosting.run_wide.relay import RUN_WIDE_ORIGIN, RunWideRelay
+from composed_sim.hosting.services import ServiceDirectory
 from composed_sim.hosting.sim_timers import SimTimers
 
 
@@ -28,6 +32,19 @@ class RunWideNodes:
         for node in nodes:
             node.get_clock()._set_ros_time_is_active(True)
             self._executor.add_node(node)
+
+    def host(self, relay: RunWideRelay, calls: CallRelay) -> None:
+        """Their services, clients and parameter services, hosted as the robots' are: calls to
+        and from robots through ``calls`` (hosting/run_wide/calls.py)."""
+        directory = ServiceDirectory(self._executor, relay=calls)
+        calls.serve([RUN_WIDE_ORIGIN], directory)
+        entities = HostedEntities(directory, relay)
+        for node in self._nodes:
+            entities.adopt(node, None, RUN_WIDE_ORIGIN)
+
+    def run_until_idle(self) -> None:
+        """Run what is ready (calls handed over to them) until nothing is."""
+        run_until_idle(self._executor)
 
     @property
     def nodes(self) -> list[Node]:

@@ -22,9 +22,10 @@ bytes.
 """
 from __future__ import annotations
 
+import functools
 import inspect
 import threading
-from typing import Callable, Collection
+from typing import Callable, Collection, Optional
 
 from rclpy.node import Node
 from rclpy.serialization import deserialize_message, serialize_message
@@ -97,12 +98,13 @@ class RelaySubscription:
     def get_publisher_count(self) -> int:
         return 1
 
-    def deliver(self, data: bytes) -> None:
+    def deliver(self, data: bytes):
+        """The subscription's callback on the message; what it returns (an ``async def``'s
+        coroutine, for the executor to run)."""
         msg = data if self.raw else deserialize_message(data, self.msg_type)
         if self._callback_type is Subscription.CallbackType.WithMessageInfo:
-            self.callback(msg, {})
-        else:
-            self.callback(msg)
+            return self.callback(msg, {})
+        return self.callback(msg)
 
     def destroy(self) -> None:
         self._relay.remove(self)
@@ -180,9 +182,14 @@ class RunWideRelay:
             taken, self._outbox = self._outbox, []
         return [message for _, _, message in sorted(taken, key=lambda m: (m[0], m[1]))]
 
-    def deliver(self, batch: list[Message]) -> None:
-        """Every message of ``batch``, in order, to every subscriber of its topic in this process."""
+    def deliver(self, batch: list[Message], run: Optional[Callable[[Callable], None]] = None) -> None:
+        """Every message of ``batch``, in order, to every subscriber of its topic in this process:
+        now, or handed to ``run`` (the lockstep executor's task queue, in which a callback may
+        wait or be a coroutine)."""
         for topic, type_name, data in batch:
             for sub in list(self._subscriptions.get(topic, ())):
                 if sub.type_name == type_name:     # DDS would not match another type either
-                    sub.deliver(data)
+                    if run is None:
+                        sub.deliver(data)
+                    else:
+                        run(functools.partial(sub.deliver, data))

@@ -1,0 +1,155 @@
+"""Robots' ROS 2 programs as users write them for a process of their own
+(tests/user_pkg/robot_programs): services called from callbacks (blocking in a reentrant group,
+``async def`` + ``await``, done callbacks), actions with feedback and cancel, lifecycle nodes,
+parameters set at run time by a run-wide node, calls between robots and run-wide nodes. Each is
+hosted as its own process would run it, in every host mode and worker layout, with the same paths."""
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from composed_sim.hosts.composed import ComposedHost
+from composed_sim.world.loader import load_world
+from composed_sim.world.schema import NodeSpec
+
+ROOT = Path(__file__).resolve().parents[2]
+FLOCKING = ROOT / "worlds" / "flocking.yaml"
+PACKAGE = ROOT / "tests" / "user_pkg" / "robot_programs"
+INTERFACES = ROOT / "tests" / "user_pkg" / "robot_programs_interfaces"
+
+
+@pytest.fixture
+def robot_programs(monkeypatch):
+    """The package importable here and in the hosts' child processes, as an installed one is."""
+    monkeypatch.syspath_prepend(str(PACKAGE))
+    monkeypatch.setenv("PYTHONPATH", str(PACKAGE))
+    yield
+    for name in [m for m in sys.modules if m.split(".")[0] == "robot_programs"]:
+        del sys.modules[name]
+
+
+def world_of(*nodes: str, robots: int = 4, ticks: int = 30, run_wide: tuple = (), seed: int = 3, **group):
+    """``robots`` foot-bots of the flocking arena, each running ``nodes`` (``module:Class``
+    of robot_programs), and the ``run_wide`` nodes ((node, parameters) pairs)."""
+    world = load_world(FLOCKING, robots=robots, ticks=ticks, seed=seed)
+    base = world.robots[0]
+    specs = [NodeSpec(node=f"robot_programs.{n}") for n in nodes]
+    robots_group = base.model_copy(update={"count": robots, "controller": None, "params": {}, "nodes": specs, **group})
+    return world.model_copy(update={
+        "robots": [robots_group], "interfaces": [str(INTERFACES)],
+        "nodes": [NodeSpec(node=f"robot_programs.{n}", parameters=p) for n, p in run_wide]})
+
+
+def composed(world, domain_id, executor="lockstep"):
+    """The run's result, and its nodes by class name (read after the run, before teardown)."""
+    with ComposedHost(world, executor=executor, domain_id=domain_id) as host:
+        result = host.run()
+        nodes = {}
+        for node in (*host.controllers, *(host.groups.run_wide.nodes if host.groups.run_wide else ())):
+            nodes.setdefault(type(node).__name__, []).append(node)
+        return result, nodes
+
+
+def moved(result) -> np.ndarray:
+    return np.linalg.norm(result.trajectories.positions[-1] - result.trajectories.positions[0], axis=1)
+
+
+def path_length(result) -> np.ndarray:
+    return np.linalg.norm(np.diff(result.trajectories.positions, axis=0), axis=2).sum(axis=0)
+
+
+@pytest.mark.parametrize("behaviour", ["BlockingBehaviour", "AsyncBehaviour", "FutureBehaviour"])
+def test_a_behaviour_node_calls_its_planner_in_each_way_and_drives_as_one_node_would(robot_programs, domain_id,
+                                                                                    behaviour):
+    reference, _ = composed(world_of("planning:FutureBehaviour", "planning:Planner"), domain_id)
+    result, nodes = composed(world_of(f"planning:{behaviour}", "planning:Planner"), domain_id)
+    assert result.violations == []
+    assert (moved(result) > 0.03).all()
+    np.testing.assert_array_equal(result.trajectories.positions, reference.trajectories.positions)
+    assert [p.calls for p in nodes["Planner"]] == [30] * 4       # one call per robot and tick, answered in it
+
+
+def test_a_mission_node_drives_by_one_tick_goals_of_its_driver_node_with_feedback(robot_programs, domain_id):
+    reference, _ = composed(world_of("planning:FutureBehaviour", "planning:Planner"), domain_id)
+    result, nodes = composed(world_of("driving:AwaitingMission", "driving:QuickDriver"), domain_id)
+    assert result.violations == []
+    np.testing.assert_array_equal(result.trajectories.positions, reference.trajectories.positions)
+    assert [(m.feedback, m.results) for m in nodes["AwaitingMission"]] == [(30, 30)] * 4
+
+
+def test_goals_over_several_ticks_are_driven_on_the_robots_clock_and_cancelled_near_obstacles(robot_programs, domain_id):
+    world = world_of("driving:Driver", "driving:Mission", robots=6, ticks=60, answers="when_published")
+    result, nodes = composed(world, domain_id)
+    again, _ = composed(world, domain_id)
+    assert result.violations == []
+    np.testing.assert_array_equal(result.trajectories.positions, again.trajectories.positions)
+    missions, drivers = nodes["Mission"], nodes["Driver"]
+    free = [d.cancelled == 0 for d in drivers]
+    assert 0 < sum(free) < len(free)                  # some robots start close to another: their goals are cancelled
+    for mission, driver, alone, length in zip(missions, drivers, free, path_length(result)):
+        if alone:                                     # 5-tick goals back to back, each tick fed back
+            assert (driver.goals, mission.results, mission.feedback) == (12, 12, 60) and length > 0.25
+        else:                                         # at most the last goal and a cancelled one still out
+            assert 0 <= driver.goals - mission.results <= 2 and driver.cancelled > 0
+
+
+def test_blocking_send_goal_and_get_result_in_a_reentrant_group(robot_programs, domain_id):
+    result, nodes = composed(world_of("driving:Driver", "driving:BlockingMission", ticks=31,
+                                      answers="when_published"), domain_id)
+    assert result.violations == []
+    assert [m.results for m in nodes["BlockingMission"]] == [[3] * 10] * 4   # a 3-tick goal, then the next
+
+
+def test_robots_ask_a_run_wide_planner_and_are_answered_within_the_tick(robot_programs, domain_id):
+    reference, _ = composed(world_of("planning:FutureBehaviour", "planning:Planner"), domain_id)
+    result, nodes = composed(world_of("fleet:AsksTheFleet", run_wide=[("fleet:FleetPlanner", {})]), domain_id)
+    assert result.violations == []
+    np.testing.assert_array_equal(result.trajectories.positions, reference.trajectories.positions)
+    assert nodes["FleetPlanner"][0].calls == 4 * 30
+
+
+def test_a_run_wide_node_sets_each_robots_speed_parameter_through_its_parameter_services(robot_programs, domain_id):
+    robots = [f"bot{i}" for i in range(4)]
+    world = world_of("fleet:SpeedFollower", ticks=30, run_wide=[
+        ("fleet:SpeedSetter", {"robots": robots, "speeds": [0.06, -1.0, 0.03], "period": 1.0})])
+    result, nodes = composed(world, domain_id)
+    assert result.violations == []
+    setter = nodes["SpeedSetter"][0]
+    # tick 0: 0.06 taken; tick 10: -1.0 refused by the node's own callback; tick 20: 0.03 taken
+    assert setter.results == [[(True, "")]] * 4 + [[(False, "speed must not be negative")]] * 4 + [[(True, "")]] * 4
+    assert [f.speed for f in nodes["SpeedFollower"]] == [0.03] * 4
+    step = np.linalg.norm(np.diff(result.trajectories.positions, axis=0), axis=2)
+    assert step[5:10].max() > step[25:30].max()                 # faster at 0.06 m/s than at 0.03
+
+
+def lifecycle_world(node: str = "LifecycleBehaviour", lifecycle: str = "manual", manager: bool = False, **kw):
+    world = world_of(**kw)
+    group = world.robots[0]
+    spec = NodeSpec(node=f"robot_programs.lifecycle:{node}", lifecycle=lifecycle)
+    robots = [f"bot{i}" for i in range(group.count)]
+    run_wide = [NodeSpec(node="robot_programs.lifecycle:LifecycleManager", parameters={"robots": robots})] \
+        if manager else []
+    return world.model_copy(update={"robots": [group.model_copy(update={"nodes": [spec]})], "nodes": run_wide})
+
+
+@pytest.mark.parametrize("started", ["by the world file", "by itself", "by a lifecycle manager"])
+def test_lifecycle_nodes_make_their_publisher_when_configured_and_answer_once_active(robot_programs, domain_id,
+                                                                                  started):
+    reference, _ = composed(world_of("planning:FutureBehaviour", "planning:Planner"), domain_id)
+    world = {"by the world file": lifecycle_world(lifecycle="autostart"),
+             "by itself": lifecycle_world("SelfStartingBehaviour"),
+             "by a lifecycle manager": lifecycle_world(manager=True)}[started]
+    result, nodes = composed(world, domain_id)
+    assert result.violations == []
+    np.testing.assert_array_equal(result.trajectories.positions, reference.trajectories.positions)
+    behaviours = nodes.get("LifecycleBehaviour", []) + nodes.get("SelfStartingBehaviour", [])
+    assert [b.transitions for b in behaviours] == [["configure", "activate"]] * 4
+    if started == "by a lifecycle manager":
+        assert nodes["LifecycleManager"][0].results == [True] * 8      # configure and activate, each robot
+
+
+def test_a_lifecycle_node_never_activated_is_named_with_its_state_before_the_run_goes_on(robot_programs, domain_id):
+    from composed_sim.hosting import HostError
+    with pytest.raises(HostError, match=r"bot0 cannot answer tick 0: .*/bot0/behaviour \(unconfigured\)"):
+        composed(lifecycle_world(), domain_id)
