@@ -15,7 +15,7 @@ of the block: the SensorFrame handed to ``exchange.publish_tick`` covers the blo
 from __future__ import annotations
 
 import time
-from typing import Optional
+from typing import Callable, Optional
 
 import numpy as np
 import rclpy
@@ -94,6 +94,11 @@ class ParticipantGroups:
         # Robots with lifecycle nodes not active when built: (robot, its group, its nodes), their
         # wiring checked once the tick-0 transitions had their chance (``_check_activated``).
         self._inactive: list[tuple[str, int, list[Node]]] = []
+        # Where a round of calls between places goes when this block is one of several processes
+        # (a worker: hosts/workers/rounds.py): given the calls made here, the calls for here, or
+        # None once the run is quiet everywhere. None: every place is in this process.
+        self.remote: Optional[Callable[[list], Optional[list]]] = None
+        self._rounds_over = False
         self.run_wide: Optional[RunWideNodes] = None        # the world's run-wide nodes (block of robot 0)
         self._tick_timers = []                              # SimTimers the host moves to each tick's time
         self._settle = False
@@ -263,11 +268,13 @@ class ParticipantGroups:
         # What reached the robots at the tick's start is handled before its sensors: the run-wide
         # messages, the calls of the run-wide nodes' part of the tick, requests from other processes.
         self.entities.directory.take_outside_requests()
+        self._rounds_over = False
         for _ in range(SETTLE_ROUNDS):      # rounds: a manager's configure, then activate, say
             if lockstep:
                 self.executor.serve_handed_over()
             if not self._hand_over():
                 break
+        self._rounds_over = False           # the tick's own rounds come after its sensors
         if self._inactive:
             self._check_activated()
 
@@ -284,14 +291,31 @@ class ParticipantGroups:
                                 f"their node entries, or a lifecycle manager)")
         self._inactive = []
 
+    @property
+    def calls_leave(self) -> bool:
+        """May this block's nodes call another place of the run, or be called from one (a run-wide
+        node here, a client of another place's service)? Then processes hand calls over in rounds."""
+        return self.run_wide is not None or any(
+            self.calls.leaves(i, client.service_name)
+            for i, nodes in enumerate(self.robot_nodes, self.start) for node in nodes for client in node.clients)
+
     def _hand_over(self) -> bool:
-        """One round of the calls between places (hosting/run_wide/calls.py): the calls made since
-        the last round, to their places in this process (requests queued at their services,
-        responses to their clients); the run-wide nodes then run until idle. False if none was in
-        flight."""
-        if not self.calls.in_flight:
+        """One round of the calls between places (hosting/run_wide/calls.py), once this block is
+        idle: the calls made since the last round go to their places (requests queued at their
+        services, responses to their clients); the run-wide nodes then run until idle. False once
+        no call is in flight anywhere: this phase of the tick is over."""
+        if self.remote is None:
+            if not self.calls.in_flight:
+                return False
+            incoming = self.calls.take_outbox()
+        elif self._rounds_over:
             return False
-        self.calls.deliver(self.calls.take_outbox())
+        else:
+            incoming = self.remote(self.calls.take_outbox())
+            if incoming is None:
+                self._rounds_over = True
+                return False
+        self.calls.deliver(incoming)
         if self.run_wide is not None:
             self.run_wide.run_until_idle()
         return True
@@ -398,7 +422,17 @@ class ParticipantGroups:
 
         Past the watchdog, the callbacks already queued still run before the tick closes: in one
         thread a late callback delays the ones behind it, and its lateness is its own (the guard
-        rejects its answer), not theirs."""
+        rejects its answer), not theirs. Then the rounds of calls between places, until none is
+        in flight (the tick's work may go on after the answers)."""
+        answered = self._spin_until_answers(timeout_s)
+        for _ in range(SETTLE_ROUNDS):
+            if self._settle or self.entities.directory.in_use:
+                run_until_idle(self.executor, self._callbacks_run)
+            if not self._hand_over():
+                break
+        return answered
+
+    def _spin_until_answers(self, timeout_s: float) -> bool:
         deadline = time.monotonic() + timeout_s
         drain_left = 4 * len(self.controllers) + 16     # bounded: a busy timer cannot keep the tick open
         idle = 0
@@ -409,9 +443,12 @@ class ParticipantGroups:
                 self._take_ready_answers()
                 if self.exchange.settle_idle(self._ran_since_open()):
                     continue
-            if self.calls.in_flight and is_idle(self.executor, self._callbacks_run):
-                self._hand_over()       # every robot is idle: the round's calls go to their places
-                continue
+            if (self.calls.in_flight or self.remote is not None) and is_idle(self.executor, self._callbacks_run):
+                # Every robot here is idle: the round's calls go to their places.
+                if self._hand_over():
+                    continue
+                if self.remote is not None:     # quiet everywhere: no answer will come in this tick
+                    return False
             if time.monotonic() < deadline:
                 # A constant timeout: a stock executor keeps the ready callbacks of one wait only
                 # while spin_once's arguments stay the same, and rebuilds its wait set over every
@@ -426,12 +463,6 @@ class ParticipantGroups:
             idle = idle + 1 if (self.guard.calls, self.exchange.answered_count) == before else 0
             if drain_left <= 0 or idle >= 2:
                 return False
-        # Every robot has answered, but a chain of its nodes, or calls between places, may go on.
-        for _ in range(SETTLE_ROUNDS):
-            if self._settle or self.entities.directory.in_use:
-                run_until_idle(self.executor, self._callbacks_run)
-            if not self._hand_over():
-                break
         return True
 
     def _callbacks_run(self) -> int:

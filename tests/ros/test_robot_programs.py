@@ -153,3 +153,31 @@ def test_a_lifecycle_node_never_activated_is_named_with_its_state_before_the_run
     from composed_sim.hosting import HostError
     with pytest.raises(HostError, match=r"bot0 cannot answer tick 0: .*/bot0/behaviour \(unconfigured\)"):
         composed(lifecycle_world(), domain_id)
+
+
+def in_workers(world, domain_id, workers: int):
+    from composed_sim.hosts.workers.host import WorkerHost
+    with WorkerHost(world, workers=workers, domain_id=domain_id) as host:
+        return host.run()
+
+
+PROGRAMS = {
+    "blocking call": lambda: world_of("planning:BlockingBehaviour", "planning:Planner", robots=5, ticks=20),
+    "awaited call": lambda: world_of("planning:AsyncBehaviour", "planning:Planner", robots=5, ticks=20),
+    "run-wide planner": lambda: world_of("fleet:AsksTheFleet", robots=5, ticks=20,
+                                         run_wide=[("fleet:FleetPlanner", {})]),
+    "run-wide parameters": lambda: world_of("fleet:SpeedFollower", robots=5, ticks=25, run_wide=[
+        ("fleet:SpeedSetter", {"robots": [f"bot{i}" for i in range(5)], "speeds": [0.06, -1.0, 0.03]})]),
+    "lifecycle manager": lambda: lifecycle_world(manager=True, robots=5, ticks=20),
+    "actions": lambda: world_of("driving:Driver", "driving:Mission", robots=5, ticks=30, answers="when_published"),
+}
+
+
+@pytest.mark.parametrize("program", PROGRAMS)
+@pytest.mark.parametrize("workers", [2, 3])
+def test_each_program_runs_in_worker_processes_as_in_one(robot_programs, domain_id, program, workers):
+    world = PROGRAMS[program]()
+    reference, _ = composed(world, domain_id)
+    result = in_workers(world, domain_id, workers)
+    assert result.violations == reference.violations == []
+    np.testing.assert_array_equal(result.trajectories.positions, reference.trajectories.positions)

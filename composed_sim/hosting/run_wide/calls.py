@@ -45,6 +45,12 @@ class Response:
     data: bytes
 
 
+def handover_order(items: list) -> list:
+    """The one order of a round's handover, whatever process made each item: responses first,
+    then requests, each by caller (run-wide nodes, then robot by robot) and the caller's order."""
+    return sorted(items, key=lambda item: (isinstance(item, Request), item.call))
+
+
 class CallRelay:
     """One process's side of the calls between places."""
 
@@ -87,7 +93,7 @@ class CallRelay:
     def take_outbox(self) -> list:
         """Requests and responses made since the last take, in the handover's order."""
         taken, self._outbox = self._outbox, []
-        return sorted(taken, key=lambda item: (isinstance(item, Request), item.call))
+        return handover_order(taken)
 
     @property
     def in_flight(self) -> bool:

@@ -50,6 +50,7 @@ from composed_sim.hosts.host import ControllersElsewhere, SetupInfo
 from composed_sim.hosts.processes import (AdoptedChild, InterruptWatch, become_subreaper, exit_reason, last_words,
                                           reap, signal_group)
 from composed_sim.hosts.workers.shared_state import SharedState
+from composed_sim.hosts.workers.rounds import CallRounds
 from composed_sim.hosts.workers.messages import TickAnswers, WorkerSetup
 from composed_sim.hosting.participants import run_prefix
 from composed_sim.world.schema import World
@@ -117,6 +118,7 @@ class WorkersExchange:
         self.run_wide: list[list] = [[] for _ in workers]
         self._gathering_s = 0.0
         self._sent: dict = {}        # the scene, floor and lights the workers have now
+        self.rounds = CallRounds(workers, lockstep.watchdog_s + lockstep.unresponsive_s + ANSWER_GRACE_S, self._lost)
 
     def gathering_s(self) -> float:
         return self._gathering_s
@@ -145,7 +147,8 @@ class WorkersExchange:
                                                    ("lights", inputs.lights))
                    if name not in self._sent or self._sent[name] is not value}
         self._sent.update(changed)
-        message = ("tick", inputs.tick, inputs.route_messages, changed, [m for part in self.run_wide for m in part])
+        message = ("tick", inputs.tick, inputs.route_messages, changed, [m for part in self.run_wide for m in part],
+                   self.rounds.needed)
         for w in self.workers:
             w.answers = None
             if w.dead is None:
@@ -153,6 +156,8 @@ class WorkersExchange:
                     w.conn.send(message)
                 except OSError:
                     self._lost(w)
+        if self.rounds.needed:
+            self.rounds.run()           # the calls that reached the robots at the tick's start
 
     def publish_clock(self, tick: int) -> None:
         for w in self.workers:
@@ -172,6 +177,8 @@ class WorkersExchange:
         """Until every live worker sent its answers. Each worker applies the watchdog itself; one
         that is not back well after it (or whose socket closed: it died) is given up."""
         patience_s = timeout_s + self._lockstep.unresponsive_s + ANSWER_GRACE_S
+        if self.rounds.needed:
+            self.rounds.run()           # the tick's calls between places, until none is in flight
         deadline = time.monotonic() + patience_s
         while pending := {w.conn: w for w in self.workers if w.dead is None and w.answers is None}:
             left = deadline - time.monotonic()
@@ -192,6 +199,7 @@ class WorkersExchange:
                 w.peak_rss_kb = answers.peak_rss_kb
                 w.last_times = answers.cpu_s, answers.node_code_s
                 self.run_wide[w.index] = answers.run_wide
+                self.rounds.pending += answers.calls
                 self._violations[w.index].extend(Violation(*v) for v in answers.violations)
                 if self.logs is not None and answers.logs:
                     self.logs.merge(answers.logs)
@@ -276,11 +284,12 @@ class WorkerHost(ControllersElsewhere):
             self.sim = Simulation(self.world)
             self._adopt()
             with InterruptWatch() as interrupts:
-                nodes, run_wide = self._wait_ready(lambda: interrupts.requested)
+                nodes, run_wide, rounds, calls = self._wait_ready(lambda: interrupts.requested)
             self._startup_interrupted = interrupts.requested
             self.exchange = WorkersExchange(self.workers, self.sim.names, self.world.lockstep, self.shared,
                                             self.logs)
             self.exchange.run_wide = run_wide
+            self.exchange.rounds.needed, self.exchange.rounds.pending = rounds, calls
         except BaseException:
             self.__exit__(None, None, None)
             raise
@@ -332,13 +341,15 @@ class WorkerHost(ControllersElsewhere):
         for w, pid in zip(self.workers, pids):
             w.popen = AdoptedChild(int(pid))
 
-    def _wait_ready(self, interrupted: Callable[[], bool]) -> tuple[int, list[list]]:
-        """Every worker's nodes built and matched: how many nodes in all, and per worker what they
-        published on run-wide topics meanwhile; a worker's set-up error is raised here as the error
-        it was (a plugin's names the world file's field)."""
+    def _wait_ready(self, interrupted: Callable[[], bool]) -> tuple[int, list[list], bool, list]:
+        """Every worker's nodes built and matched: how many nodes in all, per worker what they
+        published on run-wide topics meanwhile, whether any may call across places (the ticks then
+        have rounds of calls, hosts/workers/rounds.py) and the calls made meanwhile; a worker's
+        set-up error is raised here as the error it was (a plugin's names the world file's field)."""
         from composed_sim import plugins
         ready: dict[int, int] = {}      # worker → its nodes
         run_wide: dict[int, list] = {}  # worker → what its nodes published before tick 0
+        rounds, calls = False, []
         # At most one worker per core builds its nodes at a time: more would only take turns on
         # the cores and thrash their caches (docs/speed.md, "Set-up").
         cores, sent = usable_cores(), 0
@@ -364,8 +375,9 @@ class WorkerHost(ControllersElsewhere):
                     if kind == "PluginError":
                         raise plugins.PluginError(text, field)
                     raise HostError(text)
-                _, ready[w.index], run_wide[w.index] = message
-        return sum(ready.values()), [run_wide.get(w.index, []) for w in self.workers]
+                _, ready[w.index], run_wide[w.index], calls_leave, made = message
+                rounds, calls = rounds or calls_leave, calls + made
+        return sum(ready.values()), [run_wide.get(w.index, []) for w in self.workers], rounds, calls
 
     def workers_peak_rss_mb(self) -> list[float]:
         """Each worker's peak resident memory, as last reported with its answers."""

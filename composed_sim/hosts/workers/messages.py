@@ -29,6 +29,7 @@ class TickAnswers:
     violations: list = field(default_factory=list)     # new ones since the last tick: (tick, robot, reason)
     tapped: list = field(default_factory=list)         # (topic, type, bytes, stamp ns)
     run_wide: list = field(default_factory=list)       # (topic, type, bytes) for the next tick's batch
+    calls: list = field(default_factory=list)          # calls between places for the next tick (hosting/run_wide/calls.py)
     peak_rss_kb: int = 0                               # the worker's own peak resident memory so far
     another_simulator: Optional[str] = None            # NodesExchange.another_simulator, this tick
     logs: tuple = ()                                   # NodeLogs.drain(): console lines, failures, /rosout

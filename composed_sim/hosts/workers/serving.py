@@ -54,9 +54,10 @@ def serve(fd: int, adopted: Callable[[], None]) -> int:
             logs.flush()
         conn.send(("error", type(e).__name__, str(e), getattr(e, "field", ())))
         return EXIT_SETUP
-    conn.send(("ready", groups.nodes, groups.close_run_wide(0)))
+    run_wide = groups.close_run_wide(0)
+    conn.send(("ready", groups.nodes, run_wide, groups.calls_leave, groups.calls.take_outbox()))
     wait, interrupting_hangs = groups.start_serving()
-    block = Block(setup, groups, logs, wait)
+    block = Block(setup, groups, logs, wait, conn)
     with interrupting_hangs:
         while True:
             try:
@@ -85,9 +86,10 @@ class Block:
     """The worker's robots in their participant group: a tick's sensors read from the shared
     state, published, answered, and the answers sent back, as in the single-process host."""
 
-    def __init__(self, setup, groups: ParticipantGroups, logs: Optional[NodeLogs], wait: Callable[[float], bool]):
+    def __init__(self, setup, groups: ParticipantGroups, logs: Optional[NodeLogs], wait: Callable[[float], bool],
+                 conn: Connection):
         world = setup.world
-        self.groups, self.logs, self.wait = groups, logs, wait
+        self.groups, self.logs, self.wait, self.conn = groups, logs, wait, conn
         (self.node,), self.exchange = groups.simulator_nodes, groups.exchange   # one group, one simulator node
         self.lockstep = world.lockstep
         self.m = setup.stop - setup.start
@@ -99,8 +101,16 @@ class Block:
         self.shared = SharedState(self.senses, world.range_and_bearing.payload_bytes, setup.shared_state)
         self.kept: dict = {}                # the scene, floor and lights as last sent (core/senses.py)
 
-    def tick(self, tick: int, route_messages: bool, changed: dict, batch: list) -> TickAnswers:
+    def round_trip(self, calls: list) -> Optional[list]:
+        """This block is idle: its calls to the main process, which sends back the calls for it, or
+        says the run is quiet (None) (hosts/workers/rounds.py)."""
+        self.conn.send(("idle", calls))
+        reply = self.conn.recv()
+        return reply[1] if reply[0] == "calls" else None
+
+    def tick(self, tick: int, route_messages: bool, changed: dict, batch: list, rounds: bool) -> TickAnswers:
         groups, exchange, node = self.groups, self.exchange, self.node
+        groups.remote = self.round_trip if rounds else None
         if self.first_tick is None:
             self.first_tick = (time.process_time(), groups.node_time.seconds)
         self.kept.update(changed)
@@ -119,6 +129,7 @@ class Block:
         if self.tap is not None:
             answers.tapped = self.tap.drain()
         answers.run_wide = groups.close_run_wide(frame.tick + 1)
+        answers.calls = groups.calls.take_outbox()       # the run-wide nodes' part's calls, for the next tick
         answers.peak_rss_kb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
         answers.another_simulator = exchange.another_simulator()
         if self.logs is not None:
