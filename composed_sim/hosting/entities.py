@@ -84,7 +84,7 @@ class HostedEntities:
         for publisher in new:
             problem = c.publisher_problem(robot, publisher.topic_name, publisher.msg_type, self._robots)
             if problem is not None:
-                self._guard.node_failed(node, ContractViolation(problem))
+                self._failed(node, ContractViolation(problem))
                 return
         answers = [p for p in new if p.topic_name == c.topic_name(robot, c.CMD_VEL)]
         if simulator is None or not answers:
@@ -92,10 +92,16 @@ class HostedEntities:
         try:
             simulator.take_answers_as(robot, c.type_name(answers[0].msg_type))
         except AnswerTypeError as e:
-            self._guard.node_failed(node, ContractViolation(str(e)))
+            self._failed(node, ContractViolation(str(e)))
             return
         nodes = [n for n in self.directory.executor.get_nodes() if self._node_info.get(id(n), (None,))[0] == robot]
         simulator.note_controller(robot, [gid for n in nodes for gid in cmd_vel_gids(n, robot)])
+
+    def _failed(self, node: Node, error: Exception) -> None:
+        """The node's fault: its robot fails (a controller process of its own ends with it)."""
+        if self._guard is None:
+            raise error
+        self._guard.node_failed(node, error)
 
     def parameter_services(self, node: Node) -> HostedParameterServices:
         return self._parameters[id(node)]

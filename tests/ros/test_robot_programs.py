@@ -181,3 +181,27 @@ def test_each_program_runs_in_worker_processes_as_in_one(robot_programs, domain_
     result = in_workers(world, domain_id, workers)
     assert result.violations == reference.violations == []
     np.testing.assert_array_equal(result.trajectories.positions, reference.trajectories.positions)
+
+
+def in_processes(world, domain, executor: str = "lockstep"):
+    from composed_sim.hosts.multiprocess.host import MultiProcessHost
+    with MultiProcessHost(world, domain_id=domain, robots_per_domain=2, executor=executor) as host:
+        return host.run()
+
+
+OWN_PROCESS = {    # a robot's nodes among themselves
+    "blocking call": PROGRAMS["blocking call"],
+    "awaited call": PROGRAMS["awaited call"],
+    "one-tick goals": lambda: world_of("driving:AwaitingMission", "driving:QuickDriver", robots=3, ticks=15),
+    "lifecycle autostart": lambda: lifecycle_world(lifecycle="autostart", robots=3, ticks=15),
+}
+
+
+@pytest.mark.parametrize("program", OWN_PROCESS)
+def test_each_program_runs_in_processes_of_its_own_as_hosted(robot_programs, domain_id, mp_domain, program):
+    world = OWN_PROCESS[program]()
+    world = world.model_copy(update={"robots": [world.robots[0].model_copy(update={"count": 3})]})
+    reference, _ = composed(world, domain_id)
+    result = in_processes(world, mp_domain)
+    assert result.violations == reference.violations == []
+    np.testing.assert_array_equal(result.trajectories.positions, reference.trajectories.positions)

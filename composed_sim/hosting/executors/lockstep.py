@@ -46,6 +46,7 @@ from rclpy.task import Future, Task
 
 from composed_sim.hosting.executors.scheduler import Scheduler
 from composed_sim.hosting.executors.tasks import CallbackWatcher, HostedTask, awaits_future
+from composed_sim.hosting.executors.waiting import wait_for_work
 from composed_sim.ros import contract as c
 from composed_sim.ros.in_process import inbox_of
 
@@ -218,10 +219,17 @@ class LockstepExecutor(SingleThreadedExecutor):
     # --- spinning -------------------------------------------------------------------------------
 
     def spin_once(self, timeout_sec: Optional[float] = None) -> None:
-        if self.dispatch_ready() == 0:
-            # What the walk cannot take, through the wait set: in a walker too, so that a callback
-            # run there may wait.
-            self.scheduler.run(lambda: SingleThreadedExecutor.spin_once(self, timeout_sec) or 0)
+        if self.dispatch_ready() != 0:
+            return
+        if self.walk_covers_all:
+            # Nothing ready: wait until something is (a message from another process, a timer),
+            # then take it in the walk's order.
+            if wait_for_work(self, timeout_sec):
+                self.dispatch_ready()
+            return
+        # What the walk cannot take, through rclpy's wait set: in a walker too, so that a callback
+        # run there may wait.
+        self.scheduler.run(lambda: SingleThreadedExecutor.spin_once(self, timeout_sec) or 0)
 
     @property
     def walk_covers_all(self) -> bool:

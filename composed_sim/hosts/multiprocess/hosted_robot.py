@@ -20,8 +20,11 @@ from composed_sim.hosting.executors.running import (Spinning, driven_by_caller, 
 from composed_sim.hosting.matching import contract_endpoints, matched, poll_until
 from composed_sim.hosting.node_logs import FAILURE_MARK, Console, NodeLogs, node_label, raising_node
 from composed_sim.hosting.options import ProcessHosting
+from composed_sim.hosting.entities import HostedEntities
+from composed_sim.hosting.run_wide.calls import CallRelay
 from composed_sim.hosting.run_wide.link import RunWideLink
 from composed_sim.hosting.run_wide.relay import RunWideRelay
+from composed_sim.hosting.services import ServiceDirectory
 from composed_sim.hosting.sim_timers import before_each_tick
 from composed_sim.ros import contract as c
 from composed_sim.ros.answer_subscription import cmd_vel_gids
@@ -93,6 +96,14 @@ class HostedRobot:
         self.spinning = Spinning(make_executor(self.hosting.executor, self.context))
         for node in self.nodes:
             self.spinning.executor.add_node(node)
+        # Its services, clients and actions served as in the composed host (hosting/entities.py).
+        place = names.index(robot)
+        self.calls = CallRelay(names)
+        directory = ServiceDirectory(self.spinning.executor, relay=self.calls)
+        self.calls.serve([place], directory)
+        entities = HostedEntities(directory, relay, None, names)
+        for node in self.nodes:
+            entities.adopt(node, robot, place)
         return True
 
     def _starting_tick(self, stamp: int, tick_timers) -> None:
