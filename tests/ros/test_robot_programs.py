@@ -205,3 +205,27 @@ def test_each_program_runs_in_processes_of_its_own_as_hosted(robot_programs, dom
     result = in_processes(world, mp_domain)
     assert result.violations == reference.violations == []
     np.testing.assert_array_equal(result.trajectories.positions, reference.trajectories.positions)
+
+
+BETWEEN_PLACES = {
+    "run-wide planner": lambda: world_of("fleet:AsksTheFleet", robots=3, ticks=15,
+                                         run_wide=[("fleet:FleetPlanner", {})]),
+    "run-wide parameters": lambda: world_of("fleet:SpeedFollower", robots=3, ticks=25, run_wide=[
+        ("fleet:SpeedSetter", {"robots": [f"bot{i}" for i in range(3)], "speeds": [0.06, -1.0, 0.03]})]),
+}
+
+
+@pytest.mark.parametrize("program", BETWEEN_PLACES)
+def test_calls_between_robots_and_run_wide_nodes_in_processes_of_their_own(robot_programs, domain_id, mp_domain,
+                                                                          program):
+    world = BETWEEN_PLACES[program]()
+    reference, _ = composed(world, domain_id)
+    result = in_processes(world, mp_domain)
+    assert result.violations == reference.violations == []
+    np.testing.assert_array_equal(result.trajectories.positions, reference.trajectories.positions)
+
+
+def test_in_processes_of_their_own_a_lifecycle_node_left_inactive_is_named_at_start_up(robot_programs, mp_domain):
+    from composed_sim.hosting import HostError
+    with pytest.raises(HostError, match=r"bot0: in multi-process mode .*/bot0/behaviour \(unconfigured\)"):
+        in_processes(lifecycle_world(manager=True, robots=2, ticks=5), mp_domain)

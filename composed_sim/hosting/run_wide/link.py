@@ -7,13 +7,19 @@ tick's sensors, and a controller process delivers it before the first sensor cal
 runs. Both carry (stamp ns, messages, …), pickled, in a std_msgs/UInt8MultiArray. The robot's part
 also says whether its nodes answered the tick (for a robot that answers when published) and
 carries its log lines' part for the simulator's console and /rosout.
+
+They carry the calls between places too (hosting/run_wide/calls.py): a batch or a round message
+of the simulator has the calls for each robot of its domain; the controller process hands its
+robot's over as soon as they arrive, runs its nodes until idle and replies with a part that is not
+the tick's last (``final``), with the calls they made. The simulator leads the rounds as the
+worker host's main process does (hosts/multiprocess/exchange.py).
 """
 from __future__ import annotations
 
 import pickle
 import time
 from array import array
-from typing import Collection
+from typing import Collection, Optional
 
 from rclpy.duration import Duration
 from rclpy.node import Node
@@ -32,14 +38,17 @@ def outbox_topic(robot: str) -> str:
     return f"/{robot}/_composed_sim/run_wide"
 
 
-def pack(stamp_ns: int, messages: list[Message], answered: bool = False, logs: tuple = ()) -> UInt8MultiArray:
+def pack(stamp_ns: int, messages: list[Message], answered: bool = False, logs: tuple = (), calls=(),
+         final: bool = True) -> UInt8MultiArray:
     """``answered``: a robot's part says whether its nodes published cmd_vel in the tick; ``logs``:
-    what its log lines give the simulator's console and /rosout (``NodeLogs.drain``)."""
-    return UInt8MultiArray(data=array("B", pickle.dumps((stamp_ns, messages, answered, logs),
+    what its log lines give the simulator's console and /rosout (``NodeLogs.drain``); ``calls``: a
+    robot's calls, or the simulator's for each robot ({index: calls}); ``final``: the robot's last
+    part of the tick (else its reply to calls)."""
+    return UInt8MultiArray(data=array("B", pickle.dumps((stamp_ns, messages, answered, logs, calls, final),
                                                         protocol=pickle.HIGHEST_PROTOCOL)))
 
 
-def unpack(msg: UInt8MultiArray) -> tuple[int, list[Message], bool, tuple]:
+def unpack(msg: UInt8MultiArray) -> tuple[int, list[Message], bool, tuple, object, bool]:
     return pickle.loads(bytes(msg.data))
 
 
@@ -51,12 +60,17 @@ class RunWideLink:
     /rosout goes along."""
 
     def __init__(self, context, robot: str, relay: RunWideRelay, *, receives: bool, sends: bool,
-                 timeout_s: float, logs=None):
+                 timeout_s: float, logs=None, calls=None, index: int = 0):
+        """``calls``: the process's call relay (hosting/run_wide/calls.py), ``index``: its robot's."""
         self._relay, self._timeout_s, self._logs = relay, timeout_s, logs
+        self._calls, self._index = calls, index
         self.sends = sends
         self.node = Node("run_wide_link", namespace=f"/{robot}", context=context, **quiet_node_options())
-        self._batches = self.node.create_subscription(UInt8MultiArray, BATCH_TOPIC, lambda msg: None, LINK_QOS) \
+        # Taken by the robot's executor as they come (the link's node is its first), or by
+        # ``before_tick`` when a tick's sensors come first.
+        self._batches = self.node.create_subscription(UInt8MultiArray, BATCH_TOPIC, self._on_batch, LINK_QOS) \
             if receives else None
+        self.reply_due = False       # calls were delivered: reply once the nodes are idle
         self._outbox = self.node.create_publisher(UInt8MultiArray, outbox_topic(robot), LINK_QOS) if sends else None
         self.delivered = -1         # stamp of the last batch delivered
         self.tick = -1              # stamp of the last tick whose sensors arrived
@@ -95,14 +109,36 @@ class RunWideLink:
                     return          # the simulator is gone or stopped: the tick goes on without
                 time.sleep(0.0002)
                 continue
-            batch_stamp, batch, _, _ = unpack(taken[0])
+            self._on_batch(taken[0])
+
+    def _handle(self, msg) -> bool:
+        """A batch or a round message of the simulator: its run-wide messages (a batch's) and the
+        calls for this robot delivered; True if it brought calls (to be replied to)."""
+        stamp, batch, _, _, calls, final = unpack(msg)
+        if final:                    # a tick's batch (a round message carries calls only)
             self._relay.deliver(batch)
-            self.delivered = batch_stamp
+            self.delivered = max(self.delivered, stamp)
+        mine = calls.get(self._index, []) if calls else []
+        if mine and self._calls is not None:
+            self._calls.deliver(mine)
+        return bool(mine)
+
+    def _on_batch(self, msg) -> None:
+        if self._handle(msg):
+            self.reply_due = True
+
+    def reply(self) -> None:
+        """This robot's reply to the calls of a round: the calls its nodes made since."""
+        self.reply_due = False
+        calls = self._calls.take_outbox() if self._calls is not None else []
+        self._outbox.publish(pack(max(self.tick, self.delivered), [], self.answered == self.tick, (), calls,
+                                  final=False))
 
     def send(self) -> None:
         """What the robot's nodes published in the tick of the last sensors, to the simulator."""
         logs = self._logs.drain() if self._logs is not None else ()
-        self._outbox.publish(pack(self.tick, self._relay.take_outbox(), self.answered == self.tick, logs))
+        calls = self._calls.take_outbox() if self._calls is not None else []
+        self._outbox.publish(pack(self.tick, self._relay.take_outbox(), self.answered == self.tick, logs, calls))
         self.sent = self.tick
 
     def send_logs(self) -> None:
@@ -132,6 +168,8 @@ class SimulatorLink:
         self._pending: dict[int, list[Message]] = {}  # what a robot sent for the open tick so far
         self._done: set[int] = set()                  # robots whose messages of the open tick are in
         self.answered: set[int] = set()               # … of which those that published cmd_vel in it
+        self.calls: list = []                         # the calls the robots made (in parts and replies)
+        self.replied: set[int] = set()                # robots that replied to the calls they were sent
 
     def add_robot(self, index: int, robot: str, topics: Collection[str]) -> dict[str, object]:
         """A controller process reported its link's topics: its endpoints on this side, by topic
@@ -150,21 +188,34 @@ class SimulatorLink:
     def senders(self) -> list[int]:
         return list(self._outboxes)
 
-    def publish(self, stamp_ns: int, batch: list[Message]) -> None:
+    def publish(self, stamp_ns: int, batch: list[Message], calls: Optional[dict] = None) -> None:
+        """A tick's batch, with the calls for each robot of the domain ({index: calls})."""
         if self._receivers:
-            self._batches.publish(pack(stamp_ns, batch))
+            self._batches.publish(pack(stamp_ns, batch, calls=calls or {}))
 
-    def take(self, stamp_ns: int, waiting: Collection[int]) -> None:
-        """Take what arrived from the robots ``waiting`` (indices) for ticks up to ``stamp_ns``."""
+    def publish_calls(self, stamp_ns: int, calls: dict) -> None:
+        """A round's calls for robots of the domain ({index: calls}); each replies once idle."""
+        self.replied -= set(calls)
+        self._batches.publish(pack(stamp_ns, [], calls=calls, final=False))
+
+    def take(self, stamp_ns: int, waiting: Collection[int], replies: bool = False) -> None:
+        """Take what arrived from the robots ``waiting`` (indices) for ticks up to ``stamp_ns``
+        (``replies``: their replies to a round's calls, before or after their last part)."""
         for index in waiting:
             sub = self._outboxes[index]
-            while index not in self._done:
+            while index not in (self.replied if replies else self._done):
                 with sub.handle:
                     taken = sub.handle.take_message(UInt8MultiArray, False)
                 if taken is None:
                     break
-                stamp, messages, answered, logs = unpack(taken[0])
+                stamp, messages, answered, logs, calls, final = unpack(taken[0])
                 self._merge_logs(logs)
+                self.calls += calls
+                if not final:                       # a reply to calls
+                    self.replied.add(index)
+                    if answered:
+                        self.answered.add(index)
+                    continue
                 self._pending.setdefault(index, []).extend(messages)
                 if stamp >= stamp_ns:
                     self._done.add(index)

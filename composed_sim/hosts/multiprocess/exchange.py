@@ -6,6 +6,7 @@ import time
 from typing import Callable, Optional
 
 from composed_sim.hosting.nodes_exchange import NodesExchange
+from composed_sim.hosting.run_wide.calls import CallRelay, Request, handover_order
 from composed_sim.hosting.run_wide.link import SimulatorLink
 from composed_sim.hosting.run_wide.nodes import RunWideNodes
 from composed_sim.hosting.run_wide.relay import RunWideRelay
@@ -19,6 +20,7 @@ class RunWideLinks:
 
     def __init__(self, world: World, logs=None):
         self.relay = RunWideRelay(world.robot_names())
+        self.calls = CallRelay(world.robot_names())     # the run-wide nodes' calls with the robots
         self.nodes: Optional[RunWideNodes] = None
         self.links: dict[int, SimulatorLink] = {}      # per domain, once a robot there uses run-wide topics
         self._logs = logs
@@ -53,11 +55,12 @@ class LinkedExchange(NodesExchange):
     robot that publishes run-wide messages has sent its part."""
 
     def __init__(self, nodes: dict[int, SimulatorNode], domains: dict[str, int], names: list[str], tick_ns: int,
-                 run_wide: RunWideLinks, check: Callable[[], None]):
+                 run_wide: RunWideLinks, check: Callable[[], None], round_timeout_s: float = 1.0):
         """``nodes``: the simulator's node in each domain; ``domains``: each robot's."""
         super().__init__(list(nodes.values()), check)
         self._by_domain, self._domains, self._names, self._tick_ns = nodes, domains, names, tick_ns
         self._run_wide = run_wide
+        self._round_timeout_s = round_timeout_s     # how long robots sent calls have to reply
         self._batch: Optional[list] = None
         self._tick = 0
         self._stamp = 0
@@ -70,14 +73,65 @@ class LinkedExchange(NodesExchange):
         run_wide.relay.deliver(self._batch)       # the run-wide nodes' subscriptions
         if self._batch:
             self.nodes[0].mirror_run_wide(self._batch, self._stamp)
-        for link in run_wide.links.values():
-            link.publish(self._stamp, self._batch)
+        # With the batch, the run-wide nodes' calls of their part of the tick; what the robots
+        # reply (and what that leads to) is handed over in rounds before the sensors.
+        calls = self._route(run_wide.calls.take_outbox())
+        for domain, link in run_wide.links.items():
+            link.publish(self._stamp, self._batch, calls.get(domain))
+        self._rounds(calls)
         super().publish_tick(frame)
+
+    def _route(self, items: list) -> dict[int, dict[int, list]]:
+        """Calls for robots, by domain and robot index; the run-wide nodes' own delivered here."""
+        routed: dict[int, dict[int, list]] = {}
+        for item in handover_order(items):
+            place = item.place if isinstance(item, Request) else item.call[0]
+            if place < 0:
+                self._run_wide.calls.deliver([item])
+            else:
+                routed.setdefault(self._domains[self._names[place]], {}).setdefault(place, []).append(item)
+        return routed
+
+    def _rounds(self, sent: dict[int, dict[int, list]]) -> None:
+        """Rounds of calls between the robots and the run-wide nodes (hosting/run_wide/calls.py):
+        the robots ``sent`` calls reply once idle with the calls they made; those go to their
+        places (the run-wide nodes run until idle here), until no call is in flight."""
+        links = self._run_wide.links
+        while True:
+            deadline = time.monotonic() + self._round_timeout_s
+            for domain, calls in sent.items():
+                waiting = [i for i in calls if not self._failed(i)]
+                while waiting and time.monotonic() < deadline:
+                    links[domain].take(self._stamp, waiting, replies=True)
+                    waiting = [i for i in waiting if i not in links[domain].replied]
+                    if waiting:
+                        time.sleep(0.0002)
+            made = [item for link in links.values() for item in link.calls]
+            for link in links.values():
+                link.calls = []
+            self._route_run_wide(made)
+            sent = self._route(self._run_wide.calls.take_outbox() + [i for i in made if not self._run_wide_bound(i)])
+            if not sent:
+                return
+            for domain, calls in sent.items():
+                links[domain].publish_calls(self._stamp, calls)
+
+    def _run_wide_bound(self, item) -> bool:
+        return (item.place if isinstance(item, Request) else item.call[0]) < 0
+
+    def _route_run_wide(self, made: list) -> None:
+        """The calls for the run-wide nodes, handed to them; they run until idle."""
+        bound = [item for item in handover_order(made) if self._run_wide_bound(item)]
+        if bound:
+            self._run_wide.calls.deliver(bound)
+        if self._run_wide.nodes is not None:
+            self._run_wide.nodes.run_until_idle()
 
     def wait_for_answers(self, timeout_s: float) -> bool:
         """Every robot's answer, and the part of the tick that each robot using the link sent once
         its nodes were idle (its run-wide messages; for a robot that answers when published, the
-        sign that its nodes are done with the tick: it keeps its last command)."""
+        sign that its nodes are done with the tick: it keeps its last command); then the rounds
+        of the calls those parts carried."""
         deadline = time.monotonic() + timeout_s
         while True:
             waiting = False
@@ -90,6 +144,9 @@ class LinkedExchange(NodesExchange):
                     elif i not in link.answered:      # idle without an answer: keeps its command
                         name = self._names[i]
                         self._by_domain[self._domains[name]].settle_idle([name])
+            if not waiting and any(link.calls for link in self._run_wide.links.values()):
+                self._rounds({})             # every part is in: the calls they carried, in rounds
+                continue
             if (self.all_answered and not waiting) or time.monotonic() > deadline:
                 return self.all_answered
             # The domains' nodes take their answers in threads of their own: the last one may come

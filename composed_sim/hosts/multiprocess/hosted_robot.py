@@ -74,18 +74,33 @@ class HostedRobot:
             print(e, file=sys.stderr)
             return False
         self.nodes = built.nodes
+        if built.inactive:
+            # Its process reports its endpoints to the simulator before tick 0: a lifecycle node
+            # that another node would activate at tick 0 has none yet.
+            states = ", ".join(f"{node.get_fully_qualified_name()} ({state})" for node, state in built.inactive)
+            print(f"{robot}: in multi-process mode a robot's lifecycle nodes must be active when its process "
+                  f"starts, and {states} {'is' if len(built.inactive) == 1 else 'are'} not: give "
+                  f"{'it' if len(built.inactive) == 1 else 'them'} lifecycle: autostart in the world file "
+                  f"(or run the composed host)", file=sys.stderr)
+            return False
         if self.logs is not None:
             clock = self.nodes[0].get_clock()
             self.logs.clock = lambda: clock.now().nanoseconds
-        # The link also tells the simulator when a robot that answers when published is idle.
+        # The link also tells the simulator when a robot that answers when published is idle, and
+        # carries the calls between the robot and the run-wide nodes (hosting/run_wide/calls.py).
+        place = names.index(robot)
+        self.calls = CallRelay(names)
         quiet = world.robots[group_index].answers == "when_published"
-        if relay.in_use or quiet or self.logs is not None:
+        calls_between = bool(world.nodes) or any(self.calls.leaves(place, client.service_name)
+                                                 for n in self.nodes for client in n.clients)
+        if relay.in_use or quiet or self.logs is not None or calls_between:
             self.link = RunWideLink(self.context, robot, relay,
-                                    receives=any(relay.subscriptions_of(n) for n in self.nodes),
+                                    receives=calls_between or any(relay.subscriptions_of(n) for n in self.nodes),
                                     # the log lines' part too: each tick's lines reach the console and the bag
-                                    sends=quiet or self.logs is not None
+                                    sends=quiet or self.logs is not None or calls_between
                                     or any(relay.topics_published_by(n) for n in self.nodes),
-                                    timeout_s=world.lockstep.watchdog_s, logs=self.logs)
+                                    timeout_s=world.lockstep.watchdog_s, logs=self.logs,
+                                    calls=self.calls, index=place)
             self.link.watch_answers([p for n in self.nodes for p in n.publishers
                                      if p.topic_name == c.topic_name(robot, c.CMD_VEL)])
         # Before the robot's first sensor callback of each tick: the tick's run-wide batch, and the
@@ -94,11 +109,9 @@ class HostedRobot:
         before_each_tick([s for n in self.nodes for s in n.subscriptions if s.topic_name in sensors],
                          lambda stamp: self._starting_tick(stamp, built.tick_timers))
         self.spinning = Spinning(make_executor(self.hosting.executor, self.context))
-        for node in self.nodes:
+        for node in ([self.link.node] if self.link is not None else []) + self.nodes:
             self.spinning.executor.add_node(node)
         # Its services, clients and actions served as in the composed host (hosting/entities.py).
-        place = names.index(robot)
-        self.calls = CallRelay(names)
         directory = ServiceDirectory(self.spinning.executor, relay=self.calls)
         self.calls.serve([place], directory)
         entities = HostedEntities(directory, relay, None, names)
@@ -144,6 +157,9 @@ class HostedRobot:
         if driven_by_caller(self.hosting.executor, guarded=False):
             while not stopped():
                 spinning.executor.spin_once(timeout_sec=IDLE_WAKE_S)
+                if link is not None and link.reply_due:     # calls from the simulator: handled, answered
+                    run_until_idle(spinning.executor)
+                    link.reply()
                 if sends and link.tick > link.sent:
                     run_until_idle(spinning.executor)
                     link.send()
@@ -155,6 +171,8 @@ class HostedRobot:
             # go out once the robot's nodes are past the tick's sensors for one look (a threaded
             # executor tells no one when it is idle).
             time.sleep(0.002 if sends else 0.1)
+            if link is not None and link.reply_due:
+                link.reply()
             if sends and link.tick > link.sent:
                 if ticks_seen == link.tick:
                     link.send()
