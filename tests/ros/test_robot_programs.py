@@ -227,5 +227,5 @@ def test_calls_between_robots_and_run_wide_nodes_in_processes_of_their_own(robot
 
 def test_in_processes_of_their_own_a_lifecycle_node_left_inactive_is_named_at_start_up(robot_programs, mp_domain):
     from composed_sim.hosting import HostError
-    with pytest.raises(HostError, match=r"bot0: in multi-process mode .*/bot0/behaviour \(unconfigured\)"):
+    with pytest.raises(HostError, match=r"(bot\d): in multi-process mode .*/\1/behaviour \(unconfigured\)"):
         in_processes(lifecycle_world(manager=True, robots=2, ticks=5), mp_domain)
