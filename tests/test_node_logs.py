@@ -165,3 +165,20 @@ def test_the_logger_keeps_rclpy_semantics_levels_children_and_filters(tmp_path, 
     err = capsys.readouterr().err      # the console: each call site once
     assert err.count("] [bot0.node] (test_node_logs:Node, sim 0.700 s, tick 7): once") == 1
     assert err.count("skipped first") == 1
+
+
+def test_chatty_nodes_on_the_multi_threaded_executors_threads_keep_every_line(tmp_path):
+    """rclpy's MultiThreadedExecutor runs the robots' callbacks on several threads at once, each
+    logging through its child loggers: the host's logs take every line, from every thread."""
+    out = tmp_path / "out"
+    world = chat_world(tmp_path, robots=12, ticks=15, child=True)
+    run = cli("run", world, "--out", out, "--no-progress", "--no-picture", "--executor", "multi-threaded",
+              "--log-level", "info")
+    assert run.returncode == 0, run.stderr
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["failed_robots"] == [] and summary["violations"] == 0, summary
+    for robot in range(12):
+        text = (out / "logs" / f"bot{robot}.log").read_text()
+        # each tick: its scan line and its planner child's line, 15 ticks, none lost or torn
+        assert [len(re.findall(rf"scan {k} of bot{robot}$", text, re.M)) for k in range(15)] == [1] * 15
+        assert [len(re.findall(rf"planned {k}$", text, re.M)) for k in range(15)] == [1] * 15

@@ -215,6 +215,16 @@ def _construct(cls: type[Node], spec: NodeSpec, field: tuple, owner: str, option
     except Exception as e:
         raise plugins.PluginError(f"{_describe(field, spec)} failed to construct for {owner}: "
                                   f"{type(e).__name__}: {e}", field) from e
+    if node.executor is not None:
+        # Its constructor gave it an executor of its own (spun in a thread, say): hosted, the host
+        # spins it, and adding it to the host's executor would take it from that one, which would
+        # silently spin nothing.
+        kind = type(node.executor).__name__
+        node.destroy_node()
+        raise plugins.PluginError(f"{_describe(field, spec)} for {owner}: its constructor adds it to an executor of "
+                                  f"its own ({kind}): a hosted node is spun by the host's executor, which gives it "
+                                  f"the callback groups, services and actions of its own process; leave spinning "
+                                  f"to the code that starts it (its main())", field)
     unknown = [k for k in spec.parameters if not node.has_parameter(k)]
     if unknown:
         plumbing = ("use_sim_time", PARAM_ROBOT_MODEL, PARAM_RUN_SEED, PARAM_SENSOR_TOPICS,

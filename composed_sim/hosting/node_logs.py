@@ -27,7 +27,9 @@ No rclpy here: the worker host's main process merges without it.
 """
 from __future__ import annotations
 
+import functools
 import sys
+import threading
 import traceback
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -114,6 +116,15 @@ class Console:
         return {f"{k[2]} in {k[1]}": len(s.robots) for k, s in self._seen.items() if k[0] == "failure"}
 
 
+def _locked(method):
+    """One thread at a time: the nodes log from the multi-threaded executor's threads too."""
+    @functools.wraps(method)
+    def locked(self, *args, **kwargs):
+        with self._lock:
+            return method(self, *args, **kwargs)
+    return locked
+
+
 class NodeLogs:
     """One process's hosted-node logs (see the module's docstring). ``forward``: a worker's,
     whose console lines go to the main process with ``drain`` instead of printing."""
@@ -130,6 +141,7 @@ class NodeLogs:
         self.console = console if console is not None else Console(logs_hint=str(self._dir or "logs"))
         self._forward = forward
         self._buffers: dict[str, list[str]] = {}
+        self._lock = threading.RLock()
         self._pending = 0
         self.lines = 0                              # log lines written (all levels)
         self.rosout: list[tuple] = []               # (stamp ns, level, logger name, text, file, function, line)
@@ -151,6 +163,7 @@ class NodeLogs:
             return ns // self.tick_ns, ns
         return self.tick, max(self.tick, 0) * self.tick_ns
 
+    @_locked
     def emit(self, owner: str, label: str, name: str, level: int, message: str, site: Optional[tuple]) -> None:
         tick, ns = self.now()
         stamp = f"sim {ns / 1e9:.3f} s, tick {tick}" if tick >= 0 else "set-up"
@@ -167,6 +180,7 @@ class NodeLogs:
         if level >= ERROR:
             self.flush()
 
+    @_locked
     def exception(self, owner: str, cls: type, name: str, error: BaseException, skip: str = "") -> None:
         """A callback's exception, which fails robot ``owner``: the traceback (frames of files
         whose path ends with ``skip`` left out: the host's wrapper) to its log and the console."""
@@ -180,6 +194,7 @@ class NodeLogs:
         if self.settings.rosout:
             self.rosout.append((ns, ERROR, name, text.rstrip(), "", "", 0))
 
+    @_locked
     def failure(self, owner: str, label: str, kind: str, tick: int, text: str) -> None:
         """A robot failed by ``kind`` (an exception type) raised in a node of class ``label``."""
         where = f"{self.console.logs_hint}/{owner}.log"
@@ -205,12 +220,14 @@ class NodeLogs:
         """Has a forwarding process anything for the main process (``drain``)?"""
         return bool(self._first or self._repeats or self.rosout)
 
+    @_locked
     def drain(self) -> tuple:
         """A worker's part for the main process since the last drain: (first lines, repeats, rosout)."""
         out = (self._first, [(k, n, owners) for k, (n, owners) in self._repeats.items()], self.rosout)
         self._first, self._repeats, self.rosout = [], {}, []
         return out
 
+    @_locked
     def merge(self, drained: tuple) -> None:
         """The main process: a worker's ``drain``."""
         first, repeats, rosout = drained
@@ -234,11 +251,13 @@ class NodeLogs:
         if self._pending >= FLUSH_BYTES:
             self.flush()
 
+    @_locked
     def write(self, owner: str, text: str) -> None:
         """Text for ``owner``'s log as it is (a controller process's traceback, read by the host)."""
         self._append(owner, text if text.endswith("\n") else text + "\n")
         self.flush()
 
+    @_locked
     def flush(self) -> None:
         """Append what is pending to the files (opened and closed each time: thousands of robots
         would exceed the open-file limit). No fsync: a crash of the machine may lose the tail."""

@@ -229,3 +229,24 @@ def test_in_processes_of_their_own_a_lifecycle_node_left_inactive_is_named_at_st
     from composed_sim.hosting import HostError
     with pytest.raises(HostError, match=r"(bot\d): in multi-process mode .*/\1/behaviour \(unconfigured\)"):
         in_processes(lifecycle_world(manager=True, robots=2, ticks=5), mp_domain)
+
+
+def test_a_node_that_spins_an_executor_of_its_own_is_named_before_tick_0(robot_programs, domain_id):
+    from composed_sim.plugins import PluginError
+    with pytest.raises(PluginError, match=r"robots\[0\]\.nodes\[0\]: node 'robot_programs\.planning:SpinsItself' for "
+                                          r"bot0: its constructor adds it to an executor of its own "
+                                          r"\(MultiThreadedExecutor\)"):
+        composed(world_of("planning:SpinsItself", "planning:Planner", robots=2, ticks=3), domain_id)
+
+
+def test_a_blocking_call_in_the_group_that_takes_its_response_fails_only_its_robot(robot_programs, domain_id):
+    world = world_of("planning:SameGroupBehaviour", "planning:Planner", robots=2, ticks=5)
+    base = world.robots[0].model_copy(update={"count": 2})
+    others = world.robots[0].model_copy(update={"count": 2, "nodes": [NodeSpec(node="robot_programs.planning:FutureBehaviour"),
+                                                                      NodeSpec(node="robot_programs.planning:Planner")]})
+    result, _ = composed(world.model_copy(update={"robots": [base, others]}), domain_id)
+    failed = {v.robot: v.reason for v in result.violations if "failed" in v.reason}
+    assert set(failed) == {"bot0", "bot1"}                   # bot2 and bot3 (other nodes) drive on
+    assert ("/bot0/behaviour waits for /bot0/plan (Client.call) in a callback of the mutually exclusive callback "
+            "group that must also take its response: it would wait forever") in failed["bot0"]
+    assert (moved(result)[2:] > 0.005).all()

@@ -88,3 +88,18 @@ class SameGroupBehaviour(_Behaviour):
     def on_scan(self, scan):
         plan = self.client.call(self.request(scan))
         self.cmd.publish(twist(plan.linear, plan.angular))
+
+
+class SpinsItself(_Behaviour):
+    """Spins itself in a thread of its own, as a node written to run alone sometimes does."""
+
+    def __init__(self):
+        import threading
+        from rclpy.executors import MultiThreadedExecutor
+        super().__init__("behaviour")
+        self.own_executor = MultiThreadedExecutor(context=self.context)
+        self.own_executor.add_node(self)
+        threading.Thread(target=self.own_executor.spin, daemon=True).start()
+
+    def on_scan(self, scan):
+        self.client.call_async(self.request(scan))
