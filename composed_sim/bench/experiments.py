@@ -23,6 +23,10 @@ EXPERIMENTS = {e.name: e for e in (
                "bearing, the paper's second experiment", ("synchronization.csv", "synchronization_mt.csv")),
     Experiment("plain-nodes", "plain_nodes.yaml", "TurtleBot 3s running an ordinary rclpy node (message "
                "objects, Twist, a 10 Hz timer) that avoids obstacles and one another"),
+    Experiment("planner-service", "planner_service.yaml", "foot-bots whose behaviour node calls its planner "
+               "node's service on every scan and waits for the answer (Client.call in a reentrant group)"),
+    Experiment("planner-inline", "planner_inline.yaml", "the planner-service robots' decision made in one node, "
+               "with no call: what the call costs is the difference"),
 )}
 DEFAULT_EXPERIMENT = "flocking"
 
