@@ -77,6 +77,7 @@ class CallbackGuard(CallbackWatcher):
         self._unresponsive_s = unresponsive_s
         self._running: Optional[str] = None            # robot whose callback runs in the main thread
         self._started = 0.0
+        self._cpu_started = 0.0                        # … and its thread's CPU clock then
         self._main = threading.main_thread()
         self._workers: dict[str, int] = {}             # robot → worker thread running its callback
         self._workers_lock = threading.Lock()
@@ -146,7 +147,10 @@ class CallbackGuard(CallbackWatcher):
                     self.running += 1
                     calls_of[robot] = calls_of.get(robot, 0) + 1
                 self._depth.inside = True
-            cpu = time.thread_time() if own_time else 0.0
+            if in_main:
+                self._cpu_started = time.thread_time() if own_time else 0.0
+            else:
+                cpu = time.thread_time() if own_time else 0.0
             try:
                 try:
                     result = callback(*args)
@@ -174,7 +178,8 @@ class CallbackGuard(CallbackWatcher):
             # the wait: ``take_back`` moved its start on.
             took = monotonic() - (self._started if in_main else started)
             if own_time:
-                node_time.add(time.thread_time() - cpu)
+                # (in the main thread ``take_back`` moved its start on past a wait, as ``_started``)
+                node_time.add(time.thread_time() - (self._cpu_started if in_main else cpu))
             # Worker threads (multi-threaded executor) meet the tick's wall-clock deadline instead.
             if in_main and took > self._watchdog_s:
                 sim_node.reject_answer(robot, f"late: a callback took {took:.2f} s, more than "
@@ -259,13 +264,16 @@ class CallbackGuard(CallbackWatcher):
         return True
 
     def set_aside(self) -> object:
-        state = (self._running, self._started, time.monotonic())
+        state = (self._running, self._started, self._cpu_started, time.monotonic(), time.thread_time())
         self._running = None
         return state
 
     def take_back(self, state: object) -> None:
-        running, started, set_aside_at = state
+        """The callback's wall and CPU clocks move on by the time it was set aside: neither its
+        lateness nor its node's own time counts what ran meanwhile."""
+        running, started, cpu_started, set_aside_at, cpu_at = state
         self._running, self._started = running, started + (time.monotonic() - set_aside_at)
+        self._cpu_started = cpu_started + (time.thread_time() - cpu_at)
 
     def in_callback(self) -> bool:
         """Is this thread running a guarded callback now?"""

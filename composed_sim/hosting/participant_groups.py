@@ -107,6 +107,7 @@ class ParticipantGroups:
         self.exchange: Optional[NodesExchange] = None
         self.links: list[Link] = []                         # in-process paths (ros/in_process.py)
         self._graph_watches: list[GraphWatch] = []          # per group: when to ask for matched counts
+        self._outside_watches: list = []                    # per group: has its graph changed since?
         self.graph_changes: Optional[GraphChanges] = None   # what tells them the graph changed
         self.executor: Optional[Executor] = None
         self.spinning: Optional[Spinning] = None
@@ -243,6 +244,8 @@ class ParticipantGroups:
         self.graph_changes = GraphChanges(self.simulator_nodes)
         self._graph_watches = [GraphWatch(self.graph_changes.poll(k), links, inboxes)
                                for k, (links, inboxes) in enumerate(watched)]
+        # The services' clients in other processes, looked for again when a graph changed.
+        self._outside_watches = [self.graph_changes.poll(k) for k in range(len(self.simulator_nodes))]
         self.executor.wake()     # its walk picks the inboxes up
 
     # --- run-wide topics, at the tick's edges (hosting/run_wide/relay.py) --------------------------------
@@ -267,6 +270,8 @@ class ParticipantGroups:
                 self.simulator_nodes[0].mirror_run_wide(batch, now_ns)
         # What reached the robots at the tick's start is handled before its sensors: the run-wide
         # messages, the calls of the run-wide nodes' part of the tick, requests from other processes.
+        if self._outside_watches and any([changed() for changed in self._outside_watches]):
+            self.entities.directory.find_outside_clients()
         self.entities.directory.take_outside_requests()
         self._rounds_over = False
         for _ in range(SETTLE_ROUNDS):      # rounds: a manager's configure, then activate, say

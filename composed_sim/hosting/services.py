@@ -32,17 +32,27 @@ from rclpy.node import Node
 from rclpy.service import Service
 from rclpy.task import Future
 
-from composed_sim.ros.message_copy import copy_message
+from composed_sim.ros.message_copy import copy_message, new_message
 
 
 class CallFuture(Future):
     """A call's future; awaiting it tells the lockstep executor what to wait for (rclpy's says
-    nothing)."""
+    nothing), and a callback blocked on it is woken directly (``waiters``), not by a done callback."""
+
+    def __init__(self, *, executor=None):
+        super().__init__(executor=executor)
+        self.waiters: list = []
 
     def __await__(self):
         while self._pending():
             yield self
         return self.result()
+
+    def _schedule_or_invoke_done_callbacks(self):
+        super()._schedule_or_invoke_done_callbacks()
+        waiters, self.waiters = self.waiters, []
+        for wake in waiters:
+            wake()
 
 
 class HostedCallError(RuntimeError):
@@ -116,7 +126,7 @@ class ServiceEntry:
         """The lockstep walk: run the callback on the oldest request."""
         request, reply = self.queue.popleft()
         executor.running_group = self.group
-        response = self.callback(request, self.srv_type.Response())
+        response = self.callback(request, new_message(self.srv_type.Response))
         if response.__class__ is CoroutineType:
             task = executor.start_coroutine(response, self.group, self.node)
             task.add_done_callback(lambda done: done.exception() is None and self._respond(executor, reply, done.result()))
@@ -124,7 +134,7 @@ class ServiceEntry:
             self._respond(executor, reply, response)
 
     async def _serve_as_task(self, request, reply: Callable) -> None:
-        response = await await_or_execute(self.callback, request, self.srv_type.Response())
+        response = await await_or_execute(self.callback, request, new_message(self.srv_type.Response))
         self._respond(self.node.executor, reply, response)
 
     def _respond(self, executor, reply: Callable, response) -> None:
@@ -152,6 +162,8 @@ class ServiceDirectory:
         self._of_node: dict[Node, NodeServices] = {}
         self._served: set[int] = set()            # ids of the rclpy Services served here
         self._clients: set[int] = set()           # ids of the clients hosted here
+        self._client_names: dict[str, int] = {}   # how many of them call each service name
+        self._outside: Optional[set[int]] = None  # ids of the entries another process may call (None: any)
         self._polled: dict[int, object] = {}      # action servers and clients: their wait sets
         if self._walked:
             executor.services = self
@@ -220,6 +232,7 @@ class ServiceDirectory:
         if id(client) in self._clients:
             return
         self._clients.add(id(client))
+        self._client_names[client.service_name] = self._client_names.get(client.service_name, 0) + 1
         directory, executor = self, self.executor
         through_dds, blocking_call, name = client.call_async, client.call, client.service_name
 
@@ -375,13 +388,20 @@ class ServiceDirectory:
             future._set_executor(executor)
             hand_over(executor, client.callback_group, completing(future, response))
 
+    def find_outside_clients(self) -> None:
+        """Which services served here have a client that is not hosted here (another process's,
+        ``ros2 service call``'s), by the ROS graph: asked again whenever the graph changed."""
+        self._outside = {id(entry) for entry in self._entries if entry.service is not None
+                         and entry.node.count_clients(entry.name) > self._client_names.get(entry.name, 0)}
+
     def take_outside_requests(self) -> int:
         """Requests through DDS (from other processes) to the services served here: queued, to be
-        served like the others; returns how many."""
-        taken = 0
+        served like the others; returns how many. Only the services with a client elsewhere
+        (``find_outside_clients``) are asked, once it was called."""
+        taken, outside = 0, self._outside
         for entry in self._entries:
             service = entry.service
-            if service is None:
+            if service is None or (outside is not None and id(entry) not in outside):
                 continue
             while True:
                 with service.handle:

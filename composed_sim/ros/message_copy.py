@@ -2,10 +2,10 @@
 
 Calls between hosted nodes are handed over in process (hosting/services.py): the server must get
 a request the client can no longer change, and the client a response the server can no longer
-change, as if both had crossed DDS. Serializing and deserializing does that but costs about
-ten times a field-by-field copy (docs/speed.md), so each message class gets a copier, built once
-from its generated slots and field types: nested messages are copied recursively, sequences and
-arrays are copied, numbers and strings (immutable) are shared.
+change, as if both had crossed DDS. Serializing and deserializing does that but costs several
+times a field-by-field copy, so each message class gets a copier, generated once from its slots
+and field types (as ``dataclasses`` generates its methods): nested messages are copied by their
+own copiers, sequences and arrays are copied, numbers and strings (immutable) are shared.
 """
 from __future__ import annotations
 
@@ -22,34 +22,33 @@ def copy_message(msg):
     return _copier(msg.__class__)(msg)
 
 
+def new_message(cls: type):
+    """``cls()``, a message of default values, as a copy of one made once (a generated message's
+    constructor checks every keyword and builds every nested message, at about twice the cost)."""
+    return _copier(cls)(_default(cls))
+
+
+@functools.cache
+def _default(cls: type):
+    return cls()
+
+
 @functools.cache
 def _copier(cls: type) -> Callable:
-    slots = [s for s in cls.__slots__ if s != "_check_fields"]
-    kinds = [_kind(t) for t in cls.SLOT_TYPES]
-    plain = [s for s, k in zip(slots, kinds) if k == "plain"]
-    nested = [s for s, k in zip(slots, kinds) if k == "message"]
-    sequences = [(s, k == "messages") for s, k in zip(slots, kinds) if k in ("sequence", "messages")]
-    new = cls.__new__
-
-    def copy(msg):
-        out = new(cls)
-        out._check_fields = msg._check_fields
-        for slot in plain:
-            setattr(out, slot, getattr(msg, slot))
-        for slot in nested:
-            setattr(out, slot, copy_message(getattr(msg, slot)))
-        for slot, of_messages in sequences:
-            setattr(out, slot, _copy_sequence(getattr(msg, slot), of_messages))
-        return out
-    return copy
-
-
-def _kind(slot_type) -> str:
-    if isinstance(slot_type, NamespacedType):
-        return "message"
-    if isinstance(slot_type, AbstractNestedType):
-        return "messages" if isinstance(slot_type.value_type, NamespacedType) else "sequence"
-    return "plain"
+    lines = ["def copy(msg):", "    out = new(cls)", "    out._check_fields = msg._check_fields"]
+    for slot, slot_type in zip((s for s in cls.__slots__ if s != "_check_fields"), cls.SLOT_TYPES):
+        if isinstance(slot_type, NamespacedType):
+            lines.append(f"    value = msg.{slot}")
+            lines.append(f"    out.{slot} = copier(value.__class__)(value)")
+        elif isinstance(slot_type, AbstractNestedType):
+            of_messages = isinstance(slot_type.value_type, NamespacedType)
+            lines.append(f"    out.{slot} = copy_sequence(msg.{slot}, {of_messages})")
+        else:
+            lines.append(f"    out.{slot} = msg.{slot}")
+    lines.append("    return out")
+    scope = {"new": cls.__new__, "cls": cls, "copier": _copier, "copy_sequence": _copy_sequence}
+    exec("\n".join(lines), scope)       # noqa: S102 - code generated from the class's own slot names
+    return scope["copy"]
 
 
 def _copy_sequence(value, of_messages: bool):

@@ -96,6 +96,9 @@ class LockstepExecutor(SingleThreadedExecutor):
         self._held: set = set()                   # mutually exclusive groups whose callback waits
         self._after_release: dict[object, deque] = {}   # per held group: what waits for it
         self._polled_tasks: list[HostedTask] = []     # coroutines that await something unknown
+        # Where the walk is: a walker that takes over from one whose callback waits goes on from
+        # there (every walker of one ``dispatch_ready`` shares it), not from the start.
+        self._cursor = None
         self._ran = 0                             # callbacks and tasks run (what a walk reports)
 
     # --- nodes ----------------------------------------------------------------------------------
@@ -258,6 +261,7 @@ class LockstepExecutor(SingleThreadedExecutor):
         now, and run the tasks they make ready, in the fixed order; returns how many callbacks
         and tasks ran."""
         before = self._ran
+        self._cursor = None
         self.scheduler.run(self._walk)
         return self._ran - before
 
@@ -265,6 +269,7 @@ class LockstepExecutor(SingleThreadedExecutor):
         """Only what the host handed over (tasks: delivered messages, responses; requests queued
         at the services), not the subscriptions and timers; returns how many ran."""
         before = self._ran
+        self._cursor = None
         self.scheduler.run(lambda: self._walk(services_only=True))
         return self._ran - before
 
@@ -305,13 +310,15 @@ class LockstepExecutor(SingleThreadedExecutor):
         return entities
 
     def _walk(self, services_only: bool = False) -> int:
-        entities = self._entities
-        if entities is None:
-            entities = self._entities = self._build_entities()
-        if services_only:
-            entities = self._service_entities
+        if self._cursor is None:
+            entities = self._entities
             if entities is None:
-                entities = self._service_entities = [e for e in self._entities if e[2] is _SERVICE]
+                entities = self._entities = self._build_entities()
+            if services_only:
+                entities = self._service_entities
+                if entities is None:
+                    entities = self._service_entities = [e for e in self._entities if e[2] is _SERVICE]
+            self._cursor = iter(entities)
         scheduler = self.scheduler
         tasks, held = scheduler.tasks, self._held
         coroutine = CoroutineType
@@ -320,7 +327,7 @@ class LockstepExecutor(SingleThreadedExecutor):
         self._run_tasks()
         if scheduler.walker is not me:
             return self._ran
-        for entity, handle, msg_type, raw, message_only, once, inbox, group, node in entities:
+        for entity, handle, msg_type, raw, message_only, once, inbox, group, node in self._cursor:
             if skip:                               # a batch's subscriptions, handled by it this walk
                 skip -= 1
                 continue

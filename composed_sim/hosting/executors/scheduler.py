@@ -32,6 +32,7 @@ class Scheduler:
         self.walker: Optional[greenlet] = None                # the greenlet that walks now
         self._walk: Callable[[], int] = lambda: 0
         self._set_aside: list[greenlet] = []                  # waiting, oldest first
+        self._idle: list[greenlet] = []                       # walkers done with a stale walk, for reuse
 
     # --- the host's side ----------------------------------------------------------------------
 
@@ -51,6 +52,10 @@ class Scheduler:
             self.walker = None
 
     def _new_walker(self) -> greenlet:
+        if self._idle:                     # a greenlet costs more to make than to switch to
+            walker = self._idle.pop()
+            walker.parent = self._home
+            return walker
         walker = greenlet(self._walker_main, parent=self._home)
         walker.scheduler = self            # what ``in_walk`` looks for
         return walker
@@ -61,8 +66,12 @@ class Scheduler:
             ran = self._walk()
             if self.walker is not me:
                 # Set aside in a walk, resumed by a later one: this walk's stack has served its
-                # purpose; back to the walker that resumed it.
-                return ran
+                # purpose; back to the walker that resumed it, until reused as a walker.
+                if hasattr(me, "callback_group"):
+                    del me.callback_group
+                self._idle.append(me)
+                me.parent.switch(ran)
+                continue
             self._home.switch(ran)
 
     @property
@@ -73,13 +82,14 @@ class Scheduler:
     def close(self) -> None:
         """End every set-aside callback (its ``finally`` blocks run now, not at some later garbage
         collection), then the walker."""
-        for waiting in (*reversed(self._set_aside), self.walker):
+        for waiting in (*reversed(self._set_aside), self.walker, *self._idle):
             if waiting is not None and not waiting.dead and waiting is not getcurrent():
                 try:
                     waiting.throw(GreenletExit)
                 except error:       # of another thread (an executor spun in a thread of its own)
                     pass
         self._set_aside.clear()
+        self._idle.clear()
         self.tasks.clear()
         self.walker = None
 
@@ -96,7 +106,12 @@ class Scheduler:
             return
         me = getcurrent()
         self._set_aside.append(me)
-        future.add_done_callback(lambda _: self.tasks.append(lambda: self._resume(me)))
+        wake = lambda: self.tasks.append(lambda: self._resume(me))     # noqa: E731
+        waiters = getattr(future, "waiters", None)
+        if waiters is not None:            # a future of ours wakes its waiters itself, without a task
+            waiters.append(wake)
+        else:
+            future.add_done_callback(lambda _: wake())
         if me is self.walker:
             self._home.switch(_TAKE_OVER)
         else:
