@@ -51,8 +51,9 @@ def test_unknown_plugin(tmp_path):
     w = world_with(tmp_path, robots__0__controller="nosuch")
     assert fails(w, "--out", tmp_path / "o") == (
         f"composed-sim: error: {w}:{line_of(w, 'controller')}: robots[0].controller: unknown controller plugin "
-        f"'nosuch' (installed: aggregation, diffusion, epuck-obstacle-avoidance, firefly, flocking, foraging, "
-        f"kheperaiv-diffusion, obstacle-avoidance, turtlebot-flocking); a plugin is an "
+        f"'nosuch' (installed: aggregation, avoidance-planner, diffusion, epuck-obstacle-avoidance, firefly, flocking, "
+        f"foraging, inline-planning, kheperaiv-diffusion, obstacle-avoidance, planning-behaviour, turtlebot-flocking); "
+        f"a plugin is an "
         f"entry point in the group 'composed_sim.controllers', or name a class as module:Class")
 
 

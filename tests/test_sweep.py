@@ -90,7 +90,7 @@ def test_a_failed_run_is_a_row_and_the_sweep_goes_on(tmp_path, monkeypatch):
 
 @pytest.mark.parametrize("given, says", [
     ("robots.0.params.gain=fast", "--set robots.0.params.gain='fast': the field is float or int or str or bool or "
-                                  "list[float] and holds float 1000.0; 'fast' is str"),
+                                  "list[float] or list[str] or list[bool] and holds float 1000.0; 'fast' is str"),
     ("lights.0.intensty=1", "--set lights.0.intensty: unknown field lights.0.intensty (lights.0 has: position, "
                             "height_m, intensity, color)"),
     ("physics.substeps=0,5", "--set physics.substeps=0: the field is int >= 1 <= 100; must be >= 1 (got 0)"),

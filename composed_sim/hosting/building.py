@@ -6,7 +6,7 @@ from __future__ import annotations
 import sys
 import dataclasses
 from dataclasses import dataclass
-from typing import Collection, Container, Mapping, Optional, Sequence
+from typing import Callable, Collection, Container, Mapping, Optional, Sequence
 
 from rclpy.context import Context
 from rclpy.node import Node
@@ -26,7 +26,8 @@ from composed_sim.hosting.node_options import HostedNodeOptions, construct
 from composed_sim.hosting.run_wide.nodes import RunWideNodes
 from composed_sim.hosting.run_wide.relay import RUN_WIDE_ORIGIN, RunWideRelay
 from composed_sim.hosting.sim_timers import SimTimers
-from composed_sim.hosting.waiting import host_clock_sleeps, host_rates
+from composed_sim.hosting.services import wait_during_construction
+from composed_sim.hosting.sleeps import host_clock_sleeps, host_rates
 from composed_sim.world.problems import format_path
 from composed_sim.world.schema import NodeSpec, RobotGroup, World
 
@@ -113,7 +114,8 @@ def create_robot_nodes(world: World, group_index: int, name: str, context: Conte
             timers = SimTimers(world.tick_ns, follow_stamps=use_sim_time or clock_from_stamps)
             options = HostedNodeOptions(context, f"/{name}", [*overrides, *spec_parameters(spec)],
                                         spec.params_file, spec.remappings, hosted_logger(logs, name))
-            node = _construct(classes[spec.node], spec, field, name, options, timers, relay, origin)
+            node = _construct(classes[spec.node], spec, field, name, options, timers, relay, origin,
+                              served_by_host(world))
             built.nodes.append(node)
             timers_of.append(timers)
             # The constructor's publishers are checked here (nothing it published can answer a
@@ -180,7 +182,7 @@ def create_run_wide_nodes(world: World, context: Context, *, classes: Mapping[st
                                                        *spec_parameters(spec)], spec.params_file, spec.remappings,
                                         hosted_logger(logs, None))
             built.nodes.append(_construct(classes[spec.node], spec, ("nodes", ni), "the run", options, timers,
-                                          relay, RUN_WIDE_ORIGIN))
+                                          relay, RUN_WIDE_ORIGIN, served_by_host(world)))
             timers.started(())
             built.tick_timers.append(timers)
     except BaseException:
@@ -188,6 +190,18 @@ def create_run_wide_nodes(world: World, context: Context, *, classes: Mapping[st
             node.destroy_node()
         raise
     return RunWideNodes(built.nodes, built.tick_timers, world.tick_ns, context)
+
+
+def served_by_host(world: World) -> Callable[[str], bool]:
+    """Is a service of this name one the host will serve by tick 0: a robot's (in its namespace),
+    or, in a world with run-wide nodes, one outside every robot's namespace?"""
+    robots = frozenset(world.robot_names())
+    run_wide = bool(world.nodes)
+
+    def served(name: str) -> bool:
+        first = name.split("/", 2)[1] if name.startswith("/") else ""
+        return first in robots or run_wide
+    return served
 
 
 def hosted_logger(logs: Optional[NodeLogs], owner: Optional[str]):
@@ -202,11 +216,13 @@ def spec_parameters(spec: NodeSpec) -> list[Parameter]:
 
 
 def _construct(cls: type[Node], spec: NodeSpec, field: tuple, owner: str, options: HostedNodeOptions,
-               timers: SimTimers, relay: Optional[RunWideRelay], origin: int) -> Node:
-    """One node built by ``node_options.construct``; an error names the world file's field."""
+               timers: SimTimers, relay: Optional[RunWideRelay], origin: int, served: Callable[[str], bool]) -> Node:
+    """One node built by ``node_options.construct``; an error names the world file's field.
+    ``served(name)``: will the host serve that service by tick 0 (``served_by_host``)?"""
     def prepare(node: Node) -> None:
         timers.prepare(node)
         host_rates(node)
+        wait_during_construction(node, served)
         if relay is not None:
             relay.adopt(node, origin)
     try:

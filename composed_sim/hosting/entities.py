@@ -21,7 +21,6 @@ from rclpy.node import Node
 from composed_sim.hosting import ContractViolation
 from composed_sim.hosting.callback_guard import CallbackGuard
 from composed_sim.hosting.parameters import HostedParameterServices
-from composed_sim.hosting.run_wide.relay import RunWideRelay
 from composed_sim.hosting.services import ServiceDirectory
 from composed_sim.ros import contract as c
 from composed_sim.ros.answer_subscription import cmd_vel_gids
@@ -29,9 +28,11 @@ from composed_sim.ros.simulator_node import AnswerTypeError
 
 
 class HostedEntities:
-    """The entities of one executor's nodes (a block of robots', or the run-wide nodes')."""
+    """The entities of one executor's nodes (a block of robots', or the run-wide nodes'); ``relay``:
+    their process's run-wide relay (hosting/run_wide/relay.py), whose subscriptions of theirs the
+    guard guards too."""
 
-    def __init__(self, directory: ServiceDirectory, relay: Optional[RunWideRelay] = None,
+    def __init__(self, directory: ServiceDirectory, relay=None,
                  guard: Optional[CallbackGuard] = None, robots: Collection[str] = ()):
         self.directory = directory
         self._relay, self._guard, self._robots = relay, guard, frozenset(robots)

@@ -413,3 +413,21 @@ class ServiceDirectory:
                 taken += 1
         return taken
 
+
+
+def wait_during_construction(node: Node, will_be_served: Callable[[str], bool]) -> None:
+    """Before ``node``'s constructor: a client it makes there may wait for its service (the ROS 2
+    tutorials' ``while not client.wait_for_service(timeout_sec=1.0)``). Hosted, the service may
+    belong to a node built after it, or in another process, and is served by tick 0, when calls
+    can first be made: such a wait ends at once (``will_be_served(name)``), instead of for ever."""
+    create_client = node.create_client
+
+    def hosted_create_client(srv_type, srv_name, *args, **kwargs):
+        client = create_client(srv_type, srv_name, *args, **kwargs)
+        plain = client.wait_for_service
+
+        def wait_for_service(timeout_sec: Optional[float] = None) -> bool:
+            return will_be_served(client.service_name) or plain(timeout_sec)
+        client.wait_for_service = wait_for_service
+        return client
+    node.create_client = hosted_create_client

@@ -59,7 +59,7 @@ def path_length(result) -> np.ndarray:
     return np.linalg.norm(np.diff(result.trajectories.positions, axis=0), axis=2).sum(axis=0)
 
 
-@pytest.mark.parametrize("behaviour", ["BlockingBehaviour", "AsyncBehaviour", "FutureBehaviour"])
+@pytest.mark.parametrize("behaviour", ["BlockingBehaviour", "AsyncBehaviour", "FutureBehaviour", "TutorialClient"])
 def test_a_behaviour_node_calls_its_planner_in_each_way_and_drives_as_one_node_would(robot_programs, domain_id,
                                                                                     behaviour):
     reference, _ = composed(world_of("planning:FutureBehaviour", "planning:Planner"), domain_id)

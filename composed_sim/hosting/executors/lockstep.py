@@ -46,7 +46,7 @@ from rclpy.task import Future, Task
 
 from composed_sim.hosting.executors.scheduler import Scheduler
 from composed_sim.hosting.executors.tasks import CallbackWatcher, HostedTask, awaits_future
-from composed_sim.hosting.executors.waiting import wait_for_work
+from composed_sim.hosting.executors.idle import wait_for_work
 from composed_sim.ros import contract as c
 from composed_sim.ros.in_process import inbox_of
 
@@ -335,17 +335,7 @@ class LockstepExecutor(SingleThreadedExecutor):
                 continue
             result = None
             if msg_type is _BATCH:
-                # A controller's sensor messages of the tick, all waiting in process and none in
-                # DDS: one call with all of them, instead of one per subscription (the entities
-                # that follow, which handle them one by one otherwise). ``once``: how many.
-                for box in inbox:
-                    if not box.queue or box.dds_may_hold():
-                        break
-                else:
-                    self.running_group = group
-                    result = entity([box.take() for box in inbox])
-                    self._ran += once
-                    skip = once
+                result, skip = self._run_batch(entity, inbox, once, group)
             elif msg_type is _WAITABLE:
                 self._ran += entity.dispatch_ready()
                 continue
@@ -388,13 +378,30 @@ class LockstepExecutor(SingleThreadedExecutor):
                     return self._ran
         self._run_tasks()
         if self._polled_tasks and scheduler.walker is me:
-            polled, self._polled_tasks = self._polled_tasks, []
-            for task in polled:
-                self._run_task(task, polled=True)
-                if scheduler.walker is not me:
-                    return self._ran
-            self._run_tasks()
+            self._step_polled(me)
         return self._ran
+
+    def _run_batch(self, callback, inboxes, count: int, group) -> tuple[object, int]:
+        """A controller's sensor messages of the tick, all waiting in process and none in DDS: one
+        call with all of them, instead of one per subscription (the ``count`` entities that follow,
+        which handle them one by one otherwise). Returns the callback's result and how many
+        entities to skip (0: not all waiting, the subscriptions take them one by one)."""
+        for box in inboxes:
+            if not box.queue or box.dds_may_hold():
+                return None, 0
+        self.running_group = group
+        result = callback([box.take() for box in inboxes])
+        self._ran += count
+        return result, count
+
+    def _step_polled(self, me) -> None:
+        """Step again the coroutines that await what does not say what it is (rclpy's futures)."""
+        polled, self._polled_tasks = self._polled_tasks, []
+        for task in polled:
+            self._run_task(task, polled=True)
+            if self.scheduler.walker is not me:
+                return
+        self._run_tasks()
 
     def _take_from_dds(self, entity, handle, msg_type, raw, message_only, once, inbox):
         """One message (``once``) or every message DDS holds for a subscription, until a

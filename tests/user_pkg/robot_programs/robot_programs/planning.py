@@ -103,3 +103,17 @@ class SpinsItself(_Behaviour):
 
     def on_scan(self, scan):
         self.client.call_async(self.request(scan))
+
+
+class TutorialClient(_Behaviour):
+    """Waits for its service in its constructor, as the ROS 2 tutorials' clients do, although the
+    planner is built after it."""
+
+    def __init__(self):
+        super().__init__("behaviour", ReentrantCallbackGroup())
+        while not self.client.wait_for_service(timeout_sec=1.0):
+            self.get_logger().info("service not available, waiting again...")
+
+    def on_scan(self, scan):
+        plan = self.client.call(self.request(scan))
+        self.cmd.publish(twist(plan.linear, plan.angular))
