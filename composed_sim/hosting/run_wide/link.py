@@ -189,7 +189,9 @@ class SimulatorLink:
         return list(self._outboxes)
 
     def publish(self, stamp_ns: int, batch: list[Message], calls: Optional[dict] = None) -> None:
-        """A tick's batch, with the calls for each robot of the domain ({index: calls})."""
+        """A tick's batch, with the calls for each robot of the domain ({index: calls}); each robot
+        sent calls replies once idle."""
+        self.replied -= set(calls or ())
         if self._receivers:
             self._batches.publish(pack(stamp_ns, batch, calls=calls or {}))
 
