@@ -103,6 +103,3 @@ class HostedEntities:
         if self._guard is None:
             raise error
         self._guard.node_failed(node, error)
-
-    def parameter_services(self, node: Node) -> HostedParameterServices:
-        return self._parameters[id(node)]

@@ -21,8 +21,8 @@ class _ServicesInProcess:
     """What ``ParameterService`` sees as its node: the hosted node, whose ``create_service``
     registers the service in the directory instead of creating its DDS endpoint."""
 
-    def __init__(self, node: Node, directory: ServiceDirectory):
-        self._node, self._directory = node, directory
+    def __init__(self, node: Node, directory: ServiceDirectory, on_outside):
+        self._node, self._directory, self._on_outside = node, directory, on_outside
         self.entries = []
 
     def __getattr__(self, name):
@@ -31,7 +31,9 @@ class _ServicesInProcess:
     def create_service(self, srv_type, srv_name, callback, *, qos_profile=None, callback_group=None):
         name = self._node.resolve_service_name(srv_name)
         group = callback_group or self._node.default_callback_group
-        self.entries.append(self._directory.add_in_process(self._node, name, srv_type, callback, group))
+        entry = self._directory.add_in_process(self._node, name, srv_type, callback, group)
+        entry.on_outside = self._on_outside
+        self.entries.append(entry)
 
 
 class HostedParameterServices:
@@ -39,7 +41,7 @@ class HostedParameterServices:
 
     def __init__(self, node: Node, directory: ServiceDirectory):
         self._node, self._directory = node, directory
-        self._proxy = _ServicesInProcess(node, directory)     # ParameterService keeps only a weak reference
+        self._proxy = _ServicesInProcess(node, directory, self.expose)   # ParameterService keeps only a weak reference
         self._service = ParameterService(self._proxy)
         self._exposed = False
 

@@ -106,6 +106,7 @@ class ParticipantGroups(TickServing):
         self.links: list[Link] = []                         # in-process paths (ros/in_process.py)
         self._graph_watches: list[GraphWatch] = []          # per group: when to ask for matched counts
         self._outside_watches: list = []                    # per group: has its graph changed since?
+        self._robot_namespaces = frozenset(f"/{name}" for name in world.robot_names())
         self.graph_changes: Optional[GraphChanges] = None   # what tells them the graph changed
         self.executor: Optional[Executor] = None
         self.spinning: Optional[Spinning] = None
@@ -269,7 +270,7 @@ class ParticipantGroups(TickServing):
         # What reached the robots at the tick's start is handled before its sensors: the run-wide
         # messages, the calls of the run-wide nodes' part of the tick, requests from other processes.
         if self._outside_watches and any([changed() for changed in self._outside_watches]):
-            self.entities.directory.find_outside_clients()
+            self.entities.directory.find_outside_clients(self._robot_namespaces)
         self.entities.directory.take_outside_requests()
         self._rounds_over = False
         for _ in range(SETTLE_ROUNDS):      # rounds: a manager's configure, then activate, say

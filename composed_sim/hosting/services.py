@@ -98,7 +98,7 @@ class NodeServices:
 
 class ServiceEntry:
     """One service served in process: its queue of (request, reply) and what serves it."""
-    __slots__ = ("name", "srv_type", "node", "group", "queue", "service", "_callback", "_walked", "_owner")
+    __slots__ = ("name", "srv_type", "node", "group", "queue", "service", "_callback", "_owner", "on_outside")
 
     def __init__(self, name: str, srv_type, node: Node, group, owner: Optional[NodeServices],
                  service: Optional[Service] = None, callback: Optional[Callable] = None):
@@ -108,7 +108,7 @@ class ServiceEntry:
         self.service = service            # the rclpy Service (its DDS endpoint), or None: in process only
         self._callback = callback
         self._owner = owner
-
+        self.on_outside: Optional[Callable[[], None]] = None   # an in-process one a client elsewhere wants
     @property
     def callback(self) -> Callable:
         # The service's current callback: the host's guard may have wrapped it since.
@@ -165,6 +165,7 @@ class ServiceDirectory:
         self._client_names: dict[str, int] = {}   # how many of them call each service name
         self._outside: Optional[set[int]] = None  # ids of the entries another process may call (None: any)
         self._polled: dict[int, object] = {}      # action servers and clients: their wait sets
+        self._node_names: set[str] = set()        # the names of the nodes it serves (a run-wide node's is its own)
         if self._walked:
             executor.services = self
 
@@ -219,6 +220,7 @@ class ServiceDirectory:
         self.executor.wake()
 
     def _add(self, entry: ServiceEntry) -> None:
+        self._node_names.add(entry.node.get_name())
         self._by_name.setdefault(entry.name, entry)
         self._entries.append(entry)
         if entry._owner is not None:
@@ -388,11 +390,28 @@ class ServiceDirectory:
             future._set_executor(executor)
             hand_over(executor, client.callback_group, completing(future, response))
 
-    def find_outside_clients(self) -> None:
-        """Which services served here have a client that is not hosted here (another process's,
-        ``ros2 service call``'s), by the ROS graph: asked again whenever the graph changed."""
+    def find_outside_clients(self, run_namespaces: frozenset[str]) -> None:
+        """Which services served here have a client that is not the run's (``ros2 param``'s, a
+        tool's, another program's), by the ROS graph: asked again whenever the graph changed. An
+        in-process service that one wants gets its DDS endpoint then (``on_outside``).
+        ``run_namespaces``: the robots' namespaces, whose nodes are all the run's."""
+        if not self._entries:
+            return
+        graph = self._entries[0].node
+        wanted: set[str] = set()
+        for name, namespace in graph.get_node_names_and_namespaces():
+            if namespace in run_namespaces or name.startswith("composed_sim") or name in self._node_names:
+                continue
+            try:
+                wanted.update(service for service, _ in graph.get_client_names_and_types_by_node(name, namespace))
+            except Exception:            # noqa: BLE001 - gone meanwhile
+                continue
+        for entry in self._entries:
+            if entry.name in wanted and entry.service is None and entry.on_outside is not None:
+                entry.on_outside()
         self._outside = {id(entry) for entry in self._entries if entry.service is not None
-                         and entry.node.count_clients(entry.name) > self._client_names.get(entry.name, 0)}
+                         and (entry.name in wanted or entry.node.count_clients(entry.name)
+                              > self._client_names.get(entry.name, 0))}
 
     def take_outside_requests(self) -> int:
         """Requests through DDS (from other processes) to the services served here: queued, to be

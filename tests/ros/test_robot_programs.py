@@ -250,3 +250,39 @@ def test_a_blocking_call_in_the_group_that_takes_its_response_fails_only_its_rob
     assert ("/bot0/behaviour waits for /bot0/plan (Client.call) in a callback of the mutually exclusive callback "
             "group that must also take its response: it would wait forever") in failed["bot0"]
     assert (moved(result)[2:] > 0.005).all()
+
+
+SET_SPEED = """
+import sys, time, rclpy
+from rclpy.context import Context
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.parameter_client import AsyncParameterClient
+from rclpy.executors import SingleThreadedExecutor
+context = Context(); rclpy.init(context=context, domain_id=int(sys.argv[1]))
+node = Node("param_tool", context=context)
+client = AsyncParameterClient(node, "/bot0/behaviour")
+ready = client.wait_for_services(timeout_sec=60.0)
+executor = SingleThreadedExecutor(context=context); executor.add_node(node)
+listed = client.list_parameters([], 1); executor.spin_until_future_complete(listed, timeout_sec=30)
+done = client.set_parameters([Parameter("speed", value=0.0)]); executor.spin_until_future_complete(done, timeout_sec=30)
+print(ready, "speed" in listed.result().result.names, [r.successful for r in done.result().results], flush=True)
+"""
+
+
+def test_another_process_sets_a_hosted_nodes_parameter_through_its_parameter_services(robot_programs, domain_id):
+    """As ``ros2 param set`` would: the node's parameter services get their DDS endpoints once a
+    client of another process is on the ROS graph."""
+    import subprocess
+    world = world_of("fleet:SpeedFollower", robots=2, ticks=1_000_000)     # until the tool is done
+    tool = subprocess.Popen([sys.executable, "-c", SET_SPEED, str(domain_id)], stdout=subprocess.PIPE, text=True)
+    try:
+        with ComposedHost(world, domain_id=domain_id) as host:
+            result = host.run(should_stop=lambda: tool.poll() is not None)
+            speeds = [n.speed for n in host.controllers]
+    finally:
+        out, _ = tool.communicate(timeout=60)
+    assert out.split() == ["True", "True", "[True]"], out
+    assert speeds == [0.0, 0.02]                       # bot0's changed, bot1's did not
+    steps = np.linalg.norm(np.diff(result.trajectories.positions, axis=0), axis=2)
+    assert steps[-1, 0] < 1e-6 < steps[-1, 1]           # bot0 stopped; bot1 drives on

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import itertools
 from dataclasses import dataclass
-from typing import Collection, Optional
+from typing import Collection
 
 from rclpy.serialization import deserialize_message, serialize_message
 
@@ -129,6 +129,3 @@ class CallRelay:
         message = deserialize_message(request.data, entry.srv_type.Request)
         entry.submit(message, lambda response, call=request.call:
                      self._outbox.append(Response(call, serialize_message(response))))
-
-    def hosts(self, service: str) -> Optional[ServiceDirectory]:
-        return self._directories.get(self.place_of(service))
