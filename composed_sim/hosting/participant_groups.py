@@ -14,6 +14,8 @@ of the block: the SensorFrame handed to ``exchange.publish_tick`` covers the blo
 """
 from __future__ import annotations
 
+import inspect
+import sys
 import time
 from typing import Callable, Optional
 
@@ -198,6 +200,14 @@ class ParticipantGroups(TickServing):
     def _host_entities(self) -> None:
         """Every node's entities hosted (hosting/entities.py): guarded callbacks, services and
         calls in process or through the call relay, parameter services."""
+        if self.hosting.executor == "events":
+            refuse_coroutines_for_events(self.controllers)
+        if self.hosting.executor == "multi-threaded" and any(n.clients for n in self.controllers):
+            print("composed-sim: warning: rclpy's multi-threaded executor shares its threads (one per core) among "
+                  "all the robots of the process, where each robot's own process would have its own: a blocking "
+                  "call holds one until answered, and more robots waiting at once than threads wait for ever; and "
+                  "calls between robots and run-wide nodes are completed late, often a tick late (rclpy 7.1.6). "
+                  "The default executor runs both within the tick", file=sys.stderr)
         directory = ServiceDirectory(self.executor, relay=self.calls)
         self.calls.serve(range(self.start, self.stop), directory)
         names = self.world.robot_names()
@@ -370,6 +380,18 @@ class ParticipantGroups(TickServing):
             if context.ok():
                 Context.shutdown(context)       # the class's: the instance refuses it from callbacks
         self.contexts = []
+
+
+def refuse_coroutines_for_events(nodes) -> None:
+    """rclpy's EventsExecutor calls a callback without awaiting what it returns: an ``async def``
+    callback would never run, in a process of its own too. Said before tick 0."""
+    for node in nodes:
+        for entity in (*node.subscriptions, *node.timers, *node.services):
+            if inspect.iscoroutinefunction(entity.callback):
+                raise HostError(f"{node.get_fully_qualified_name()} has an async def callback ({type(entity).__name__} "
+                                f"{getattr(entity, 'topic_name', None) or getattr(entity, 'srv_name', '')}): rclpy's "
+                                f"EventsExecutor never awaits it (in a process of its own too); choose another "
+                                f"--executor (the default runs it)")
 
 
 class RelayingExchange(NodesExchange):

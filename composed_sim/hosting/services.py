@@ -60,13 +60,15 @@ class HostedCallError(RuntimeError):
 
 
 def hand_over(executor, group, work: Callable[[], None]) -> None:
-    """Run ``work`` in ``executor`` once ``group`` may run: the lockstep executor keeps the group's
-    rule; a stock one runs it as a task."""
+    """Run ``work`` (completing a client's future) once ``group`` may run: the lockstep executor
+    keeps the group's rule; for a stock one it runs now, as rclpy's own executor completes a
+    future from whichever thread took the response, and the future's done callbacks become its
+    tasks."""
     when_free = getattr(executor, "when_free", None)
     if when_free is not None:
         when_free(group, work)
     else:
-        executor.create_task(work)
+        work()
 
 
 def completing(future: Future, response) -> Callable[[], None]:

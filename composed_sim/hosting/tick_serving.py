@@ -44,9 +44,16 @@ class TickServing:
             self._take_ready_answers()
             if self.guard.calls == calls:
                 self.exchange.settle_idle(ran)
+        # Calls between places are handed over once its threads are quiet (hosting/run_wide/calls.py).
+        while self.calls.in_flight and not self.exchange.all_answered and time.monotonic() < deadline:
+            if self._threads_quiet() is not None:
+                self._hand_over()
+            self.exchange.wait_for_answers(QUIET_CHECK_S)
         answered = self.exchange.wait_for_answers(max(0.0, deadline - time.monotonic()))
-        if answered and self._settle:
+        if answered and (self._settle or self.calls.in_flight):
             self._threads_quiet()
+            while self._hand_over():
+                self._threads_quiet()
         return answered
 
     def _take_ready_answers(self) -> None:

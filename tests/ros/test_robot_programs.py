@@ -286,3 +286,81 @@ def test_another_process_sets_a_hosted_nodes_parameter_through_its_parameter_ser
     assert speeds == [0.0, 0.02]                       # bot0's changed, bot1's did not
     steps = np.linalg.norm(np.diff(result.trajectories.positions, axis=0), axis=2)
     assert steps[-1, 0] < 1e-6 < steps[-1, 1]           # bot0 stopped; bot1 drives on
+
+
+def test_a_robots_programs_in_a_controller_shard_run_as_hosted(robot_programs, domain_id, tmp_path):
+    """Distributed mode's DDS shard hosts a robot's services and calls as the composed host does."""
+    import os
+    import subprocess
+    from composed_sim.hosts.distributed.external import ExternalControllersHost
+    from composed_sim.world.loader import dump_world
+    world = world_of("planning:BlockingBehaviour", "planning:Planner", robots=3, ticks=15)
+    reference, _ = composed(world, domain_id)
+    path = tmp_path / "world.yaml"
+    path.write_text(dump_world(world))
+    shard = subprocess.Popen([sys.executable, "-m", "composed_sim.cli", "host", str(path), "--robots", "0-2",
+                              "--discovery-timeout", "60"], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                             text=True, env={**os.environ, "ROS_DOMAIN_ID": str(domain_id)})
+    try:
+        with ExternalControllersHost(world, domain_id=domain_id, discovery_timeout_s=60.0) as host:
+            result = host.run()
+    finally:
+        _, err = shard.communicate(timeout=60)
+    assert result.violations == [], err[-2000:]
+    np.testing.assert_array_equal(result.trajectories.positions, reference.trajectories.positions)
+
+
+STOCK = ("single-threaded", "events", "multi-threaded")
+
+
+@pytest.mark.parametrize("executor", STOCK)
+@pytest.mark.parametrize("program", ["awaited call", "done callback", "one-tick goals", "lifecycle autostart",
+                                     "run-wide planner"])
+def test_rclpys_own_executors_host_what_they_run_in_a_process_of_their_own(robot_programs, domain_id, executor,
+                                                                           program):
+    """rclpy's executors, kept for comparison, host each program their threading allows, as the
+    default executor does."""
+    world = {"awaited call": lambda: world_of("planning:AsyncBehaviour", "planning:Planner", robots=3, ticks=12),
+             "done callback": lambda: world_of("planning:FutureBehaviour", "planning:Planner", robots=3, ticks=12),
+             "one-tick goals": lambda: world_of("driving:AwaitingMission", "driving:QuickDriver", robots=3, ticks=12),
+             "lifecycle autostart": lambda: lifecycle_world(lifecycle="autostart", robots=3, ticks=12),
+             "run-wide planner": lambda: world_of("fleet:AsksTheFleet", robots=3, ticks=12,
+                                                  run_wide=[("fleet:FleetPlanner", {})])}[program]()
+    reference, _ = composed(world, domain_id)
+    if executor == "multi-threaded" and program == "run-wide planner":
+        return multi_threaded_warns_of_late_calls(world, domain_id)
+    if executor == "events" and program in ("awaited call", "one-tick goals"):
+        from composed_sim.hosting import HostError
+        with pytest.raises(HostError, match=r"/bot0/\w+ has an async def callback .*: rclpy's EventsExecutor never "
+                                            r"awaits it \(in a process of its own too\)"):
+            composed(world, domain_id, executor)
+        return
+    result, _ = composed(world, domain_id, executor)
+    assert result.violations == reference.violations == []
+    np.testing.assert_array_equal(result.trajectories.positions, reference.trajectories.positions)
+
+
+def multi_threaded_warns_of_late_calls(world, domain_id):
+    import contextlib
+    import io
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err):
+        with ComposedHost(world, executor="multi-threaded", domain_id=domain_id):
+            pass
+    assert "calls between robots and run-wide nodes are completed late, often a tick late" in err.getvalue()
+
+
+def test_a_blocking_call_runs_on_rclpys_multi_threaded_executor_and_is_refused_by_one_thread(robot_programs,
+                                                                                             domain_id):
+    # One robot: rclpy's executor shares its threads among the robots of its process (the
+    # warning says so), so more robots blocked at once than it has threads would wait for ever.
+    one = world_of("planning:BlockingBehaviour", "planning:Planner", robots=1, ticks=8)
+    reference, _ = composed(one, domain_id)
+    threaded, _ = composed(one, domain_id, "multi-threaded")
+    assert threaded.violations == []
+    np.testing.assert_array_equal(threaded.trajectories.positions, reference.trajectories.positions)
+    world = world_of("planning:BlockingBehaviour", "planning:Planner", robots=2, ticks=8)
+    single, _ = composed(world, domain_id, "single-threaded")
+    failed = [v for v in single.violations if "failed" in v.reason]
+    assert {v.robot for v in failed} == {"bot0", "bot1"}
+    assert "which runs one callback at a time: it would wait forever, in its own process too" in failed[0].reason

@@ -30,6 +30,8 @@ from rclpy.time import Time as RosTime
 from composed_sim.hosting.options import DEFAULT_EXECUTOR
 from composed_sim.hosting import HostError
 from composed_sim.hosting.building import SetupWarnings, create_robot_nodes, load_classes
+from composed_sim.hosting.entities import HostedEntities
+from composed_sim.hosting.services import ServiceDirectory
 from composed_sim.hosting.matching import contract_endpoints, matched, poll_until
 from composed_sim.hosting.executors.running import Spinning, check_executor, driven_by_caller, make_executor, shut_down
 from composed_sim.hosts.distributed.robot_ranges import format_ranges
@@ -80,6 +82,9 @@ class ShardHost:
             # before the controllers read that tick's sensors.
             self.spinning.executor.add_node(self.announcer.node)
             warnings = SetupWarnings()
+            # A robot's services, clients, actions and parameters, hosted as in the composed host
+            # (hosting/entities.py); calls to a place outside the shard go through DDS.
+            entities = HostedEntities(ServiceDirectory(self.spinning.executor), None, None, robot_names)
             for i in self.robots:
                 if self.should_stop():
                     break
@@ -95,6 +100,7 @@ class ShardHost:
                     clock._set_ros_time_is_active(True)    # as SimulatorNode.drive_clock_of
                     self._clocks.append(clock)
                     self.spinning.executor.add_node(node)
+                    entities.adopt(node, names[i], i)
                 self.robot_nodes.append(nodes)
         except BaseException:
             self.__exit__(None, None, None)
