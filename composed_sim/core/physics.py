@@ -65,43 +65,14 @@ class PhysicsWorld:
         self._substeps = world.physics.substeps
         self._dt = world.tick_s / self._substeps   # ARGoS: GetPhysicsClockTick() = tick / iterations
 
-        # ARGoS's cpSpaceNew() defaults are Chipmunk 7's too (slop 0.1, bias 0.9^60,
-        # damping 1, no gravity, no sleeping), so only the iteration count is set.
-        # Default bounding-box tree: measured faster than use_spatial_hash (cell 0.17-0.5 m)
-        # at 80-1280 robots. Not threaded=True: cpHastySpace's parallel solver is not
-        # bit-reproducible.
-        self.space = pymunk.Space()
-        self.space.iterations = world.physics.iterations
-        self._add_static_obstacles(world)
+        self.space = new_space(world)
 
         self._wheel_separation_m = np.array([m.wheel_separation_m for m in models], dtype=np.float64)
         self._left_mps = np.zeros(n)
         self._right_mps = np.zeros(n)
         controls = []
         for model, (x, y), a in zip(models, positions.tolist(), headings.tolist()):
-            # dynamics2d_footbot_model.cpp: cpBodyNew(m, cpMomentForCircle(m, 0, R + R, 0)) —
-            # ARGoS passes the diameter as the radius, so I = 2 m R^2; copied as is.
-            # A carried body (the foot-bot's gripper) is rigidly tied to it: its mass and moment add.
-            body = pymunk.Body(model.mass_kg + model.carried_mass_kg,
-                               pymunk.moment_for_circle(model.mass_kg, 0.0, 2.0 * model.body_radius_m)
-                               + model.carried_moment_kg_m2)
-            body.position = (x, y)
-            body.angle = a
-            shape = pymunk.Circle(body, model.body_radius_m)
-            shape.elasticity = 0.0              # footbot model: e = 0 "No elasticity"
-            shape.friction = model.friction     # footbot model: u = 0.7
-            # dynamics2d_velocity_control.cpp: control body = cpBodyNew(INFINITY, INFINITY),
-            # never added to the space; Chipmunk 7 calls such a body KINEMATIC. Here it is in
-            # the space, so that batch can set its velocity: a kinematic body there only has
-            # its pose integrated, which these velocity-only joints do not read (their anchors
-            # sit at its origin and their correction is off), and no shape to collide.
-            control = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
-            pivot = pymunk.PivotJoint(body, control, (0.0, 0.0), (0.0, 0.0))
-            pivot.max_bias = 0.0                # "disable joint correction": velocity-only
-            pivot.max_force = model.max_force_n   # "limit the dragging force"
-            gear = pymunk.GearJoint(body, control, 0.0, 1.0)
-            gear.max_bias = 0.0
-            gear.max_force = model.max_torque_nm  # "limit the torque"
+            body, shape, control, pivot, gear = robot_bodies(model, x, y, a)
             self.space.add(body, shape, pivot, gear)
             controls.append(control)
         self.space.add(*controls)
@@ -119,23 +90,6 @@ class PhysicsWorld:
         if not (np.array_equal(self._state[:, 0:2], positions)
                 and np.array_equal(self._state[:, 2], headings)):
             raise RuntimeError("pymunk.batch did not return the robots in insertion order")
-
-    def _add_static_obstacles(self, world: World) -> None:
-        """Walls, boxes and cylinders as shapes of the space's static body (never simulated)."""
-        static = self.space.static_body
-        shapes: list[pymunk.Shape] = []
-        # The schema owns the wall geometry (inside the arena rectangle); they are boxes too.
-        for ob in [*world.arena.wall_boxes(), *(ob for ob in world.obstacles if not ob.movable)]:
-            if isinstance(ob, Box):
-                shapes.append(_box_shape(static, ob.position, ob.size, ob.yaw_rad))
-            elif isinstance(ob, Cylinder):
-                shapes.append(pymunk.Circle(static, ob.radius_m, offset=ob.position))
-            else:
-                raise ValueError(f"unsupported obstacle {ob!r}")
-        for s in shapes:
-            s.elasticity = 0.0
-            s.friction = STATIC_FRICTION
-        self.space.add(*shapes)
 
     def _add_movable_objects(self, objects) -> None:
         """Dynamic boxes/cylinders held by ground friction (ARGoS dynamics2d_box_model.cpp and
@@ -176,16 +130,11 @@ class PhysicsWorld:
 
     def step(self) -> None:
         """One tick: set the control velocities (act), then ``substeps`` physics steps."""
-        # dynamics2d_differentialsteering_control.cpp: w = (Vr - Vl) / b, v = (Vr + Vl) / 2
-        # along the body angle at the time of the call (start of the tick). Both wheels
-        # at 0 give exactly 0, which is what ARGoS's Reset() sets (the robot brakes).
-        v = 0.5 * (self._left_mps + self._right_mps)
-        w = (self._right_mps - self._left_mps) / self._wheel_separation_m
-        a = self._state[:, 2]
         # batch sets the velocities of every body it lists, one row each: all but the control
         # bodies get back what they have (read after the last step or placement).
-        velocities, controls = self._velocities, slice(self.n, 2 * self.n)
-        velocities[controls, 0], velocities[controls, 1], velocities[controls, 2] = v * np.cos(a), v * np.sin(a), w
+        velocities = self._velocities
+        velocities[self.n:2 * self.n] = control_velocities(self._left_mps, self._right_mps,
+                                                           self._wheel_separation_m, self._state[:, 2])
         self._velocity_buffer.set_float_buf(velocities)
         pymunk.batch.set_space_bodies(self.space, _SET_FIELDS, self._velocity_buffer)
         step, dt = self.space.step, self._dt
@@ -234,6 +183,72 @@ class PhysicsWorld:
     def velocities(self) -> tuple[np.ndarray, np.ndarray]:
         """Linear velocities [n, 2] (m/s, world frame) and angular velocities [n] (rad/s)."""
         return self._state[:, 3:5].copy(), self._state[:, 5].copy()
+
+
+def new_space(world: World) -> pymunk.Space:
+    """An empty space with the world's solver settings and its static obstacles."""
+    # ARGoS's cpSpaceNew() defaults are Chipmunk 7's too (slop 0.1, bias 0.9^60,
+    # damping 1, no gravity, no sleeping), so only the iteration count is set.
+    # Default bounding-box tree: measured faster than use_spatial_hash (cell 0.17-0.5 m)
+    # at 80-1280 robots. Not threaded=True: cpHastySpace's parallel solver is not
+    # bit-reproducible.
+    space = pymunk.Space()
+    space.iterations = world.physics.iterations
+    static = space.static_body
+    shapes: list[pymunk.Shape] = []
+    # The schema owns the wall geometry (inside the arena rectangle); they are boxes too.
+    for ob in [*world.arena.wall_boxes(), *(ob for ob in world.obstacles if not ob.movable)]:
+        if isinstance(ob, Box):
+            shapes.append(_box_shape(static, ob.position, ob.size, ob.yaw_rad))
+        elif isinstance(ob, Cylinder):
+            shapes.append(pymunk.Circle(static, ob.radius_m, offset=ob.position))
+        else:
+            raise ValueError(f"unsupported obstacle {ob!r}")
+    for s in shapes:
+        s.elasticity = 0.0
+        s.friction = STATIC_FRICTION
+    space.add(*shapes)
+    return space
+
+
+def robot_bodies(model: RobotModel, x: float, y: float, angle: float):
+    """One robot's body, its circle, its control body and the two joints between them (not added)."""
+    # dynamics2d_footbot_model.cpp: cpBodyNew(m, cpMomentForCircle(m, 0, R + R, 0)) —
+    # ARGoS passes the diameter as the radius, so I = 2 m R^2; copied as is.
+    # A carried body (the foot-bot's gripper) is rigidly tied to it: its mass and moment add.
+    body = pymunk.Body(model.mass_kg + model.carried_mass_kg,
+                       pymunk.moment_for_circle(model.mass_kg, 0.0, 2.0 * model.body_radius_m)
+                       + model.carried_moment_kg_m2)
+    body.position = (x, y)
+    body.angle = angle
+    shape = pymunk.Circle(body, model.body_radius_m)
+    shape.elasticity = 0.0              # footbot model: e = 0 "No elasticity"
+    shape.friction = model.friction     # footbot model: u = 0.7
+    # dynamics2d_velocity_control.cpp: control body = cpBodyNew(INFINITY, INFINITY),
+    # never added to the space; Chipmunk 7 calls such a body KINEMATIC. Here it is in
+    # the space, so that batch can set its velocity: a kinematic body there only has
+    # its pose integrated, which these velocity-only joints do not read (their anchors
+    # sit at its origin and their correction is off), and no shape to collide.
+    control = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
+    pivot = pymunk.PivotJoint(body, control, (0.0, 0.0), (0.0, 0.0))
+    pivot.max_bias = 0.0                # "disable joint correction": velocity-only
+    pivot.max_force = model.max_force_n   # "limit the dragging force"
+    gear = pymunk.GearJoint(body, control, 0.0, 1.0)
+    gear.max_bias = 0.0
+    gear.max_force = model.max_torque_nm  # "limit the torque"
+    return body, shape, control, pivot, gear
+
+
+def control_velocities(left_mps: np.ndarray, right_mps: np.ndarray, wheel_separation_m: np.ndarray,
+                       angle: np.ndarray) -> np.ndarray:
+    """[n, 3] the control bodies' vx, vy (m/s) and w (rad/s) for wheel speeds [n] each and body angles [n]."""
+    # dynamics2d_differentialsteering_control.cpp: w = (Vr - Vl) / b, v = (Vr + Vl) / 2
+    # along the body angle at the time of the call (start of the tick). Both wheels
+    # at 0 give exactly 0, which is what ARGoS's Reset() sets (the robot brakes).
+    v = 0.5 * (left_mps + right_mps)
+    out = np.empty((len(angle), 3))
+    out[:, 0], out[:, 1], out[:, 2] = v * np.cos(angle), v * np.sin(angle), (right_mps - left_mps) / wheel_separation_m
+    return out
 
 
 def _box_shape(body: pymunk.Body, center: tuple[float, float], size: tuple[float, float],
