@@ -20,7 +20,7 @@ import numpy as np
 from composed_sim.core import world_edits
 from composed_sim.core.odometry import Odometry, WheelActuator, WheelNoise, WheelReadings, differential_steering
 from composed_sim.core.frames import SensorFrame
-from composed_sim.core.physics import PhysicsWorld
+from composed_sim.core.engine import physics_engine
 from composed_sim.core.placement import place_robots
 from composed_sim.core.scene import static_scene
 from composed_sim.devices.common.floor import Floor
@@ -58,7 +58,8 @@ class Simulation:
 
         positions, headings = place_robots(world, stream(world.seed, STREAM_PLACEMENT))
         self.initial_positions, self.initial_headings = positions, headings
-        self.physics = PhysicsWorld(world, self.models, positions, headings)
+        # One space, cells, or regions in worker processes (core/engine.py): close() ends the workers.
+        self.physics = physics_engine(world, self.models, positions, headings)
         self.scene = static_scene(world)
         self.floor = (Floor.from_world(world.floor, arena_size=world.arena.size, base_dir=base_dir)
                       if any(GROUND in g.running for g in self.groups) else None)
@@ -87,6 +88,18 @@ class Simulation:
         self.positions, self.headings = self.physics.poses()
         self._inputs = self._snapshot(route_messages=False)
         self._frame: Optional[SensorFrame] = None
+
+    def close(self) -> None:
+        """End the physics regions' worker processes, if any (idempotent; they also end with this process)."""
+        close = getattr(self.physics, "close", None)
+        if close is not None:
+            close()
+
+    def __enter__(self) -> "Simulation":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
 
     # --- world edits between ticks (loop functions): core/world_edits.py ---------------
 

@@ -27,9 +27,49 @@ __all__ = ["Arena", "Box", "CameraConfig", "Cylinder", "Devices", "Floor", "Floo
            "NodeSpec", "Obstacle", "Physics", "Placement", "RGB", "ROBOTS_PER_DOMAIN", "RangeAndBearingMedium",
            "RobotGroup", "Vec2", "World"]
 
+class RegionCuts(Strict):
+    """Regions named by the lines between them: strips cut at x values (``x_m``) or at y values (``y_m``)."""
+    x_m: list[float] = []
+    y_m: list[float] = []
+
+    @model_validator(mode="after")
+    def _one_axis_increasing(self) -> "RegionCuts":
+        if bool(self.x_m) == bool(self.y_m):
+            raise _invalid([((), "give the cuts between the regions along one axis: x_m or y_m, "
+                             "a list of increasing values in m", self.model_dump())])
+        name, cuts = ("x_m", self.x_m) if self.x_m else ("y_m", self.y_m)
+        if any(b <= a for a, b in zip(cuts, cuts[1:])):
+            raise _invalid([((name,), "the cuts must increase", cuts)])
+        if len(cuts) >= MAX_REGIONS:
+            raise _invalid([((name,), f"at most {MAX_REGIONS} regions ({MAX_REGIONS - 1} cuts)", cuts)])
+        return self
+
+    @property
+    def count(self) -> int:
+        return len(self.x_m or self.y_m) + 1
+
+
+MAX_REGIONS = 64
+
+
 class Physics(Strict):
     substeps: Annotated[int, Field(ge=1, le=100)] = 10
     iterations: Annotated[int, Field(ge=1, le=100)] = 10
+    # Regions of the arena, each stepped by a physics engine in a process of its own (ARGoS's
+    # several engines): a count (strips with about as many robots each, cut along the wider side
+    # of the robots' start), or the cuts between them. 1: the physics in this process.
+    regions: Union[Annotated[int, Field(ge=1, le=MAX_REGIONS)], RegionCuts] = 1
+    # A contact across a region's border: "ghosts" resolves it (each region also simulates copies of
+    # the robots within ghost_margin_m of it); "ignore" does not see it, as ARGoS's engines.
+    border_contacts: Literal["ghosts", "ignore"] = "ghosts"
+    ghost_margin_m: NonNegativeFloat = 0.4
+    # Robots per pymunk space (cell) in a region; 0: one space per region. Chipmunk's cost per
+    # robot grows once a space outgrows the cache (docs/speed.md, "Physics that scales").
+    robots_per_cell: Annotated[int, Field(ge=0)] = 1024
+
+    @property
+    def region_count(self) -> int:
+        return self.regions if isinstance(self.regions, int) else self.regions.count
 
 
 class Lockstep(Strict):
@@ -135,6 +175,11 @@ class World(Strict):
                                  f"by robots[{first}]", self.robots[gi].name_prefix))
                 break
         problems += self._remapping_problems()
+        movable = [i for i, ob in enumerate(self.obstacles) if ob.movable]
+        if self.physics.region_count > 1 and movable:
+            problems.append((("physics", "regions"), f"regions need a world without movable objects "
+                             f"(obstacles[{movable[0]}] is movable): give physics.regions: 1",
+                             self.physics.model_dump()["regions"]))
         if problems:
             raise invalid(problems)
         return self
