@@ -6,6 +6,8 @@
       the e-puck's evenly spaced proximity ring (22.5° + 45°·i), every proximity sensor element
       read by the robot's own calibration (the e-puck's quadratic for ARGoS's generic sensor), the
       controllers' answer to tick 0 driving the first step, and the foot-bot without its gripper body
+  python tools/fidelity/table.py --regions 2 [--border-contacts ignore]   the physics in regions
+      (worker processes, docs/fidelity.md "Regions")
 """
 from __future__ import annotations
 
@@ -43,15 +45,26 @@ def own_calibration(world):
     return type(world).model_validate(data)
 
 
+def in_regions(count: int, border_contacts: str):
+    def edit(world):
+        physics = world.physics.model_copy(update={"regions": count, "border_contacts": border_contacts})
+        return world.model_copy(update={"physics": physics})
+    return edit
+
+
 def main() -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--before", action="store_true")
     p.add_argument("--experiments", nargs="*", default=list(reference.EXPERIMENTS))
+    p.add_argument("--regions", type=int, default=1)
+    p.add_argument("--border-contacts", choices=("ghosts", "ignore"), default="ghosts")
     args = p.parse_args()
     edit = lambda world: world  # noqa: E731
     if args.before:
         as_before()
         edit = own_calibration
+    if args.regions > 1:
+        edit = in_regions(args.regions, args.border_contacts)
     print("| example | seeds | metric | tick | ARGoS | composed_sim | gap |")
     print("|---|---|---|---|---|---|---|")
     worst_rows = []
