@@ -54,13 +54,13 @@ class Cell:
             self._slot_model.append(models[r].name)
         self.space.add(*controls)
         self._simulated = self.slot_robot.copy()    # [k] the robots simulated, sorted
-        self._slot_order: np.ndarray | None = None   # their slots in robot order, once asked for
         k = len(self.slot_robot)
         self._body_row = np.arange(k)                 # [s] batch row of each slot's body
         self._control_row = np.arange(k, 2 * k)       # [s] batch row of its control body
         # Two buffers: one that batch reads into, and one that points at the rows it sets from.
         self._buffer, self._set_buffer = pymunk.batch.Buffer(), pymunk.batch.Buffer()
         self._rows = self._read()
+        self._index()
 
     def _read(self) -> np.ndarray:
         """[R, 6] every body of the space, in batch order (the static body last)."""
@@ -73,7 +73,7 @@ class Cell:
         give the others a slot (a parked one of their model, else a new one)."""
         if np.array_equal(robots, self._simulated):
             return
-        self._simulated, self._slot_order = robots, None
+        self._simulated = robots
         self.slot_robot[~_within(self.slot_robot, robots)] = -1
         for r in robots[~_within(robots, np.sort(self.slot_robot))].tolist():
             name = self._models[r].name
@@ -82,6 +82,19 @@ class Cell:
                 self.slot_robot[free[0]] = r
             else:
                 self._add_slot(r)
+        # A parked body keeps its rows: at rest, far from everything, its control body still.
+        parked = np.flatnonzero(self.slot_robot < 0)
+        self._rows[self._body_row[parked]] = 0.0
+        self._rows[self._body_row[parked], 0] = _PARK_M + parked
+        self._rows[self._body_row[parked], 1] = _PARK_M
+        self._rows[self._control_row[parked], 3:6] = 0.0
+        self._index()
+
+    def _index(self) -> None:
+        """The batch rows of the simulated robots' bodies and control bodies, in robot order."""
+        slot = np.flatnonzero(self.slot_robot >= 0)
+        slot = slot[np.argsort(self.slot_robot[slot])]
+        self._body_rows, self._control_rows = self._body_row[slot], self._control_row[slot]
 
     def _add_slot(self, robot: int) -> None:
         body, shape, control, pivot, gear = robot_bodies(self._models[robot], _PARK_M, _PARK_M, 0.0)
@@ -96,15 +109,9 @@ class Cell:
 
     def step(self, state: np.ndarray, control: np.ndarray) -> None:
         """One tick of the cell's robots from their state rows [n, 6] and control velocities [n, 3]."""
-        rows, active = self._rows, self.slot_robot >= 0
-        robots = self.slot_robot[active]
-        rows[self._body_row[active]] = state[robots]
-        parked = np.flatnonzero(~active)
-        rows[self._body_row[parked]] = 0.0
-        rows[self._body_row[parked], 0] = _PARK_M + parked
-        rows[self._body_row[parked], 1] = _PARK_M
-        rows[self._control_row[active], 3:6] = control[robots]
-        rows[self._control_row[parked], 3:6] = 0.0
+        rows, robots = self._rows, self._simulated
+        rows[self._body_rows] = state[robots]
+        rows[self._control_rows, 3:6] = control[robots]
         self._set_buffer.set_float_buf(rows)
         pymunk.batch.set_space_bodies(self.space, _ALL, self._set_buffer)
         step, dt = self.space.step, self._dt
@@ -114,11 +121,7 @@ class Cell:
 
     def states(self, robots: np.ndarray) -> np.ndarray:
         """[k, 6] the states after the last step of ``robots`` [k], each simulated here."""
-        if self._slot_order is None:
-            slot = np.flatnonzero(self.slot_robot >= 0)
-            self._slot_order = slot[np.argsort(self.slot_robot[slot])]
-        order = self._slot_order
-        return self._rows[self._body_row[order[np.searchsorted(self._simulated, robots)]]]
+        return self._rows[self._body_rows[np.searchsorted(self._simulated, robots)]]
 
 
 class CellGroup:
