@@ -67,6 +67,14 @@ class Physics(Strict):
     # robot grows once a space outgrows the cache (docs/speed.md, "Physics that scales").
     robots_per_cell: Annotated[int, Field(ge=0)] = 1024
 
+    @field_validator("regions", mode="before")
+    @classmethod
+    def _count_or_cuts(cls, value: Any) -> Any:
+        if isinstance(value, bool) or not isinstance(value, (int, dict, RegionCuts)):
+            raise _invalid([((), f"a count of regions (1 to {MAX_REGIONS}) or the cuts between them "
+                             "({x_m: [...]} or {y_m: [...]})", value)])
+        return value
+
     @property
     def region_count(self) -> int:
         return self.regions if isinstance(self.regions, int) else self.regions.count

@@ -172,6 +172,8 @@ physics:
     ("{x_m: [1.0, 0.5]}", "false", "w.yaml:4: physics.regions.x_m: the cuts must increase (got [1.0, 0.5])"),
     ("{x_m: [1.0], y_m: [2.0]}", "false", "physics.regions: give the cuts between the regions along one axis"),
     ("{z_m: [1.0]}", "false", "physics.regions.z_m: unknown field"),
+    ("auto", "false", 'w.yaml:4: physics.regions: a count of regions (1 to 64) or the cuts between them '
+     '({x_m: [...]} or {y_m: [...]}) (got "auto")'),
     ("2", "true", "w.yaml:4: physics.regions: regions need a world without movable objects "
      "(obstacles[0] is movable): give physics.regions: 1 (got 2)"),
 ])
