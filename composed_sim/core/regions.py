@@ -10,7 +10,9 @@ worker a byte and waits for each one's byte back; a worker steps its cells from 
 tick t (every robot's, for its ghosts) and writes its own robots' rows of tick t + 1 into the
 other half of the mapping. The mapping has no name, so nothing is left behind however the run
 ends; a worker ends when the main process closes its socket, when it dies (PR_SET_PDEATHSIG) or
-when ``close`` kills it. The workers ignore Ctrl-C: the main process stops them.
+when ``close`` kills it. The workers ignore Ctrl-C: the main process stops them. (Linux sends the
+death signal when the *thread* that forked ends: build a Simulation with regions in a thread that
+outlives it, as the hosts do.)
 
 Robots move between regions at tick boundaries with their state: a robot near a border is
 simulated on both sides (a ghost on one), so the cell that takes it over already holds it.

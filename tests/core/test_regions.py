@@ -230,3 +230,16 @@ def test_a_layout_that_needs_one_cell_is_the_one_space():
     positions, headings, _ = _crowd(2, 30)
     assert isinstance(engines(world_of(30), positions, headings), PhysicsWorld)
     assert layout_of(world_of(3000), np.zeros((0, 2))).n_cells == 1
+
+
+def test_ctrl_c_during_a_tick_ends_the_workers(monkeypatch):
+    positions, headings, _ = _crowd(4, 60)
+    engine = engines(world_of(60, regions=2), positions, headings)
+    pids = list(engine.pids)
+
+    def interrupted():
+        raise KeyboardInterrupt
+    monkeypatch.setattr(engine, "_wait_all", interrupted)   # as if Ctrl-C came while the workers step
+    with pytest.raises(KeyboardInterrupt):
+        engine.step()
+    assert not children_alive(pids)
