@@ -75,6 +75,7 @@ class BenchSettings:
     robots_per_domain: Optional[int]
     memory_fraction: float
     replot: Optional[list[Path]]
+    physics: Optional[tuple[int, ...]] = None
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -115,6 +116,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--memory-fraction", type=_fraction, default=DEFAULT_MEMORY_FRACTION,
                         help="multi-process runs whose predicted memory exceeds this fraction of the "
                              "available memory are skipped (default: %(default)s)")
+    parser.add_argument("--physics", type=_size_list, default=None, metavar="K,K,…",
+                        help="instead of runs: the physics step alone (bench/physics_step.py) at --sizes robots "
+                             "(e.g. 1280,10240,102400), one engine and these region counts (1: cells in one "
+                             "process), into OUT/physics.json")
     parser.add_argument("--replot", type=Path, nargs="+", default=None, metavar="RUNS.json",
                         help="run nothing: redraw the figures (into --out) and the --report from the "
                              "runs.json of an earlier sweep, or of several sweeps of the same tick "

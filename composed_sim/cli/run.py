@@ -145,6 +145,7 @@ class Run:
             # With every result and the recording written, the process ends and the system
             # reclaims the nodes (Host.end_before_exit).
             outputs.close()
+            host.sim.close()         # the physics regions' workers end in order, not by the death signal
             print_summary(self.json_stdout if settings.outputs.json else None, self.world, summary,
                           files + (["logs/"] if _kept(out / "logs") else []))
             sys.stdout.flush()

@@ -65,3 +65,5 @@ class ComposedHost(HostBase):
 
     def __exit__(self, *exc) -> None:
         self.groups.__exit__(*exc)
+        if self.sim is not None:
+            self.sim.close()         # its physics regions' worker processes, if any

@@ -156,6 +156,8 @@ class ExternalControllersHost(ControllersElsewhere):
     def __exit__(self, *exc) -> None:
         shut_down(self._spinning, [x for x in (self._registry, self.sim_node) if x is not None], self._context)
         self._spinning, self._registry, self.sim_node, self._context = None, None, None, None
+        if self.sim is not None:
+            self.sim.close()
 
 
 def _names(names: list[str], rows: list[int]) -> str:

@@ -366,6 +366,8 @@ class MultiProcessHost(ControllersElsewhere):
             if context.ok():
                 rclpy.shutdown(context=context)
         self._contexts = []
+        if self.sim is not None:
+            self.sim.close()
 
     def _stop_children(self) -> None:
         """SIGTERM to every child's group (SIGKILL to a failed robot's, which had its SIGTERM),

@@ -421,6 +421,8 @@ class WorkerHost(ControllersElsewhere):
         for w in self.workers:
             w.conn.close()
         self.workers = []
+        if self.sim is not None:
+            self.sim.close()         # its physics regions' worker processes, if any
         if self._observer_node is not None:
             import rclpy
             self._observer_node.destroy_node()
