@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from composed_sim.bench.sweep import machine_info
+from composed_sim.bench.machine import machine_info
 from composed_sim.core.engine import physics_engine
 from composed_sim.core.physics import PhysicsWorld
 from composed_sim.core.placement import place_robots

@@ -4,9 +4,7 @@ from __future__ import annotations
 
 import json
 import os
-import platform
 import signal
-import subprocess
 import sys
 import tempfile
 import time
@@ -15,6 +13,7 @@ from pathlib import Path
 from typing import Optional
 
 from composed_sim.bench.arguments import BenchSettings, command_line
+from composed_sim.bench.machine import available_memory_mb, machine_info
 from composed_sim.bench.experiments import DEFAULT_EXPERIMENT, EXPERIMENTS, experiment_of_world, shipped_world
 from composed_sim.bench.report import write_outputs
 from composed_sim.bench.rules import (CALIBRATION_ABOVE, CALIBRATION_ROBOTS, COLUMNS, FALLBACK_PROCESS_MB, PHASE_COLUMNS,
@@ -22,7 +21,6 @@ from composed_sim.bench.rules import (CALIBRATION_ABOVE, CALIBRATION_ROBOTS, COL
 from composed_sim.bench.tree import LEFTOVER_GRACE_S, measure_tree, parse_summary, tail
 from composed_sim.hosts.settings import AUTO_WORKERS, HostSettings, environment_domain
 
-CHECKOUT = Path(__file__).resolve().parents[2]     # the repository, when run from a checkout
 
 
 @dataclass
@@ -163,72 +161,9 @@ def summary_columns(summary: dict, mode: str) -> dict:
             **{col: _round(per_tick.get(p), 4) for p, col in zip(PHASES, PHASE_COLUMNS)}}
 
 
-def available_memory_mb() -> float:
-    """Available memory, bounded by this process's cgroup limit when there is one."""
-    import psutil
-    avail = psutil.virtual_memory().available
-    for limit_file, usage_file in (("/sys/fs/cgroup/memory.max", "/sys/fs/cgroup/memory.current"),
-                                   ("/sys/fs/cgroup/memory/memory.limit_in_bytes",
-                                    "/sys/fs/cgroup/memory/memory.usage_in_bytes")):
-        try:
-            limit = Path(limit_file).read_text().strip()
-            usage = int(Path(usage_file).read_text().strip())
-        except (OSError, ValueError):
-            continue
-        if limit.isdigit() and int(limit) < 2**60:
-            avail = min(avail, max(int(limit) - usage, 0))
-        break
-    return avail / 2**20
-
-
 def _round(v, digits: int):
     x = as_number(v)
     return None if x is None else round(x, digits)
-
-
-def machine_info() -> dict:
-    import psutil
-
-    from composed_sim.outputs.results import versions
-    model = None
-    try:
-        with open("/proc/cpuinfo") as f:
-            for line in f:
-                if line.lower().startswith("model name"):
-                    model = line.split(":", 1)[1].strip()
-                    break
-    except OSError:
-        pass
-    vm = psutil.virtual_memory()
-    try:
-        load = [round(x, 2) for x in os.getloadavg()]
-    except OSError:
-        load = None
-    return {
-        "cpu_model": model or platform.processor() or platform.machine(),
-        "logical_cores": psutil.cpu_count(),
-        "physical_cores": psutil.cpu_count(logical=False),
-        "memory_total_mb": round(vm.total / 2**20),
-        "memory_available_mb_at_start": round(available_memory_mb()),
-        "load_average_at_start": load,
-        "os": platform.platform(),
-        "versions": versions(),
-        "commit": _git_commit(),
-        "date": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
-    }
-
-
-def _git_commit() -> Optional[str]:
-    """HEAD of the checkout the package runs from, if it is one (read-only)."""
-    root = CHECKOUT
-    if not (root / ".git").exists():
-        return None
-    try:
-        res = subprocess.run(["git", "-C", str(root), "rev-parse", "--short", "HEAD"], capture_output=True,
-                             text=True, timeout=10, env=dict(os.environ, GIT_OPTIONAL_LOCKS="0"))
-    except (OSError, subprocess.SubprocessError):
-        return None
-    return res.stdout.strip() or None if res.returncode == 0 else None
 
 
 def resolve_worlds(args) -> dict[str, Path]:

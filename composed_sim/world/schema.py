@@ -15,7 +15,7 @@ from typing import Annotated, Any, Literal, Optional, Union
 
 from pydantic import Field, field_validator, model_validator
 
-from composed_sim.devices.common.settings import PositiveFloat, Strict
+from composed_sim.devices.common.settings import NonNegativeFloat, PositiveFloat, Strict
 from composed_sim.entry_points import installed
 from composed_sim.world.arena import (Arena, Box, Cylinder, Floor, FloorCircle, FloorRectangle, Light, Obstacle,
                                       RangeAndBearingMedium)
@@ -35,13 +35,13 @@ class RegionCuts(Strict):
     @model_validator(mode="after")
     def _one_axis_increasing(self) -> "RegionCuts":
         if bool(self.x_m) == bool(self.y_m):
-            raise _invalid([((), "give the cuts between the regions along one axis: x_m or y_m, "
+            raise invalid([((), "give the cuts between the regions along one axis: x_m or y_m, "
                              "a list of increasing values in m", self.model_dump())])
         name, cuts = ("x_m", self.x_m) if self.x_m else ("y_m", self.y_m)
         if any(b <= a for a, b in zip(cuts, cuts[1:])):
-            raise _invalid([((name,), "the cuts must increase", cuts)])
+            raise invalid([((name,), "the cuts must increase", cuts)])
         if len(cuts) >= MAX_REGIONS:
-            raise _invalid([((name,), f"at most {MAX_REGIONS} regions ({MAX_REGIONS - 1} cuts)", cuts)])
+            raise invalid([((name,), f"at most {MAX_REGIONS} regions ({MAX_REGIONS - 1} cuts)", cuts)])
         return self
 
     @property
@@ -71,7 +71,7 @@ class Physics(Strict):
     @classmethod
     def _count_or_cuts(cls, value: Any) -> Any:
         if isinstance(value, bool) or not isinstance(value, (int, dict, RegionCuts)):
-            raise _invalid([((), f"a count of regions (1 to {MAX_REGIONS}) or the cuts between them "
+            raise invalid([((), f"a count of regions (1 to {MAX_REGIONS}) or the cuts between them "
                              "({x_m: [...]} or {y_m: [...]})", value)])
         return value
 
