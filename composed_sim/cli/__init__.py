@@ -1,6 +1,6 @@
 """The ``composed-sim`` command: its arguments, and the dispatch to each subcommand's module
 (``run``: a run and its outputs, from its typed ``settings``; ``report``: what a run prints;
-``distributed``: ``host``; ``files``: worlds, plugins, results and recordings; ``interfaces``:
+``distributed``: ``host`` and ``join``; ``files``: worlds, plugins, results and recordings; ``interfaces``:
 interface packages)."""
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from composed_sim.cli.distributed import cmd_host
+from composed_sim.cli.distributed import cmd_host, cmd_join
 from composed_sim.cli.files import cmd_bag_repair, cmd_export, cmd_plugins, cmd_render, cmd_replay, cmd_worlds
 from composed_sim.cli.interfaces import cmd_interfaces
 from composed_sim.cli.report import JsonStdout
@@ -42,6 +42,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     _add_run(sub)
     _add_host(sub)
+    _add_join(sub)
     _add_file_commands(sub)
     interfaces = sub.add_parser("interfaces", help="build ROS 2 interface packages (.msg, .srv) into Python messages",
                                 description="Build a user's interface packages with the pip-installed rosidl "
@@ -137,10 +138,32 @@ def _add_run(sub) -> None:
                           "(all go to OUT/logs/<robot>.log; default: %(default)s)")
     run.add_argument("--fail-fast", action="store_true",
                      help="stop the run at the first controller failure, exit code 1 (for CI)")
+    run.add_argument("--machines", metavar="N|ADDR,ADDR",
+                     help="host the robots on other machines, each with worker processes of its own: how many "
+                          "machines, or their addresses or host names in robot order; the run prints the command "
+                          "to start on each (`composed-sim join`), and waits --discovery-timeout for them "
+                          "(docs/distributed.md)")
+    run.add_argument("--listen", metavar="HOST:PORT",
+                     help="with --machines: the address the machines reach this simulator at (default: every "
+                          "interface, a free port)")
     run.add_argument("--external-controllers", action="store_true",
                      help="run the simulator only; the controllers are hosted by `composed-sim host` shards "
                           "(on this or other machines), waited for before tick 0 (docs/distributed.md)")
     _add_distributed_options(run, "with --external-controllers: ")
+
+
+def _add_join(sub) -> None:
+    join = sub.add_parser("join", help="host a block of robots of a run on this machine (run --machines)",
+                          description="Join the run of a simulator started with `run --machines`: this machine "
+                                      "hosts the block of robots the simulator gives it, in worker processes of "
+                                      "its own; ends when the run ends, or on Ctrl-C/SIGTERM (docs/distributed.md).")
+    join.add_argument("address", help="the simulator's address, as it printed it (tcp://HOST:PORT)")
+    join.add_argument("--run", metavar="ID", help="the run's id, as the simulator printed it: a machine started "
+                                                  "with another run's command is refused")
+    join.add_argument("--workers", type=_workers, default="auto", metavar="K|auto",
+                      help="worker processes on this machine (default: %(default)s, from its robots and cores)")
+    join.add_argument("--timeout", type=_positive_float, default=120.0, metavar="SECONDS",
+                      help="how long to look for the simulator (default: %(default)s)")
 
 
 def _add_host(sub) -> None:
@@ -231,7 +254,7 @@ def _error_prefix(command: str) -> str:
 
 
 COMMANDS = {"plugins": lambda args: cmd_plugins(), "render": cmd_render, "replay": cmd_replay,
-            "bag": cmd_bag_repair, "export": cmd_export, "worlds": lambda args: cmd_worlds(), "host": cmd_host,
+            "bag": cmd_bag_repair, "export": cmd_export, "worlds": lambda args: cmd_worlds(), "host": cmd_host, "join": cmd_join,
             "interfaces": cmd_interfaces}
 
 

@@ -1,4 +1,5 @@
-"""``composed-sim host``: a controller shard for a simulator on another machine."""
+"""``composed-sim host``: a controller shard for a simulator on another machine; ``composed-sim
+join``: a machine's block of robots for a simulator started with ``run --machines``."""
 from __future__ import annotations
 
 import sys
@@ -38,4 +39,18 @@ def cmd_host(args) -> int:
             raise UserError(str(e)) from None
     print(f"composed-sim host: {'the simulator is gone' if ended == 'simulator gone' else 'stopped'}; done",
           file=sys.stderr)
+    return EXIT_INTERRUPTED if ended == "stopped" else 0
+
+
+def cmd_join(args) -> int:
+    """A machine of a run: serves until the run ends (0) or Ctrl-C/SIGTERM (130)."""
+    from composed_sim.hosting import HostError
+    from composed_sim.hosts.workers.cluster import join
+    print(f"composed-sim join: looking for the simulator at {args.address} (run {args.run})", file=sys.stderr)
+    with Interrupts("leaving the run") as interrupts:
+        try:
+            ended = join(args.address, args.run, args.workers, args.timeout, lambda: interrupts.requested)
+        except HostError as e:
+            raise UserError(str(e)) from None
+    print(f"composed-sim join: {ended}; done", file=sys.stderr)
     return EXIT_INTERRUPTED if ended == "stopped" else 0

@@ -102,6 +102,8 @@ class _ProgressLines:
 
 
 def _workers_text(s: dict) -> str:
+    if s.get("mode") == "machines":
+        return f" on {s['workers']} machines"
     if not s.get("workers") or s["workers"] == 1:
         return ""
     return f" in {s['workers']} worker processes" + (" (auto)" if s.get("workers_requested") == "auto" else "")

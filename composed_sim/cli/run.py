@@ -86,6 +86,8 @@ class Run:
             summary["workers_peak_rss_mb"] = [round(mb, 1) for mb in workers_peak_rss_mb]
             summary["peak_rss_mb"] += sum(summary["workers_peak_rss_mb"])
         summary["domain_id"], summary["domains"] = self.domains[0], self.domains
+        if hosting.machines is not None:       # the state sent per tick to all machines, payload bytes
+            summary["state_bytes_per_tick"] = round(host.bytes_sent_per_tick(result.trajectories.ticks_done))
         summary["checkpoint"] = checkpoint     # true: written while running; the run did not end
         summary["out"] = str(out)
         summary["logs"] = str(out / "logs")
@@ -158,7 +160,10 @@ class Run:
         from composed_sim.hosts.settings import AUTO_WORKERS
         from composed_sim.hosts.workers.host import usable_cores
         host = self.host
-        if host.setup.workers > 1 and not self.settings.outputs.json:
+        if self.settings.hosting.machines is not None:
+            if not self.settings.outputs.json:
+                print(f"composed-sim: {len(host.sim.names)} robots on {host.placement()}", file=sys.stderr)
+        elif host.setup.workers > 1 and not self.settings.outputs.json:
             auto = self.settings.hosting.workers == AUTO_WORKERS
             print(f"composed-sim: {len(host.sim.names)} robots in {host.setup.workers} worker processes"
                   + (f" (--workers auto, {usable_cores()} usable cores)" if auto else ""), file=sys.stderr)

@@ -7,10 +7,10 @@ import argparse
 import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Optional
+from typing import Optional, Union
 
 from composed_sim.command_line import UserError
-from composed_sim.hosts.settings import DiscoverySettings, HostSettings, environment_domain
+from composed_sim.hosts.settings import DEFAULT_LISTEN, DiscoverySettings, HostSettings, environment_domain
 
 
 @dataclass(frozen=True)
@@ -73,7 +73,9 @@ class RunSettings:
 
     @property
     def mode(self) -> str:
-        """The mode summary.json names: composed, multi-process or external-controllers."""
+        """The mode summary.json names: composed, multi-process, external-controllers or machines."""
+        if self.hosting.machines is not None:
+            return "machines"
         return "external-controllers" if self.hosting.discovery is not None else self.hosting.mode
 
 
@@ -104,6 +106,22 @@ def discovery_settings(args: argparse.Namespace) -> DiscoverySettings:
     return DiscoverySettings(args.discovery_timeout, args.discovery_range, args.static_peers, args.discovery_server)
 
 
+def parse_machines(text: Optional[str]) -> Union[int, tuple[str, ...], None]:
+    """--machines: a number of machines, or their addresses or host names, comma-separated."""
+    if text is None:
+        return None
+    text = text.strip()
+    if text.isdigit():
+        if int(text) < 1:
+            raise UserError(f"--machines: at least one machine (got {text})")
+        return int(text)
+    names = tuple(name.strip() for name in text.split(","))
+    if not all(names) or len(set(names)) != len(names):
+        raise UserError(f"--machines: expected a number, or addresses or host names separated by commas, each "
+                        f"once (got {text!r})")
+    return names
+
+
 def run_settings(args: argparse.Namespace, *, exit_when_done: bool) -> RunSettings:
     """The run's settings from ``composed-sim run``'s arguments; a UserError for a flag that
     needs another or does not apply."""
@@ -122,6 +140,12 @@ def run_settings(args: argparse.Namespace, *, exit_when_done: bool) -> RunSettin
         except ValueError as e:
             raise UserError(f"--foxglove: {e}") from None
     discovery = discovery_settings(args)
+    machines = parse_machines(args.machines)
+    if machines is not None and (args.external_controllers or args.mode != "composed"):
+        raise UserError("--machines: the robots' nodes are hosted on those machines' worker processes, so "
+                        "--external-controllers and --mode multi-process do not apply")
+    if args.listen is not None and machines is None:
+        raise UserError("--listen: only for a run over machines (with --machines)")
     if not args.external_controllers:
         given_flags = [flag for flag, value in (("--discovery-range", discovery.range),
                                                 ("--static-peers", discovery.static_peers),
@@ -136,7 +160,8 @@ def run_settings(args: argparse.Namespace, *, exit_when_done: bool) -> RunSettin
         hosting=HostSettings(mode=args.mode, workers=args.workers, executor=args.executor, domain_id=domain_id,
                              domain_given=given, robots_per_participant=args.robots_per_participant,
                              robots_per_domain=args.robots_per_domain,
-                             discovery=discovery if args.external_controllers else None),
+                             discovery=discovery if args.external_controllers else None, machines=machines,
+                             listen=args.listen or DEFAULT_LISTEN, join_timeout_s=discovery.timeout_s),
         lockstep=LockstepOverrides(args.watchdog, args.fallback),
         outputs=OutputSettings(args.out, args.record, tuple(args.record_topics), not args.no_picture, args.json,
                                args.log_level),

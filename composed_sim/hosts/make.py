@@ -25,6 +25,10 @@ def make_host(settings: HostSettings, world: World, logs: Optional[NodeLogs] = N
         from composed_sim.hosts.distributed.external import ExternalControllersHost
         return ExternalControllersHost(world, domain_id=settings.domain_id,
                                        discovery_timeout_s=settings.discovery.timeout_s, discovery=describe())
+    if settings.machines is not None:
+        from composed_sim.hosts.workers.remote import RemoteWorkerHost
+        return RemoteWorkerHost(world, machines=settings.machines, listen=settings.listen, executor=settings.executor,
+                                domain_id=settings.domain_id, logs=logs, join_timeout_s=settings.join_timeout_s)
     if settings.mode == "multi-process":
         from composed_sim.hosts.multiprocess.host import MultiProcessHost
         return MultiProcessHost(world, executor=settings.executor, domain_id=settings.domain_id,

@@ -11,7 +11,8 @@ from composed_sim.hosting.options import DEFAULT_EXECUTOR, ROBOTS_PER_PARTICIPAN
 MODES = ("composed", "multi-process")
 DEFAULT_MODE = MODES[0]
 AUTO_WORKERS = "auto"        # --workers auto: from the swarm size and the usable cores (workers/host.py)
-DEFAULT_DISCOVERY_TIMEOUT_S = 120.0   # simulator waiting for shards, shard waiting for a simulator
+DEFAULT_DISCOVERY_TIMEOUT_S = 120.0   # simulator waiting for shards or machines, and they for it
+DEFAULT_LISTEN = "0.0.0.0:0"           # remote workers: every interface, a free port (printed)
 
 
 @dataclass(frozen=True)
@@ -35,13 +36,19 @@ class HostSettings:
     robots_per_participant: int = ROBOTS_PER_PARTICIPANT    # composed mode in one process
     robots_per_domain: Optional[int] = None     # multi-process mode; None: the world's
     discovery: Optional[DiscoverySettings] = None    # a distributed run: the controllers are in shards
+    machines: Union[int, tuple[str, ...], None] = None  # remote workers: how many machines, or which
+    listen: str = DEFAULT_LISTEN                # remote workers: the simulator's address for the machines
+    join_timeout_s: float = DEFAULT_DISCOVERY_TIMEOUT_S
 
     def argv(self) -> list[str]:
         """The flags of ``composed-sim run`` that ask for these settings (a benchmark's runs)."""
         args = ["--mode", self.mode, "--executor", self.executor]
         if self.domain_given:
             args += ["--domain-id", str(self.domain_id)]
-        if self.mode == "composed":
+        if self.machines is not None:
+            machines = self.machines if isinstance(self.machines, int) else ",".join(self.machines)
+            args += ["--machines", str(machines), "--listen", self.listen]
+        elif self.mode == "composed":
             args += ["--workers", str(self.workers)]
             if self.robots_per_participant != ROBOTS_PER_PARTICIPANT:
                 args += ["--robots-per-participant", str(self.robots_per_participant)]

@@ -98,12 +98,23 @@ class Worker:
         except OSError:
             return ""
 
+    def end(self) -> str:
+        """Kill what is left of the worker (its process group) and reap it: why it is gone."""
+        signal_group(self.popen, signal.SIGKILL)
+        return f"worker process died ({_ending(self.popen.wait())})"
+
+    def startup_failure(self) -> str:
+        """It ended before it was ready: what happened, with its last output."""
+        return (f"worker {self.index} (robots {self.start}…{self.stop - 1}) ended during start-up "
+                f"({exit_reason(self.popen.wait())}):\n{self.tail() or '(no output)'}")
+
 
 class WorkersExchange:
     """The ``Exchange`` over the worker processes: a tick's frame goes out in blocks, the answers
     come back as arrays; the per-node violation lists keep the single-process order."""
 
-    def __init__(self, workers: list[Worker], names: list[str], lockstep, shared: SharedState, logs=None):
+    def __init__(self, workers: list[Worker], names: list[str], lockstep, shared: SharedState, logs=None,
+                 grace_s: float = ANSWER_GRACE_S):
         self.workers = workers
         self.shared = shared         # the world's state and the commands (shared_state.py)
         self.logs = logs             # NodeLogs: the workers' console lines merge here
@@ -118,7 +129,8 @@ class WorkersExchange:
         self.run_wide: list[list] = [[] for _ in workers]
         self._gathering_s = 0.0
         self._sent: dict = {}        # the scene, floor and lights the workers have now
-        self.rounds = CallRounds(workers, lockstep.watchdog_s + lockstep.unresponsive_s + ANSWER_GRACE_S, self._lost)
+        self._grace_s = grace_s       # past the watchdog and a hung callback's interruption
+        self.rounds = CallRounds(workers, lockstep.watchdog_s + lockstep.unresponsive_s + grace_s, self._lost)
 
     def gathering_s(self) -> float:
         return self._gathering_s
@@ -176,7 +188,7 @@ class WorkersExchange:
     def wait_for_answers(self, timeout_s: float) -> bool:
         """Until every live worker sent its answers. Each worker applies the watchdog itself; one
         that is not back well after it (or whose socket closed: it died) is given up."""
-        patience_s = timeout_s + self._lockstep.unresponsive_s + ANSWER_GRACE_S
+        patience_s = timeout_s + self._lockstep.unresponsive_s + self._grace_s
         if self.rounds.needed:
             self.rounds.run()           # the tick's calls between places, until none is in flight
         deadline = time.monotonic() + patience_s
@@ -213,10 +225,8 @@ class WorkersExchange:
         """A worker is gone: its robots are failed, once each, at this tick."""
         if w.dead is not None:
             return
-        signal_group(w.popen, signal.SIGKILL)
-        code = w.popen.wait()
-        if reason is None:
-            reason = f"worker process died ({_ending(code)})"
+        ended = w.end()
+        reason = ended if reason is None else reason
         w.dead = reason
         w.conn.close()
         detail = last_words(w.tail(500))
@@ -271,6 +281,7 @@ class WorkerHost(ControllersElsewhere):
         self._startup_interrupted = False
         self._launcher: Optional[subprocess.Popen] = None     # until it forked the workers
         self._prefix = b""                                     # the run's GUID prefix (run_prefix)
+        self._first_group = 0       # the participant group of the first worker (another machine's: not 0)
         self._observer_context = None
         self._observer_node = None
 
@@ -322,8 +333,9 @@ class WorkerHost(ControllersElsewhere):
 
     def _send_setup(self, w: Worker) -> None:
         """Tell a worker its block: it builds its nodes now."""
-        w.conn.send(("setup", WorkerSetup(self.world, w.start, w.stop, w.index, self.hosting,
-                                          self._prefix + w.index.to_bytes(4, "little"), str(self._tmp),
+        group = self._first_group + w.index
+        w.conn.send(("setup", WorkerSetup(self.world, w.start, w.stop, group, self.hosting,
+                                          self._prefix + group.to_bytes(4, "little"), str(self._tmp),
                                           self.shared.fd)))
 
     def _adopt(self) -> None:
@@ -341,7 +353,8 @@ class WorkerHost(ControllersElsewhere):
         for w, pid in zip(self.workers, pids):
             w.popen = AdoptedChild(int(pid))
 
-    def _wait_ready(self, interrupted: Callable[[], bool]) -> tuple[int, list[list], bool, list]:
+    def _wait_ready(self, interrupted: Callable[[], bool], at_once: Optional[int] = None
+                    ) -> tuple[int, list[list], bool, list]:
         """Every worker's nodes built and matched: how many nodes in all, per worker what they
         published on run-wide topics meanwhile, whether any may call across places (the ticks then
         have rounds of calls, hosts/workers/rounds.py) and the calls made meanwhile; a worker's
@@ -352,7 +365,7 @@ class WorkerHost(ControllersElsewhere):
         rounds, calls = False, []
         # At most one worker per core builds its nodes at a time: more would only take turns on
         # the cores and thrash their caches (docs/speed.md, "Set-up").
-        cores, sent = usable_cores(), 0
+        cores, sent = at_once or usable_cores(), 0
         deadline = time.monotonic() + STARTUP_TIMEOUT_S
         while len(ready) < len(self.workers) and not interrupted():
             while sent < len(self.workers) and sent - len(ready) < cores:     # sent, not ready: building
@@ -367,9 +380,7 @@ class WorkerHost(ControllersElsewhere):
                 try:
                     message = conn.recv()
                 except (EOFError, OSError):
-                    code = w.popen.wait()
-                    raise HostError(f"worker {w.index} (robots {w.start}…{w.stop - 1}) ended during start-up "
-                                    f"({exit_reason(code)}):\n{w.tail() or '(no output)'}") from None
+                    raise HostError(w.startup_failure()) from None
                 if message[0] == "error":
                     _, kind, text, field = message
                     if kind == "PluginError":

@@ -35,3 +35,17 @@ class TickAnswers:
     logs: tuple = ()                                   # NodeLogs.drain(): console lines, failures, /rosout
     cpu_s: float = 0.0                                 # the worker's CPU seconds since its first tick
     node_code_s: float = 0.0                           # of which inside its nodes' own code (hosting/node_time.py)
+    commands: Optional[tuple] = None                   # a machine's: (linear, angular) of its block (remote.py)
+
+
+@dataclass
+class MachineSetup:
+    """What a machine of a distributed run hosts (hosts/workers/agent.py): robots start … stop-1 in
+    ``workers`` processes of its own (a number, or "auto" for its cores)."""
+    world: object
+    start: int
+    stop: int
+    hosting: object                # as WorkerSetup's
+    run_prefix: bytes              # the run's 8 bytes of its workers' GUID prefixes (hosting/participants.py)
+    first_group: int               # the participant group number of its first worker (0: the run-wide nodes')
+    workers: object
