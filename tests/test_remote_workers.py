@@ -49,6 +49,22 @@ def test_a_machine_gets_every_pose_its_blocks_rows_and_the_leds_only_when_they_c
         shared.close()
 
 
+@pytest.mark.parametrize("args, message", [
+    (["--machines", "0"], "--machines: at least one machine (got 0)"),
+    (["--machines", "a,,b"], "--machines: expected a number, or addresses or host names separated by commas, "
+                             "each once (got 'a,,b')"),
+    (["--machines", "a,a"], "each once (got 'a,a')"),
+    (["--listen", "10.0.0.1:8786"], "--listen: only for a run over machines (with --machines)"),
+    (["--machines", "2", "--external-controllers"], "--machines: the robots' nodes are hosted on those machines' "
+                                                    "worker processes, so --external-controllers"),
+])
+def test_bad_machine_flags_are_one_line_and_exit_2(args, message, capsys, tmp_path):
+    from composed_sim import cli
+    assert cli.main(["run", str(FLOCKING), "--out", str(tmp_path), *args]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("composed-sim: error: ") and message in err and "\n" not in err, err
+
+
 # --- machines on this machine, through localhost -------------------------------------------------
 
 @pytest.fixture
@@ -177,7 +193,9 @@ def test_two_machines_in_other_network_namespaces_match_one_process_bit_for_bit(
     world = load_world(FLOCKING, robots=ROBOTS, ticks=TICKS, seed=SEED)
     with ComposedHost(world, domain_id=domain_id) as host:
         reference = host.run()
-    sim, joins = simulate(netns, tmp_path, ["m0", "m1"], domain_id=domain_id)
+    bag = tmp_path / "bag"        # robots' topics recorded from both machines: bot1 on the first, bot7 and bot1x on the second
+    sim, joins = simulate(netns, tmp_path, ["m0", "m1"], domain_id=domain_id,
+                          extra=("--record", str(bag), "--record-topics", "/bot1*/cmd_vel", "/bot7/light"))
     processes += [sim, *joins]
     assert sim.wait(timeout=120) == 0, (tmp_path / "sim.log").read_text()
     for m, join in zip(("m0", "m1"), joins):          # they end by themselves with the run
@@ -197,6 +215,12 @@ def test_two_machines_in_other_network_namespaces_match_one_process_bit_for_bit(
     # tick 0), payloads and axis lengths went once or twice: 2208 bytes over the 60 ticks.
     assert 0 <= summary["state_bytes_per_tick"] - (2 * ROBOTS * 24 + ROBOTS * 72) <= 2208 / TICKS + 1
     assert np.ptp(reference.trajectories.positions[:, :, 0], axis=0).max() > 0.01    # they moved
+    replay = subprocess.run([sys.executable, "-m", "composed_sim.cli", "replay", str(bag), "--check"],
+                            capture_output=True, text=True, timeout=120)
+    assert replay.returncode == 0, replay.stderr
+    assert f"{TICKS} ticks recorded" in replay.stdout
+    for topic in ("/bot1/cmd_vel", "/bot10/cmd_vel", "/bot11/cmd_vel", "/bot7/light"):
+        assert topic in replay.stdout, replay.stdout
 
 
 def ticks_written(summary: Path) -> int:
@@ -235,3 +259,22 @@ def test_a_machine_killed_mid_run_fails_its_robots_only_before_the_watchdog(tmp_
     assert first >= 100
     assert np.abs(positions[first + 1:, 8:] - positions[first + 1, 8:]).max() < 1e-3    # they stand
     assert np.linalg.norm(positions[-1, :8] - positions[first + 1, :8], axis=1).min() > 0.005
+
+
+@pytest.mark.slow
+def test_a_machine_whose_network_goes_silent_fails_its_robots_only(tmp_path, netns, domain_id, processes):
+    """Its link down (no connection closed: a cable pulled): the scheduler misses its heartbeats
+    and its robots fail; the others fly on and the run completes."""
+    sim, joins = simulate(netns, tmp_path, ["m0", "m1"], extra=("--watchdog", "2"), ticks=300, domain_id=domain_id)
+    processes += [sim, *joins]
+    summary = tmp_path / "out" / "summary.json"
+    deadline = time.monotonic() + 60
+    while ticks_written(summary) < 100:
+        assert sim.poll() is None and time.monotonic() < deadline, (tmp_path / "sim.log").read_text()
+        time.sleep(0.05)
+    subprocess.run(["ip", "-n", netns.name("m1"), "link", "set", "eth0", "down"], check=True)
+    assert sim.wait(timeout=120) == 0, (tmp_path / "sim.log").read_text()
+    rows = (tmp_path / "out" / "violations.csv").read_text().strip().splitlines()[1:]
+    assert sorted((row.split(",")[1] for row in rows), key=lambda r: int(r[3:])) == [f"bot{i}" for i in range(6, 12)]
+    assert all("stopped answering the scheduler's heartbeats" in row for row in rows), rows
+    assert json.loads(summary.read_text())["ticks"] == 300

@@ -46,7 +46,7 @@ def cmd_join(args) -> int:
     """A machine of a run: serves until the run ends (0) or Ctrl-C/SIGTERM (130)."""
     from composed_sim.hosting import HostError
     from composed_sim.hosts.workers.cluster import join
-    print(f"composed-sim join: looking for the simulator at {args.address} (run {args.run})", file=sys.stderr)
+    print(f"composed-sim join: looking for the simulator at {args.address}" + (f" (run {args.run})" if args.run else ""), file=sys.stderr)
     with Interrupts("leaving the run") as interrupts:
         try:
             ended = join(args.address, args.run, args.workers, args.timeout, lambda: interrupts.requested)

@@ -89,9 +89,12 @@ class MachineAgent:
     def _setup(self, setup: MachineSetup):
         from composed_sim import plugins
         from composed_sim.interfaces import InterfaceError, activate
-        # Its workers reach the other machines' robots never, and outside listeners over UDP: no
-        # shared-memory transport whose segments another machine would look for on its own disk.
+        # Its workers claim the run's GUID prefix (the simulator's host id): over UDP only, so that
+        # no listener looks for their shared-memory segments on its own machine; and they discover
+        # only what is on this machine (unless told otherwise), so two runs here with one domain
+        # are the only way to mix (docs/distributed.md).
         os.environ.setdefault("FASTDDS_BUILTIN_TRANSPORTS", "UDPv4")
+        os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
         self.block = slice(setup.start, setup.stop)
         try:
             activate(setup.world.interfaces)

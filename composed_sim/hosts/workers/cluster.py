@@ -59,6 +59,8 @@ class RunScheduler:
     """The run's Dask scheduler, in this process (a thread of Dask's own), and a client of it."""
 
     def __init__(self, listen: str, run_id: str, silent_after_s: float):
+        """``silent_after_s``: a machine without heartbeats for this long (at least Dask's floor,
+        10 heartbeats: 5 s) is lost; checked every as many seconds."""
         needs_dask()
         from distributed import Client, LocalCluster
         from distributed.diagnostics.plugin import SchedulerPlugin
@@ -74,11 +76,11 @@ class RunScheduler:
         self.links: dict[str, ActorConnection] = {}      # Dask worker address → its agent's connection
 
         class Departures(SchedulerPlugin):
-            def remove_worker(plugin, scheduler, worker, **kwargs):     # in the scheduler's thread
+            def remove_worker(plugin, scheduler, worker, *, stimulus_id="", **kwargs):   # the scheduler's thread
                 link = self.links.get(worker)
                 if link is not None:
-                    link.lost("its connection to the simulator closed, or it stopped answering the "
-                              "scheduler's heartbeats")
+                    link.lost("it stopped answering the scheduler's heartbeats" if "worker-ttl" in stimulus_id
+                              else "its connection to the simulator closed")
         self.cluster.scheduler.add_plugin(Departures(), name="composed_sim_departures")
 
     def joined(self) -> list[Machine]:

@@ -28,6 +28,7 @@ import numpy as np
 
 from composed_sim.core.senses import Senses
 from composed_sim.core.simulation import Simulation
+from composed_sim.hosting import HostError
 from composed_sim.hosting.options import DEFAULT_EXECUTOR
 from composed_sim.hosts.host import SetupInfo
 from composed_sim.hosts.processes import InterruptWatch
@@ -111,6 +112,9 @@ class RemoteWorkerHost(WorkerHost):
                  join_timeout_s: float = DEFAULT_JOIN_TIMEOUT_S, announce: Optional[Callable[[str], None]] = None):
         """``announce(line)``: where the command for the other machines is said (the console)."""
         count = machines if isinstance(machines, int) else len(machines)
+        if count > len(world.robot_names()):
+            raise HostError(f"--machines {count}: a machine hosts at least one of the {len(world.robot_names())} "
+                            f"robots")
         super().__init__(world, workers=count, executor=executor, domain_id=domain_id, logs=logs)
         self.machines = machines
         self.listen, self.join_timeout_s = listen, join_timeout_s
@@ -127,7 +131,8 @@ class RemoteWorkerHost(WorkerHost):
         try:
             self.shared = SharedState(Senses(self.world), self.world.range_and_bearing.payload_bytes)
             self.sim = Simulation(self.world)
-            self.scheduler = RunScheduler(self.listen, self.run_id, self.world.lockstep.watchdog_s)
+            # Half the watchdog, checked every half: a silent machine is lost within one watchdog.
+            self.scheduler = RunScheduler(self.listen, self.run_id, self.world.lockstep.watchdog_s / 2)
             self.announce(f"composed-sim: waiting for {len(self.blocks)} machines; on each: {self.join_command}")
             with InterruptWatch() as interrupts:
                 joined = self.scheduler.wait_for(self.machines, self.join_timeout_s, lambda: interrupts.requested,
