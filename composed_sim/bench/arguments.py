@@ -76,6 +76,7 @@ class BenchSettings:
     memory_fraction: float
     replot: Optional[list[Path]]
     physics: Optional[tuple[int, ...]] = None
+    machines: int = 0
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -120,6 +121,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="instead of runs: the physics step alone (bench/physics_step.py) at --sizes robots "
                              "(e.g. 1280,10240,102400), one engine and these region counts (1: cells in one "
                              "process), into OUT/physics.json")
+    parser.add_argument("--machines", type=_positive(int), default=0, metavar="M",
+                        help="the distributed row instead of the sweep (as root): per size, the simulator and M "
+                             "machines in network namespaces of this machine, each with the first --workers "
+                             "value's worker processes, against one machine with as many and with --workers auto "
+                             "(distributed.json in --out)")
     parser.add_argument("--replot", type=Path, nargs="+", default=None, metavar="RUNS.json",
                         help="run nothing: redraw the figures (into --out) and the --report from the "
                              "runs.json of an earlier sweep, or of several sweeps of the same tick "
@@ -142,6 +148,8 @@ def command_line(args: BenchSettings) -> str:
         parts += ["--domain-id", str(args.domain_id)]
     if args.robots_per_domain is not None:
         parts += ["--robots-per-domain", str(args.robots_per_domain)]
+    if getattr(args, "machines", 0):
+        parts += ["--machines", str(args.machines)]
     if args.memory_fraction != DEFAULT_MEMORY_FRACTION:
         parts += ["--memory-fraction", f"{args.memory_fraction:g}"]
     parts += ["--out", str(args.out)]

@@ -204,6 +204,13 @@ def run(args: BenchSettings) -> int:
             worlds[name] = (path, load_world(path, ticks=args.ticks))
         except WorldFileError as e:
             raise UserError(str(e)) from None
+    if args.machines:
+        from composed_sim.bench.distributed import run_distributed
+        check_writable(args.out)
+        for path, _ in worlds.values():
+            run_distributed(path, args.sizes, args.ticks, args.machines, args.workers[0], args.trials, args.out,
+                            machine_info())
+        return 0
     base = args.domain_id
     if base is None:
         try:

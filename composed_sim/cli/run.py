@@ -160,9 +160,8 @@ class Run:
         from composed_sim.hosts.settings import AUTO_WORKERS
         from composed_sim.hosts.workers.host import usable_cores
         host = self.host
-        if self.settings.hosting.machines is not None:
-            if not self.settings.outputs.json:
-                print(f"composed-sim: {len(host.sim.names)} robots on {host.placement()}", file=sys.stderr)
+        if self.settings.hosting.machines is not None:      # also with --json: a script watches for it
+            print(f"composed-sim: {len(host.sim.names)} robots on {host.placement()}", file=sys.stderr, flush=True)
         elif host.setup.workers > 1 and not self.settings.outputs.json:
             auto = self.settings.hosting.workers == AUTO_WORKERS
             print(f"composed-sim: {len(host.sim.names)} robots in {host.setup.workers} worker processes"
