@@ -221,7 +221,8 @@ def _add_distributed_options(parser: argparse.ArgumentParser, prefix: str) -> No
     from composed_sim.hosts.settings import DiscoverySettings
     parser.add_argument("--discovery-timeout", type=_positive_float, metavar="SECONDS",
                         default=DiscoverySettings.timeout_s,
-                        help=f"{prefix}how long to wait for the other side before giving up (default: %(default)s)")
+                        help=f"{prefix.replace(':', ' or --machines:') if prefix else ''}how long to wait for the "
+                             f"other side before giving up (default: %(default)s)")
     parser.add_argument("--discovery-range", choices=RANGES, type=str.lower, default=None,
                         help=f"{prefix}ROS_AUTOMATIC_DISCOVERY_RANGE (default: the environment's, else subnet)")
     parser.add_argument("--static-peers", metavar="ADDR;ADDR",

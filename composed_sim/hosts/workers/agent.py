@@ -71,9 +71,7 @@ class MachineAgent:
         if self.host is None:
             return None
         if kind == "stop":
-            self.host.__exit__(None, None, None)
-            self.host = None
-            return None
+            return self._stop()
         if kind == "tick":
             self.tick = message[1]
             self._write_state(message[-1])
@@ -106,6 +104,7 @@ class MachineAgent:
         return ("ready", nodes, [m for part in run_wide for m in part], rounds, calls)
 
     def _stop(self) -> None:
+        """Its workers stopped and reaped: the run is over for this machine."""
         if self.host is not None:
             self.host.__exit__(None, None, None)
             self.host = None

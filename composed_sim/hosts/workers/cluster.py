@@ -177,7 +177,8 @@ class ActorConnection:
         try:
             return call.result()
         except Exception as e:
-            raise EOFError(f"the machine's agent failed: {type(e).__name__}: {e}") from None
+            self.gone = f"its agent failed: {type(e).__name__}: {e}"
+            raise EOFError(self.gone) from None
 
     def lost(self, reason: str) -> None:
         """The machine left the run (from the scheduler's thread): recv raises from now on."""

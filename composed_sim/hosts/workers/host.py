@@ -225,7 +225,7 @@ class WorkersExchange:
         """A worker is gone: its robots are failed, once each, at this tick."""
         if w.dead is not None:
             return
-        ended = w.end()
+        ended = w.end()        # whatever the reason: what is left of it is killed
         reason = ended if reason is None else reason
         w.dead = reason
         w.conn.close()
@@ -358,7 +358,8 @@ class WorkerHost(ControllersElsewhere):
         """Every worker's nodes built and matched: how many nodes in all, per worker what they
         published on run-wide topics meanwhile, whether any may call across places (the ticks then
         have rounds of calls, hosts/workers/rounds.py) and the calls made meanwhile; a worker's
-        set-up error is raised here as the error it was (a plugin's names the world file's field)."""
+        set-up error is raised here as the error it was (a plugin's names the world file's field).
+        ``at_once``: how many build at a time (default: one per usable core)."""
         from composed_sim import plugins
         ready: dict[int, int] = {}      # worker → its nodes
         run_wide: dict[int, list] = {}  # worker → what its nodes published before tick 0

@@ -20,7 +20,7 @@ import os
 import secrets
 import sys
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Optional, Union
 
@@ -87,20 +87,19 @@ class MachineLink(ActorConnection):
 
 @dataclass
 class RemoteWorker(Worker):
-    """A machine, as one worker of the worker host."""
+    """A machine, as one worker of the worker host; its ``conn`` is a MachineLink."""
     machine: Optional[Machine] = None
-    link: Optional[MachineLink] = field(default=None, repr=False)
 
     def tail(self, chars: int = 2000) -> str:
         return ""
 
     def end(self) -> str:
-        self.link.forget()
-        return f"machine {self.machine.ip} ({self.machine.host}) lost: {self.link.gone}"
+        self.conn.forget()
+        return f"machine {self.machine.ip} ({self.machine.host}) lost: {self.conn.gone}"
 
     def startup_failure(self) -> str:
         return (f"machine {self.machine.ip} ({self.machine.host}, robots {self.start}…{self.stop - 1}) was lost "
-                f"during start-up: {self.link.gone}")
+                f"during start-up: {self.conn.gone}")
 
 
 class RemoteWorkerHost(WorkerHost):
@@ -160,8 +159,7 @@ class RemoteWorkerHost(WorkerHost):
         for index, (machine, (start, stop)) in enumerate(zip(joined, self.blocks)):
             link = self.scheduler.place(MachineAgent, machine, f"composed_sim-{self.run_id}-machine{index}",
                                         lambda *actor, block=slice(start, stop): MachineLink(*actor, self.shared, block))
-            self.workers.append(RemoteWorker(index, start, stop, None, link, Path(os.devnull), machine=machine,
-                                             link=link))
+            self.workers.append(RemoteWorker(index, start, stop, None, link, Path(os.devnull), machine=machine))
 
     def _send_setup(self, w: RemoteWorker) -> None:
         w.conn.send(("setup", MachineSetup(self.world, w.start, w.stop, self.hosting, self._prefix,
@@ -174,7 +172,7 @@ class RemoteWorkerHost(WorkerHost):
 
     def bytes_sent_per_tick(self, ticks: int) -> float:
         """The state's payload sent to the machines per tick (what the wire carries besides Dask's framing)."""
-        return sum(w.link.bytes_sent for w in self.workers) / max(ticks, 1)
+        return sum(w.conn.bytes_sent for w in self.workers) / max(ticks, 1)
 
     def __exit__(self, *exc) -> None:
         super().__exit__(*exc)
