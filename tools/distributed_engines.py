@@ -72,7 +72,7 @@ def dds_machine() -> None:
 
 # --- the simulator's side ----------------------------------------------------------------------------
 
-def dds_driver(ticks: int, sizes: list[int], start_machine) -> dict:
+def dds_driver(sizes: list[int], start_machine) -> dict:
     import rclpy
     from rclpy.context import Context
     from rclpy.executors import SingleThreadedExecutor
@@ -100,7 +100,7 @@ def dds_driver(ticks: int, sizes: list[int], start_machine) -> dict:
     return {"startup_s": time.perf_counter() - t0, "round_trip": round_trip}
 
 
-def dask_driver(ticks: int, sizes: list[int], start_machine, address: str) -> dict:
+def dask_driver(sizes: list[int], start_machine, address: str) -> dict:
     from distributed import Client, LocalCluster
     cluster = LocalCluster(n_workers=0, processes=False, protocol="tcp", host=address, scheduler_port=0, dashboard_address=None)
     client = Client(cluster)
@@ -116,7 +116,7 @@ def dask_driver(ticks: int, sizes: list[int], start_machine, address: str) -> di
     return {"startup_s": time.perf_counter() - t0, "round_trip": round_trip}
 
 
-def ray_driver(ticks: int, sizes: list[int], start_machine, address: str) -> dict:
+def ray_driver(sizes: list[int], start_machine, address: str) -> dict:
     import ray
     from ray.util.scheduling_strategies import NodeAffinitySchedulingStrategy
     t0 = time.perf_counter()
@@ -143,16 +143,16 @@ def measure(engine: str, ticks: int, sizes: list[int], nets, env: dict) -> dict:
                                         stderr=subprocess.DEVNULL))
     try:
         if engine == "dds":
-            info = dds_driver(ticks, sizes, lambda: machine([*py, "--machine", "dds"]))
+            info = dds_driver(sizes, lambda: machine([*py, "--machine", "dds"]))
         elif engine == "dask":
-            info = dask_driver(ticks, sizes, lambda address: machine(
+            info = dask_driver(sizes, lambda address: machine(
                 [str(Path(sys.executable).parent / "dask"), "worker", address, "--nthreads", "1", "--no-nanny",
                  "--host", machine_ip, "--no-dashboard"]), sim_ip)
         else:
             ray = str(Path(sys.executable).parent / "ray")
             subprocess.run([ray, "start", "--head", "--node-ip-address", sim_ip, "--port", "6379", "--num-cpus", "1",
                             "--include-dashboard=false"], env=env, check=True, capture_output=True)
-            info = ray_driver(ticks, sizes, lambda: machine(
+            info = ray_driver(sizes, lambda: machine(
                 [ray, "start", "--address", f"{sim_ip}:6379", "--node-ip-address", machine_ip, "--num-cpus", "1",
                  "--block"]), sim_ip)
         rows = {"engine": engine, "startup_s": round(info["startup_s"], 2)}
@@ -194,7 +194,6 @@ def main() -> None:
     env = {**os.environ, "PYTHONPATH": f"{HERE}{os.pathsep}{os.environ.get('PYTHONPATH', '')}",
            "FASTDDS_BUILTIN_TRANSPORTS": "UDPv4", "ROS_AUTOMATIC_DISCOVERY_RANGE": "SUBNET",
            "ROS_DOMAIN_ID": str(200 + os.getpid() % 30), "RAY_USAGE_STATS_ENABLED": "0"}
-    sizes = [int(x) for x in args.robots.split(",")]
     model = next((line.split(":", 1)[1].strip() for line in Path("/proc/cpuinfo").read_text().splitlines()
                   if line.startswith("model name")), platform.machine())
     print(json.dumps({"cpu": model, "cores": os.cpu_count(), "memory_gb": round(os.sysconf("SC_PAGE_SIZE") *
