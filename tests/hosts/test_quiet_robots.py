@@ -3,6 +3,7 @@ such a robot once the executor's threads fell quiet after its callbacks ran and 
 any, was taken. Its callbacks run on the executor's threads while the simulator's thread looks,
 so the rule must hold whatever those threads do between the looks."""
 from composed_sim.hosting.participant_groups import ParticipantGroups
+from composed_sim.hosting.run_wide.calls import CallRelay
 
 
 class Guard:
@@ -54,6 +55,7 @@ def groups_with(guard, exchange, on_take):
     groups.simulator_nodes = [SimulatorNode(on_take)]
     groups._quiet_robots, groups._settle = True, False
     groups._calls_at_open = {}
+    groups.calls = CallRelay([])                      # no call between places in flight
     return groups
 
 
