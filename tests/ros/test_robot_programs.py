@@ -174,7 +174,7 @@ PROGRAMS = {
 
 
 @pytest.mark.parametrize("program", PROGRAMS)
-@pytest.mark.parametrize("workers", [2, 3])
+@pytest.mark.parametrize("workers", [2, pytest.param(3, marks=pytest.mark.slow)])    # the full matrix: -m slow
 def test_each_program_runs_in_worker_processes_as_in_one(robot_programs, domain_id, program, workers):
     world = PROGRAMS[program]()
     reference, _ = composed(world, domain_id)
@@ -197,7 +197,8 @@ OWN_PROCESS = {    # a robot's nodes among themselves
 }
 
 
-@pytest.mark.parametrize("program", OWN_PROCESS)
+@pytest.mark.parametrize("program", [p if p == "blocking call" else pytest.param(p, marks=pytest.mark.slow)
+                                     for p in OWN_PROCESS])
 def test_each_program_runs_in_processes_of_its_own_as_hosted(robot_programs, domain_id, mp_domain, program):
     world = OWN_PROCESS[program]()
     world = world.model_copy(update={"robots": [world.robots[0].model_copy(update={"count": 3})]})
@@ -215,7 +216,8 @@ BETWEEN_PLACES = {
 }
 
 
-@pytest.mark.parametrize("program", BETWEEN_PLACES)
+@pytest.mark.parametrize("program", [p if p == "run-wide planner" else pytest.param(p, marks=pytest.mark.slow)
+                                     for p in BETWEEN_PLACES])
 def test_calls_between_robots_and_run_wide_nodes_in_processes_of_their_own(robot_programs, domain_id, mp_domain,
                                                                           program):
     world = BETWEEN_PLACES[program]()
@@ -314,8 +316,8 @@ STOCK = ("single-threaded", "events", "multi-threaded")
 
 
 @pytest.mark.parametrize("executor", STOCK)
-@pytest.mark.parametrize("program", ["awaited call", "done callback", "one-tick goals", "lifecycle autostart",
-                                     "run-wide planner"])
+@pytest.mark.parametrize("program", ["awaited call", "done callback", *(
+    pytest.param(p, marks=pytest.mark.slow) for p in ("one-tick goals", "lifecycle autostart", "run-wide planner"))])
 def test_rclpys_own_executors_host_what_they_run_in_a_process_of_their_own(robot_programs, domain_id, executor,
                                                                            program):
     """rclpy's executors, kept for comparison, host each program their threading allows, as the
