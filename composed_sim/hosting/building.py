@@ -102,6 +102,7 @@ def create_robot_nodes(world: World, group_index: int, name: str, context: Conte
     warnings = SetupWarnings() if warnings is None else warnings
     group = world.robots[group_index]
     robots = frozenset(world.robot_names()) if robots is None else robots
+    served = served_by_host(world, robots)
     sensors = robot_sensor_topics(group, name)
     overrides = controller_parameters(world, group_index)
     if use_sim_time:
@@ -114,8 +115,7 @@ def create_robot_nodes(world: World, group_index: int, name: str, context: Conte
             timers = SimTimers(world.tick_ns, follow_stamps=use_sim_time or clock_from_stamps)
             options = HostedNodeOptions(context, f"/{name}", [*overrides, *spec_parameters(spec)],
                                         spec.params_file, spec.remappings, hosted_logger(logs, name))
-            node = _construct(classes[spec.node], spec, field, name, options, timers, relay, origin,
-                              served_by_host(world))
+            node = _construct(classes[spec.node], spec, field, name, options, timers, relay, origin, served)
             built.nodes.append(node)
             timers_of.append(timers)
             # The constructor's publishers are checked here (nothing it published can answer a
@@ -192,10 +192,11 @@ def create_run_wide_nodes(world: World, context: Context, *, classes: Mapping[st
     return RunWideNodes(built.nodes, built.tick_timers, world.tick_ns, context)
 
 
-def served_by_host(world: World) -> Callable[[str], bool]:
+def served_by_host(world: World, robots: Optional[Container[str]] = None) -> Callable[[str], bool]:
     """Is a service of this name one the host will serve by tick 0: a robot's (in its namespace),
-    or, in a world with run-wide nodes, one outside every robot's namespace?"""
-    robots = frozenset(world.robot_names())
+    or, in a world with run-wide nodes, one outside every robot's namespace? ``robots``: every
+    robot's name, shared (computed from ``world`` when not given)."""
+    robots = frozenset(world.robot_names()) if robots is None else robots
     run_wide = bool(world.nodes)
 
     def served(name: str) -> bool:
