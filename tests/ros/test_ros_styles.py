@@ -15,6 +15,7 @@ from composed_sim.hosting import HostError
 from composed_sim.hosts.multiprocess.host import MultiProcessHost
 from composed_sim.hosts.workers.host import WorkerHost
 from composed_sim.world.loader import load_world
+from composed_sim.world.schema import Lockstep
 
 ROOT = Path(__file__).resolve().parents[2]
 FLOCKING = ROOT / "worlds" / "flocking.yaml"
@@ -98,7 +99,9 @@ def test_timer_slower_than_the_tick_answers_every_kth_tick_without_violations(st
     step = np.linalg.norm(np.diff(result.trajectories.positions, axis=0), axis=2)
     assert (step[1:] > 0).all()
     # Not declared: each tick in between is a violation, and the set-up said why.
+    # (A short watchdog: each of those ticks waits for it.)
     undeclared = with_timer(load_world(FLOCKING, robots=3, ticks=6, seed=2), 0.2)
+    undeclared = undeclared.model_copy(update={"lockstep": Lockstep(watchdog_s=2.0)})
     result = composed(undeclared, domain_id)
     assert sorted({v.tick for v in result.violations}) == [1, 3, 5]
     assert "set answers_every_ticks: 2" in capfd.readouterr().err
