@@ -118,12 +118,6 @@ def create_robot_nodes(world: World, group_index: int, name: str, context: Conte
             node = _construct(classes[spec.node], spec, field, name, options, timers, relay, origin, served)
             built.nodes.append(node)
             timers_of.append(timers)
-            # The constructor's publishers are checked here (nothing it published can answer a
-            # tick: no tick is open yet); the ones it creates later are refused when created.
-            problem = next((p for p in (c.publisher_problem(name, pub.topic_name, pub.msg_type, robots)
-                                        for pub in node.publishers) if p), None)
-            if problem is not None:
-                raise plugins.PluginError(f"{_describe(field, spec)} for {name}: {problem}", field)
         for ni, (node, spec) in enumerate(zip(built.nodes, group.node_specs)):
             if spec.lifecycle == AUTOSTART:
                 field_of = node_field(group, group_index, ni)
@@ -131,6 +125,15 @@ def create_robot_nodes(world: World, group_index: int, name: str, context: Conte
                     autostart(node, f"{_describe(field_of, spec)} of {name}")
                 except LifecycleError as e:
                     raise plugins.PluginError(str(e), field_of) from None
+        # The publishers of the constructors and the autostart transitions are checked here
+        # (nothing they published can answer a tick: no tick is open yet); the ones made later are
+        # refused when created (guard_publishers).
+        for ni, (node, spec) in enumerate(zip(built.nodes, group.node_specs)):
+            problem = next((p for p in (c.publisher_problem(name, pub.topic_name, pub.msg_type, robots)
+                                        for pub in node.publishers) if p), None)
+            if problem is not None:
+                raise plugins.PluginError(f"{_describe(node_field(group, group_index, ni), spec)} for {name}: "
+                                          f"{problem}", node_field(group, group_index, ni))
         built.inactive = inactive_nodes(built.nodes)
         problem = None if built.inactive else robot_wiring_problem(world, group_index, name, built.nodes, relay)
         if problem is not None:
@@ -175,6 +178,7 @@ def create_run_wide_nodes(world: World, context: Context, *, classes: Mapping[st
     timers on sim time, moved to each tick's time by the host; their run-wide topics through ``relay``;
     their log lines to ``logs`` (``<node>.log``)."""
     built = BuiltNodes([], [])
+    served = served_by_host(world, frozenset(world.robot_names()))
     try:
         for ni, spec in enumerate(world.nodes):
             timers = SimTimers(world.tick_ns)
@@ -182,7 +186,7 @@ def create_run_wide_nodes(world: World, context: Context, *, classes: Mapping[st
                                                        *spec_parameters(spec)], spec.params_file, spec.remappings,
                                         hosted_logger(logs, None))
             built.nodes.append(_construct(classes[spec.node], spec, ("nodes", ni), "the run", options, timers,
-                                          relay, RUN_WIDE_ORIGIN, served_by_host(world)))
+                                          relay, RUN_WIDE_ORIGIN, served))
             timers.started(())
             built.tick_timers.append(timers)
     except BaseException:
@@ -192,16 +196,14 @@ def create_run_wide_nodes(world: World, context: Context, *, classes: Mapping[st
     return RunWideNodes(built.nodes, built.tick_timers, world.tick_ns, context)
 
 
-def served_by_host(world: World, robots: Optional[Container[str]] = None) -> Callable[[str], bool]:
+def served_by_host(world: World, robots: Container[str]) -> Callable[[str], bool]:
     """Is a service of this name one the host will serve by tick 0: a robot's (in its namespace),
     or, in a world with run-wide nodes, one outside every robot's namespace? ``robots``: every
-    robot's name, shared (computed from ``world`` when not given)."""
-    robots = frozenset(world.robot_names()) if robots is None else robots
+    robot's name."""
     run_wide = bool(world.nodes)
 
     def served(name: str) -> bool:
-        first = name.split("/", 2)[1] if name.startswith("/") else ""
-        return first in robots or run_wide
+        return c.namespace_head(name) in robots or run_wide
     return served
 
 

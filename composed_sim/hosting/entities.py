@@ -1,20 +1,21 @@
 """What the host does with each entity of a hosted node, whenever the node made it.
 
 A node may create publishers, subscriptions, timers, services, clients and action endpoints in
-its constructor, in a lifecycle transition (``on_configure``) or in any callback. Each is hosted
-the same way, whenever it appears (the lockstep executor reports a node whose entities changed
-before its next walk; hosting/executors/lockstep.py):
+its constructor, in a lifecycle transition (``on_configure``) or in any callback. With the
+lockstep executor each is hosted the same way, whenever it appears (the executor reports a node
+whose entities changed before its next walk; hosting/executors/lockstep.py); rclpy's stock
+executors, kept for comparison, get what the nodes have when they are adopted:
 
 - its callbacks are guarded: a failure is the robot's (hosting/callback_guard.py);
 - its services are served in process, its clients call in process or through the call relay,
   its action endpoints are polled by the walk (hosting/services.py);
-- a publisher is checked against the topic contract (the robot's own topics only) and, on the
-  robot's ``cmd_vel``, told to the simulator as the robot's controller (its answers count);
+- a publisher on the robot's ``cmd_vel`` is told to the simulator as the robot's controller (its
+  answers count); each was checked against the topic contract when made (hosting/building.py);
 - the node gets its parameter services, in process (hosting/parameters.py).
 """
 from __future__ import annotations
 
-from typing import Collection, Optional
+from typing import Optional
 
 from rclpy.node import Node
 
@@ -32,13 +33,11 @@ class HostedEntities:
     their process's run-wide relay (hosting/run_wide/relay.py), whose subscriptions of theirs the
     guard guards too."""
 
-    def __init__(self, directory: ServiceDirectory, relay=None,
-                 guard: Optional[CallbackGuard] = None, robots: Collection[str] = ()):
+    def __init__(self, directory: ServiceDirectory, relay=None, guard: Optional[CallbackGuard] = None):
         self.directory = directory
-        self._relay, self._guard, self._robots = relay, guard, frozenset(robots)
+        self._relay, self._guard = relay, guard
         self._node_info: dict[int, tuple[Optional[str], int, object]] = {}   # id(node) → robot, place, simulator
         self._publishers: dict[int, set[int]] = {}                          # id(node) → ids of its publishers seen
-        self._parameters: dict[int, HostedParameterServices] = {}
         if hasattr(directory.executor, "on_entities_changed"):      # the lockstep executor tells
             directory.executor.on_entities_changed = self.host_new
 
@@ -51,7 +50,7 @@ class HostedEntities:
         if self._guard is not None and robot is not None:
             self._guard.guard(node, robot, simulator, self._relayed(node))
         self._host(node, place)
-        self._parameters[id(node)] = HostedParameterServices(node, self.directory)
+        HostedParameterServices(node, self.directory)      # kept by its services
 
     def host_new(self, node: Node) -> None:
         """``node`` created or destroyed entities since it was last looked at."""
@@ -63,7 +62,7 @@ class HostedEntities:
             self._guard.guard_new(node, self._relayed(node))
         self._host(node, place)
         if robot is not None:
-            self._check_publishers(node, robot, simulator)
+            self._note_answers(node, robot, simulator)
 
     def _relayed(self, node: Node) -> list:
         return self._relay.subscriptions_of(node) if self._relay is not None else []
@@ -78,15 +77,11 @@ class HostedEntities:
             if directory.is_action(waitable):
                 directory.host_action(node, waitable)
 
-    def _check_publishers(self, node: Node, robot: str, simulator) -> None:
+    def _note_answers(self, node: Node, robot: str, simulator) -> None:
+        """A new publisher on the robot's cmd_vel: the simulator takes its answers."""
         seen = self._publishers[id(node)]
         new = [p for p in node.publishers if id(p) not in seen]
         seen.update(id(p) for p in new)
-        for publisher in new:
-            problem = c.publisher_problem(robot, publisher.topic_name, publisher.msg_type, self._robots)
-            if problem is not None:
-                self._failed(node, ContractViolation(problem))
-                return
         answers = [p for p in new if p.topic_name == c.topic_name(robot, c.CMD_VEL)]
         if simulator is None or not answers:
             return

@@ -17,9 +17,7 @@ from lifecycle_msgs.msg import State
 from rclpy.lifecycle import LifecycleNode, TransitionCallbackReturn
 from rclpy.node import Node
 
-AUTOSTART = "autostart"
-MANUAL = "manual"
-LIFECYCLE_MODES = (MANUAL, AUTOSTART)
+AUTOSTART = "autostart"      # the world file's ``lifecycle:`` value (world/robot_groups.py)
 
 
 class LifecycleError(Exception):

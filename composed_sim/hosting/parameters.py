@@ -42,12 +42,8 @@ class HostedParameterServices:
     def __init__(self, node: Node, directory: ServiceDirectory):
         self._node, self._directory = node, directory
         self._proxy = _ServicesInProcess(node, directory, self.expose)   # ParameterService keeps only a weak reference
-        self._service = ParameterService(self._proxy)
+        ParameterService(self._proxy)     # kept by its services' callbacks, as in rclpy's Node
         self._exposed = False
-
-    @property
-    def names(self) -> list[str]:
-        return [entry.name for entry in self._proxy.entries]
 
     def expose(self) -> None:
         """Give the services their DDS endpoints (something in another process looks for them);

@@ -39,6 +39,7 @@ from composed_sim.hosting.lifecycle import state_label
 from composed_sim.hosting.executors.running import SETTLE_ROUNDS, Spinning, check_executor, make_executor
 from composed_sim.hosting.node_logs import NodeLogs
 from composed_sim.hosting.node_time import NodeTime
+from composed_sim.hosting.outside_calls import OutsideCalls
 from composed_sim.hosting.nodes_exchange import NodesExchange
 from composed_sim.hosting.run_wide.nodes import RunWideNodes
 from composed_sim.ros import contract as c
@@ -108,7 +109,7 @@ class ParticipantGroups(TickServing):
         self.links: list[Link] = []                         # in-process paths (ros/in_process.py)
         self._graph_watches: list[GraphWatch] = []          # per group: when to ask for matched counts
         self._outside_watches: list = []                    # per group: has its graph changed since?
-        self._robot_namespaces = frozenset(f"/{name}" for name in world.robot_names())
+        self._outside_calls: Optional[OutsideCalls] = None
         self.graph_changes: Optional[GraphChanges] = None   # what tells them the graph changed
         self.executor: Optional[Executor] = None
         self.spinning: Optional[Spinning] = None
@@ -211,14 +212,16 @@ class ParticipantGroups(TickServing):
         directory = ServiceDirectory(self.executor, relay=self.calls)
         self.calls.serve(range(self.start, self.stop), directory)
         names = self.world.robot_names()
-        self.entities = HostedEntities(directory, self.relay, self.guard, names)
+        self.entities = HostedEntities(directory, self.relay, self.guard)
+        self._outside_calls = OutsideCalls(directory, names,
+                                           lambda: any([changed() for changed in self._outside_watches]))
         robots = iter(range(self.start, self.stop))
         for sim_node in self.simulator_nodes:
             for robot, i in zip(sim_node.robots, robots):
                 for node in self.robot_nodes[i - self.start]:
                     self.entities.adopt(node, robot, i, sim_node)
         if self.run_wide is not None:
-            self.run_wide.host(self.relay, self.calls)
+            self.run_wide.host(self.relay, self.calls, names)
 
     def _link_in_process(self, first_robots: list[int]) -> None:
         """With the lockstep executor, which takes from inboxes: each group's sensor messages go
@@ -274,14 +277,12 @@ class ParticipantGroups(TickServing):
             timers.advance_to(now_ns)
         lockstep = isinstance(self.executor, LockstepExecutor)
         if batch:
-            self.relay.deliver(batch, run=self.executor.scheduler.tasks.append if lockstep else None)
+            self.relay.deliver(batch, run=self.executor.run_callback if lockstep else None)
             if self.first_group == 0:       # the run's first participant shows them to the world
                 self.simulator_nodes[0].mirror_run_wide(batch, now_ns)
         # What reached the robots at the tick's start is handled before its sensors: the run-wide
         # messages, the calls of the run-wide nodes' part of the tick, requests from other processes.
-        if self._outside_watches and any([changed() for changed in self._outside_watches]):
-            self.entities.directory.find_outside_clients(self._robot_namespaces)
-        self.entities.directory.take_outside_requests()
+        self._outside_calls.take()
         self._rounds_over = False
         for _ in range(SETTLE_ROUNDS):      # rounds: a manager's configure, then activate, say
             if lockstep:

@@ -7,7 +7,8 @@ runs the service's callback in its place in the fixed order (a stock executor ru
 and the response (a copy) completes the client's future once the client's callback group may
 run, as rclpy's executors require. A blocking ``Client.call()`` sets its callback aside meanwhile
 (hosting/executors/scheduler.py). Every service and client still exists on DDS: calls from and to
-other processes take that path, and the walk takes their requests and responses too. A call to
+other processes take that path: their requests are taken as a tick starts
+(hosting/outside_calls.py), the responses to calls made to them by the walk. A call to
 another place of the run (a run-wide node's service, a robot's from a run-wide node) goes
 through the host's call relay (hosting/run_wide/calls.py).
 
@@ -32,6 +33,7 @@ from rclpy.node import Node
 from rclpy.service import Service
 from rclpy.task import Future
 
+from composed_sim.hosting.sleeps import can_set_aside, wait_on_clock
 from composed_sim.ros.message_copy import copy_message, new_message
 
 
@@ -261,6 +263,8 @@ class ServiceDirectory:
             directory.wait(node, client.callback_group, future, f"{name} (Client.call)", timeout_sec)
             if not future.done():
                 client.remove_pending_request(future)
+                if directory.relay is not None:
+                    directory.relay.forget(future)
                 return None
             if future.exception() is not None:
                 raise future.exception()
@@ -281,7 +285,7 @@ class ServiceDirectory:
         a MultiThreadedExecutor's thread as rclpy blocks; never in an executor of one thread,
         where it would wait forever (in its own process too): refused."""
         executor = self.executor
-        if getattr(executor, "can_wait", lambda: False)():
+        if can_set_aside(executor):
             return True
         if isinstance(executor, MultiThreadedExecutor):
             return False
@@ -299,15 +303,7 @@ class ServiceDirectory:
                 f"{node.get_fully_qualified_name()} waits for {what} in a callback of the mutually exclusive "
                 f"callback group that must also take its response: it would wait forever, in any process. "
                 f"Give the client (or the calling callback) another group, e.g. a ReentrantCallbackGroup")
-        timer = None
-        if timeout_sec is not None:
-            # On the node's clock (sim time): the same tick in every run.
-            timer = node.create_timer(timeout_sec, lambda: future.done() or future.cancel())
-        try:
-            executor.wait_for(future, group)
-        finally:
-            if timer is not None:
-                node.destroy_timer(timer)
+        wait_on_clock(node, executor, future, group, timeout_sec, future.cancel)
 
     # --- actions ------------------------------------------------------------------------------------
 

@@ -10,8 +10,9 @@ callback, rclpy's own wait.
 """
 from __future__ import annotations
 
-from typing import Optional
+from typing import Callable, Optional
 
+from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.clock import Clock
 from rclpy.duration import Duration
 from rclpy.node import Node
@@ -19,9 +20,30 @@ from rclpy.task import Future
 from rclpy.time import Time
 
 
+def can_set_aside(executor) -> bool:
+    """Is the caller a callback that ``executor`` can set aside while it waits (the lockstep
+    executor's walk runs it)?"""
+    return getattr(executor, "can_wait", lambda: False)()
+
+
+def wait_on_clock(node: Node, executor, future: Future, group, seconds: Optional[float],
+                  at_time: Callable[[], object]) -> None:
+    """Set the calling callback (of ``group``) aside in ``executor`` until ``future`` is done;
+    ``seconds`` later on the node's clock (sim time: the same tick in every run), ``at_time()``
+    first, if not done."""
+    # A group of its own, as rclpy gives its rates: the caller's group may be held while it waits.
+    timer = None if seconds is None else node.create_timer(seconds, lambda: future.done() or at_time(),
+                                                           callback_group=ReentrantCallbackGroup())
+    try:
+        executor.wait_for(future, group)
+    finally:
+        if timer is not None:
+            node.destroy_timer(timer)
+
+
 def _executor_that_can_wait(node: Node):
     executor = node.executor
-    return executor if getattr(executor, "can_wait", lambda: False)() else None
+    return executor if can_set_aside(executor) else None
 
 
 def host_rates(node: Node) -> None:
@@ -67,11 +89,8 @@ def host_clock_sleeps(node: Node) -> None:
         left_ns = until.nanoseconds - clock.now().nanoseconds
         if left_ns > 0:
             future = Future()
-            timer = node.create_timer(left_ns * 1e-9, lambda: future.done() or future.set_result(None))
-            try:
-                executor.wait_for(future, executor.group_of_caller())
-            finally:
-                node.destroy_timer(timer)
+            wait_on_clock(node, executor, future, executor.group_of_caller(), left_ns * 1e-9,
+                          lambda: future.set_result(None))
         return True
 
     def sleep_for(rel_time: Duration, context=None) -> bool:

@@ -85,9 +85,7 @@ class TickServing:
         return None
 
     def _spin_until_answered(self, timeout_s: float) -> bool:
-        """Executors driven from this thread: the lockstep executor by design, the EventsExecutor
-        because its spin() in a background thread hung in our probes (docs/architecture.md), and
-        the single-threaded one like them, so that the callback guard can interrupt a hung callback.
+        """Executors driven from this thread (``executors.running.driven_by_caller``).
 
         Past the watchdog, the callbacks already queued still run before the tick closes: in one
         thread a late callback delays the ones behind it, and its lateness is its own (the guard
@@ -121,8 +119,8 @@ class TickServing:
             if time.monotonic() < deadline:
                 # A constant timeout: a stock executor keeps the ready callbacks of one wait only
                 # while spin_once's arguments stay the same, and rebuilds its wait set over every
-                # entity otherwise (with a changing timeout: once per callback, which took seconds
-                # a tick at a few hundred robots). The deadline is then met to within one slice.
+                # entity otherwise (with a changing timeout: once per callback; docs/speed.md, "The
+                # stock executors"). The deadline is then met to within one slice.
                 self.executor.spin_once(timeout_sec=WAIT_SLICE_S)
                 continue
             before = (self.guard.calls, self.exchange.answered_count)

@@ -93,6 +93,12 @@ def robot_topics(running) -> tuple[Topic, ...]:
 CLOCK_TYPE = Clock
 
 
+def namespace_head(name: str) -> str:
+    """The first part of a resolved name (``/bot3/scan`` → ``bot3``): the robot whose namespace it
+    is in, when a robot has that name."""
+    return name.split("/", 2)[1] if name.startswith("/") else ""
+
+
 def publisher_problem(robot: str, topic: str, published: type, robots: Container[str],
                       answer_type: Optional[type] = None) -> Optional[str]:
     """Why ``robot``'s controller may not publish ``published`` (a message type) on the resolved

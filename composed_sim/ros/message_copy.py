@@ -2,8 +2,8 @@
 
 Calls between hosted nodes are handed over in process (hosting/services.py): the server must get
 a request the client can no longer change, and the client a response the server can no longer
-change, as if both had crossed DDS. Serializing and deserializing does that but costs several
-times a field-by-field copy, so each message class gets a copier, generated once from its slots
+change, as if both had crossed DDS. Serializing and deserializing does that, at a higher cost than
+a field-by-field copy, so each message class gets a copier, generated once from its slots
 and field types (as ``dataclasses`` generates its methods): nested messages are copied by their
 own copiers, sequences and arrays are copied, numbers and strings (immutable) are shared.
 """
@@ -24,7 +24,7 @@ def copy_message(msg):
 
 def new_message(cls: type):
     """``cls()``, a message of default values, as a copy of one made once (a generated message's
-    constructor checks every keyword and builds every nested message, at about twice the cost)."""
+    constructor checks every keyword and builds every nested message)."""
     return _copier(cls)(_default(cls))
 
 

@@ -123,6 +123,22 @@ def test_a_run_wide_node_sets_each_robots_speed_parameter_through_its_parameter_
     assert step[5:10].max() > step[25:30].max()                 # faster at 0.06 m/s than at 0.03
 
 
+def test_a_callback_that_sleeps_holds_its_mutually_exclusive_group_across_ticks(robot_programs, domain_id, mp_domain):
+    """The nap's wake-up timer is not of the held group (as rclpy's rates have a group of their
+    own), and the run-wide messages delivered meanwhile wait until the group is free."""
+    world = world_of("groups:NapsInItsGroup", robots=2, ticks=38, run_wide=[("groups:Drummer", {})])
+    result, nodes = composed(world, domain_id)
+    in_own_processes = in_processes(world, mp_domain)
+    assert result.violations == in_own_processes.violations == []
+    np.testing.assert_array_equal(in_own_processes.trajectories.positions, result.trajectories.positions)
+    assert (moved(result) > 0.05).all()
+    for napper in nodes["NapsInItsGroup"]:
+        assert len(napper.naps) >= 3
+        assert all(0.35 <= round(end - start, 9) <= 0.4 for start, end in napper.naps), napper.naps  # the tick after
+        assert napper.beats_while_napping == 0
+        assert napper.beats >= 34                    # the ones delivered during a nap came after it
+
+
 def lifecycle_world(node: str = "LifecycleBehaviour", lifecycle: str = "manual", manager: bool = False, **kw):
     world = world_of(**kw)
     group = world.robots[0]
@@ -153,6 +169,19 @@ def test_a_lifecycle_node_never_activated_is_named_with_its_state_before_the_run
     from composed_sim.hosting import HostError
     with pytest.raises(HostError, match=r"bot0 cannot answer tick 0: .*/bot0/behaviour \(unconfigured\)"):
         composed(lifecycle_world(), domain_id)
+
+
+def test_an_autostarted_lifecycle_node_publishing_on_another_robots_topic_is_refused_before_tick_0(robot_programs,
+                                                                                                   domain_id):
+    """What ``on_configure`` makes is checked against the topic contract as a constructor's is."""
+    from composed_sim import plugins
+    world = lifecycle_world(lifecycle="autostart", robots=2, ticks=3)
+    group = world.robots[0]
+    spec = group.nodes[0].model_copy(update={"parameters": {"cmd_topic": "/bot1/cmd_vel"}})
+    world = world.model_copy(update={"robots": [group.model_copy(update={"nodes": [spec]})]})
+    with pytest.raises(plugins.PluginError, match=r"^robots\[0\]\.nodes\[0\]: node .* for bot0: /bot1/cmd_vel is a "
+                                                  r"topic of bot1, not of bot0$"):
+        composed(world, domain_id)
 
 
 def in_workers(world, domain_id, workers: int):
@@ -254,40 +283,64 @@ def test_a_blocking_call_in_the_group_that_takes_its_response_fails_only_its_rob
     assert (moved(result)[2:] > 0.005).all()
 
 
-SET_SPEED = """
-import sys, time, rclpy
+PARAM_TOOL = """
+import sys, rclpy
 from rclpy.context import Context
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
 from rclpy.executors import SingleThreadedExecutor
-context = Context(); rclpy.init(context=context, domain_id=int(sys.argv[1]))
+domain, target, name, value = int(sys.argv[1]), sys.argv[2], sys.argv[3], float(sys.argv[4])
+context = Context(); rclpy.init(context=context, domain_id=domain)
 node = Node("param_tool", context=context)
-client = AsyncParameterClient(node, "/bot0/behaviour")
+client = AsyncParameterClient(node, target)
 ready = client.wait_for_services(timeout_sec=60.0)
 executor = SingleThreadedExecutor(context=context); executor.add_node(node)
-listed = client.list_parameters([], 1); executor.spin_until_future_complete(listed, timeout_sec=30)
-done = client.set_parameters([Parameter("speed", value=0.0)]); executor.spin_until_future_complete(done, timeout_sec=30)
-print(ready, "speed" in listed.result().result.names, [r.successful for r in done.result().results], flush=True)
+def answer(future):
+    executor.spin_until_future_complete(future, timeout_sec=30)
+    return future.result()
+listed = answer(client.list_parameters([], 1))
+done = answer(client.set_parameters([Parameter(name, value=value)]))
+got = answer(client.get_parameters([name]))
+print(ready, name in listed.result.names, [r.successful for r in done.results], got.values[0].double_value, flush=True)
 """
 
+OUTSIDE_TARGETS = {      # what the tool sets: (mode, node, parameter, value)
+    "a robot's node": ("composed", "/bot0/behaviour", "speed", 0.0),
+    "a robot's node in a process of its own": ("multi-process", "/bot0/behaviour", "speed", 0.0),
+    "a run-wide node": ("composed", "/speed_setter", "period", 5.0),
+    "a run-wide node beside processes of their own": ("multi-process", "/speed_setter", "period", 5.0),
+}
 
-def test_another_process_sets_a_hosted_nodes_parameter_through_its_parameter_services(robot_programs, domain_id):
+
+@pytest.mark.parametrize("target", [t if t == "a robot's node" else pytest.param(t, marks=pytest.mark.slow)
+                                    for t in OUTSIDE_TARGETS])
+def test_another_process_sets_a_hosted_nodes_parameter_through_its_parameter_services(robot_programs, domain_id,
+                                                                                     mp_domain, target):
     """As ``ros2 param set`` would: the node's parameter services get their DDS endpoints once a
-    client of another process is on the ROS graph."""
+    client of another process is on the ROS graph; its requests are served as a tick starts."""
     import subprocess
-    world = world_of("fleet:SpeedFollower", robots=2, ticks=1_000_000)     # until the tool is done
-    tool = subprocess.Popen([sys.executable, "-c", SET_SPEED, str(domain_id)], stdout=subprocess.PIPE, text=True)
+    from composed_sim.hosts.multiprocess.host import MultiProcessHost
+    mode, node, name, value = OUTSIDE_TARGETS[target]
+    world = world_of("fleet:SpeedFollower", robots=2, ticks=1_000_000,     # until the tool is done
+                     run_wide=[("fleet:SpeedSetter", {"robots": ["bot1"], "speeds": [0.02]})])
+    domain = domain_id if mode == "composed" else mp_domain
+    tool = subprocess.Popen([sys.executable, "-c", PARAM_TOOL, str(domain), node, name, str(value)],
+                            stdout=subprocess.PIPE, text=True)
     try:
-        with ComposedHost(world, domain_id=domain_id) as host:
+        host = ComposedHost(world, domain_id=domain) if mode == "composed" else \
+            MultiProcessHost(world, domain_id=domain, robots_per_domain=2)
+        with host:
             result = host.run(should_stop=lambda: tool.poll() is not None)
-            speeds = [n.speed for n in host.controllers]
     finally:
         out, _ = tool.communicate(timeout=60)
-    assert out.split() == ["True", "True", "[True]"], out
-    assert speeds == [0.0, 0.02]                       # bot0's changed, bot1's did not
+    assert out.split() == ["True", "True", "[True]", str(value)], out
+    assert result.violations == []
     steps = np.linalg.norm(np.diff(result.trajectories.positions, axis=0), axis=2)
-    assert steps[-1, 0] < 1e-6 < steps[-1, 1]           # bot0 stopped; bot1 drives on
+    if name == "speed":
+        assert steps[-1, 0] < 1e-6 < steps[-1, 1]           # bot0 stopped; bot1 drives on
+    else:
+        assert (steps[-1] > 1e-6).all()
 
 
 def test_a_robots_programs_in_a_controller_shard_run_as_hosted(robot_programs, domain_id, tmp_path):

@@ -155,7 +155,7 @@ class LockstepExecutor(SingleThreadedExecutor):
             return
         try:
             awaited = task()
-        except GreenletExit:
+        except (GreenletExit, KeyboardInterrupt):
             raise
         except BaseException as e:               # noqa: BLE001 - a hung or exiting task (ControllerHung, SystemExit)
             task.set_exception(e)
@@ -193,6 +193,16 @@ class LockstepExecutor(SingleThreadedExecutor):
         else:
             self.scheduler.tasks.append(work)
 
+    def run_callback(self, callback: Callable[[], object], group) -> None:
+        """A callback the host hands over (a delivered run-wide message) runs as a task once its
+        callback group may run; an ``async def``'s coroutine holds the group until it is done."""
+        def run() -> None:
+            self.running_group = group
+            result = callback()
+            if result.__class__ is CoroutineType:
+                self.start_coroutine(result, group)
+        self.when_free(group, run)
+
     def group_of_caller(self):
         """The callback group of the callback that calls (None for a task)."""
         group = getattr(getcurrent(), "callback_group", _UNSET)
@@ -227,12 +237,12 @@ class LockstepExecutor(SingleThreadedExecutor):
         if self.walk_covers_all:
             # Nothing ready: wait until something is (a message from another process, a timer),
             # then take it in the walk's order.
-            if wait_for_work(self, timeout_sec):
-                self.dispatch_ready()
+            wait_for_work(self, timeout_sec)
+            self.dispatch_ready()
             return
         # What the walk cannot take, through rclpy's wait set: in a walker too, so that a callback
         # run there may wait.
-        self.scheduler.run(lambda: SingleThreadedExecutor.spin_once(self, timeout_sec) or 0)
+        self.scheduler.run(lambda: SingleThreadedExecutor.spin_once(self, timeout_sec))
 
     @property
     def walk_covers_all(self) -> bool:
@@ -250,11 +260,6 @@ class LockstepExecutor(SingleThreadedExecutor):
                         or (services is not None and services.polls(w)) for w in node.waitables)
                 for node in self._ordered_nodes)
         return self._covers_all
-
-    @property
-    def waiting(self) -> bool:
-        """Is work waiting for something (a callback set aside, a coroutine's future)?"""
-        return bool(self.scheduler.waiting or self._polled_tasks or self._held)
 
     def dispatch_ready(self) -> int:
         """Take and handle every message, request and response ready now, fire every timer due
@@ -285,6 +290,8 @@ class LockstepExecutor(SingleThreadedExecutor):
         (hosting/sim_timers.py), which the walk has just run: its answer is then taken by the
         simulator node later in the same walk."""
         changed, self._changed = self._changed, []
+        if changed:
+            self._covers_all = None          # it was known while they were pending
         if self.on_entities_changed is not None:
             for node in changed:
                 self.on_entities_changed(node)
@@ -309,7 +316,7 @@ class LockstepExecutor(SingleThreadedExecutor):
             entities += [(t, t.handle, None, None, None, True, None, t.callback_group, node) for t in node.timers]
         return entities
 
-    def _walk(self, services_only: bool = False) -> int:
+    def _walk(self, services_only: bool = False) -> None:
         if self._cursor is None:
             entities = self._entities
             if entities is None:
@@ -326,7 +333,7 @@ class LockstepExecutor(SingleThreadedExecutor):
         skip = 0
         self._run_tasks()
         if scheduler.walker is not me:
-            return self._ran
+            return
         for entity, handle, msg_type, raw, message_only, once, inbox, group, node in self._cursor:
             if skip:                               # a batch's subscriptions, handled by it this walk
                 skip -= 1
@@ -371,15 +378,14 @@ class LockstepExecutor(SingleThreadedExecutor):
             if result.__class__ is coroutine:
                 self.start_coroutine(result, group, node)
             if scheduler.walker is not me:         # set aside in a callback, resumed later: stop
-                return self._ran
+                return
             if tasks:
                 self._run_tasks()
                 if scheduler.walker is not me:
-                    return self._ran
+                    return
         self._run_tasks()
         if self._polled_tasks and scheduler.walker is me:
             self._step_polled(me)
-        return self._ran
 
     def _run_batch(self, callback, inboxes, count: int, group) -> tuple[object, int]:
         """A controller's sensor messages of the tick, all waiting in process and none in DDS: one
@@ -418,7 +424,7 @@ class LockstepExecutor(SingleThreadedExecutor):
             if once or result.__class__ is CoroutineType:
                 return result
 
-    def _run_tasks(self) -> int:
+    def _run_tasks(self) -> None:
         """Run the ready tasks, first in, first out, and the ones they make ready. A task is a
         ``HostedTask`` or a plain callable the host queued (a delivered message, a response);
         one that returns a coroutine (an ``async def`` subscription callback) starts it."""
@@ -435,4 +441,3 @@ class LockstepExecutor(SingleThreadedExecutor):
                     self.start_coroutine(result, None)
             if scheduler.walker is not me:
                 break
-        return self._ran

@@ -10,7 +10,7 @@ greenlet takes over the walk, and the set-aside stack resumes, from the same poi
 the walk that completes what it waited for. Only one stack runs at a time, switches happen only
 where a callback waits, and everything runs in the walk's fixed order: runs stay identical.
 
-Callbacks that never wait cost nothing more: they run inline in the walk, as before.
+Callbacks that never wait cost nothing more: they run inline in the walk.
 """
 from __future__ import annotations
 
@@ -30,23 +30,22 @@ class Scheduler:
         self.tasks: deque[Callable[[], None]] = deque()     # ready work, first in, first out
         self._home: Optional[greenlet] = None                 # who asked for the walk (the host's loop)
         self.walker: Optional[greenlet] = None                # the greenlet that walks now
-        self._walk: Callable[[], int] = lambda: 0
+        self._walk: Callable[[], None] = lambda: None
         self._set_aside: list[greenlet] = []                  # waiting, oldest first
         self._idle: list[greenlet] = []                       # walkers done with a stale walk, for reuse
 
     # --- the host's side ----------------------------------------------------------------------
 
-    def run(self, walk: Callable[[], int]) -> int:
-        """Run ``walk`` (it returns how many callbacks it ran) in the walker greenlet; a callback
-        of it that waits is set aside and the walk goes on without it."""
+    def run(self, walk: Callable[[], None]) -> None:
+        """Run ``walk`` in the walker greenlet; a callback of it that waits is set aside and the
+        walk goes on without it."""
         self._home, self._walk = getcurrent(), walk
         while True:
             walker = self.walker
             if walker is None or walker.dead:
                 walker = self.walker = self._new_walker()
-            ran = walker.switch()
-            if ran is not _TAKE_OVER:
-                return ran
+            if walker.switch() is not _TAKE_OVER:
+                return
             # A callback of the walk waits: a fresh walker goes on with it, made here, where the
             # stack is shallow (a greenlet starts as deep as the one that first switches to it).
             self.walker = None
@@ -60,24 +59,19 @@ class Scheduler:
         walker.scheduler = self            # what ``in_walk`` looks for
         return walker
 
-    def _walker_main(self) -> int:
+    def _walker_main(self) -> None:
         me = getcurrent()
         while True:
-            ran = self._walk()
+            self._walk()
             if self.walker is not me:
                 # Set aside in a walk, resumed by a later one: this walk's stack has served its
                 # purpose; back to the walker that resumed it, until reused as a walker.
                 if hasattr(me, "callback_group"):
                     del me.callback_group
                 self._idle.append(me)
-                me.parent.switch(ran)
+                me.parent.switch()
                 continue
-            self._home.switch(ran)
-
-    @property
-    def waiting(self) -> int:
-        """Callbacks set aside now."""
-        return len(self._set_aside)
+            self._home.switch()
 
     def close(self) -> None:
         """End every set-aside callback (its ``finally`` blocks run now, not at some later garbage

@@ -20,6 +20,7 @@ them between processes as it moves the run-wide batch.
 from __future__ import annotations
 
 import itertools
+import threading
 from dataclasses import dataclass
 from typing import Collection
 
@@ -35,7 +36,6 @@ class Request:
     call: tuple[int, int]        # (caller's place, sequence): the call's identity and its order
     place: int                   # the serving place
     service: str                 # resolved name
-    type_name: str               # "pkg/srv/Name"
     data: bytes
 
 
@@ -58,6 +58,8 @@ class CallRelay:
         self._place_of_robot = {name: i for i, name in enumerate(robots)}
         self._directories: dict[int, ServiceDirectory] = {}     # place → the directory serving it here
         self._outbox: list = []
+        # Callbacks on an executor's threads (rclpy's multi-threaded) add to it while the host takes it.
+        self._outbox_lock = threading.Lock()
         self._pending: dict[tuple[int, int], tuple[CallFuture, object, ServiceDirectory]] = {}
         self._sequence = itertools.count()
 
@@ -71,8 +73,7 @@ class CallRelay:
     def place_of(self, service: str) -> int:
         """The place a service name belongs to: its robot's, by namespace; the run-wide nodes'
         outside every robot's namespace."""
-        first = service.split("/", 2)[1] if service.startswith("/") else ""
-        return self._place_of_robot.get(first, RUN_WIDE_ORIGIN)
+        return self._place_of_robot.get(c.namespace_head(service), RUN_WIDE_ORIGIN)
 
     def leaves(self, origin: int, service: str) -> bool:
         """Does a call of place ``origin`` to ``service`` leave it (through the relay)?"""
@@ -86,13 +87,22 @@ class CallRelay:
         call = (origin, next(self._sequence))
         future = CallFuture(executor=directory.executor)
         self._pending[call] = (future, client, directory)
-        self._outbox.append(Request(call, self.place_of(client.service_name), client.service_name,
-                                    c.type_name(client.srv_type), serialize_message(request)))
+        self._send(Request(call, self.place_of(client.service_name), client.service_name,
+                           serialize_message(request)))
         return future
+
+    def forget(self, future: CallFuture) -> None:
+        """A call given up (its ``Client.call`` timed out): a response that still comes is dropped."""
+        self._pending = {call: p for call, p in self._pending.items() if p[0] is not future}
+
+    def _send(self, item) -> None:
+        with self._outbox_lock:
+            self._outbox.append(item)
 
     def take_outbox(self) -> list:
         """Requests and responses made since the last take, in the handover's order."""
-        taken, self._outbox = self._outbox, []
+        with self._outbox_lock:
+            taken, self._outbox = self._outbox, []
         return handover_order(taken)
 
     @property
@@ -128,4 +138,4 @@ class CallRelay:
             return            # nobody serves it: the caller waits, as for a service that never comes up
         message = deserialize_message(request.data, entry.srv_type.Request)
         entry.submit(message, lambda response, call=request.call:
-                     self._outbox.append(Response(call, serialize_message(response))))
+                     self._send(Response(call, serialize_message(response))))

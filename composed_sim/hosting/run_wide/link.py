@@ -19,7 +19,7 @@ from __future__ import annotations
 import pickle
 import time
 from array import array
-from typing import Collection, Optional
+from typing import Callable, Collection, Optional
 
 from rclpy.duration import Duration
 from rclpy.node import Node
@@ -76,6 +76,9 @@ class RunWideLink:
         self.tick = -1              # stamp of the last tick whose sensors arrived
         self.sent = -1              # stamp of the last tick whose messages went out
         self.answered = -1          # stamp of the last tick the robot's nodes published cmd_vel in
+        # Where delivered messages' callbacks run: the lockstep executor's ``run_callback`` (as
+        # tasks, their callback groups respected), else at once.
+        self.run_callback: Optional[Callable[[Callable, object], None]] = None
 
     @property
     def endpoints(self) -> list:
@@ -116,7 +119,7 @@ class RunWideLink:
         calls for this robot delivered; True if it brought calls (to be replied to)."""
         stamp, batch, _, _, calls, final = unpack(msg)
         if final:                    # a tick's batch (a round message carries calls only)
-            self._relay.deliver(batch)
+            self._relay.deliver(batch, run=self.run_callback)
             self.delivered = max(self.delivered, stamp)
         mine = calls.get(self._index, []) if calls else []
         if mine and self._calls is not None:

@@ -8,6 +8,8 @@ command that a run-wide node publishes at tick 0 reaches every robot before its 
 """
 from __future__ import annotations
 
+from typing import Collection, Optional
+
 from rclpy.context import Context
 from rclpy.node import Node
 from rclpy.time import Time
@@ -15,6 +17,7 @@ from rclpy.time import Time
 from composed_sim.hosting.entities import HostedEntities
 from composed_sim.hosting.executors.lockstep import LockstepExecutor
 from composed_sim.hosting.executors.running import run_until_idle
+from composed_sim.hosting.outside_calls import OutsideCalls
 from composed_sim.hosting.run_wide.calls import CallRelay
 from composed_sim.hosting.run_wide.relay import RUN_WIDE_ORIGIN, RunWideRelay
 from composed_sim.hosting.services import ServiceDirectory
@@ -29,18 +32,22 @@ class RunWideNodes:
         self._tick_ns = tick_ns
         self._nodes, self._tick_timers = nodes, tick_timers
         self._executor = LockstepExecutor(context=context)
+        self._outside_calls: Optional[OutsideCalls] = None
         for node in nodes:
             node.get_clock()._set_ros_time_is_active(True)
             self._executor.add_node(node)
 
-    def host(self, relay: RunWideRelay, calls: CallRelay) -> None:
+    def host(self, relay: RunWideRelay, calls: CallRelay, robots: Collection[str]) -> None:
         """Their services, clients and parameter services, hosted as the robots' are: calls to
-        and from robots through ``calls`` (hosting/run_wide/calls.py)."""
+        and from robots through ``calls`` (hosting/run_wide/calls.py), from other processes at
+        the start of their part of each tick (``robots``: the run's)."""
         directory = ServiceDirectory(self._executor, relay=calls)
         calls.serve([RUN_WIDE_ORIGIN], directory)
         entities = HostedEntities(directory, relay)
         for node in self._nodes:
             entities.adopt(node, None, RUN_WIDE_ORIGIN)
+        if self._nodes:
+            self._outside_calls = OutsideCalls.watching(directory, robots, self._nodes[0])
 
     def run_until_idle(self) -> None:
         """Run what is ready (calls handed over to them) until nothing is."""
@@ -59,9 +66,13 @@ class RunWideNodes:
             node.get_clock().set_ros_time_override(now)
         for timers in self._tick_timers:
             timers.advance_to(now_ns)
+        if self._outside_calls is not None:
+            self._outside_calls.take()
         run_until_idle(self._executor)
 
     def destroy(self) -> None:
+        if self._outside_calls is not None:
+            self._outside_calls.close()
         self._executor.shutdown()
         for node in self._nodes:
             node.destroy_node()

@@ -46,8 +46,7 @@ def is_run_wide(topic: str, robots: Collection[str]) -> bool:
     """Is the resolved ``topic`` outside every robot's namespace, and not one every node has?"""
     if topic in _NOT_RELAYED or topic.startswith("/_"):
         return False
-    first = topic.split("/", 2)[1]
-    return first not in robots
+    return c.namespace_head(topic) not in robots
 
 
 class RelayPublisher:
@@ -81,9 +80,11 @@ class RelaySubscription:
     """What a hosted node's ``create_subscription`` returns for a run-wide topic: the relay calls
     its callback with each delivered message (or its bytes, for ``raw=True``)."""
 
-    def __init__(self, relay: "RunWideRelay", topic: str, msg_type: type, callback: Callable, raw: bool):
+    def __init__(self, relay: "RunWideRelay", topic: str, msg_type: type, callback: Callable, raw: bool,
+                 callback_group):
         self._relay = relay
         self.topic_name, self.msg_type, self.raw = topic, msg_type, raw
+        self.callback_group = callback_group
         self.type_name = c.type_name(msg_type)
         self.callback = callback
         # As rclpy decides it: a callback of two parameters also gets the message info.
@@ -142,11 +143,13 @@ class RunWideRelay:
             self._published_by.setdefault(id(node), set()).add(name)
             return RelayPublisher(self, origin, name, msg_type)
 
-        def subscription(msg_type, topic, callback, *args, raw: bool = False, **kwargs):
+        def subscription(msg_type, topic, callback, *args, raw: bool = False, callback_group=None, **kwargs):
             name = node.resolve_topic_name(topic)
             if not is_run_wide(name, self._robots):
-                return create_subscription(msg_type, topic, callback, *args, raw=raw, **kwargs)
-            sub = RelaySubscription(self, name, msg_type, callback, raw)
+                return create_subscription(msg_type, topic, callback, *args, raw=raw, callback_group=callback_group,
+                                           **kwargs)
+            sub = RelaySubscription(self, name, msg_type, callback, raw,
+                                    callback_group or node.default_callback_group)
             with self._lock:
                 self._subscriptions.setdefault(name, []).append(sub)
             subscriptions.append(sub)
@@ -182,14 +185,14 @@ class RunWideRelay:
             taken, self._outbox = self._outbox, []
         return [message for _, _, message in sorted(taken, key=lambda m: (m[0], m[1]))]
 
-    def deliver(self, batch: list[Message], run: Optional[Callable[[Callable], None]] = None) -> None:
+    def deliver(self, batch: list[Message], run: Optional[Callable[[Callable, object], None]] = None) -> None:
         """Every message of ``batch``, in order, to every subscriber of its topic in this process:
-        now, or handed to ``run`` (the lockstep executor's task queue, in which a callback may
-        wait or be a coroutine)."""
+        now, or handed to ``run`` with the subscription's callback group (the lockstep executor's
+        ``run_callback``: a task, in which a callback may wait or be a coroutine)."""
         for topic, type_name, data in batch:
             for sub in list(self._subscriptions.get(topic, ())):
                 if sub.type_name == type_name:     # DDS would not match another type either
                     if run is None:
                         sub.deliver(data)
                     else:
-                        run(functools.partial(sub.deliver, data))
+                        run(functools.partial(sub.deliver, data), sub.callback_group)

@@ -31,6 +31,7 @@ from composed_sim.hosting.options import DEFAULT_EXECUTOR
 from composed_sim.hosting import HostError
 from composed_sim.hosting.building import SetupWarnings, create_robot_nodes, load_classes
 from composed_sim.hosting.entities import HostedEntities
+from composed_sim.hosting.outside_calls import OutsideCalls
 from composed_sim.hosting.services import ServiceDirectory
 from composed_sim.hosting.matching import contract_endpoints, matched, poll_until
 from composed_sim.hosting.executors.running import Spinning, check_executor, driven_by_caller, make_executor, shut_down
@@ -64,6 +65,7 @@ class ShardHost:
         self.spinning: Optional[Spinning] = None
         self._clocks: list[RosClock] = []
         self._clock_sub = None
+        self._outside_calls: Optional[OutsideCalls] = None
 
     def __enter__(self) -> "ShardHost":
         try:
@@ -84,7 +86,10 @@ class ShardHost:
             warnings = SetupWarnings()
             # A robot's services, clients, actions and parameters, hosted as in the composed host
             # (hosting/entities.py); calls to a place outside the shard go through DDS.
-            entities = HostedEntities(ServiceDirectory(self.spinning.executor), None, None, robot_names)
+            directory = ServiceDirectory(self.spinning.executor)
+            entities = HostedEntities(directory)
+            # Its robots' services called from other processes, taken as each tick starts.
+            self._outside_calls = OutsideCalls.watching(directory, names, self.announcer.node)
             for i in self.robots:
                 if self.should_stop():
                     break
@@ -111,6 +116,8 @@ class ShardHost:
         now = RosTime.from_msg(msg.clock)
         for clock in self._clocks:
             clock.set_ros_time_override(now)
+        if self._outside_calls is not None:
+            self._outside_calls.take()
 
     # --- start-up: match, then announce -----------------------------------------------------
 
@@ -166,6 +173,9 @@ class ShardHost:
                 time.sleep(LIVENESS_PERIOD_S / 4)
 
     def __exit__(self, *exc) -> None:
+        if self._outside_calls is not None:
+            self._outside_calls.close()
+            self._outside_calls = None
         shut_down(self.spinning, [*(n for nodes in self.robot_nodes for n in nodes),
                                   *([self.announcer] if self.announcer is not None else [])], self.context)
         self.robot_nodes, self.announcer, self.context = [], None, None

@@ -175,7 +175,7 @@ class MultiProcessHost(ControllersElsewhere):
             if self.world.nodes:
                 self.run_wide.nodes = create_run_wide_nodes(self.world, self._contexts[0], classes=classes,
                                                             relay=self.run_wide.relay, logs=self.logs)
-                self.run_wide.nodes.host(self.run_wide.relay, self.run_wide.calls)
+                self.run_wide.nodes.host(self.run_wide.relay, self.run_wide.calls, self.sim.names)
             self.exchange = LinkedExchange(self._nodes, self.domains, self.sim.names, self.world.tick_ns, self.run_wide,
                                            self._check_children, lockstep.watchdog_s + lockstep.unresponsive_s)
             with InterruptWatch() as interrupts:

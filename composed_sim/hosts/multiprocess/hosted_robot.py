@@ -21,6 +21,8 @@ from composed_sim.hosting.matching import contract_endpoints, matched, poll_unti
 from composed_sim.hosting.node_logs import FAILURE_MARK, Console, NodeLogs, node_label, raising_node
 from composed_sim.hosting.options import ProcessHosting
 from composed_sim.hosting.entities import HostedEntities
+from composed_sim.hosting.executors.lockstep import LockstepExecutor
+from composed_sim.hosting.outside_calls import OutsideCalls
 from composed_sim.hosting.run_wide.calls import CallRelay
 from composed_sim.hosting.run_wide.link import RunWideLink
 from composed_sim.hosting.run_wide.relay import RunWideRelay
@@ -53,6 +55,7 @@ class HostedRobot:
         self.nodes: list = []
         self.link: Optional[RunWideLink] = None
         self.spinning: Optional[Spinning] = None
+        self.outside_calls: Optional[OutsideCalls] = None
         # The robot's log file is written here; this process's console is a file nobody reads, so
         # only a failure's traceback goes there (after FAILURE_MARK, for the host to show).
         # The console's part and the /rosout lines go to the simulator with the robot's part of each
@@ -109,14 +112,17 @@ class HostedRobot:
         before_each_tick([s for n in self.nodes for s in n.subscriptions if s.topic_name in sensors],
                          lambda stamp: self._starting_tick(stamp, built.tick_timers))
         self.spinning = Spinning(make_executor(self.hosting.executor, self.context))
+        if self.link is not None and isinstance(self.spinning.executor, LockstepExecutor):
+            self.link.run_callback = self.spinning.executor.run_callback
         for node in ([self.link.node] if self.link is not None else []) + self.nodes:
             self.spinning.executor.add_node(node)
         # Its services, clients and actions served as in the composed host (hosting/entities.py).
         directory = ServiceDirectory(self.spinning.executor, relay=self.calls)
         self.calls.serve([place], directory)
-        entities = HostedEntities(directory, relay, None, names)
+        entities = HostedEntities(directory, relay)
         for node in self.nodes:
             entities.adopt(node, robot, place)
+        self.outside_calls = OutsideCalls.watching(directory, names, self.nodes[0])
         return True
 
     def _starting_tick(self, stamp: int, tick_timers) -> None:
@@ -124,6 +130,8 @@ class HostedRobot:
             timers.advance_to(stamp)
         if self.link is not None:
             self.link.before_tick(stamp)
+        if self.outside_calls is not None:
+            self.outside_calls.take()
 
     def report(self, fd: int, stopped: Callable[[], bool]) -> Optional[int]:
         """Tell the host on the pipe ``fd`` that the nodes exist, then that their contract endpoints
@@ -198,6 +206,8 @@ class HostedRobot:
         # (its shared-memory port, say) must not keep this process alive. SIGALRM has no handler
         # here, so the kernel ends the process even while a C call holds the interpreter.
         signal.alarm(CLEANUP_LIMIT_S)
+        if self.outside_calls is not None:
+            self.outside_calls.close()
         shut_down(self.spinning, [*self.nodes, *([self.link] if self.link is not None else [])], self.context,
                   shutdown_timeout_s=1.0, join_timeout_s=2.0)
 

@@ -69,7 +69,8 @@ class CallRounds:
                 except (EOFError, OSError):
                     self._lost(w, None)
                     continue
-                assert kind == "idle", kind
+                if kind != "idle":
+                    raise RuntimeError(f"a worker answered a round with {kind!r}, not 'idle'")
                 calls += made
         return calls
 

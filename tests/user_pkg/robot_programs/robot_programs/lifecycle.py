@@ -17,12 +17,13 @@ class LifecycleBehaviour(LifecycleNode):
 
     def __init__(self, name: str = "behaviour"):
         super().__init__(name)
+        self.cmd_topic = self.declare_parameter("cmd_topic", "cmd_vel").value
         self.cmd = None
         self.transitions = []
 
     def on_configure(self, state) -> TransitionCallbackReturn:
         self.transitions.append("configure")
-        self.cmd = self.create_lifecycle_publisher(Twist, "cmd_vel", 10)
+        self.cmd = self.create_lifecycle_publisher(Twist, self.cmd_topic, 10)
         self.create_subscription(LaserScan, "proximity", self.on_scan, 10)
         return TransitionCallbackReturn.SUCCESS
 
