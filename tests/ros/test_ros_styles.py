@@ -113,7 +113,9 @@ def test_timer_faster_than_the_tick_fires_once_per_tick_and_odd_periods_are_warn
         result = host.run()
         assert [n.decisions for n in host.controllers] == [10, 10, 10]
     assert result.violations == []
-    composed(with_timer(load_world(FLOCKING, robots=3, ticks=3, seed=2), 0.15), domain_id)
+    odd = with_timer(load_world(FLOCKING, robots=3, ticks=3, seed=2), 0.15)
+    # (A short watchdog: its ticks without an answer wait for it.)
+    composed(odd.model_copy(update={"lockstep": Lockstep(watchdog_s=2.0)}), domain_id)
     assert "has a timer of 0.15 s, neither a multiple nor a divisor of the world's tick (0.1 s)" in capfd.readouterr().err
 
 
