@@ -6,7 +6,7 @@ from __future__ import annotations
 import sys
 import dataclasses
 from dataclasses import dataclass
-from typing import Callable, Collection, Container, Mapping, Optional, Sequence
+from typing import Collection, Container, Mapping, Optional, Sequence
 
 from rclpy.context import Context
 from rclpy.node import Node
@@ -102,7 +102,7 @@ def create_robot_nodes(world: World, group_index: int, name: str, context: Conte
     warnings = SetupWarnings() if warnings is None else warnings
     group = world.robots[group_index]
     robots = frozenset(world.robot_names()) if robots is None else robots
-    served = served_by_host(world, robots)
+    served = ServedByTick0(world, robots)
     sensors = robot_sensor_topics(group, name)
     overrides = controller_parameters(world, group_index)
     if use_sim_time:
@@ -134,6 +134,7 @@ def create_robot_nodes(world: World, group_index: int, name: str, context: Conte
             if problem is not None:
                 raise plugins.PluginError(f"{_describe(node_field(group, group_index, ni), spec)} for {name}: "
                                           f"{problem}", node_field(group, group_index, ni))
+        served.building = False
         built.inactive = inactive_nodes(built.nodes)
         problem = None if built.inactive else robot_wiring_problem(world, group_index, name, built.nodes, relay)
         if problem is not None:
@@ -178,7 +179,7 @@ def create_run_wide_nodes(world: World, context: Context, *, classes: Mapping[st
     timers on sim time, moved to each tick's time by the host; their run-wide topics through ``relay``;
     their log lines to ``logs`` (``<node>.log``)."""
     built = BuiltNodes([], [])
-    served = served_by_host(world, frozenset(world.robot_names()))
+    served = ServedByTick0(world, frozenset(world.robot_names()))
     try:
         for ni, spec in enumerate(world.nodes):
             timers = SimTimers(world.tick_ns)
@@ -189,6 +190,7 @@ def create_run_wide_nodes(world: World, context: Context, *, classes: Mapping[st
                                           relay, RUN_WIDE_ORIGIN, served))
             timers.started(())
             built.tick_timers.append(timers)
+        served.building = False
     except BaseException:
         for node in built.nodes:
             node.destroy_node()
@@ -196,15 +198,18 @@ def create_run_wide_nodes(world: World, context: Context, *, classes: Mapping[st
     return RunWideNodes(built.nodes, built.tick_timers, world.tick_ns, context)
 
 
-def served_by_host(world: World, robots: Container[str]) -> Callable[[str], bool]:
-    """Is a service of this name one the host will serve by tick 0: a robot's (in its namespace),
-    or, in a world with run-wide nodes, one outside every robot's namespace? ``robots``: every
-    robot's name."""
-    run_wide = bool(world.nodes)
+class ServedByTick0:
+    """While nodes are built (constructors, autostart transitions): is a service of this name one
+    the host will serve by tick 0, a robot's (in its namespace) or, in a world with run-wide nodes,
+    one outside every robot's namespace? Once they are built, False: a wait is rclpy's own again.
+    ``robots``: every robot's name."""
 
-    def served(name: str) -> bool:
-        return c.namespace_head(name) in robots or run_wide
-    return served
+    def __init__(self, world: World, robots: Container[str]):
+        self._robots, self._run_wide = robots, bool(world.nodes)
+        self.building = True
+
+    def __call__(self, name: str) -> bool:
+        return self.building and (c.namespace_head(name) in self._robots or self._run_wide)
 
 
 def hosted_logger(logs: Optional[NodeLogs], owner: Optional[str]):
@@ -219,9 +224,9 @@ def spec_parameters(spec: NodeSpec) -> list[Parameter]:
 
 
 def _construct(cls: type[Node], spec: NodeSpec, field: tuple, owner: str, options: HostedNodeOptions,
-               timers: SimTimers, relay: Optional[RunWideRelay], origin: int, served: Callable[[str], bool]) -> Node:
+               timers: SimTimers, relay: Optional[RunWideRelay], origin: int, served: ServedByTick0) -> Node:
     """One node built by ``node_options.construct``; an error names the world file's field.
-    ``served(name)``: will the host serve that service by tick 0 (``served_by_host``)?"""
+    ``served(name)``: will the host serve that service by tick 0?"""
     def prepare(node: Node) -> None:
         timers.prepare(node)
         host_rates(node)

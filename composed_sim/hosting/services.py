@@ -436,7 +436,8 @@ def wait_during_construction(node: Node, will_be_served: Callable[[str], bool]) 
     """Before ``node``'s constructor: a client it makes there may wait for its service (the ROS 2
     tutorials' ``while not client.wait_for_service(timeout_sec=1.0)``). Hosted, the service may
     belong to a node built after it, or in another process, and is served by tick 0, when calls
-    can first be made: such a wait ends at once (``will_be_served(name)``), instead of for ever."""
+    can first be made: such a wait ends at once (``will_be_served(name)``, true only while the
+    nodes are built), instead of for ever."""
     create_client = node.create_client
 
     def hosted_create_client(srv_type, srv_name, *args, **kwargs):

@@ -395,6 +395,15 @@ def test_rclpys_own_executors_host_what_they_run_in_a_process_of_their_own(robot
     np.testing.assert_array_equal(result.trajectories.positions, reference.trajectories.positions)
 
 
+@pytest.mark.parametrize("executor", ["lockstep", "single-threaded"])
+def test_a_client_made_after_construction_does_not_find_a_service_nobody_serves(robot_programs, domain_id, executor):
+    """While the nodes are built, a client's wait for a service the host will serve ends at once;
+    later, it is rclpy's own wait."""
+    result, nodes = composed(world_of("planning:LateLookup", robots=2, ticks=2), domain_id, executor)
+    assert result.violations == []
+    assert [n.found for n in nodes["LateLookup"]] == [False, False]
+
+
 def multi_threaded_warns_of_late_calls(world, domain_id):
     import contextlib
     import io

@@ -117,3 +117,19 @@ class TutorialClient(_Behaviour):
     def on_scan(self, scan):
         plan = self.client.call(self.request(scan))
         self.cmd.publish(twist(plan.linear, plan.angular))
+
+
+class LateLookup(Node):
+    """Steers by itself; on its first scan makes a client for a service nobody serves and asks,
+    briefly, whether it is there (``found``): no, in any process."""
+
+    def __init__(self):
+        super().__init__("behaviour")
+        self.found = None
+        self.cmd = self.create_publisher(Twist, "cmd_vel", 10)
+        self.create_subscription(LaserScan, "proximity", self.on_scan, 10)
+
+    def on_scan(self, scan):
+        if self.found is None:
+            self.found = self.create_client(Plan, "no_such_plan").wait_for_service(timeout_sec=0.05)
+        self.cmd.publish(twist(*steer(closeness(scan))))
