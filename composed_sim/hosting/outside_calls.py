@@ -30,7 +30,8 @@ class OutsideCalls:
 
     @classmethod
     def watching(cls, directory: ServiceDirectory, robots: Collection[str], node: Node) -> "OutsideCalls":
-        """Watching the graph of ``node``'s participant."""
+        """Watching the graph of ``node``'s participant: only where nothing else in the process
+        watches it (a wait on the graph's guard condition consumes its triggers)."""
         graph = GraphChanges([node])
         return cls(directory, robots, graph.poll(0), graph)
 

@@ -110,6 +110,7 @@ class ParticipantGroups(TickServing):
         self._graph_watches: list[GraphWatch] = []          # per group: when to ask for matched counts
         self._outside_watches: list = []                    # per group: has its graph changed since?
         self._outside_calls: Optional[OutsideCalls] = None
+        self._run_wide_graph: Optional[Callable[[], bool]] = None  # has the run-wide nodes' graph changed?
         self.graph_changes: Optional[GraphChanges] = None   # what tells them the graph changed
         self.executor: Optional[Executor] = None
         self.spinning: Optional[Spinning] = None
@@ -221,7 +222,8 @@ class ParticipantGroups(TickServing):
                 for node in self.robot_nodes[i - self.start]:
                     self.entities.adopt(node, robot, i, sim_node)
         if self.run_wide is not None:
-            self.run_wide.host(self.relay, self.calls, names)
+            self.run_wide.host(self.relay, self.calls, names,
+                               lambda: self._run_wide_graph is not None and self._run_wide_graph())
 
     def _link_in_process(self, first_robots: list[int]) -> None:
         """With the lockstep executor, which takes from inboxes: each group's sensor messages go
@@ -258,6 +260,8 @@ class ParticipantGroups(TickServing):
                                for k, (links, inboxes) in enumerate(watched)]
         # The services' clients in other processes, looked for again when a graph changed.
         self._outside_watches = [self.graph_changes.poll(k) for k in range(len(self.simulator_nodes))]
+        if self.run_wide is not None:       # theirs is the first group's participant
+            self._run_wide_graph = self.graph_changes.poll(0)
         self.executor.wake()     # its walk picks the inboxes up
 
     # --- run-wide topics, at the tick's edges (hosting/run_wide/relay.py) --------------------------------

@@ -8,7 +8,7 @@ command that a run-wide node publishes at tick 0 reaches every robot before its 
 """
 from __future__ import annotations
 
-from typing import Collection, Optional
+from typing import Callable, Collection, Optional
 
 from rclpy.context import Context
 from rclpy.node import Node
@@ -37,16 +37,21 @@ class RunWideNodes:
             node.get_clock()._set_ros_time_is_active(True)
             self._executor.add_node(node)
 
-    def host(self, relay: RunWideRelay, calls: CallRelay, robots: Collection[str]) -> None:
+    def host(self, relay: RunWideRelay, calls: CallRelay, robots: Collection[str],
+             graph_changed: Optional[Callable[[], bool]] = None) -> None:
         """Their services, clients and parameter services, hosted as the robots' are: calls to
         and from robots through ``calls`` (hosting/run_wide/calls.py), from other processes at
-        the start of their part of each tick (``robots``: the run's)."""
+        the start of their part of each tick (``robots``: the run's). ``graph_changed``: has their
+        participant's ROS graph changed, from the host's own watch where it has one (a second
+        watch of the same participant would take its triggers); else they watch it themselves."""
         directory = ServiceDirectory(self._executor, relay=calls)
         calls.serve([RUN_WIDE_ORIGIN], directory)
         entities = HostedEntities(directory, relay)
         for node in self._nodes:
             entities.adopt(node, None, RUN_WIDE_ORIGIN)
-        if self._nodes:
+        if graph_changed is not None:
+            self._outside_calls = OutsideCalls(directory, robots, graph_changed)
+        elif self._nodes:
             self._outside_calls = OutsideCalls.watching(directory, robots, self._nodes[0])
 
     def run_until_idle(self) -> None:
