@@ -9,6 +9,7 @@ import numpy as np
 
 from composed_sim.core.cell_layout import CellLayout
 from composed_sim.core.cells import STATE_FIELDS, CellGroup
+from composed_sim.core.physics import checked_wheel_speeds
 from composed_sim.devices.common.poses import wrap_angle
 from composed_sim.world.robot_models import RobotModel
 from composed_sim.world.schema import World
@@ -49,14 +50,7 @@ class CellEngine:
 
     def set_wheel_speeds(self, left_mps: np.ndarray, right_mps: np.ndarray) -> None:
         """Store wheel speeds [n] each (m/s); they act from the start of the next step()."""
-        left = np.asarray(left_mps, dtype=np.float64)
-        right = np.asarray(right_mps, dtype=np.float64)
-        for name, a in (("left_mps", left), ("right_mps", right)):
-            if a.shape != (self.n,):
-                raise ValueError(f"{name} must have shape ({self.n},), got {a.shape}")
-            if not np.isfinite(a).all():
-                raise ValueError(f"{name} must be finite, got {a}")
-        self._left_mps, self._right_mps = left.copy(), right.copy()
+        self._left_mps, self._right_mps = checked_wheel_speeds(left_mps, right_mps, self.n)
 
     def wheel_speeds(self) -> tuple[np.ndarray, np.ndarray]:
         return self._left_mps, self._right_mps

@@ -38,6 +38,19 @@ _N_FIELDS = 6   # x, y, angle, vx, vy, w — the order cpSpaceEachBody's batch w
 _SET_FIELDS = pymunk.batch.BodyFields.VELOCITY | pymunk.batch.BodyFields.ANGULAR_VELOCITY
 
 
+def checked_wheel_speeds(left_mps, right_mps, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Copies of wheel speeds [n] each (m/s) as float64; a wrong shape or a non-finite value is a
+    ValueError naming the argument."""
+    left = np.asarray(left_mps, dtype=np.float64)
+    right = np.asarray(right_mps, dtype=np.float64)
+    for name, a in (("left_mps", left), ("right_mps", right)):
+        if a.shape != (n,):
+            raise ValueError(f"{name} must have shape ({n},), got {a.shape}")
+        if not np.isfinite(a).all():
+            raise ValueError(f"{name} must be finite, got {a}")
+    return left.copy(), right.copy()
+
+
 class PhysicsWorld:
     """pymunk (Chipmunk) space: differential-drive robots, static obstacles and movable objects.
 
@@ -118,15 +131,7 @@ class PhysicsWorld:
 
     def set_wheel_speeds(self, left_mps: np.ndarray, right_mps: np.ndarray) -> None:
         """Store wheel speeds [n] each (m/s); they act from the start of the next step()."""
-        left = np.asarray(left_mps, dtype=np.float64)
-        right = np.asarray(right_mps, dtype=np.float64)
-        for name, a in (("left_mps", left), ("right_mps", right)):
-            if a.shape != (self.n,):
-                raise ValueError(f"{name} must have shape ({self.n},), got {a.shape}")
-            if not np.isfinite(a).all():
-                raise ValueError(f"{name} must be finite, got {a}")
-        self._left_mps = left.copy()
-        self._right_mps = right.copy()
+        self._left_mps, self._right_mps = checked_wheel_speeds(left_mps, right_mps, self.n)
 
     def step(self) -> None:
         """One tick: set the control velocities (act), then ``substeps`` physics steps."""
