@@ -295,17 +295,25 @@ class WorkerHost(ControllersElsewhere):
             self.sim = Simulation(self.world)
             self._adopt()
             with InterruptWatch() as interrupts:
-                nodes, run_wide, rounds, calls = self._wait_ready(lambda: interrupts.requested)
+                ready = self._wait_ready(lambda: interrupts.requested)
             self._startup_interrupted = interrupts.requested
-            self.exchange = WorkersExchange(self.workers, self.sim.names, self.world.lockstep, self.shared,
-                                            self.logs)
-            self.exchange.run_wide = run_wide
-            self.exchange.rounds.needed, self.exchange.rounds.pending = rounds, calls
+            nodes = self._open_exchange(ready)
         except BaseException:
             self.__exit__(None, None, None)
             raise
         self.setup = SetupInfo(time.perf_counter() - t0, nodes, len(self.workers), len(self.workers))
         return self
+
+    def _open_exchange(self, ready: tuple, **options) -> int:
+        """The tick exchange over the workers, given what ``_wait_ready`` gathered (their nodes,
+        run-wide subscriptions and calls between places); returns the number of nodes.
+        ``options``: the exchange's own (``grace_s``)."""
+        nodes, run_wide, rounds, calls = ready
+        self.exchange = WorkersExchange(self.workers, self.sim.names, self.world.lockstep, self.shared, self.logs,
+                                        **options)
+        self.exchange.run_wide = run_wide
+        self.exchange.rounds.needed, self.exchange.rounds.pending = rounds, calls
+        return nodes
 
     def _launch(self, prefix: bytes) -> None:
         """Start the launcher (hosts/workers/launcher.py), which forks the K workers; each waits for

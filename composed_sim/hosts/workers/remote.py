@@ -34,7 +34,7 @@ from composed_sim.hosts.host import SetupInfo
 from composed_sim.hosts.processes import InterruptWatch
 from composed_sim.hosts.workers.agent import ALL_ROBOTS, BLOCK_ROWS, MachineAgent
 from composed_sim.hosts.workers.cluster import ActorConnection, Machine, RunScheduler
-from composed_sim.hosts.workers.host import ANSWER_GRACE_S, Worker, WorkerHost, WorkersExchange, plan_blocks
+from composed_sim.hosts.workers.host import ANSWER_GRACE_S, Worker, WorkerHost, plan_blocks
 from composed_sim.hosts.workers.messages import MachineSetup
 from composed_sim.hosts.workers.shared_state import SharedState
 from composed_sim.hosting.participants import run_prefix
@@ -138,15 +138,11 @@ class RemoteWorkerHost(WorkerHost):
                                                  self.join_command)
                 if joined:
                     self._place(joined)
-                    nodes, run_wide, rounds, calls = self._wait_ready(lambda: interrupts.requested,
-                                                                      at_once=len(self.workers))
+                    ready = self._wait_ready(lambda: interrupts.requested, at_once=len(self.workers))
             self._startup_interrupted = interrupts.requested
             if self._startup_interrupted:
-                nodes, run_wide, rounds, calls = 0, [[] for _ in self.workers], False, []
-            self.exchange = WorkersExchange(self.workers, self.sim.names, self.world.lockstep, self.shared, self.logs,
-                                            grace_s=MACHINE_GRACE_S)
-            self.exchange.run_wide = run_wide
-            self.exchange.rounds.needed, self.exchange.rounds.pending = rounds, calls
+                ready = 0, [[] for _ in self.workers], False, []
+            nodes = self._open_exchange(ready, grace_s=MACHINE_GRACE_S)
         except BaseException:
             self.__exit__(None, None, None)
             raise
