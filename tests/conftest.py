@@ -2,6 +2,7 @@
 so parallel test runs on one machine never hear each other; plotting is headless."""
 import os
 import shutil
+import subprocess
 import sys
 from pathlib import Path
 
@@ -13,6 +14,34 @@ os.environ.pop("ROS_LOCALHOST_ONLY", None)                   # deprecated in Jaz
 os.environ["MPLBACKEND"] = "Agg"
 
 PLUGIN_SOURCE = Path(__file__).parent / "plugin_pkg"
+
+
+@pytest.fixture
+def processes():
+    """Started processes; whatever is still running at the end is killed (a failing test too)."""
+    started: list[subprocess.Popen] = []
+    yield started
+    for p in started:
+        if p.poll() is None:
+            p.kill()
+        p.wait()
+
+
+def importable(monkeypatch, folder: Path):
+    """For a fixture to ``yield from``: the test package in ``folder`` (its module has the folder's
+    name) importable here and in the hosts' child processes, as an installed one is; its modules
+    forgotten afterwards."""
+    monkeypatch.syspath_prepend(str(folder))
+    monkeypatch.setenv("PYTHONPATH", str(folder))
+    yield
+    for name in [m for m in sys.modules if m.split(".")[0] == folder.name]:
+        del sys.modules[name]
+
+
+def start(cmd, log: Path, env=None) -> subprocess.Popen:
+    """``cmd`` in a process of its own, its output added to the file ``log``."""
+    with open(log, "ab") as out:
+        return subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=out, stderr=subprocess.STDOUT, env=env)
 
 
 @pytest.fixture

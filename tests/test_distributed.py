@@ -4,7 +4,6 @@ with `--external-controllers`, on one machine and across network namespaces join
 import os
 import shutil
 import signal
-import subprocess
 import sys
 import time
 from pathlib import Path
@@ -12,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from tests.conftest import start
 from composed_sim import cli
 from composed_sim.bench.netns import Netns
 from composed_sim.hosts.composed import ComposedHost
@@ -82,22 +82,6 @@ def world(robots=ROBOTS, ticks=TICKS, seed=SEED, watchdog_s=None):
 def shard_cmd(robots: str, *, n=ROBOTS, seed=SEED, extra=()) -> list[str]:
     return [sys.executable, "-m", "composed_sim.cli", "host", str(FLOCKING), "--world-robots", str(n),
             "--seed", str(seed), "--robots", robots, "--discovery-timeout", "60", *extra]
-
-
-def start(cmd, log: Path, env=None) -> subprocess.Popen:
-    with open(log, "wb") as out:
-        return subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=out, stderr=subprocess.STDOUT, env=env)
-
-
-@pytest.fixture
-def processes():
-    """Started processes; whatever is still running at the end is killed (a failing test too)."""
-    started: list[subprocess.Popen] = []
-    yield started
-    for p in started:
-        if p.poll() is None:
-            p.kill()
-        p.wait()
 
 
 def test_a_missing_shard_is_a_clear_error_naming_the_robots(tmp_path, processes):

@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from tests.conftest import start
 from composed_sim.bench.netns import Netns
 from composed_sim.hosting import HostError
 from composed_sim.hosts.composed import ComposedHost
@@ -66,22 +67,6 @@ def test_bad_machine_flags_are_one_line_and_exit_2(args, message, capsys, tmp_pa
 
 
 # --- machines on this machine, through localhost -------------------------------------------------
-
-@pytest.fixture
-def processes():
-    """Started processes; whatever is still running at the end is killed (a failing test too)."""
-    started: list[subprocess.Popen] = []
-    yield started
-    for p in started:
-        if p.poll() is None:
-            p.kill()
-        p.wait()
-
-
-def start(cmd, log: Path, env=None) -> subprocess.Popen:
-    with open(log, "ab") as out:
-        return subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=out, stderr=subprocess.STDOUT, env=env)
-
 
 def joining(processes, tmp_path, workers: list[str]):
     """An ``announce`` for the host: it starts one `join` per entry of ``workers`` (its --workers)

@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from tests.conftest import importable
 from composed_sim.hosts.composed import ComposedHost
 from composed_sim.world.loader import load_world
 from composed_sim.world.schema import NodeSpec
@@ -21,12 +22,7 @@ INTERFACES = ROOT / "tests" / "user_pkg" / "robot_programs_interfaces"
 
 @pytest.fixture
 def robot_programs(monkeypatch):
-    """The package importable here and in the hosts' child processes, as an installed one is."""
-    monkeypatch.syspath_prepend(str(PACKAGE))
-    monkeypatch.setenv("PYTHONPATH", str(PACKAGE))
-    yield
-    for name in [m for m in sys.modules if m.split(".")[0] == "robot_programs"]:
-        del sys.modules[name]
+    yield from importable(monkeypatch, PACKAGE)
 
 
 def world_of(*nodes: str, robots: int = 4, ticks: int = 30, run_wide: tuple = (), seed: int = 3, **group):

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from tests.conftest import importable
 from composed_sim.hosts.composed import ComposedHost
 from composed_sim.hosts.multiprocess.host import MultiProcessHost
 from composed_sim.hosts.workers.host import WorkerHost
@@ -24,12 +25,7 @@ MAX_STEP_M = 0.08 * 0.1     # the parameters file's max_speed (the safety node's
 
 @pytest.fixture
 def swarm_vote(monkeypatch):
-    """The package importable here and in the hosts' child processes, as an installed one is."""
-    monkeypatch.syspath_prepend(str(PACKAGE))
-    monkeypatch.setenv("PYTHONPATH", str(PACKAGE))
-    yield
-    for name in [m for m in sys.modules if m.split(".")[0] == "swarm_vote"]:
-        del sys.modules[name]
+    yield from importable(monkeypatch, PACKAGE)
 
 
 def steps(result) -> np.ndarray:
