@@ -87,7 +87,7 @@ def describe(world: World, initial: dict, final: dict) -> list[str]:
 
 
 class LoopHooks:
-    """What the tick loop (hosts/lockstep.py) calls: the world's loop functions, if any, with
+    """What the tick loop (hosts/tick_loop.py) calls: the world's loop functions, if any, with
     their metric rows and whether they ended the run."""
 
     def __init__(self, sim: Simulation):

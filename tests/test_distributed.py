@@ -16,9 +16,9 @@ from composed_sim import cli
 from composed_sim.bench.netns import Netns
 from composed_sim.hosts.composed import ComposedHost
 from composed_sim.hosting import HostError
-from composed_sim.hosts.distributed.discovery import DiscoveryError, configure
-from composed_sim.hosts.distributed.external import GONE_REASON, ExternalControllersHost
-from composed_sim.hosts.distributed.robot_ranges import RangeError, format_ranges, parse_ranges
+from composed_sim.hosts.discovery import DiscoveryError, configure
+from composed_sim.hosts.shards.external_controllers import GONE_REASON, ExternalControllersHost
+from composed_sim.hosts.shards.robot_ranges import RangeError, format_ranges, parse_ranges
 from composed_sim.world.loader import load_world
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -61,7 +61,7 @@ def test_fast_dds_participants_per_domain_bound_the_robots_per_domain():
 
 def test_multi_process_section_loads_round_trips_and_reaches_the_host(tmp_path):
     from composed_sim.hosting import HostError
-    from composed_sim.hosts.multiprocess.host import MultiProcessHost
+    from composed_sim.hosts.multiprocess.multiprocess_host import MultiProcessHost
 
     path = tmp_path / "w.yaml"
     path.write_text("robots: [{count: 4, controller: flocking}]\n"

@@ -1,4 +1,4 @@
-"""What a user sees of their nodes' logs and exceptions (hosting/node_logs.py): each robot's lines in
+"""What a user sees of their nodes' logs and exceptions (hosting/guard/node_logs.py): each robot's lines in
 OUT/logs/<robot>.log stamped with sim time and tick, the console's share once per node class and
 call site with a count, a failing callback's traceback (the user's file and line) in the robot's
 log and once on the console, --fail-fast, and /rosout in a recording. The test node is
@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from composed_sim.hosting.node_logs import INFO, WARN, LogSettings, NodeLogs
+from composed_sim.hosting.guard.node_logs import INFO, WARN, LogSettings, NodeLogs
 
 ROOT = Path(__file__).resolve().parents[1]
 PLUGINS = Path(__file__).parent / "plugin_pkg"

@@ -12,7 +12,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = "|".join(p.name for p in (ROOT / "composed_sim").iterdir() if (p / "__init__.py").is_file())
-# composed_sim/hosts/lockstep.py, ../composed_sim/ros/contract.py, hosting/sim_timers.py, ros/test_cdr.py
+# composed_sim/hosts/tick_loop.py, ../composed_sim/ros/contract.py, hosting/sim_time/timers.py, ros/test_cdr.py
 CITED_PATH = re.compile(rf"(?<![\w./-])(?:\.\./)*((?:composed_sim/)?(?:{PACKAGES}|fidelity)/[\w/]+\.py)")
 DOTTED = re.compile(r"[\"'`](composed_sim(?:\.\w+)+)[\"'`:]")
 # Dotted names that are no module: the controller plugins' entry-point group, a recording's custom_data keys.
@@ -47,7 +47,7 @@ def _module_and_rest(dotted: str) -> tuple[str, list[str]]:
 
 def test_every_dotted_module_name_in_the_code_and_tests_resolves():
     """Launch strings (``[sys.executable, "-m", "composed_sim.hosts.workers.launcher", …]``), the
-    names tests patch (``"composed_sim.hosts.workers.host.usable_cores"``), plugins named in worlds."""
+    names tests patch (``"composed_sim.hosts.workers.worker_host.usable_cores"``), plugins named in worlds."""
     bad = []
     for text in texts():
         for dotted in set(DOTTED.findall(text.read_text())):

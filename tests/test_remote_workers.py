@@ -17,7 +17,7 @@ from tests.conftest import start
 from composed_sim.bench.netns import Netns
 from composed_sim.hosting import HostError
 from composed_sim.hosts.composed import ComposedHost
-from composed_sim.hosts.workers.remote import RemoteWorkerHost, block_state
+from composed_sim.hosts.machines.remote_host import RemoteWorkerHost, block_state
 from composed_sim.hosts.workers.shared_state import SharedState
 from composed_sim.core.senses import Senses
 from composed_sim.world.loader import load_world

@@ -80,7 +80,7 @@ class BenchSettings:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    from composed_sim.hosting.options import EXECUTORS as executors
+    from composed_sim.hosting import EXECUTORS as executors
     from composed_sim.hosts.settings import MODES as modes
     join = ",".join
     parser.add_argument("--sizes", type=_size_list, default=PAPER_SIZES, metavar="N,N,…",

@@ -18,8 +18,7 @@ import time
 
 import numpy as np
 
-from composed_sim.hosting.options import ROBOTS_PER_PARTICIPANT
-from composed_sim.hosting.participants import ignore_participants_of_this_process
+from composed_sim.hosting import ignore_participants_of_this_process, ROBOTS_PER_PARTICIPANT
 from composed_sim.hosts.settings import environment_domain
 
 WARM_UP_TICKS = 10

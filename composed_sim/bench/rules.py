@@ -8,7 +8,7 @@ import statistics
 from pathlib import Path
 from typing import Iterable, Optional
 
-from composed_sim.hosting.options import EXECUTORS     # also the report's order of them
+from composed_sim.hosting import EXECUTORS  # also the report's order of them
 from composed_sim.hosts.settings import MODES
 from composed_sim.world.schema import MAX_DOMAIN, ROBOTS_PER_DOMAIN
 

@@ -74,7 +74,7 @@ def build_parser() -> argparse.ArgumentParser:
 def _add_hosting_flags(parser: argparse.ArgumentParser, *, seed_help: str, domain_help: str) -> None:
     """What the run and host subcommands both take: the seed, an ARGoS file's controller, the
     executor, the ROS domain."""
-    from composed_sim.hosting.options import DEFAULT_EXECUTOR, EXECUTORS
+    from composed_sim.hosting import DEFAULT_EXECUTOR, EXECUTORS
     parser.add_argument("--seed", type=_non_negative_int, help=seed_help)
     parser.add_argument("--controller", metavar="NAME",
                         help="for an ARGoS .argos file: the controller plugin its robots run")
@@ -217,7 +217,7 @@ def _add_file_commands(sub) -> None:
 
 
 def _add_distributed_options(parser: argparse.ArgumentParser, prefix: str) -> None:
-    from composed_sim.hosts.distributed.discovery import RANGES
+    from composed_sim.hosts.discovery import RANGES
     from composed_sim.hosts.settings import DiscoverySettings
     parser.add_argument("--discovery-timeout", type=_positive_float, metavar="SECONDS",
                         default=DiscoverySettings.timeout_s,

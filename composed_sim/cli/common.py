@@ -40,7 +40,7 @@ def check_plugins(world_path, world) -> None:
     """Every node class the world names loads: one error naming the world file's line and field,
     before any node or process is started."""
     from composed_sim import plugins
-    from composed_sim.hosting.building import node_field
+    from composed_sim.hosting import node_field
     from composed_sim.interfaces import InterfaceError, activate
     try:
         activate(world.interfaces)      # the nodes may import their messages
@@ -104,7 +104,7 @@ def load_any_world(source: WorldSource):
 
 def configure_discovery(settings: DiscoverySettings) -> str:
     """Put a distributed run's discovery settings into the environment; what they are, in words."""
-    from composed_sim.hosts.distributed.discovery import DiscoveryError, configure
+    from composed_sim.hosts.discovery import DiscoveryError, configure
     try:
         description, warning = configure(discovery_range=settings.range, static_peers=settings.static_peers,
                                          discovery_server=settings.server)

@@ -13,8 +13,8 @@ def cmd_host(args) -> int:
     """A controller shard: serves until the simulator is gone (0) or Ctrl-C/SIGTERM (130)."""
     from composed_sim import plugins
     from composed_sim.hosting import HostError
-    from composed_sim.hosts.distributed.robot_ranges import RangeError, parse_ranges
-    from composed_sim.hosts.distributed.shard import ShardHost
+    from composed_sim.hosts.shards.robot_ranges import RangeError, parse_ranges
+    from composed_sim.hosts.shards.shard_host import ShardHost
 
     world = load_any_world(world_source(args, args.world_robots))
     try:
@@ -45,7 +45,7 @@ def cmd_host(args) -> int:
 def cmd_join(args) -> int:
     """A machine of a run: serves until the run ends (0) or Ctrl-C/SIGTERM (130)."""
     from composed_sim.hosting import HostError
-    from composed_sim.hosts.workers.cluster import join
+    from composed_sim.hosts.machines.cluster import join
     print(f"composed-sim join: looking for the simulator at {args.address}" + (f" (run {args.run})" if args.run else ""), file=sys.stderr)
     with Interrupts("leaving the run") as interrupts:
         try:

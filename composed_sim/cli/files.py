@@ -105,7 +105,7 @@ def _check_recording(rec) -> str | None:
     if len(gaps):
         t = int(ticks[gaps[0]])
         return f"tick {t + 1} is missing (after tick {t}, the next recorded is {int(ticks[gaps[0] + 1])})"
-    from composed_sim.hosting.options import DEFAULT_EXECUTOR
+    from composed_sim.hosting import DEFAULT_EXECUTOR
     from composed_sim.hosts.make import host_in_own_domains
     from composed_sim.hosts.settings import HostSettings
     executor = rec.executor or DEFAULT_EXECUTOR

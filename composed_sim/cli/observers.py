@@ -65,7 +65,7 @@ def _warn_unmatched_globs(globs, world, flag: str) -> None:
     """A topic glob that matches no topic of this run is a warning naming two that exist."""
     from composed_sim.ros import contract as c
     from composed_sim.ros.taps import TopicGlobs
-    from composed_sim.hosting.run_wide.relay import is_run_wide
+    from composed_sim.hosting import is_run_wide
     topics = [topic for topic, _ in _run_topics(world)] + [c.SWARM_MARKERS_TOPIC]
     robots = frozenset(world.robot_names())
     for glob in globs:

@@ -20,17 +20,17 @@ DISK_FULL = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)
 
 
 def cmd_run(settings: RunSettings, json_stdout: JsonStdout) -> int:
-    from composed_sim.hosting.node_logs import LEVELS, Console, LogSettings, NodeLogs
-    from composed_sim.hosting.participants import remove_stale_shared_memory
+    from composed_sim.hosting import LEVELS, Console, LogSettings, NodeLogs
+    from composed_sim.hosting import remove_stale_shared_memory
 
     world = settings.lockstep.applied_to(load_any_world(settings.world))
-    remove_stale_shared_memory()        # what dead runs left in /dev/shm (hosting/participants.py)
+    remove_stale_shared_memory()        # what dead runs left in /dev/shm (hosting/dds/participants.py)
     out = settings.outputs.out
     check_writable(out)
     if settings.hosting.discovery is not None:
         configure_discovery(settings.hosting.discovery)
     check_plugins(settings.world.path, world)
-    # The nodes' log lines and tracebacks: OUT/logs/<robot>.log, the console's share once (hosting/node_logs.py).
+    # The nodes' log lines and tracebacks: OUT/logs/<robot>.log, the console's share once (hosting/guard/node_logs.py).
     logs_dir = out / "logs"
     for old in logs_dir.glob("*.log"):          # a run before into the same --out
         old.unlink()
@@ -102,7 +102,7 @@ class Run:
         from composed_sim import plugins
         from composed_sim.core.placement import PlacementError
         from composed_sim.hosting import HostError
-        from composed_sim.hosts.lockstep import AnotherSimulator
+        from composed_sim.hosts.tick_loop import AnotherSimulator
 
         with Interrupts() as interrupts, contextlib.ExitStack() as outputs:
             try:
@@ -158,7 +158,7 @@ class Run:
     def _say_workers(self) -> None:
         """Once set-up went well: how many worker processes host the robots."""
         from composed_sim.hosts.settings import AUTO_WORKERS
-        from composed_sim.hosts.workers.host import usable_cores
+        from composed_sim.hosts.workers.worker_host import usable_cores
         host = self.host
         if self.settings.hosting.machines is not None:      # also with --json: a script watches for it
             print(f"composed-sim: {len(host.sim.names)} robots on {host.placement()}", file=sys.stderr, flush=True)

@@ -2,7 +2,7 @@
 
 The main process reads them for all robots when it hosts the controllers itself (or a loop
 function asks for ``sim.frame``); a worker process of the worker host reads its own block from
-the same ``SensingInputs`` (hosts/workers/host.py), so the main process's serial part does not grow
+the same ``SensingInputs`` (hosts/workers/worker_host.py), so the main process's serial part does not grow
 with the sensing. The noise is counter-based per robot (devices/common/noise.py): a robot's
 readings are the same whoever reads them, and whenever: a frame reads each device's readings on
 their first use (core/frames.py), so what nobody reads is never computed.

@@ -1,21 +1,27 @@
 """Node hosting: rclpy nodes by the hundred in one process, each given what its own process would
-have given it, run in lockstep ticks.
+have given it, run in lockstep ticks. This module is the package's front door: the hosts and the
+tools above import what they use from here (an import-linter contract keeps it so), and each
+name is loaded when first asked for, so that a light caller (the command line's choices) loads
+no rclpy.
 
-- ``building.py``: a robot's nodes (and the run-wide ones) built from the world file with the
-  options of their own process (``node_options.py``), their timers on sim time
-  (``sim_timers.py``), checked against the topic contract;
-- ``executors/``: the executor that runs them (``lockstep.py``, or one of rclpy's) and how it is
-  driven: from the calling thread or its own, until every answer is in, until idle;
-- ``callback_guard.py``: a robot's faulty callback stays that robot's fault; ``node_logs.py``:
-  their log lines and tracebacks; ``node_time.py``: the CPU time of their own code;
-- ``participants.py``, ``participant_groups.py``: a block of robots in DDS participants that ignore
-  one another, with one executor, and the tick's exchange over their simulator nodes
-  (``nodes_exchange.py``);
-- ``run_wide/``: the topics outside every robot's namespace, relayed at one point of the tick.
+Inside, by job:
+
+- ``hosted_block.py``: the one way a block of nodes on one executor is hosted, used by every place
+  that hosts nodes; ``participant_groups.py``: a process's block of robots in DDS participants that
+  ignore one another, with their simulator nodes, and the tick's exchange (``nodes_exchange.py``);
+- ``building/``: a robot's nodes (and the run-wide ones) built from the world file with the options
+  of their own process, checked against the topic contract; lifecycle nodes brought up;
+- ``executors/``: the lockstep executor (or one of rclpy's) and how it is driven while a tick is open;
+- ``calls/``: services, clients, actions and parameters between nodes, places, processes;
+- ``run_wide/``: the topics outside every robot's namespace, relayed at one point of the tick;
+- ``sim_time/``: the nodes' timers, rates and sleeps on sim time;
+- ``guard/``: a robot's faulty callback stays that robot's fault; the nodes' log lines; their CPU time;
+- ``dds/``: the participants' discovery among themselves and the simulator's endpoints.
 
 Below it, ``ros/`` holds the topic contract, the simulator node and the in-process delivery;
 above it, ``hosts/`` holds the tick loop and the host modes that use all this.
 """
+from importlib import import_module
 
 
 class HostError(Exception):
@@ -24,3 +30,48 @@ class HostError(Exception):
 
 class ContractViolation(Exception):
     """A hosted node made what the topic contract does not allow it to."""
+
+
+# What the hosts and tools may use, by the module that defines it (relative to this package).
+_EXPORTS = {
+    # how a process hosts its nodes: the choices and their defaults (no rclpy)
+    "process_hosting": ("ProcessHosting", "EXECUTORS", "DEFAULT_EXECUTOR", "ROBOTS_PER_PARTICIPANT", "LogSettings",
+                        "LEVELS", "WARN"),
+    # blocks of nodes and the tick's exchange with their simulator nodes
+    "hosted_block": ("HostedBlock",),
+    "participant_groups": ("ParticipantGroups", "RelayingExchange"),
+    "nodes_exchange": ("NodesExchange",),
+    # building a robot's nodes
+    "building.nodes": ("create_robot_nodes", "load_classes", "SetupWarnings", "node_field"),
+    "building.wiring": ("published_answer_type",),
+    # executors and how they are driven
+    "executors.lockstep": ("LockstepExecutor",),
+    "executors.running": ("Spinning", "make_executor", "check_executor", "driven_by_caller", "run_until_idle",
+                          "shut_down"),
+    # calls between places, and their rounds across processes
+    "calls.between_places": ("CallRelay", "Request", "handover_order", "RUN_WIDE_ORIGIN"),
+    "calls.rounds": ("CallRounds",),
+    # run-wide topics
+    "run_wide.relay": ("RunWideRelay", "Message", "is_run_wide"),
+    "run_wide_nodes": ("RunWideNodes", "create_run_wide_nodes"),
+    "run_wide.link": ("RunWideLink", "SimulatorLink"),
+    "sim_time.timers": ("before_each_tick",),
+    # the nodes' logs and failures
+    "guard.node_logs": ("NodeLogs", "Console", "FAILURE_MARK", "failure_from_output",
+                        "node_label", "raising_node"),
+    # DDS: participants, shared memory, matched endpoints
+    "dds.participants": ("ignore_participants_of_this_process", "remove_stale_shared_memory", "run_prefix",
+                         "use_worker_prefix"),
+    "dds.matching": ("matched", "contract_endpoints", "poll_until"),
+}
+_MODULE_OF = {name: module for module, names in _EXPORTS.items() for name in names}
+__all__ = ["HostError", "ContractViolation", *_MODULE_OF]
+
+
+def __getattr__(name: str):
+    module = _MODULE_OF.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(import_module(f"{__name__}.{module}"), name)
+    globals()[name] = value          # asked once
+    return value

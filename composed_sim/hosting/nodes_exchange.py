@@ -1,4 +1,4 @@
-"""The tick loop's ``Exchange`` (hosts/lockstep.py) over the simulator nodes of this process: the
+"""The tick loop's ``Exchange`` (hosts/tick_loop.py) over the simulator nodes of this process: the
 composed host's participant groups, multi-process mode's domains, a distributed run's simulator."""
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import numpy as np
 
 from composed_sim.core.simulation import SensorFrame
 from composed_sim.core.violations import Violation
-from composed_sim.hosting.node_time import NodeTime
+from composed_sim.hosting.guard.node_time import NodeTime
 from composed_sim.ros.simulator_node import SimulatorNode
 
 

@@ -3,11 +3,11 @@
 A participant group is one rclpy Context (one DDS participant) holding a SimulatorNode for up to
 ``robots_per_participant`` robots and those robots' controller nodes. A group's topics are its
 robots' own, so it is self-contained, and the participants of one process ignore one another
-(hosting/participants.py): Fast DDS's endpoint matching, quadratic in a participant's endpoints,
+(hosting/dds/participants.py): Fast DDS's endpoint matching, quadratic in a participant's endpoints,
 then costs O(E²/K) instead of O(E²). Processes outside still discover every group.
 
 The single-process composed host holds every robot's groups; each worker process of the worker
-host holds its block's (hosts/workers/host.py). Either way, every per-robot message stays inside a
+host holds its block's (hosts/workers/worker_host.py). Either way, every per-robot message stays inside a
 participant (with the lockstep executor, a robot's sensors and answers are handed over in process
 while nothing else listens: ros/in_process.py), and the robots are numbered from the start
 of the block: the SensorFrame handed to ``exchange.publish_tick`` covers the block only.
@@ -27,32 +27,31 @@ from rclpy.node import Node
 
 from composed_sim.core.simulation import SensorFrame
 from composed_sim.world.robot_models import get_model
-from composed_sim.hosting import callback_guard
-from composed_sim.hosting.callback_guard import CallbackGuard, refuse_shutdown_from_callbacks
-from composed_sim.hosting.options import ROBOTS_PER_PARTICIPANT, ProcessHosting
+from composed_sim.hosting.guard import callback_guard
+from composed_sim.hosting.guard.callback_guard import CallbackGuard, refuse_shutdown_from_callbacks
+from composed_sim.hosting.process_hosting import ROBOTS_PER_PARTICIPANT, ProcessHosting
 from composed_sim.hosting import HostError
-from composed_sim.hosting.building import (SetupWarnings, answer_type, create_robot_nodes, create_run_wide_nodes,
-                                           load_classes, robot_wiring_problem)
-from composed_sim.hosting.entities import HostedEntities
-from composed_sim.hosting.tick_serving import TickServing
-from composed_sim.hosting.lifecycle import state_label
+from composed_sim.hosting.building.nodes import SetupWarnings, create_robot_nodes, load_classes
+from composed_sim.hosting.run_wide_nodes import create_run_wide_nodes
+from composed_sim.hosting.building.wiring import answer_type, robot_wiring_problem
+from composed_sim.hosting.hosted_block import HostedBlock
+from composed_sim.hosting.executors.tick_serving import TickServing
+from composed_sim.hosting.building.lifecycle import state_label
 from composed_sim.hosting.executors.running import SETTLE_ROUNDS, Spinning, check_executor, make_executor
-from composed_sim.hosting.node_logs import NodeLogs
-from composed_sim.hosting.node_time import NodeTime
-from composed_sim.hosting.outside_calls import OutsideCalls
+from composed_sim.hosting.guard.node_logs import NodeLogs
+from composed_sim.hosting.guard.node_time import NodeTime
 from composed_sim.hosting.nodes_exchange import NodesExchange
-from composed_sim.hosting.run_wide.nodes import RunWideNodes
+from composed_sim.hosting.run_wide_nodes import RunWideNodes
 from composed_sim.ros import contract as c
 from composed_sim.ros.answer_subscription import cmd_vel_gids, publisher_gid
 from composed_sim.ros import in_process
 from composed_sim.ros.in_process import GraphWatch, Link, inbox_of, link_answers, link_subscriptions
 from composed_sim.hosting.executors.lockstep import LockstepExecutor
-from composed_sim.hosting.participants import ignore_participants_of_this_process
+from composed_sim.hosting.dds.participants import ignore_participants_of_this_process
 from composed_sim.ros.rcl_graph import GraphChanges
 from composed_sim.ros.robot_settings import robot_settings
-from composed_sim.hosting.run_wide.calls import CallRelay
+from composed_sim.hosting.calls.between_places import CallRelay
 from composed_sim.hosting.run_wide.relay import Message, RunWideRelay
-from composed_sim.hosting.services import ServiceDirectory
 from composed_sim.ros.simulator_node import AnswerTypeError, SimulatorNode
 from composed_sim.world.schema import World
 
@@ -75,7 +74,7 @@ class ParticipantGroups(TickServing):
         """``hosting``: its executor and domain. ``first_group``: the number of this block's first
         participant group in the run (the block of robot 0 has group 0, which publishes /clock).
         ``logs``: where the nodes' log lines and the tracebacks of their failing callbacks go
-        (hosting/node_logs.py)."""
+        (hosting/guard/node_logs.py)."""
         check_executor(hosting.executor)
         if robots_per_participant < 1:
             raise HostError(f"robots per participant must be at least 1, got {robots_per_participant}")
@@ -91,12 +90,12 @@ class ParticipantGroups(TickServing):
         self.controllers: list[Node] = []                   # every robot node, robot by robot
         self.relay = RunWideRelay(world.robot_names())
         self.calls = CallRelay(world.robot_names())          # service calls between places (robots, run-wide)
-        self.entities: Optional[HostedEntities] = None
+        self.block: Optional[HostedBlock] = None            # how their nodes are hosted
         # Robots with lifecycle nodes not active when built: (robot, its group, its nodes), their
         # wiring checked once the tick-0 transitions had their chance (``_check_activated``).
         self._inactive: list[tuple[str, int, list[Node]]] = []
         # Where a round of calls between places goes when this block is one of several processes
-        # (a worker: hosts/workers/rounds.py): given the calls made here, the calls for here, or
+        # (a worker: hosting/calls/rounds.py): given the calls made here, the calls for here, or
         # None once the run is quiet everywhere. None: every place is in this process.
         self.remote: Optional[Callable[[list], Optional[list]]] = None
         self._rounds_over = False
@@ -109,7 +108,6 @@ class ParticipantGroups(TickServing):
         self.links: list[Link] = []                         # in-process paths (ros/in_process.py)
         self._graph_watches: list[GraphWatch] = []          # per group: when to ask for matched counts
         self._outside_watches: list = []                    # per group: has its graph changed since?
-        self._outside_calls: Optional[OutsideCalls] = None
         self._run_wide_graph: Optional[Callable[[], bool]] = None  # has the run-wide nodes' graph changed?
         self.graph_changes: Optional[GraphChanges] = None   # what tells them the graph changed
         self.executor: Optional[Executor] = None
@@ -200,8 +198,8 @@ class ParticipantGroups(TickServing):
         self._link_in_process(first_robots)
 
     def _host_entities(self) -> None:
-        """Every node's entities hosted (hosting/entities.py): guarded callbacks, services and
-        calls in process or through the call relay, parameter services."""
+        """Every node hosted (hosting/hosted_block.py): guarded callbacks, services and calls in
+        process or through the call relay, parameter services, calls from other processes."""
         if self.hosting.executor == "events":
             refuse_coroutines_for_events(self.controllers)
         if self.hosting.executor == "multi-threaded" and any(n.clients for n in self.controllers):
@@ -210,17 +208,15 @@ class ParticipantGroups(TickServing):
                   "call holds one until answered, and more robots waiting at once than threads wait for ever; and "
                   "calls between robots and run-wide nodes are completed late, often a tick late (rclpy 7.1.6). "
                   "The default executor runs both within the tick", file=sys.stderr)
-        directory = ServiceDirectory(self.executor, relay=self.calls)
-        self.calls.serve(range(self.start, self.stop), directory)
         names = self.world.robot_names()
-        self.entities = HostedEntities(directory, self.relay, self.guard)
-        self._outside_calls = OutsideCalls(directory, names,
-                                           lambda: any([changed() for changed in self._outside_watches]))
+        self.block = HostedBlock(self.executor, calls=self.calls, places=range(self.start, self.stop),
+                                 relay=self.relay, guard=self.guard)
+        self.block.watch_outside_calls(names, graph_changed=lambda: any([changed() for changed in self._outside_watches]))
         robots = iter(range(self.start, self.stop))
         for sim_node in self.simulator_nodes:
             for robot, i in zip(sim_node.robots, robots):
                 for node in self.robot_nodes[i - self.start]:
-                    self.entities.adopt(node, robot, i, sim_node)
+                    self.block.adopt(node, robot, i, sim_node)
         if self.run_wide is not None:
             self.run_wide.host(self.relay, self.calls, names,
                                lambda: self._run_wide_graph is not None and self._run_wide_graph())
@@ -286,7 +282,7 @@ class ParticipantGroups(TickServing):
                 self.simulator_nodes[0].mirror_run_wide(batch, now_ns)
         # What reached the robots at the tick's start is handled before its sensors: the run-wide
         # messages, the calls of the run-wide nodes' part of the tick, requests from other processes.
-        self._outside_calls.take()
+        self.block.take_outside_calls()
         self._rounds_over = False
         for _ in range(SETTLE_ROUNDS):      # rounds: a manager's configure, then activate, say
             if lockstep:
@@ -319,7 +315,7 @@ class ParticipantGroups(TickServing):
             for i, nodes in enumerate(self.robot_nodes, self.start) for node in nodes for client in node.clients)
 
     def _hand_over(self) -> bool:
-        """One round of the calls between places (hosting/run_wide/calls.py), once this block is
+        """One round of the calls between places (hosting/calls/between_places.py), once this block is
         idle: the calls made since the last round go to their places (requests queued at their
         services, responses to their clients); the run-wide nodes then run until idle. False once
         no call is in flight anywhere: this phase of the tick is over."""
@@ -376,6 +372,8 @@ class ParticipantGroups(TickServing):
             self.graph_changes.close()
         if self.spinning is not None:
             self.spinning.stop()
+        if self.block is not None:
+            self.block.close()
         if self.run_wide is not None:
             self.run_wide.destroy()
         for node in (*self.controllers, *self.simulator_nodes):

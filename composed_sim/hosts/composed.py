@@ -1,5 +1,5 @@
 """The composed host: the simulator and every controller node in one process, one domain, one
-executor (``--workers 1``; hosts/workers/host.py spreads the controllers over worker processes).
+executor (``--workers 1``; hosts/workers/worker_host.py spreads the controllers over worker processes).
 
 The robots are split into participant groups (hosting/participant_groups.py); the physics, the
 sensing and the tick loop run in this same process.
@@ -10,11 +10,10 @@ import time
 from typing import Callable, Optional, Sequence
 
 from composed_sim.core.simulation import Simulation
-from composed_sim.hosting.options import DEFAULT_EXECUTOR, ROBOTS_PER_PARTICIPANT, ProcessHosting
-from composed_sim.hosts.host import HostBase, SetupInfo
-from composed_sim.hosting.node_logs import NodeLogs
-from composed_sim.hosts.lockstep import LoopResult, TickObserver, run_lockstep
-from composed_sim.hosting.participant_groups import ParticipantGroups, RelayingExchange
+from composed_sim.hosting import (DEFAULT_EXECUTOR, NodeLogs, ParticipantGroups, ProcessHosting, RelayingExchange,
+                                  ROBOTS_PER_PARTICIPANT)
+from composed_sim.hosts.base import HostBase, SetupInfo
+from composed_sim.hosts.tick_loop import LoopResult, TickObserver, run_lockstep
 from composed_sim.world.schema import World
 
 
@@ -23,7 +22,7 @@ class ComposedHost(HostBase):
 
     def __init__(self, world: World, *, executor: str = DEFAULT_EXECUTOR, domain_id: int = 0,
                  robots_per_participant: int = ROBOTS_PER_PARTICIPANT, logs: Optional[NodeLogs] = None):
-        """``logs``: the nodes' log lines and tracebacks (hosting/node_logs.py); rclpy's loggers without."""
+        """``logs``: the nodes' log lines and tracebacks (hosting/guard/node_logs.py); rclpy's loggers without."""
         self.world = world
         self.domain_id = domain_id
         self.sim: Optional[Simulation] = None

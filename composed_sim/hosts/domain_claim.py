@@ -98,7 +98,7 @@ def foreign_nodes(domain: int, probe_s: float = PROBE_S, *, controllers_expected
 
     from composed_sim.ros import contract as c
     from composed_sim.ros.answer_subscription import NODE_NAME_UNKNOWN, node_path
-    from composed_sim.hosting.participants import ignore_participants_of_this_process
+    from composed_sim.hosting import ignore_participants_of_this_process
     from composed_sim.ros.robot_settings import quiet_node_options
 
     ignore_participants_of_this_process()     # before this process's first participant (profile loaded once)

@@ -5,32 +5,32 @@ from __future__ import annotations
 from dataclasses import replace
 from typing import Optional
 
-from composed_sim.hosting.node_logs import NodeLogs
+from composed_sim.hosting import NodeLogs
 from composed_sim.hosts.domain_claim import DomainClaim, claim_domains, claim_free_domain, run_identity
-from composed_sim.hosts.host import Host
+from composed_sim.hosts.base import Host
 from composed_sim.hosts.settings import AUTO_WORKERS, HostSettings
 from composed_sim.world.schema import World
 
 
 def worker_count(settings: HostSettings, world: World) -> int:
     """The composed host's worker processes: as given, or for --workers auto from the swarm."""
-    from composed_sim.hosts.workers.host import auto_workers
+    from composed_sim.hosts.workers.worker_host import auto_workers
     return auto_workers(len(world.robot_names())) if settings.workers == AUTO_WORKERS else settings.workers
 
 
 def make_host(settings: HostSettings, world: World, logs: Optional[NodeLogs] = None) -> Host:
-    """The host, not entered yet. ``logs``: where the nodes' log lines go (hosting/node_logs.py)."""
+    """The host, not entered yet. ``logs``: where the nodes' log lines go (hosting/guard/node_logs.py)."""
     if settings.discovery is not None:
-        from composed_sim.hosts.distributed.discovery import describe
-        from composed_sim.hosts.distributed.external import ExternalControllersHost
+        from composed_sim.hosts.discovery import describe
+        from composed_sim.hosts.shards.external_controllers import ExternalControllersHost
         return ExternalControllersHost(world, domain_id=settings.domain_id,
                                        discovery_timeout_s=settings.discovery.timeout_s, discovery=describe())
     if settings.machines is not None:
-        from composed_sim.hosts.workers.remote import RemoteWorkerHost
+        from composed_sim.hosts.machines.remote_host import RemoteWorkerHost
         return RemoteWorkerHost(world, machines=settings.machines, listen=settings.listen, executor=settings.executor,
                                 domain_id=settings.domain_id, logs=logs, join_timeout_s=settings.join_timeout_s)
     if settings.mode == "multi-process":
-        from composed_sim.hosts.multiprocess.host import MultiProcessHost
+        from composed_sim.hosts.multiprocess.multiprocess_host import MultiProcessHost
         return MultiProcessHost(world, executor=settings.executor, domain_id=settings.domain_id,
                                 robots_per_domain=settings.robots_per_domain, logs=logs)
     workers = worker_count(settings, world)
@@ -38,7 +38,7 @@ def make_host(settings: HostSettings, world: World, logs: Optional[NodeLogs] = N
         from composed_sim.hosts.composed import ComposedHost
         return ComposedHost(world, executor=settings.executor, domain_id=settings.domain_id,
                             robots_per_participant=settings.robots_per_participant, logs=logs)
-    from composed_sim.hosts.workers.host import WorkerHost
+    from composed_sim.hosts.workers.worker_host import WorkerHost
     return WorkerHost(world, workers=workers, executor=settings.executor, domain_id=settings.domain_id, logs=logs)
 
 

@@ -6,7 +6,7 @@ import os
 from dataclasses import dataclass
 from typing import Mapping, Optional, Union
 
-from composed_sim.hosting.options import DEFAULT_EXECUTOR, ROBOTS_PER_PARTICIPANT
+from composed_sim.hosting import DEFAULT_EXECUTOR, ROBOTS_PER_PARTICIPANT
 
 MODES = ("composed", "multi-process")
 DEFAULT_MODE = MODES[0]
@@ -17,7 +17,7 @@ DEFAULT_LISTEN = "0.0.0.0:0"           # remote workers: every interface, a free
 
 @dataclass(frozen=True)
 class DiscoverySettings:
-    """A distributed run's DDS discovery (hosts/distributed/discovery.py); None fields keep what
+    """A distributed run's DDS discovery (hosts/discovery.py); None fields keep what
     the environment says."""
     timeout_s: float = DEFAULT_DISCOVERY_TIMEOUT_S
     range: Optional[str] = None          # ROS_AUTOMATIC_DISCOVERY_RANGE

@@ -116,7 +116,7 @@ class FoxgloveServer:
                                 f"({f'port {port} is held by {holder}' if holder else e})") from None
         self.port = self._server.port
         self._globs = TopicGlobs(globs)
-        self.topics_globs = self._globs.topics_globs      # the workers tap these (hosts/workers/host.py)
+        self.topics_globs = self._globs.topics_globs      # the workers tap these (hosts/workers/worker_host.py)
         self._scene_channel = self._channel(SWARM_MARKERS_TOPIC, MARKERS_TYPE)
         self._subscriptions.scene_id = self._scene_channel.id()
         self._clock_channel = self._channel(CLOCK_TOPIC, CLOCK_TYPE)

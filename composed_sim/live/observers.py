@@ -45,7 +45,7 @@ class RecordingObserver:
 
 
 class RosoutObserver:
-    """Writes the hosted nodes' log lines (``NodeLogs.rosout``, hosting/node_logs.py) to /rosout as
+    """Writes the hosted nodes' log lines (``NodeLogs.rosout``, hosting/guard/node_logs.py) to /rosout as
     ``rcl_interfaces/msg/Log``, stamped with sim time, as a ROS node's /rosout carries them."""
 
     TOPIC, TYPE = "/rosout", "rcl_interfaces/msg/Log"

@@ -27,7 +27,7 @@ from typing import Optional
 import numpy as np
 
 from composed_sim.core.violations import FAILED
-from composed_sim.hosts.lockstep import LoopResult, Trajectories
+from composed_sim.hosts.tick_loop import LoopResult, Trajectories
 from composed_sim.world.loader import dump_world
 from composed_sim.world.schema import World
 
@@ -96,7 +96,7 @@ def summarize(world: World, result: LoopResult, *, setup_s: float, mode: str, ex
 
 
 def phase_table(times, ticks: int) -> dict[str, float]:
-    """The main process's wall time per tick, by phase (hosts/lockstep.py's PHASES), in ms;
+    """The main process's wall time per tick, by phase (hosts/tick_loop.py's PHASES), in ms;
     ``serial``: all but ``waiting``, the part that more cores do not share."""
     if not ticks:
         return {}

@@ -78,12 +78,12 @@ class SwarmController(Node):
 
     #: sensor topics (contract names) this controller needs each tick.
     sensors: tuple[str, ...] = ("proximity", "light", "blobs")
-    #: Set by a host that guards callbacks (hosting/callback_guard.py): (the sensor subscriptions, in
+    #: Set by a host that guards callbacks (hosting/guard/callback_guard.py): (the sensor subscriptions, in
     #: ``sensors``' order; ``_on_sensors`` as guarded). The lockstep executor then hands a tick's
     #: sensor messages to the node in one call where all of them wait in process.
     lockstep_batch: Optional[tuple[tuple, Callable[[list], None]]] = None
     #: Set by that host too: where the CPU time of ``on_tick`` goes (an object with ``add(seconds)``,
-    #: hosting/node_time.py); None: not counted.
+    #: hosting/guard/node_time.py); None: not counted.
     node_time = None
 
     def __init__(self, node_name: str = "controller", **node_kwargs):

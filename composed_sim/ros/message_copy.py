@@ -1,6 +1,6 @@
 """A ROS message's own copy, as a subscriber or a service in another process would get it.
 
-Calls between hosted nodes are handed over in process (hosting/services.py): the server must get
+Calls between hosted nodes are handed over in process (hosting/calls/directory.py): the server must get
 a request the client can no longer change, and the client a response the server can no longer
 change, as if both had crossed DDS. Serializing and deserializing does that, at a higher cost than
 a field-by-field copy, so each message class gets a copier, generated once from its slots

@@ -1,7 +1,7 @@
 """Which per-robot topics a recording wants, and a tap that holds their messages for later.
 
 A worker process's simulator nodes tap into a ``TapBuffer``; the buffer's messages travel to the
-main process with the tick's answers and are written to the bag there (hosts/workers/host.py).
+main process with the tick's answers and are written to the bag there (hosts/workers/worker_host.py).
 """
 from __future__ import annotations
 

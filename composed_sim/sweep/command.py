@@ -104,7 +104,7 @@ def run(args: SweepSettings) -> int:
             raise UserError(f"--cluster {args.cluster}: {e}") from None
         where = f"Dask cluster {args.cluster}"
     else:
-        from composed_sim.hosts.workers.host import usable_cores
+        from composed_sim.hosts.workers.worker_host import usable_cores
         jobs = args.jobs or usable_cores()
         where, rows_as_done = f"{jobs} at a time", local_pool(specs, str(args.out), jobs)
     args.out.mkdir(parents=True, exist_ok=True)

@@ -220,7 +220,7 @@ def test_the_device_modules_import_neither_ros_nor_plotting_nor_imageio():
 
 @pytest.mark.parametrize("start, stop", [(0, 18), (0, 4), (4, 13), (12, 18), (17, 18)])
 def test_a_block_of_robots_reads_exactly_their_readings_in_the_whole_frame(tmp_path, start, stop):
-    """What a worker process reads (core/senses.py, hosts/workers/host.py): every reading of robots
+    """What a worker process reads (core/senses.py, hosts/workers/worker_host.py): every reading of robots
     start … stop-1, the groups cut and renumbered, the CSR rows (blobs, range and bearing) intact."""
     path = tmp_path / "mixed.yaml"
     path.write_text(HETEROGENEOUS_YAML)

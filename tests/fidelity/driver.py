@@ -18,7 +18,7 @@ import numpy as np
 from composed_sim.argos_import import loads_argos
 from composed_sim.core.simulation import SensorFrame, Simulation
 from composed_sim.devices.camera import Blobs
-from composed_sim.hosts.lockstep import run_lockstep
+from composed_sim.hosts.tick_loop import run_lockstep
 from composed_sim.ros.contract import twist_of_wheels
 from composed_sim.world.robot_models import get_model
 from composed_sim.world.schema import Box, Cylinder, World

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from composed_sim.core.simulation import Simulation
-from composed_sim.hosts.lockstep import run_lockstep
+from composed_sim.hosts.tick_loop import run_lockstep
 from composed_sim.core.violations import Violation
 from composed_sim.world.loader import load_world
 

@@ -1,4 +1,4 @@
-"""The CPU time of the nodes' own code (hosting/node_time.py), which the benchmark's host cost per
+"""The CPU time of the nodes' own code (hosting/guard/node_time.py), which the benchmark's host cost per
 robot-tick leaves out: counted by the participant groups that host the nodes, in this process or
 in worker processes, for a SwarmController (its on_tick) and for a plain node (its callbacks)."""
 from pathlib import Path
@@ -6,7 +6,7 @@ from pathlib import Path
 import pytest
 
 from composed_sim.hosts.composed import ComposedHost
-from composed_sim.hosts.workers.host import WorkerHost
+from composed_sim.hosts.workers.worker_host import WorkerHost
 from composed_sim.world.loader import load_world
 
 ROOT = Path(__file__).resolve().parents[2]

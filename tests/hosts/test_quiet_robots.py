@@ -3,7 +3,7 @@ such a robot once the executor's threads fell quiet after its callbacks ran and 
 any, was taken. Its callbacks run on the executor's threads while the simulator's thread looks,
 so the rule must hold whatever those threads do between the looks."""
 from composed_sim.hosting.participant_groups import ParticipantGroups
-from composed_sim.hosting.run_wide.calls import CallRelay
+from composed_sim.hosting.calls.between_places import CallRelay
 
 
 class Guard:

@@ -17,9 +17,9 @@ import pytest
 
 from composed_sim.hosts.composed import ComposedHost
 from composed_sim.hosting import HostError
-from composed_sim.hosting.options import EXECUTORS
-from composed_sim.hosts.lockstep import CHECKPOINT_EVERY
-from composed_sim.hosts.workers.host import WorkerHost, auto_workers, plan_blocks
+from composed_sim.hosting.process_hosting import EXECUTORS
+from composed_sim.hosts.tick_loop import CHECKPOINT_EVERY
+from composed_sim.hosts.workers.worker_host import WorkerHost, auto_workers, plan_blocks
 from composed_sim.ros.taps import TapBuffer
 from composed_sim.world.loader import load_world
 
@@ -129,7 +129,7 @@ def test_the_workers_are_forked_by_one_launcher_adopted_here_and_reaped(domain_i
     """One launcher imports the workers' code once and forks them; this process adopts them
     (they are its children, each in a process group of its own, each with its own log) and
     reaps every one at the end. One core: the workers build their nodes one after the other."""
-    monkeypatch.setattr("composed_sim.hosts.workers.host.usable_cores", lambda: 1)
+    monkeypatch.setattr("composed_sim.hosts.workers.worker_host.usable_cores", lambda: 1)
     world = load_world(FLOCKING, robots=9, ticks=5, seed=3)
     this = psutil.Process()
     with WorkerHost(world, workers=3, domain_id=domain_id) as host:

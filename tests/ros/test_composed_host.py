@@ -9,7 +9,7 @@ from scipy.spatial.distance import pdist
 from composed_sim import plugins
 from composed_sim.world.robot_models import FOOTBOT
 from composed_sim.hosts.composed import ComposedHost
-from composed_sim.hosting.options import EXECUTORS
+from composed_sim.hosting.process_hosting import EXECUTORS
 from composed_sim.world.loader import load_world
 
 FLOCKING = Path(__file__).resolve().parents[2] / "worlds" / "flocking.yaml"
@@ -120,7 +120,7 @@ def test_robots_split_over_participants_fly_as_in_one(one_participant_run, execu
 
 
 def test_the_participant_profile_is_set_unless_the_user_gave_one(monkeypatch, tmp_path):
-    from composed_sim.hosting import participants
+    from composed_sim.hosting.dds import participants
     for variable in participants.PROFILE_VARIABLES:
         monkeypatch.delenv(variable, raising=False)
     assert participants.ignore_participants_of_this_process()
@@ -139,7 +139,7 @@ def test_shared_memory_of_dead_participants_is_removed_and_a_live_ones_kept(tmp_
     import os
     import time
 
-    from composed_sim.hosting.participants import remove_stale_shared_memory
+    from composed_sim.hosting.dds.participants import remove_stale_shared_memory
     for name in ("fastrtps_dead", "fastrtps_port7411", "fastrtps_alive", "fastrtps_young"):
         (tmp_path / name).write_bytes(b"x" * 100)
         (tmp_path / f"{name}_el").write_bytes(b"")
@@ -163,7 +163,7 @@ def test_an_empty_port_file_left_by_a_killed_creator_is_removed(tmp_path):
     import os
     import time
 
-    from composed_sim.hosting.participants import EMPTY_PORT_AFTER_S, remove_stale_shared_memory
+    from composed_sim.hosting.dds.participants import EMPTY_PORT_AFTER_S, remove_stale_shared_memory
     (tmp_path / "fastrtps_port7411").write_bytes(b"")
     (tmp_path / "fastrtps_port7413").write_bytes(b"")
     (tmp_path / "fastrtps_port7415").write_bytes(b"x" * 100)

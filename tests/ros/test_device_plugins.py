@@ -131,7 +131,7 @@ def test_aggregation_gathers_the_epucks_on_the_dark_patch(domain_id):
 
 def test_fireflies_in_their_own_processes_flash_as_in_composed_mode(domain_id):
     """Multi-process mode: rab_tx crosses processes and domains and lands on the same tick."""
-    from composed_sim.hosts.multiprocess.host import MultiProcessHost
+    from composed_sim.hosts.multiprocess.multiprocess_host import MultiProcessHost
     world = load_world(WORLDS / "firefly.yaml", robots=4, ticks=100)
     period = world.robots[0].params["period_ticks"]
     reference = run(world, domain_id)
@@ -167,8 +167,8 @@ def test_every_robot_model_and_device_gives_the_same_run_in_every_host_mode(doma
     each controller in its own process, and the run over 3 worker processes (blocks that cut
     through groups) reproduce the composed run bit for bit."""
     from composed_sim.hosts.composed import ComposedHost
-    from composed_sim.hosts.multiprocess.host import MultiProcessHost
-    from composed_sim.hosts.workers.host import WorkerHost
+    from composed_sim.hosts.multiprocess.multiprocess_host import MultiProcessHost
+    from composed_sim.hosts.workers.worker_host import WorkerHost
     from composed_sim.world.loader import world_from_dict
 
     always = {"positioning": {}, "odometry": {}, "differential_steering": {}}

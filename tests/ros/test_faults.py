@@ -13,8 +13,8 @@ import pytest
 
 from composed_sim.hosts.multiprocess import host as multiprocess
 from composed_sim.hosts.composed import ComposedHost
-from composed_sim.hosts.multiprocess.host import MultiProcessHost
-from composed_sim.hosts.workers.host import WorkerHost
+from composed_sim.hosts.multiprocess.multiprocess_host import MultiProcessHost
+from composed_sim.hosts.workers.worker_host import WorkerHost
 from composed_sim.world.loader import world_from_dict
 
 ROBOTS, TICKS, FAULTY, FROM_TICK = 4, 24, "bot1", 5

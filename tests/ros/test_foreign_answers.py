@@ -107,7 +107,7 @@ def test_a_publisher_on_the_topic_before_the_run_starts_is_not_taken_for_the_con
     # publishers their hosts name, never from what the ROS graph lists at tick 0.
     from composed_sim.hosts.composed import ComposedHost
     from composed_sim.hosts.domain_claim import foreign_nodes
-    from composed_sim.hosts.multiprocess.host import MultiProcessHost
+    from composed_sim.hosts.multiprocess.multiprocess_host import MultiProcessHost
     from composed_sim.live.pacing import Pacer
     from composed_sim.world.loader import load_world
 
@@ -161,7 +161,7 @@ def test_a_multi_process_run_takes_each_answer_type_from_its_controller_not_from
     # cmd_vel with a type the ROS graph lists there, the stray's Twist would do: the controller
     # would never be matched, and the start-up would stall for a minute, then fail.
     from composed_sim.hosts.domain_claim import foreign_nodes
-    from composed_sim.hosts.multiprocess.host import MultiProcessHost
+    from composed_sim.hosts.multiprocess.multiprocess_host import MultiProcessHost
     from composed_sim.world.loader import load_world
 
     world = load_world(FLOCKING, robots=3, seed=3, ticks=30)

@@ -15,7 +15,7 @@ import pytest
 
 from composed_sim.hosts.composed import ComposedHost
 from composed_sim.hosting import HostError
-from composed_sim.hosts.multiprocess.host import MultiProcessHost
+from composed_sim.hosts.multiprocess.multiprocess_host import MultiProcessHost
 from composed_sim.world.loader import load_world
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -181,7 +181,7 @@ def test_an_autostarted_lifecycle_node_publishing_on_another_robots_topic_is_ref
 
 
 def in_workers(world, domain_id, workers: int):
-    from composed_sim.hosts.workers.host import WorkerHost
+    from composed_sim.hosts.workers.worker_host import WorkerHost
     with WorkerHost(world, workers=workers, domain_id=domain_id) as host:
         return host.run()
 
@@ -209,7 +209,7 @@ def test_each_program_runs_in_worker_processes_as_in_one(robot_programs, domain_
 
 
 def in_processes(world, domain, executor: str = "lockstep"):
-    from composed_sim.hosts.multiprocess.host import MultiProcessHost
+    from composed_sim.hosts.multiprocess.multiprocess_host import MultiProcessHost
     with MultiProcessHost(world, domain_id=domain, robots_per_domain=2, executor=executor) as host:
         return host.run()
 
@@ -316,7 +316,7 @@ def test_another_process_sets_a_hosted_nodes_parameter_through_its_parameter_ser
     """As ``ros2 param set`` would: the node's parameter services get their DDS endpoints once a
     client of another process is on the ROS graph; its requests are served as a tick starts."""
     import subprocess
-    from composed_sim.hosts.multiprocess.host import MultiProcessHost
+    from composed_sim.hosts.multiprocess.multiprocess_host import MultiProcessHost
     mode, node, name, value = OUTSIDE_TARGETS[target]
     world = world_of("fleet:SpeedFollower", robots=2, ticks=1_000_000,     # until the tool is done
                      run_wide=[("fleet:SpeedSetter", {"robots": ["bot1"], "speeds": [0.02]})])
@@ -343,7 +343,7 @@ def test_a_robots_programs_in_a_controller_shard_run_as_hosted(robot_programs, d
     """Distributed mode's DDS shard hosts a robot's services and calls as the composed host does."""
     import os
     import subprocess
-    from composed_sim.hosts.distributed.external import ExternalControllersHost
+    from composed_sim.hosts.shards.external_controllers import ExternalControllersHost
     from composed_sim.world.loader import dump_world
     world = world_of("planning:BlockingBehaviour", "planning:Planner", robots=3, ticks=15)
     reference, _ = composed(world, domain_id)

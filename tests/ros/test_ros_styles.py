@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 
 from composed_sim import plugins
-from composed_sim.hosting.options import EXECUTORS
+from composed_sim.hosting.process_hosting import EXECUTORS
 from composed_sim.hosts.composed import ComposedHost
 from composed_sim.hosting import HostError
-from composed_sim.hosts.multiprocess.host import MultiProcessHost
-from composed_sim.hosts.workers.host import WorkerHost
+from composed_sim.hosts.multiprocess.multiprocess_host import MultiProcessHost
+from composed_sim.hosts.workers.worker_host import WorkerHost
 from composed_sim.world.loader import load_world
 from composed_sim.world.schema import Lockstep
 

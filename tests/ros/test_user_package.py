@@ -12,8 +12,8 @@ import pytest
 
 from tests.conftest import importable
 from composed_sim.hosts.composed import ComposedHost
-from composed_sim.hosts.multiprocess.host import MultiProcessHost
-from composed_sim.hosts.workers.host import WorkerHost
+from composed_sim.hosts.multiprocess.multiprocess_host import MultiProcessHost
+from composed_sim.hosts.workers.worker_host import WorkerHost
 from composed_sim.world.loader import load_world
 
 ROOT = Path(__file__).resolve().parents[2]

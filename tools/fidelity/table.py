@@ -19,7 +19,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
-from composed_sim.hosts import lockstep  # noqa: E402
+from composed_sim.hosts import tick_loop  # noqa: E402
 from composed_sim.world import robot_models  # noqa: E402
 from tests.fidelity import reference  # noqa: E402
 from tests.fidelity.compare import compare  # noqa: E402
@@ -32,7 +32,7 @@ def as_before() -> None:
     robot_models.MODELS["e-puck"] = replace(epuck, layouts={**epuck.layouts, "proximity": ring})
     robot_models.MODELS["foot-bot"] = replace(robot_models.MODELS["foot-bot"], carried_mass_kg=0.0,
                                               carried_moment_kg_m2=0.0)
-    lockstep.acted_commands = lambda tick, commands: commands
+    tick_loop.acted_commands = lambda tick, commands: commands
 
 
 def own_calibration(world):

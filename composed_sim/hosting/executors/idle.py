@@ -24,7 +24,7 @@ def wait_for_work(executor, timeout_sec: Optional[float]) -> None:
         directory = executor.services
         for node in executor.get_nodes():
             # A service served in process takes the requests of other processes as a tick starts
-            # (hosting/outside_calls.py): one waiting there is not work for now.
+            # (hosting/calls/outside.py): one waiting there is not work for now.
             services = node.services if directory is None else [s for s in node.services if not directory.serves(s)]
             for kind, entities in (("subscription", node.subscriptions), ("timer", node.timers),
                                    ("client", node.clients), ("service", services),

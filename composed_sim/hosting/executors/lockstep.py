@@ -26,7 +26,7 @@ node may do"):
 - callback groups: while a callback of a mutually exclusive group waits, no other callback of the
   group starts, and a response is handed to a client only when the client's group may run, as
   under the MultiThreadedExecutor; a reentrant group runs anything;
-- calls between its nodes are served in process (hosting/services.py).
+- calls between its nodes are served in process (hosting/calls/directory.py).
 
 Callbacks run one at a time, in that order: runs are deterministic and a plugin needs no locks.
 """
@@ -62,7 +62,7 @@ def _once_per_tick(topic: str) -> bool:
 # What an entry of the walk is (its third field, where a subscription has its message type).
 _WAITABLE = object()     # a waitable with dispatch_ready() (the simulator's answer subscriptions)
 _BATCH = object()        # a node's sensor subscriptions handled in one call (``lockstep_batch``)
-_SERVICE = object()      # a service served in process (hosting/services.py)
+_SERVICE = object()      # a service served in process (hosting/calls/directory.py)
 _POLLED = object()       # polled by the service directory: action endpoints, clients' DDS responses
 _UNSET = object()
 
@@ -85,7 +85,7 @@ class LockstepExecutor(SingleThreadedExecutor):
         super().__init__(context=context)
         self.scheduler = Scheduler()
         self.watcher = watcher or CallbackWatcher()
-        self.services = None                      # its ServiceDirectory (hosting/services.py), if hosted
+        self.services = None                      # its ServiceDirectory (hosting/calls/directory.py), if hosted
         self.on_entities_changed: Optional[Callable[[Node], None]] = None   # the host hosts what is new
         self.running_group = None                 # the callback group of the callback the walk runs
         self._ordered_nodes: list[Node] = []
@@ -287,7 +287,7 @@ class LockstepExecutor(SingleThreadedExecutor):
     def _build_entities(self) -> list[tuple]:
         """What a walk needs of each entity, resolved once (properties cost a call each). A timer
         on sim time is due only after its robot's sensor callbacks of the tick
-        (hosting/sim_timers.py), which the walk has just run: its answer is then taken by the
+        (hosting/sim_time/timers.py), which the walk has just run: its answer is then taken by the
         simulator node later in the same walk."""
         changed, self._changed = self._changed, []
         if changed:

@@ -11,7 +11,7 @@ from rclpy.executors import Executor, ExternalShutdownException, MultiThreadedEx
 
 from composed_sim.hosting import HostError
 from composed_sim.hosting.executors.lockstep import LockstepExecutor
-from composed_sim.hosting.options import EXECUTORS
+from composed_sim.hosting.process_hosting import EXECUTORS
 
 SETTLE_ROUNDS = 1000        # bound on the looks that run what is left to do (a busy node cannot hang a tick)
 

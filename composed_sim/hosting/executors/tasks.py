@@ -16,7 +16,7 @@ from rclpy.task import Future, Task
 
 class CallbackWatcher:
     """What the executor tells the host about the work it runs (the callback guard implements it:
-    hosting/callback_guard.py); this default tells nobody and blames nobody."""
+    hosting/guard/callback_guard.py); this default tells nobody and blames nobody."""
 
     def owner(self) -> Optional[str]:
         """The robot whose callback runs now (a task it makes is its own)."""

@@ -8,7 +8,7 @@ runs. Both carry (stamp ns, messages, …), pickled, in a std_msgs/UInt8MultiArr
 also says whether its nodes answered the tick (for a robot that answers when published) and
 carries its log lines' part for the simulator's console and /rosout.
 
-They carry the calls between places too (hosting/run_wide/calls.py): a batch or a round message
+They carry the calls between places too (hosting/calls/between_places.py): a batch or a round message
 of the simulator has the calls for each robot of its domain; the controller process hands its
 robot's over as soon as they arrive, runs its nodes until idle and replies with a part that is not
 the tick's last (``final``), with the calls they made. The simulator leads the rounds as the
@@ -61,7 +61,7 @@ class RunWideLink:
 
     def __init__(self, context, robot: str, relay: RunWideRelay, *, receives: bool, sends: bool,
                  timeout_s: float, logs=None, calls=None, index: int = 0):
-        """``calls``: the process's call relay (hosting/run_wide/calls.py), ``index``: its robot's."""
+        """``calls``: the process's call relay (hosting/calls/between_places.py), ``index``: its robot's."""
         self._relay, self._timeout_s, self._logs = relay, timeout_s, logs
         self._calls, self._index = calls, index
         self.sends = sends

@@ -31,12 +31,12 @@ from rclpy.node import Node
 from rclpy.serialization import deserialize_message, serialize_message
 from rclpy.subscription import Subscription
 
+from composed_sim.hosting.calls.between_places import RUN_WIDE_ORIGIN
 from composed_sim.ros import contract as c
 
 # Topics every node has, or the contract's own run-wide topics: never relayed.
 _NOT_RELAYED = frozenset({"/rosout", "/parameter_events", c.CLOCK_TOPIC, "/tf", "/tf_static",
                           c.SWARM_STATE_TOPIC, c.SWARM_MARKERS_TOPIC})
-RUN_WIDE_ORIGIN = -1        # the origin of a run-wide node's messages: before every robot's
 
 # One relayed message: (topic, type name, CDR bytes).
 Message = tuple[str, str, bytes]

@@ -23,7 +23,7 @@ import argparse
 import signal
 import sys
 
-from composed_sim.hosting.options import ProcessHosting
+from composed_sim.hosting import ProcessHosting
 from composed_sim.hosts.processes import die_with_parent
 
 EXIT_SETUP = 3          # the controller could not be built; the reason is on stderr

@@ -5,11 +5,8 @@ from __future__ import annotations
 import time
 from typing import Callable, Optional
 
-from composed_sim.hosting.nodes_exchange import NodesExchange
-from composed_sim.hosting.run_wide.calls import CallRelay, Request, handover_order
-from composed_sim.hosting.run_wide.link import SimulatorLink
-from composed_sim.hosting.run_wide.nodes import RunWideNodes
-from composed_sim.hosting.run_wide.relay import RunWideRelay
+from composed_sim.hosting import (CallRelay, handover_order, NodesExchange, Request, RunWideNodes, RunWideRelay,
+                                  SimulatorLink)
 from composed_sim.ros.simulator_node import SimulatorNode
 from composed_sim.world.schema import World
 
@@ -93,7 +90,7 @@ class LinkedExchange(NodesExchange):
         return routed
 
     def _rounds(self, sent: dict[int, dict[int, list]]) -> None:
-        """Rounds of calls between the robots and the run-wide nodes (hosting/run_wide/calls.py):
+        """Rounds of calls between the robots and the run-wide nodes (hosting/calls/between_places.py):
         the robots ``sent`` calls reply once idle with the calls they made; those go to their
         places (the run-wide nodes run until idle here), until no call is in flight."""
         links = self._run_wide.links

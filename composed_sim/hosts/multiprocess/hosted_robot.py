@@ -13,21 +13,11 @@ import rclpy
 from rclpy.context import Context
 
 from composed_sim import plugins
-from composed_sim.hosting import HostError
-from composed_sim.hosting.building import create_robot_nodes, load_classes, published_answer_type
-from composed_sim.hosting.executors.running import (Spinning, driven_by_caller, make_executor, run_until_idle,
-                                                   shut_down)
-from composed_sim.hosting.matching import contract_endpoints, matched, poll_until
-from composed_sim.hosting.node_logs import FAILURE_MARK, Console, NodeLogs, node_label, raising_node
-from composed_sim.hosting.options import ProcessHosting
-from composed_sim.hosting.entities import HostedEntities
-from composed_sim.hosting.executors.lockstep import LockstepExecutor
-from composed_sim.hosting.outside_calls import OutsideCalls
-from composed_sim.hosting.run_wide.calls import CallRelay
-from composed_sim.hosting.run_wide.link import RunWideLink
-from composed_sim.hosting.run_wide.relay import RunWideRelay
-from composed_sim.hosting.services import ServiceDirectory
-from composed_sim.hosting.sim_timers import before_each_tick
+from composed_sim.hosting import (before_each_tick, CallRelay, Console, contract_endpoints, create_robot_nodes,
+                                  driven_by_caller, FAILURE_MARK, HostedBlock, HostError, load_classes,
+                                  LockstepExecutor, make_executor, matched, node_label, NodeLogs, poll_until,
+                                  ProcessHosting, published_answer_type, raising_node, run_until_idle, RunWideLink,
+                                  RunWideRelay, shut_down, Spinning)
 from composed_sim.ros import contract as c
 from composed_sim.ros.answer_subscription import cmd_vel_gids
 from composed_sim.world.schema import World
@@ -55,7 +45,7 @@ class HostedRobot:
         self.nodes: list = []
         self.link: Optional[RunWideLink] = None
         self.spinning: Optional[Spinning] = None
-        self.outside_calls: Optional[OutsideCalls] = None
+        self.block: Optional[HostedBlock] = None
         # The robot's log file is written here; this process's console is a file nobody reads, so
         # only a failure's traceback goes there (after FAILURE_MARK, for the host to show).
         # The console's part and the /rosout lines go to the simulator with the robot's part of each
@@ -90,7 +80,7 @@ class HostedRobot:
             clock = self.nodes[0].get_clock()
             self.logs.clock = lambda: clock.now().nanoseconds
         # The link also tells the simulator when a robot that answers when published is idle, and
-        # carries the calls between the robot and the run-wide nodes (hosting/run_wide/calls.py).
+        # carries the calls between the robot and the run-wide nodes (hosting/calls/between_places.py).
         place = names.index(robot)
         self.calls = CallRelay(names)
         quiet = world.robots[group_index].answers == "when_published"
@@ -116,13 +106,11 @@ class HostedRobot:
             self.link.run_callback = self.spinning.executor.run_callback
         for node in ([self.link.node] if self.link is not None else []) + self.nodes:
             self.spinning.executor.add_node(node)
-        # Its services, clients and actions served as in the composed host (hosting/entities.py).
-        directory = ServiceDirectory(self.spinning.executor, relay=self.calls)
-        self.calls.serve([place], directory)
-        entities = HostedEntities(directory, relay)
+        # Its nodes hosted as in the composed host (hosting/hosted_block.py).
+        self.block = HostedBlock(self.spinning.executor, calls=self.calls, places=[place], relay=relay)
         for node in self.nodes:
-            entities.adopt(node, robot, place)
-        self.outside_calls = OutsideCalls.watching(directory, names, self.nodes[0])
+            self.block.adopt(node, robot, place)
+        self.block.watch_outside_calls(names, graph_of=self.nodes[0])
         return True
 
     def _starting_tick(self, stamp: int, tick_timers) -> None:
@@ -130,8 +118,8 @@ class HostedRobot:
             timers.advance_to(stamp)
         if self.link is not None:
             self.link.before_tick(stamp)
-        if self.outside_calls is not None:
-            self.outside_calls.take()
+        if self.block is not None:
+            self.block.take_outside_calls()
 
     def report(self, fd: int, stopped: Callable[[], bool]) -> Optional[int]:
         """Tell the host on the pipe ``fd`` that the nodes exist, then that their contract endpoints
@@ -206,8 +194,8 @@ class HostedRobot:
         # (its shared-memory port, say) must not keep this process alive. SIGALRM has no handler
         # here, so the kernel ends the process even while a C call holds the interpreter.
         signal.alarm(CLEANUP_LIMIT_S)
-        if self.outside_calls is not None:
-            self.outside_calls.close()
+        if self.block is not None:
+            self.block.close()
         shut_down(self.spinning, [*self.nodes, *([self.link] if self.link is not None else [])], self.context,
                   shutdown_timeout_s=1.0, join_timeout_s=2.0)
 

@@ -1,7 +1,7 @@
 """The worker processes of the worker host: a block of robots in one participant group, one executor.
 
 ``python -m composed_sim.hosts.workers.launcher --fds N1,N2,… --logs DIR --parent-pid P`` is started
-by ``hosts/workers/host.py`` as a launcher: it imports what a worker needs once (serving.py),
+by ``hosts/workers/worker_host.py`` as a launcher: it imports what a worker needs once (serving.py),
 forks one worker per socket, prints their pids and exits. Forking spares each worker the
 interpreter's start and the imports (docs/speed.md, "Set-up"), and the workers share those pages
 in memory. The main process,
@@ -23,7 +23,7 @@ A worker talks to the main process over its socket (pickled messages,
                     ("error", kind, message, field) the block could not be built
                     ("answers", TickAnswers)       the tick's LEDs, payloads, violations (its
                                                    commands: in the shared state),
-                                                   and its nodes' console lines (hosting/node_logs.py)
+                                                   and its nodes' console lines (hosting/guard/node_logs.py)
 
 Inside, a tick is exactly the single-process host's: the worker reads its block's sensors
 (core/senses.py), its simulator node publishes them, the executor runs the controllers' callbacks until every robot answered or the watchdog

@@ -15,7 +15,7 @@ class WorkerSetup:
     stop: int
     index: int                # the worker's number; its participant group has the same
     hosting: object            # hosting/options.ProcessHosting: its executor, domain, where its robots' logs go
-    participant_prefix: bytes  # the GUID prefix of the worker's one participant (hosting/participants.py)
+    participant_prefix: bytes  # the GUID prefix of the worker's one participant (hosting/dds/participants.py)
     scratch_dir: str           # where the worker may write its Fast DDS profile
     shared_state: int          # the descriptor of the world's state in shared memory (shared_state.py)
 
@@ -29,23 +29,23 @@ class TickAnswers:
     violations: list = field(default_factory=list)     # new ones since the last tick: (tick, robot, reason)
     tapped: list = field(default_factory=list)         # (topic, type, bytes, stamp ns)
     run_wide: list = field(default_factory=list)       # (topic, type, bytes) for the next tick's batch
-    calls: list = field(default_factory=list)          # calls between places for the next tick (hosting/run_wide/calls.py)
+    calls: list = field(default_factory=list)          # calls between places for the next tick (hosting/calls/between_places.py)
     peak_rss_kb: int = 0                               # the worker's own peak resident memory so far
     another_simulator: Optional[str] = None            # NodesExchange.another_simulator, this tick
     logs: tuple = ()                                   # NodeLogs.drain(): console lines, failures, /rosout
     cpu_s: float = 0.0                                 # the worker's CPU seconds since its first tick
-    node_code_s: float = 0.0                           # of which inside its nodes' own code (hosting/node_time.py)
+    node_code_s: float = 0.0                           # of which inside its nodes' own code (hosting/guard/node_time.py)
     commands: Optional[tuple] = None                   # a machine's: (linear, angular) of its block (remote.py)
 
 
 @dataclass
 class MachineSetup:
-    """What a machine of a distributed run hosts (hosts/workers/agent.py): robots start … stop-1 in
+    """What a machine of a distributed run hosts (hosts/machines/agent.py): robots start … stop-1 in
     ``workers`` processes of its own (a number, or "auto" for its cores)."""
     world: object
     start: int
     stop: int
     hosting: object                # as WorkerSetup's
-    run_prefix: bytes              # the run's 8 bytes of its workers' GUID prefixes (hosting/participants.py)
+    run_prefix: bytes              # the run's 8 bytes of its workers' GUID prefixes (hosting/dds/participants.py)
     first_group: int               # the participant group number of its first worker (0: the run-wide nodes')
     workers: object

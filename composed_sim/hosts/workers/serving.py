@@ -18,13 +18,10 @@ import numpy as np
 
 from composed_sim import plugins
 from composed_sim.core.senses import Senses
-from composed_sim.hosting import HostError
-from composed_sim.hosts.lockstep import acted_commands
-from composed_sim.hosting.node_logs import NodeLogs
-from composed_sim.hosting.participant_groups import ParticipantGroups
+from composed_sim.hosting import HostError, NodeLogs, ParticipantGroups, use_worker_prefix
+from composed_sim.hosts.tick_loop import acted_commands
 from composed_sim.hosts.workers.shared_state import SharedState
 from composed_sim.hosts.workers.messages import EXIT_SETUP, TickAnswers
-from composed_sim.hosting.participants import use_worker_prefix
 from composed_sim.ros.taps import TapBuffer
 
 
@@ -103,7 +100,7 @@ class Block:
 
     def round_trip(self, calls: list) -> Optional[list]:
         """This block is idle: its calls to the main process, which sends back the calls for it, or
-        says the run is quiet (None) (hosts/workers/rounds.py)."""
+        says the run is quiet (None) (hosting/calls/rounds.py)."""
         self.conn.send(("idle", calls))
         reply = self.conn.recv()
         return reply[1] if reply[0] == "calls" else None

@@ -1,0 +1,142 @@
+"""Service calls between places of the run: a robot's nodes, another robot's, the run-wide nodes.
+
+A robot's own nodes always share a process and an executor: their calls are served in process
+(hosting/calls/directory.py). A call that leaves the robot, to a run-wide node (a fleet manager, a
+swarm's ``all/takeoff``) or from a run-wide node to a robot (``set_parameters``, a lifecycle
+transition), may cross executors, processes and machines, depending on the host's layout. So
+such calls go through the host, in rounds, and are answered within the tick in every layout:
+
+- a tick's callbacks run until every place is idle; then the calls made since are handed over,
+  requests and responses each in one order (by caller: run-wide nodes first, then robot by
+  robot; each caller's in the order made), and served by their places, which run until idle
+  again; until no call is left in flight (docs/contract.md, "Calls between robots");
+- a run-wide node's calls made in its part of the tick (at the tick's start) reach the robots
+  with the tick's run-wide batch, before the tick's sensors.
+
+A place is a robot's index in the run or ``RUN_WIDE_ORIGIN``. The relay of each process keeps
+its places' services and clients; requests and responses travel as CDR bytes, so the host moves
+them between processes as it moves the run-wide batch.
+"""
+from __future__ import annotations
+
+import itertools
+import threading
+from dataclasses import dataclass
+from typing import Collection
+
+from rclpy.serialization import deserialize_message, serialize_message
+
+from composed_sim.hosting.calls.directory import CallFuture, ServiceDirectory, completing, hand_over
+from composed_sim.ros import contract as c
+
+RUN_WIDE_ORIGIN = -1     # the place of the run-wide nodes: before every robot's (robot i's place is i)
+
+
+@dataclass(frozen=True)
+class Request:
+    call: tuple[int, int]        # (caller's place, sequence): the call's identity and its order
+    place: int                   # the serving place
+    service: str                 # resolved name
+    data: bytes
+
+
+@dataclass(frozen=True)
+class Response:
+    call: tuple[int, int]
+    data: bytes
+
+
+def handover_order(items: list) -> list:
+    """The one order of a round's handover, whatever process made each item: responses first,
+    then requests, each by caller (run-wide nodes, then robot by robot) and the caller's order."""
+    return sorted(items, key=lambda item: (isinstance(item, Request), item.call))
+
+
+class CallRelay:
+    """One process's side of the calls between places."""
+
+    def __init__(self, robots: Collection[str]):
+        self._place_of_robot = {name: i for i, name in enumerate(robots)}
+        self._directories: dict[int, ServiceDirectory] = {}     # place → the directory serving it here
+        self._outbox: list = []
+        # Callbacks on an executor's threads (rclpy's multi-threaded) add to it while the host takes it.
+        self._outbox_lock = threading.Lock()
+        self._pending: dict[tuple[int, int], tuple[CallFuture, object, ServiceDirectory]] = {}
+        self._sequence = itertools.count()
+
+    # --- set-up -------------------------------------------------------------------------------
+
+    def serve(self, places: Collection[int], directory: ServiceDirectory) -> None:
+        """``directory`` serves the calls to ``places`` in this process."""
+        for place in places:
+            self._directories[place] = directory
+
+    def place_of(self, service: str) -> int:
+        """The place a service name belongs to: its robot's, by namespace; the run-wide nodes'
+        outside every robot's namespace."""
+        return self._place_of_robot.get(c.namespace_head(service), RUN_WIDE_ORIGIN)
+
+    def leaves(self, origin: int, service: str) -> bool:
+        """Does a call of place ``origin`` to ``service`` leave it (through the relay)?"""
+        return self.place_of(service) != origin
+
+    # --- calls out ------------------------------------------------------------------------------
+
+    def call(self, origin: int, client, request, directory: ServiceDirectory) -> CallFuture:
+        """A client of place ``origin`` calls a service of another place: the request waits for
+        the next handover; the future completes when its response is delivered."""
+        call = (origin, next(self._sequence))
+        future = CallFuture(executor=directory.executor)
+        self._pending[call] = (future, client, directory)
+        self._send(Request(call, self.place_of(client.service_name), client.service_name,
+                           serialize_message(request)))
+        return future
+
+    def forget(self, future: CallFuture) -> None:
+        """A call given up (its ``Client.call`` timed out): a response that still comes is dropped."""
+        self._pending = {call: p for call, p in self._pending.items() if p[0] is not future}
+
+    def _send(self, item) -> None:
+        with self._outbox_lock:
+            self._outbox.append(item)
+
+    def take_outbox(self) -> list:
+        """Requests and responses made since the last take, in the handover's order."""
+        with self._outbox_lock:
+            taken, self._outbox = self._outbox, []
+        return handover_order(taken)
+
+    @property
+    def in_flight(self) -> bool:
+        return bool(self._outbox)
+
+    # --- calls in -------------------------------------------------------------------------------
+
+    def deliver(self, items: list) -> list:
+        """Requests to this process's places, queued at their services; responses to its clients,
+        completing their futures. Returns what is not for this process (another process's)."""
+        elsewhere = []
+        for item in items:
+            if isinstance(item, Response):
+                pending = self._pending.pop(item.call, None)
+                if pending is None:
+                    elsewhere.append(item)
+                    continue
+                future, client, directory = pending
+                response = deserialize_message(item.data, client.srv_type.Response)
+                hand_over(directory.executor, client.callback_group, completing(future, response))
+                continue
+            directory = self._directories.get(item.place)
+            if directory is None:
+                elsewhere.append(item)
+                continue
+            self._queue(directory, item)
+        return elsewhere
+
+    def _queue(self, directory: ServiceDirectory, request: Request) -> None:
+        entry = directory.lookup(request.service)
+        if entry is None:
+            return            # nobody serves it: the caller waits, as for a service that never comes up
+        message = deserialize_message(request.data, entry.srv_type.Request)
+        entry.submit(message, lambda response, call=request.call:
+                     self._send(Response(call, serialize_message(response))))

@@ -1,0 +1,451 @@
+"""Services, clients and actions between hosted nodes, as a process of their own would have them.
+
+A node's own process calls a service through DDS and gets the response on another of the
+executor's threads. Between the nodes of one hosting process the host hands a call over itself:
+the request (a copy, as DDS would deliver it) goes into the service's queue, the lockstep walk
+runs the service's callback in its place in the fixed order (a stock executor runs it as a task),
+and the response (a copy) completes the client's future once the client's callback group may
+run, as rclpy's executors require. A blocking ``Client.call()`` sets its callback aside meanwhile
+(hosting/executors/scheduler.py). Every service and client still exists on DDS: calls from and to
+other processes take that path: their requests are taken as a tick starts
+(hosting/calls/outside.py), the responses to calls made to them by the walk. A call to
+another place of the run (a run-wide node's service, a robot's from a run-wide node) goes
+through the host's call relay (hosting/calls/between_places.py).
+
+Actions (``rclpy.action``) keep rclpy's implementation, whose goal, cancel and result services and
+feedback and status topics stay inside the hosting participant, where DDS delivers at once: the
+walk polls each action server and client through a wait set of its own, and their blocking calls
+(``send_goal``, ``get_result``) set the callback aside like ``Client.call()``.
+"""
+from __future__ import annotations
+
+from collections import deque
+from types import CoroutineType
+from typing import Callable, Optional
+
+from greenlet import getcurrent
+from rclpy.action import ActionClient, ActionServer
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
+from rclpy.client import Client
+from rclpy.executors import MultiThreadedExecutor, await_or_execute
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+from rclpy.node import Node
+from rclpy.service import Service
+from rclpy.task import Future
+
+from composed_sim.hosting.sim_time.sleeps import can_set_aside, wait_on_clock
+from composed_sim.ros.message_copy import copy_message, new_message
+
+
+class CallFuture(Future):
+    """A call's future; awaiting it tells the lockstep executor what to wait for (rclpy's says
+    nothing), and a callback blocked on it is woken directly (``waiters``), not by a done callback."""
+
+    def __init__(self, *, executor=None):
+        super().__init__(executor=executor)
+        self.waiters: list = []
+
+    def __await__(self):
+        while self._pending():
+            yield self
+        return self.result()
+
+    def _schedule_or_invoke_done_callbacks(self):
+        super()._schedule_or_invoke_done_callbacks()
+        waiters, self.waiters = self.waiters, []
+        for wake in waiters:
+            wake()
+
+
+class HostedCallError(RuntimeError):
+    """A hosted node's call that would wait forever in any process: the message says why."""
+
+
+def hand_over(executor, group, work: Callable[[], None]) -> None:
+    """Run ``work`` (completing a client's future) once ``group`` may run: the lockstep executor
+    keeps the group's rule; for a stock one it runs now, as rclpy's own executor completes a
+    future from whichever thread took the response, and the future's done callbacks become its
+    tasks."""
+    when_free = getattr(executor, "when_free", None)
+    if when_free is not None:
+        when_free(group, work)
+    else:
+        work()
+
+
+def completing(future: Future, response) -> Callable[[], None]:
+    """Work that completes ``future`` with ``response``, unless it was given up on."""
+    return lambda: future.done() or future.cancelled() or future.set_result(response)
+
+
+class NodeServices:
+    """A node's services served in process, one entry of the lockstep walk: its requests waiting."""
+    __slots__ = ("entries", "pending")
+
+    def __init__(self):
+        self.entries: list[ServiceEntry] = []
+        self.pending = 0
+
+    def serve_ready(self, executor, held) -> int:
+        """Serve every waiting request whose service's group may run, service by service, until a
+        callback is set aside (the walk that resumes it stops there); returns how many."""
+        served, me = 0, getcurrent()
+        for entry in self.entries:
+            while entry.queue and not (held and entry.group in held):
+                self.pending -= 1
+                served += 1
+                entry.serve_next(executor)
+                if executor.scheduler.walker is not me:
+                    return served
+        return served
+
+
+class ServiceEntry:
+    """One service served in process: its queue of (request, reply) and what serves it."""
+    __slots__ = ("name", "srv_type", "node", "group", "queue", "service", "_callback", "_owner", "on_outside")
+
+    def __init__(self, name: str, srv_type, node: Node, group, owner: Optional[NodeServices],
+                 service: Optional[Service] = None, callback: Optional[Callable] = None):
+        """``owner``: the node's services the lockstep walk serves (None: a stock executor's tasks)."""
+        self.name, self.srv_type, self.node, self.group = name, srv_type, node, group
+        self.queue: deque = deque()
+        self.service = service            # the rclpy Service (its DDS endpoint), or None: in process only
+        self._callback = callback
+        self._owner = owner
+        self.on_outside: Optional[Callable[[], None]] = None   # an in-process one a client elsewhere wants
+    @property
+    def callback(self) -> Callable:
+        # The service's current callback: the host's guard may have wrapped it since.
+        return self.service.callback if self.service is not None else self._callback
+
+    def submit(self, request, reply: Callable) -> None:
+        """A request, whose response goes to ``reply(response)``."""
+        if self._owner is not None:
+            self.queue.append((request, reply))
+            self._owner.pending += 1
+        else:
+            self.node.executor.create_task(self._serve_as_task, request, reply)
+
+    def serve_next(self, executor) -> None:
+        """The lockstep walk: run the callback on the oldest request."""
+        request, reply = self.queue.popleft()
+        executor.running_group = self.group
+        response = self.callback(request, new_message(self.srv_type.Response))
+        if response.__class__ is CoroutineType:
+            task = executor.start_coroutine(response, self.group, self.node)
+            task.add_done_callback(lambda done: done.exception() is None and self._respond(executor, reply, done.result()))
+        else:
+            self._respond(executor, reply, response)
+
+    async def _serve_as_task(self, request, reply: Callable) -> None:
+        response = await await_or_execute(self.callback, request, new_message(self.srv_type.Response))
+        self._respond(self.node.executor, reply, response)
+
+    def _respond(self, executor, reply: Callable, response) -> None:
+        if isinstance(response, self.srv_type.Response):
+            reply(response)
+            return
+        watcher = getattr(executor, "watcher", None)
+        if watcher is not None and (response is not None or watcher.owner_alive(self.node)):
+            # rclpy's executor raises on it: the serving node's fault, as in its own process.
+            watcher.node_failed(self.node, TypeError(
+                f"service {self.name} returned {type(response).__name__}, not a {self.srv_type.__name__}.Response"))
+
+
+class ServiceDirectory:
+    """The services served in process by one executor, and its nodes' clients and action
+    endpoints: what the lockstep walk serves, and where calls go."""
+
+    def __init__(self, executor, relay=None):
+        """``relay``: where calls to services of other places go (hosting/calls/between_places.py)."""
+        self.executor = executor
+        self.relay = relay
+        self._walked = hasattr(executor, "when_free")      # the lockstep executor
+        self._by_name: dict[str, ServiceEntry] = {}      # the first service of each name
+        self._entries: list[ServiceEntry] = []
+        self._of_node: dict[Node, NodeServices] = {}
+        self._served: set[int] = set()            # ids of the rclpy Services served here
+        self._clients: set[int] = set()           # ids of the clients hosted here
+        self._client_names: dict[str, int] = {}   # how many of them call each service name
+        self._outside: Optional[set[int]] = None  # ids of the entries another process may call (None: any)
+        self._polled: dict[int, object] = {}      # action servers and clients: their wait sets
+        self._node_names: set[str] = set()        # the names of the nodes it serves (a run-wide node's is its own)
+        if self._walked:
+            executor.services = self
+
+    # --- what the walk asks -----------------------------------------------------------------------
+
+    def services_of(self, node: Node) -> Optional[NodeServices]:
+        return self._of_node.get(node)
+
+    def serves(self, service: Service) -> bool:
+        return id(service) in self._served
+
+    def takes_responses(self, client: Client) -> bool:
+        return id(client) in self._clients
+
+    def polls(self, waitable) -> bool:
+        return id(waitable) in self._polled
+
+    @property
+    def in_use(self) -> bool:
+        """Do its nodes have services, clients or actions of their own (parameter services aside)?
+        Then a robot's work may go on after its answer (a response, a result), within the tick."""
+        return bool(self._served or self._clients or self._polled)
+
+    def lookup(self, name: str, srv_type=None) -> Optional[ServiceEntry]:
+        entry = self._by_name.get(name)
+        return entry if entry is not None and (srv_type is None or entry.srv_type is srv_type) else None
+
+    # --- hosting a node's services and clients ----------------------------------------------------
+
+    def host_service(self, node: Node, service: Service) -> None:
+        """Serve ``service`` (created by ``node``) in process; DDS requests from other processes are
+        taken by ``take_outside_requests``."""
+        if id(service) in self._served:
+            return
+        self._add(ServiceEntry(service.handle.name, service.srv_type, node, service.callback_group,
+                               self._owner(node), service=service))
+        self._served.add(id(service))
+
+    def add_in_process(self, node: Node, name: str, srv_type, callback: Callable, group) -> ServiceEntry:
+        """A service with no DDS endpoint (a node's parameter services, hosting/calls/parameters.py)."""
+        entry = ServiceEntry(name, srv_type, node, group, self._owner(node), callback=callback)
+        self._add(entry)
+        return entry
+
+    def _owner(self, node: Node) -> Optional[NodeServices]:
+        return self._of_node.setdefault(node, NodeServices()) if self._walked else None
+
+    def attach_dds(self, entry: ServiceEntry, service: Service) -> None:
+        """An in-process service gets its DDS endpoint (``service``), whose requests it serves too."""
+        entry.service = service
+        self._served.add(id(service))
+        self.executor.wake()
+
+    def _add(self, entry: ServiceEntry) -> None:
+        self._node_names.add(entry.node.get_name())
+        self._by_name.setdefault(entry.name, entry)
+        self._entries.append(entry)
+        if entry._owner is not None:
+            entry._owner.entries.append(entry)
+        self.executor.wake()
+
+    def host_client(self, node: Node, client: Client, origin: Optional[int] = None) -> None:
+        """Calls of ``client`` to a service served here go in process; to another place of the run
+        (``origin``: the node's place, hosting/calls/between_places.py) through the relay; others through
+        DDS, whose responses the walk takes."""
+        if id(client) in self._clients:
+            return
+        self._clients.add(id(client))
+        self._client_names[client.service_name] = self._client_names.get(client.service_name, 0) + 1
+        directory, executor = self, self.executor
+        through_dds, blocking_call, name = client.call_async, client.call, client.service_name
+
+        def call_async(request):
+            if not isinstance(request, client.srv_type.Request):
+                raise TypeError()
+            entry = directory.lookup(name, client.srv_type)
+            if entry is None:
+                relay = directory.relay
+                if relay is not None and origin is not None and relay.leaves(origin, name):
+                    return relay.call(origin, client, request, directory)
+                return through_dds(request)
+            future = CallFuture(executor=executor)
+            entry.submit(copy_message(request), lambda response: hand_over(
+                executor, client.callback_group, completing(future, copy_message(response))))
+            return future
+
+        def call(request, timeout_sec: Optional[float] = None):
+            if not directory.may_block(node, f"{name} (Client.call)"):
+                return blocking_call(request, timeout_sec)
+            future = call_async(request)
+            directory.wait(node, client.callback_group, future, f"{name} (Client.call)", timeout_sec)
+            if not future.done():
+                client.remove_pending_request(future)
+                if directory.relay is not None:
+                    directory.relay.forget(future)
+                return None
+            if future.exception() is not None:
+                raise future.exception()
+            return future.result()
+
+        def wait_for_service(timeout_sec: Optional[float] = None) -> bool:
+            relay = directory.relay
+            if directory.lookup(name, client.srv_type) is not None or (
+                    relay is not None and origin is not None and relay.leaves(origin, name)):
+                return True
+            return Client.wait_for_service(client, timeout_sec)
+
+        client.call_async, client.call, client.wait_for_service = call_async, call, wait_for_service
+        self.executor.wake()
+
+    def may_block(self, node: Node, what: str) -> bool:
+        """May a callback of ``node`` block here on a call? Set aside by the lockstep executor; on
+        a MultiThreadedExecutor's thread as rclpy blocks; never in an executor of one thread,
+        where it would wait forever (in its own process too): refused."""
+        executor = self.executor
+        if can_set_aside(executor):
+            return True
+        if isinstance(executor, MultiThreadedExecutor):
+            return False
+        raise HostedCallError(f"{node.get_fully_qualified_name()} waits for {what} in a callback of a "
+                              f"{type(executor).__name__}, which runs one callback at a time: it would wait "
+                              f"forever, in its own process too. Use call_async, or the lockstep executor")
+
+    def wait(self, node: Node, taking_group, future: Future, what: str, timeout_sec: Optional[float]) -> None:
+        """A callback of ``node`` blocks on ``future``, whose completion a callback of
+        ``taking_group`` must take: set it aside meanwhile, or refuse a wait that could never end."""
+        executor = self.executor
+        group = executor.group_of_caller()
+        if isinstance(group, MutuallyExclusiveCallbackGroup) and group is taking_group:
+            raise HostedCallError(
+                f"{node.get_fully_qualified_name()} waits for {what} in a callback of the mutually exclusive "
+                f"callback group that must also take its response: it would wait forever, in any process. "
+                f"Give the client (or the calling callback) another group, e.g. a ReentrantCallbackGroup")
+        wait_on_clock(node, executor, future, group, timeout_sec, future.cancel)
+
+    # --- actions ------------------------------------------------------------------------------------
+
+    @staticmethod
+    def is_action(waitable) -> bool:
+        return isinstance(waitable, (ActionServer, ActionClient))
+
+    def host_action(self, node: Node, waitable) -> None:
+        """With the lockstep executor: poll an action server or client in the walk; its blocking
+        calls set the caller aside. A stock executor waits on it as rclpy does."""
+        if id(waitable) in self._polled or not self._walked:
+            return
+        self._polled[id(waitable)] = None
+        if isinstance(waitable, ActionClient):
+            self._host_action_client(node, waitable)
+        self.executor.wake()
+
+    def _host_action_client(self, node: Node, client: ActionClient) -> None:
+        directory = self
+        name = getattr(client, "_action_name", "an action")
+
+        def blocking(method_async, original, what):
+            def call(*args, **kwargs):
+                if not directory.may_block(node, f"{name} ({what})"):
+                    return original(*args, **kwargs)
+                future = method_async(*args, **kwargs)
+                directory.wait(node, client.callback_group, future, f"{name} ({what})", None)
+                return future.result()
+            return call
+        client.send_goal = blocking(client.send_goal_async, client.send_goal, "send_goal")
+        client._get_result = blocking(client._get_result_async, client._get_result, "get_result")
+        client._cancel_goal = blocking(client._cancel_goal_async, client._cancel_goal, "cancel_goal")
+
+    def poll(self, entity, node: Node, executor) -> int:
+        """Take what is ready for a polled entity (an action server or client, or a client with
+        requests out through DDS) and start handling it; returns how many things it started."""
+        if isinstance(entity, Client):
+            return self._take_responses(entity, executor)
+        wait_set = self._polled.get(id(entity))
+        if wait_set is None:
+            counts = entity.get_num_entities()
+            wait_set = self._polled[id(entity)] = _rclpy.WaitSet(
+                counts.num_subscriptions, counts.num_guard_conditions, counts.num_timers, counts.num_clients,
+                counts.num_services, counts.num_events, executor.context.handle)
+        wait_set.clear_entities()
+        entity.add_to_wait_set(wait_set)
+        wait_set.wait(0)
+        if not entity.is_ready(wait_set):
+            return 0
+        data = entity.take_data()
+        if not data:
+            return 0
+        parts = [data]
+        if isinstance(entity, ActionClient) and "feedback" in data:
+            # In its own process the client hears each feedback as it is published, while the
+            # server still runs; here the server may have finished by the time the client is
+            # polled: every feedback first, then what else came (its result).
+            parts = [{"feedback": data.pop("feedback")}]
+            while (more := entity._client_handle.take_feedback(entity._action_type.Impl.FeedbackMessage)) is not None:
+                parts.append({"feedback": more})
+            parts += [data] if data else []
+        for part in parts:
+            executor.running_group = entity.callback_group
+            executor.start_coroutine(entity.execute(part), entity.callback_group, node)
+        return len(parts)
+
+    def _take_responses(self, client: Client, executor) -> int:
+        """A client's responses through DDS (a service of another process)."""
+        if not client._pending_requests:
+            return 0
+        taken = 0
+        while True:
+            with client.handle:
+                header, response = client.handle.take_response(client.srv_type.Response)
+            if header is None:
+                return taken
+            taken += 1
+            try:
+                future = client.get_pending_request(header.request_id.sequence_number)
+            except KeyError:
+                continue                      # given up on (a timeout)
+            future._set_executor(executor)
+            hand_over(executor, client.callback_group, completing(future, response))
+
+    def find_outside_clients(self, run_namespaces: frozenset[str]) -> None:
+        """Which services served here have a client that is not the run's (``ros2 param``'s, a
+        tool's, another program's), by the ROS graph: asked again whenever the graph changed. An
+        in-process service that one wants gets its DDS endpoint then (``on_outside``).
+        ``run_namespaces``: the robots' namespaces, whose nodes are all the run's."""
+        if not self._entries:
+            return
+        graph = self._entries[0].node
+        wanted: set[str] = set()
+        for name, namespace in graph.get_node_names_and_namespaces():
+            if namespace in run_namespaces or name.startswith("composed_sim") or name in self._node_names:
+                continue
+            try:
+                wanted.update(service for service, _ in graph.get_client_names_and_types_by_node(name, namespace))
+            except Exception:            # noqa: BLE001 - gone meanwhile
+                continue
+        for entry in self._entries:
+            if entry.name in wanted and entry.service is None and entry.on_outside is not None:
+                entry.on_outside()
+        self._outside = {id(entry) for entry in self._entries if entry.service is not None
+                         and (entry.name in wanted or entry.node.count_clients(entry.name)
+                              > self._client_names.get(entry.name, 0))}
+
+    def take_outside_requests(self) -> int:
+        """Requests through DDS (from other processes) to the services served here: queued, to be
+        served like the others; returns how many. Only the services with a client elsewhere
+        (``find_outside_clients``) are asked, once it was called."""
+        taken, outside = 0, self._outside
+        for entry in self._entries:
+            service = entry.service
+            if service is None or (outside is not None and id(entry) not in outside):
+                continue
+            while True:
+                with service.handle:
+                    request, header = service.handle.service_take_request(entry.srv_type.Request)
+                if header is None:
+                    break
+                entry.submit(request, lambda response, service=service, header=header:
+                             service.send_response(response, header))
+                taken += 1
+        return taken
+
+
+
+def wait_during_construction(node: Node, will_be_served: Callable[[str], bool]) -> None:
+    """Before ``node``'s constructor: a client it makes there may wait for its service (the ROS 2
+    tutorials' ``while not client.wait_for_service(timeout_sec=1.0)``). Hosted, the service may
+    belong to a node built after it, or in another process, and is served by tick 0, when calls
+    can first be made: such a wait ends at once (``will_be_served(name)``, true only while the
+    nodes are built), instead of for ever."""
+    create_client = node.create_client
+
+    def hosted_create_client(srv_type, srv_name, *args, **kwargs):
+        client = create_client(srv_type, srv_name, *args, **kwargs)
+        plain = client.wait_for_service
+
+        def wait_for_service(timeout_sec: Optional[float] = None) -> bool:
+            return will_be_served(client.service_name) or plain(timeout_sec)
+        client.wait_for_service = wait_for_service
+        return client
+    node.create_client = hosted_create_client

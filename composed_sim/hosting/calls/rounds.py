@@ -1,0 +1,81 @@
+"""Rounds of calls between places when the robots are spread over worker processes.
+
+A call from a robot to a run-wide node (or back) may cross workers (hosting/calls/between_places.py).
+It is answered within the tick, in the same order as in one process, by rounds that the main
+process leads: each worker runs until its nodes are idle and sends the calls they made
+(``("idle", calls)``); once every worker has, the calls go to the workers of their places, in the
+one order of the handover (``("calls", calls)``), and each runs until idle again; when a round
+finds no call in flight anywhere, the main process says so (``("go",)``) and the phase is over.
+Two phases a tick: before the sensors (what reached the robots at the tick's start: the
+run-wide nodes' calls from their part of it) and after them. Only runs whose nodes may call
+across places pay for them (``needed``: a worker said so when ready).
+"""
+from __future__ import annotations
+
+import time
+from multiprocessing.connection import wait as wait_for_connections
+from typing import Callable, Optional
+
+from composed_sim.hosting.calls.between_places import RUN_WIDE_ORIGIN, Request, handover_order
+
+
+class CallRounds:
+    def __init__(self, workers: list, patience_s: float, lost: Callable[[object, Optional[str]], None]):
+        """``workers``: hosts/workers/host.Worker, in robot order; ``lost(worker, reason)``: a worker
+        that died or stopped answering."""
+        self._workers, self._patience_s, self._lost = workers, patience_s, lost
+        self.needed = False
+        self.pending: list = []      # calls of the run-wide nodes' part of the next tick, for its first round
+
+    def _worker_of(self, item):
+        place = item.place if isinstance(item, Request) else item.call[0]
+        if place == RUN_WIDE_ORIGIN:
+            return self._workers[0]          # the run-wide nodes live with robot 0 (participant group 0)
+        return next(w for w in self._workers if w.start <= place < w.stop)
+
+    def run(self) -> None:
+        """One phase's rounds, until no call is in flight anywhere."""
+        calls, self.pending = self.pending, []
+        while True:
+            calls += self._collect_idle()
+            live = [w for w in self._workers if w.dead is None]
+            if not calls:
+                self._send(live, lambda w: ("go",))
+                return
+            routed: dict[int, list] = {w.index: [] for w in live}
+            for item in handover_order(calls):
+                w = self._worker_of(item)
+                if w.dead is None:
+                    routed[w.index].append(item)
+            self._send(live, lambda w: ("calls", routed[w.index]))
+            calls = []
+
+    def _collect_idle(self) -> list:
+        calls = []
+        waiting = {w.conn: w for w in self._workers if w.dead is None}
+        deadline = time.monotonic() + self._patience_s
+        while waiting:
+            left = deadline - time.monotonic()
+            if left <= 0:
+                for w in waiting.values():
+                    self._lost(w, f"worker process stopped answering ({self._patience_s:.0f} s without "
+                                  f"finishing a round of calls), killed")
+                break
+            for conn in wait_for_connections(list(waiting), timeout=left):
+                w = waiting.pop(conn)
+                try:
+                    kind, made = conn.recv()
+                except (EOFError, OSError):
+                    self._lost(w, None)
+                    continue
+                if kind != "idle":
+                    raise RuntimeError(f"a worker answered a round with {kind!r}, not 'idle'")
+                calls += made
+        return calls
+
+    def _send(self, workers: list, message: Callable) -> None:
+        for w in workers:
+            try:
+                w.conn.send(message(w))
+            except OSError:
+                self._lost(w, None)

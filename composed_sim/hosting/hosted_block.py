@@ -1,0 +1,137 @@
+"""One way to host a block of nodes: every place that hosts nodes uses it (a participant group's
+robots, a robot in a controller process of its own, a shard's robots, the run-wide nodes).
+
+A block is the nodes of one executor. Whatever a node makes, in its constructor, a lifecycle
+transition (``on_configure``) or any callback, is hosted the same way whenever it appears (the
+lockstep executor reports a node whose entities changed before its next walk; rclpy's stock
+executors, kept for comparison, get what the nodes have when they are adopted):
+
+- its callbacks are guarded: a failure is the robot's (hosting/guard/callback_guard.py);
+- its services are served in process, its clients call in process, through the call relay (to
+  another place of the run) or through DDS, its action endpoints are polled by the walk
+  (hosting/calls/directory.py);
+- a publisher on the robot's ``cmd_vel`` is told to the simulator as the robot's controller (its
+  answers count); each was checked against the topic contract when made (hosting/building/nodes.py);
+- the node gets its parameter services, in process (hosting/calls/parameters.py);
+- requests that other processes send to its services are taken as each tick starts
+  (hosting/calls/outside.py).
+"""
+from __future__ import annotations
+
+from typing import Callable, Collection, Optional
+
+from rclpy.node import Node
+
+from composed_sim.hosting import ContractViolation
+from composed_sim.hosting.guard.callback_guard import CallbackGuard
+from composed_sim.hosting.calls.outside import OutsideCalls
+from composed_sim.hosting.calls.parameters import HostedParameterServices
+from composed_sim.hosting.calls.directory import ServiceDirectory
+from composed_sim.ros import contract as c
+from composed_sim.ros.answer_subscription import cmd_vel_gids
+from composed_sim.ros.simulator_node import AnswerTypeError
+
+
+class HostedBlock:
+    """The nodes of one executor, hosted. ``calls``: the process's call relay
+    (hosting/calls/between_places.py), through which calls to the other places of the run go, and which
+    hands this block the calls to ``places``; None: such calls go through DDS (a shard). ``relay``:
+    the process's run-wide relay (hosting/run_wide/relay.py), whose subscriptions of a node's the
+    guard guards too. ``guard``: what makes a faulty callback its robot's fault (None: a failure
+    ends the process, a controller process of its own)."""
+
+    def __init__(self, executor, *, calls=None, places: Collection[int] = (), relay=None,
+                 guard: Optional[CallbackGuard] = None):
+        self.executor = executor
+        self.directory = ServiceDirectory(executor, relay=calls)
+        if calls is not None:
+            calls.serve(places, self.directory)
+        self._relay, self._guard = relay, guard
+        self._node_info: dict[int, tuple[Optional[str], int, object]] = {}   # id(node) → robot, place, simulator
+        self._publishers: dict[int, set[int]] = {}                          # id(node) → ids of its publishers seen
+        self._outside: Optional[OutsideCalls] = None
+        if hasattr(executor, "on_entities_changed"):      # the lockstep executor tells
+            executor.on_entities_changed = self.host_new
+
+    # --- nodes ----------------------------------------------------------------------------------
+
+    def adopt(self, node: Node, robot: Optional[str], place: int, simulator=None) -> None:
+        """``node`` is built: host what it has (``robot``: its robot, None for a run-wide node;
+        ``place``: the robot's index in the run, or RUN_WIDE_ORIGIN; ``simulator``: the simulator
+        node that serves the robot)."""
+        self._node_info[id(node)] = (robot, place, simulator)
+        self._publishers[id(node)] = {id(p) for p in node.publishers}
+        if self._guard is not None and robot is not None:
+            self._guard.guard(node, robot, simulator, self._relayed(node))
+        self._host(node, place)
+        HostedParameterServices(node, self.directory)      # kept by its services
+
+    def host_new(self, node: Node) -> None:
+        """``node`` created or destroyed entities since it was last looked at."""
+        info = self._node_info.get(id(node))
+        if info is None:
+            return
+        robot, place, simulator = info
+        if self._guard is not None and robot is not None:
+            self._guard.guard_new(node, self._relayed(node))
+        self._host(node, place)
+        if robot is not None:
+            self._note_answers(node, robot, simulator)
+
+    def _relayed(self, node: Node) -> list:
+        return self._relay.subscriptions_of(node) if self._relay is not None else []
+
+    def _host(self, node: Node, place: int) -> None:
+        directory = self.directory
+        for service in node.services:
+            directory.host_service(node, service)
+        for client in node.clients:
+            directory.host_client(node, client, place)
+        for waitable in node.waitables:
+            if directory.is_action(waitable):
+                directory.host_action(node, waitable)
+
+    def _note_answers(self, node: Node, robot: str, simulator) -> None:
+        """A new publisher on the robot's cmd_vel: the simulator takes its answers."""
+        seen = self._publishers[id(node)]
+        new = [p for p in node.publishers if id(p) not in seen]
+        seen.update(id(p) for p in new)
+        answers = [p for p in new if p.topic_name == c.topic_name(robot, c.CMD_VEL)]
+        if simulator is None or not answers:
+            return
+        try:
+            simulator.take_answers_as(robot, c.type_name(answers[0].msg_type))
+        except AnswerTypeError as e:
+            self._failed(node, ContractViolation(str(e)))
+            return
+        nodes = [n for n in self.executor.get_nodes() if self._node_info.get(id(n), (None,))[0] == robot]
+        simulator.note_controller(robot, [gid for n in nodes for gid in cmd_vel_gids(n, robot)])
+
+    def _failed(self, node: Node, error: Exception) -> None:
+        """The node's fault: its robot fails (a controller process of its own ends with it)."""
+        if self._guard is None:
+            raise error
+        self._guard.node_failed(node, error)
+
+    # --- calls from other processes -------------------------------------------------------------
+
+    def watch_outside_calls(self, robots: Collection[str], *, graph_changed: Optional[Callable[[], bool]] = None,
+                            graph_of: Optional[Node] = None) -> None:
+        """Take the requests other processes send to the block's services at each tick's start
+        (``take_outside_calls``). ``robots``: the run's, whose nodes are all the run's own. Whether
+        the ROS graph changed comes from ``graph_changed``, the host's own watch where it has one
+        (a second watch of one participant would take its triggers), else from a watch of
+        ``graph_of``'s participant."""
+        if graph_changed is not None:
+            self._outside = OutsideCalls(self.directory, robots, graph_changed)
+        elif graph_of is not None:
+            self._outside = OutsideCalls.watching(self.directory, robots, graph_of)
+
+    def take_outside_calls(self) -> None:
+        if self._outside is not None:
+            self._outside.take()
+
+    def close(self) -> None:
+        if self._outside is not None:
+            self._outside.close()
+            self._outside = None

@@ -1,0 +1,98 @@
+"""A hosted node's waits on its clock: a rate's ``sleep()`` and the clock's ``sleep_for`` and
+``sleep_until``, on sim time.
+
+In its own process, a callback that sleeps on a rate or on the node's clock blocks one of the
+executor's threads while the others run, and wakes when the clock (sim time, from /clock) gets
+there. Hosted, the callback is set aside by the lockstep executor (hosting/executors/scheduler.py)
+and resumed from the walk once the node's timer for that time fires, at the tick the clock gets
+there (hosting/sim_time/timers.py): the same tick in every run. With a stock executor, or outside a
+callback, rclpy's own wait.
+"""
+from __future__ import annotations
+
+from typing import Callable, Optional
+
+from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.clock import Clock
+from rclpy.duration import Duration
+from rclpy.node import Node
+from rclpy.task import Future
+from rclpy.time import Time
+
+
+def can_set_aside(executor) -> bool:
+    """Is the caller a callback that ``executor`` can set aside while it waits (the lockstep
+    executor's walk runs it)?"""
+    return getattr(executor, "can_wait", lambda: False)()
+
+
+def wait_on_clock(node: Node, executor, future: Future, group, seconds: Optional[float],
+                  at_time: Callable[[], object]) -> None:
+    """Set the calling callback (of ``group``) aside in ``executor`` until ``future`` is done;
+    ``seconds`` later on the node's clock (sim time: the same tick in every run), ``at_time()``
+    first, if not done."""
+    # A group of its own, as rclpy gives its rates: the caller's group may be held while it waits.
+    timer = None if seconds is None else node.create_timer(seconds, lambda: future.done() or at_time(),
+                                                           callback_group=ReentrantCallbackGroup())
+    try:
+        executor.wait_for(future, group)
+    finally:
+        if timer is not None:
+            node.destroy_timer(timer)
+
+
+def _executor_that_can_wait(node: Node):
+    executor = node.executor
+    return executor if can_set_aside(executor) else None
+
+
+def host_rates(node: Node) -> None:
+    """Before ``node``'s constructor: the rates it creates sleep as hosted waits."""
+    create_rate = node.create_rate
+
+    def hosted_create_rate(frequency: float, clock: Optional[Clock] = None):
+        rate = create_rate(frequency, clock)
+        sleepers: list[Future] = []
+        fired = rate._event.set
+        plain_sleep = rate.sleep
+
+        def on_timer():
+            fired()
+            while sleepers:
+                sleepers.pop(0).set_result(None)
+
+        def sleep():
+            executor = _executor_that_can_wait(node)
+            if executor is None:
+                return plain_sleep()
+            if not rate._event.is_set():          # its timer has not fired since the last sleep
+                future = Future()
+                sleepers.append(future)
+                executor.wait_for(future, executor.group_of_caller())
+            rate._event.clear()
+        rate._timer.callback = on_timer
+        rate.sleep = sleep
+        return rate
+    node.create_rate = hosted_create_rate
+
+
+def host_clock_sleeps(node: Node) -> None:
+    """The node's clock's ``sleep_until`` and ``sleep_for`` as hosted waits (after its
+    constructor: the clock is made by ``Node.__init__``)."""
+    clock = node.get_clock()
+    plain_until = clock.sleep_until
+
+    def sleep_until(until: Time, context=None) -> bool:
+        executor = _executor_that_can_wait(node)
+        if executor is None:
+            return plain_until(until, context)
+        left_ns = until.nanoseconds - clock.now().nanoseconds
+        if left_ns > 0:
+            future = Future()
+            wait_on_clock(node, executor, future, executor.group_of_caller(), left_ns * 1e-9,
+                          lambda: future.set_result(None))
+        return True
+
+    def sleep_for(rel_time: Duration, context=None) -> bool:
+        return sleep_until(clock.now() + rel_time, context)
+    clock.sleep_until, clock.sleep_for = sleep_until, sleep_for

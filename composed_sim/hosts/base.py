@@ -1,0 +1,117 @@
+"""What every host offers the command line, the benchmark and the tests.
+
+A host runs one world's controllers and its simulator in lockstep. The hosts:
+
+- ``ComposedHost`` (hosts/composed.py): every controller node in this process;
+- ``WorkerHost`` (hosts/workers/worker_host.py): the controller nodes in K worker processes, the physics here;
+- ``MultiProcessHost`` (hosts/multiprocess/multiprocess_host.py): one process per controller, as in the paper;
+- ``ExternalControllersHost`` (hosts/shards/external_controllers.py): controllers in ``composed-sim host`` shards,
+  possibly on other machines.
+
+Writing one: make it a context manager that builds everything in ``__enter__`` (a ``Simulation``
+as ``sim``, a ``SetupInfo`` as ``setup``) and destroys it in ``__exit__``, also after an
+exception; ``run`` is ``hosts.lockstep.run_lockstep`` over the host's ``Exchange``. Example::
+
+    with ComposedHost(world) as host:
+        result = host.run(observers=[RecordingObserver(recorder, Scene(host.sim, world.tick_ns))])
+        print(host.setup.setup_s, len(result.violations))
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable, Optional, Protocol, Sequence
+
+from composed_sim.core.simulation import Simulation
+from composed_sim.hosts.tick_loop import Exchange, LoopResult, TickObserver, run_lockstep
+from composed_sim.ros.taps import MessageTap
+from composed_sim.world.schema import World
+
+
+@dataclass
+class SetupInfo:
+    setup_s: float          # contexts, simulator, nodes, discovery: until tick 0 can start
+    nodes: int
+    participants: int = 1
+    workers: int = 1        # processes hosting the controller nodes (composed mode)
+
+
+class Host(Protocol):
+    world: World
+    sim: Simulation
+    setup: SetupInfo
+
+    def __enter__(self) -> "Host": ...
+    def __exit__(self, *exc) -> None: ...
+
+    def run(self, ticks: Optional[int] = None, *, progress: Optional[Callable[[int], None]] = None,
+            should_stop: Callable[[], bool] = lambda: False, observers: Sequence[TickObserver] = (),
+            checkpoint: Optional[Callable[[LoopResult], None]] = None) -> LoopResult:
+        """Run ``ticks`` ticks (the world's length by default); stops at a tick boundary once
+        ``should_stop()``; every observer sees tick 0 and each tick after; ``checkpoint`` gets the
+        result so far every ``lockstep.CHECKPOINT_EVERY`` ticks."""
+
+    @property
+    def exchange(self) -> Exchange:
+        """The tick loop's exchange (its ``violations`` so far), once the host is entered."""
+
+    def ros_domains(self) -> list[int]:
+        """The ROS domains the run uses, lowest first (multi-process mode: a block of them)."""
+
+    def set_message_tap(self, tap: MessageTap) -> None:
+        """Hand every per-robot message the tap wants (sensors out, answers in) to it, in this
+        process, before the tick it belongs to ends."""
+
+    def observer_node(self):
+        """An rclpy Node in this process and the run's domain for live observers (markers)."""
+
+    def workers_peak_rss_mb(self) -> Optional[list[float]]:
+        """Each worker process's peak resident memory (the worker host), else None."""
+
+    def end_before_exit(self) -> bool:
+        """Stop what must not outlive this process (worker and controller processes) so that it
+        may end now without destroying its nodes (``os._exit``: destroying thousands of nodes one
+        by one takes minutes). False: this host must be left through ``__exit__``."""
+
+
+class HostBase:
+    """What the hosts share: their simulator nodes in this process, a run in one ROS domain, no
+    worker processes, and leaving through ``__exit__`` (the ``Host`` methods a host of its own
+    overrides where it differs)."""
+    domain_id: int = 0
+    simulator_nodes: list
+
+    def set_message_tap(self, tap: MessageTap) -> None:
+        for node in self.simulator_nodes:
+            node.set_message_tap(tap)
+
+    def observer_node(self):
+        return self.simulator_nodes[0]
+
+    def ros_domains(self) -> list[int]:
+        return [self.domain_id]
+
+    def workers_peak_rss_mb(self) -> Optional[list[float]]:
+        return None
+
+    def end_before_exit(self) -> bool:
+        return False
+
+
+class ControllersElsewhere(HostBase):
+    """``Host.run`` for the hosts whose controllers run in other processes (workers, one process
+    per controller, distributed shards): the tick loop waits on the host's ``exchange``. A host
+    whose start-up was interrupted (``_startup_interrupted``) runs no tick and says so."""
+    world: World
+    sim: Simulation
+    exchange: object
+    _startup_interrupted: bool = False
+
+    def run(self, ticks: Optional[int] = None, *, progress: Optional[Callable[[int], None]] = None,
+            should_stop: Callable[[], bool] = lambda: False, observers: Sequence[TickObserver] = (),
+            checkpoint: Optional[Callable[[LoopResult], None]] = None) -> LoopResult:
+        ticks = self.world.length_ticks if ticks is None else ticks
+        if self._startup_interrupted:      # stopped before tick 0: an interrupted run of 0 ticks
+            should_stop = lambda: True     # noqa: E731
+        return run_lockstep(self.sim, self.exchange, self.exchange.wait_for_answers, ticks,
+                            progress=progress, should_stop=should_stop, observers=observers,
+                            checkpoint=checkpoint)
