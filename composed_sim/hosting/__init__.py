@@ -39,8 +39,8 @@ _EXPORTS = {
                         "LEVELS", "WARN"),
     # blocks of nodes and the tick's exchange with their simulator nodes
     "hosted_block": ("HostedBlock",),
-    "participant_groups": ("ParticipantGroups", "RelayingExchange"),
-    "nodes_exchange": ("NodesExchange",),
+    "participant_groups": ("ParticipantGroups",),
+    "nodes_exchange": ("NodesExchange", "RelayingExchange"),
     # building a robot's nodes
     "building.nodes": ("create_robot_nodes", "load_classes", "SetupWarnings", "node_field"),
     "building.wiring": ("published_answer_type",),

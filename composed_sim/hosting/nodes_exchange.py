@@ -10,6 +10,7 @@ import numpy as np
 from composed_sim.core.simulation import SensorFrame
 from composed_sim.core.violations import Violation
 from composed_sim.hosting.guard.node_time import NodeTime
+from composed_sim.hosting.run_wide.relay import Message
 from composed_sim.ros.simulator_node import SimulatorNode
 
 
@@ -101,3 +102,27 @@ class NodesExchange:
         for node in self.nodes:
             out.update(node.take_rab_payloads())
         return out
+
+
+class RelayingExchange(NodesExchange):
+    """The simulator nodes of every robot's participant groups (the composed host's), and their
+    run-wide relay: each tick opens with the run-wide messages of the tick before (hosting/run_wide/relay.py).
+    A worker process does the same steps itself, its batches coming from the main process."""
+
+    def __init__(self, groups):
+        super().__init__(groups.simulator_nodes, node_time=groups.node_time)
+        self._groups = groups
+        self._batch: Optional[list[Message]] = None     # what opens the next tick
+        self._tick = 0
+
+    def publish_tick(self, frame: SensorFrame) -> None:
+        if self._batch is None:               # tick 0: what the nodes published while being built
+            self._batch = self._groups.close_run_wide(frame.tick)
+        self._tick = frame.tick
+        self._groups.open_tick(frame.tick, self._batch)
+        super().publish_tick(frame)
+
+    def close_tick(self, fallback: str, previous: tuple[np.ndarray, np.ndarray],
+                   commands: tuple[np.ndarray, np.ndarray]) -> None:
+        super().close_tick(fallback, previous, commands)
+        self._batch = self._groups.close_run_wide(self._tick + 1)

@@ -14,7 +14,6 @@ of the block: the SensorFrame handed to ``exchange.publish_tick`` covers the blo
 """
 from __future__ import annotations
 
-import inspect
 import sys
 import time
 from typing import Callable, Optional
@@ -25,7 +24,6 @@ from rclpy.context import Context
 from rclpy.executors import Executor
 from rclpy.node import Node
 
-from composed_sim.core.simulation import SensorFrame
 from composed_sim.world.robot_models import get_model
 from composed_sim.hosting.guard import callback_guard
 from composed_sim.hosting.guard.callback_guard import CallbackGuard, refuse_shutdown_from_callbacks
@@ -37,7 +35,8 @@ from composed_sim.hosting.building.wiring import answer_type, robot_wiring_probl
 from composed_sim.hosting.hosted_block import HostedBlock
 from composed_sim.hosting.executors.tick_serving import TickServing
 from composed_sim.hosting.building.lifecycle import state_label
-from composed_sim.hosting.executors.running import SETTLE_ROUNDS, Spinning, check_executor, make_executor
+from composed_sim.hosting.executors.running import (SETTLE_ROUNDS, Spinning, check_executor, make_executor,
+                                                   refuse_coroutines_for_events)
 from composed_sim.hosting.guard.node_logs import NodeLogs
 from composed_sim.hosting.guard.node_time import NodeTime
 from composed_sim.hosting.nodes_exchange import NodesExchange
@@ -89,6 +88,7 @@ class ParticipantGroups(TickServing):
         self.robot_nodes: list[list[Node]] = []             # per robot of the block: its nodes
         self.controllers: list[Node] = []                   # every robot node, robot by robot
         self.relay = RunWideRelay(world.robot_names())
+        self._robot_set = frozenset(world.robot_names())
         self.calls = CallRelay(world.robot_names())          # service calls between places (robots, run-wide)
         self.block: Optional[HostedBlock] = None            # how their nodes are hosted
         # Robots with lifecycle nodes not active when built: (robot, its group, its nodes), their
@@ -133,46 +133,12 @@ class ParticipantGroups(TickServing):
         if logs is not None:
             self.guard.on_exception = lambda robot, node, error: logs.exception(
                 robot, type(node), node.get_logger().name, error, skip=callback_guard.__file__)
-        names, groups = world.robot_names(), world.group_of_robot()
-        robots = frozenset(names)
         warnings = SetupWarnings()
         first_robots = []                    # per group: the index of its first robot in robot_nodes
         for k, first in enumerate(range(self.start, self.stop, self.robots_per_participant)):
-            block = range(first, min(self.stop, first + self.robots_per_participant))
-            context = Context()
-            rclpy.init(context=context, domain_id=self.hosting.domain_id)
-            refuse_shutdown_from_callbacks(context, self.guard)
-            self.contexts.append(context)
-            group = self.first_group + k
-            if group == 0 and world.nodes:    # first: they are delivered to before the robots
-                self.run_wide = create_run_wide_nodes(world, context, classes=classes, relay=self.relay, logs=logs)
-            # The nodes first: the simulator node subscribes to each robot's cmd_vel with the
-            # type its nodes publish (one participant allows one type per topic).
-            first_robot = len(self.robot_nodes)
-            first_robots.append(first_robot)
-            for i in block:
-                built = create_robot_nodes(world, groups[i], names[i], context, classes=classes, relay=self.relay,
-                                           origin=i, robots=robots, logs=logs, warnings=warnings)
-                self.robot_nodes.append(built.nodes)
-                self.controllers += built.nodes
-                self._tick_timers += built.tick_timers
-                if built.inactive:
-                    self._inactive.append((names[i], groups[i], built.nodes))
-            block_nodes = self.robot_nodes[first_robot:]
-            sim_node = SimulatorNode([names[i] for i in block], [get_model(world.robots[groups[i]].model) for i in block],
-                                     context=context, tick_ns=world.tick_ns,
-                                     rows=np.arange(block.start - self.start, block.stop - self.start),
-                                     node_name=simulator_node_name(group), lockstep=lockstep,
-                                     rab_payload_bytes=world.range_and_bearing.payload_bytes,
-                                     publish_clock=group == 0,
-                                     **{**robot_settings(world, block),
-                                        "answer_types": [answer_type(nodes, names[i], world.robots[groups[i]].cmd_vel)
-                                                         for i, nodes in zip(block, block_nodes)]})
-            sim_node.on_failed.append(self.guard.stop_worker)
-            self.simulator_nodes.append(sim_node)
-            for i, nodes in zip(block, block_nodes):
-                for node in nodes:
-                    sim_node.drive_clock_of(node)
+            first_robots.append(len(self.robot_nodes))
+            self._build_group(self.first_group + k, range(first, min(self.stop, first + self.robots_per_participant)),
+                              classes, warnings)
         self.exchange = NodesExchange(self.simulator_nodes, node_time=self.node_time)
         self._quiet_robots = any(node.when_published.any() for node in self.simulator_nodes)
         self.executor = make_executor(self.hosting.executor, self.contexts[0])
@@ -187,6 +153,7 @@ class ParticipantGroups(TickServing):
         # A tick's answers may leave work behind (a later node of a chain, a run-wide message
         # published after the answer): run it before the tick closes, so that what the tick
         # sends on does not depend on the walk in which the last robot answered.
+        names = world.robot_names()
         sensor_topics = {c.topic_name(r, t) for r in names[self.start:self.stop] for t in c.SENSOR_TOPICS}
         self._settle = self.relay.in_use or any(s.topic_name not in sensor_topics
                                                 for node in self.controllers for s in node.subscriptions)
@@ -196,6 +163,44 @@ class ParticipantGroups(TickServing):
         for sim_node in self.simulator_nodes:
             sim_node.note_controllers(gids)
         self._link_in_process(first_robots)
+
+    def _build_group(self, group: int, block: range, classes: dict, warnings: SetupWarnings) -> None:
+        """Participant group ``group``: a context of its own, the robots ``block``'s nodes, their
+        simulator node (and, in group 0, the run-wide nodes)."""
+        world, logs = self.world, self.logs
+        names, groups = world.robot_names(), world.group_of_robot()
+        context = Context()
+        rclpy.init(context=context, domain_id=self.hosting.domain_id)
+        refuse_shutdown_from_callbacks(context, self.guard)
+        self.contexts.append(context)
+        if group == 0 and world.nodes:    # first: they are delivered to before the robots
+            self.run_wide = create_run_wide_nodes(world, context, classes=classes, relay=self.relay, logs=logs)
+        # The nodes first: the simulator node subscribes to each robot's cmd_vel with the
+        # type its nodes publish (one participant allows one type per topic).
+        first_robot = len(self.robot_nodes)
+        for i in block:
+            built = create_robot_nodes(world, groups[i], names[i], context, classes=classes, relay=self.relay,
+                                       origin=i, robots=self._robot_set, logs=logs, warnings=warnings)
+            self.robot_nodes.append(built.nodes)
+            self.controllers += built.nodes
+            self._tick_timers += built.tick_timers
+            if built.inactive:
+                self._inactive.append((names[i], groups[i], built.nodes))
+        block_nodes = self.robot_nodes[first_robot:]
+        sim_node = SimulatorNode([names[i] for i in block], [get_model(world.robots[groups[i]].model) for i in block],
+                                 context=context, tick_ns=world.tick_ns,
+                                 rows=np.arange(block.start - self.start, block.stop - self.start),
+                                 node_name=simulator_node_name(group), lockstep=world.lockstep,
+                                 rab_payload_bytes=world.range_and_bearing.payload_bytes,
+                                 publish_clock=group == 0,
+                                 **{**robot_settings(world, block),
+                                    "answer_types": [answer_type(nodes, names[i], world.robots[groups[i]].cmd_vel)
+                                                     for i, nodes in zip(block, block_nodes)]})
+        sim_node.on_failed.append(self.guard.stop_worker)
+        self.simulator_nodes.append(sim_node)
+        for nodes in block_nodes:
+            for node in nodes:
+                sim_node.drive_clock_of(node)
 
     def _host_entities(self) -> None:
         """Every node hosted (hosting/hosted_block.py): guarded callbacks, services and calls in
@@ -383,39 +388,3 @@ class ParticipantGroups(TickServing):
             if context.ok():
                 Context.shutdown(context)       # the class's: the instance refuses it from callbacks
         self.contexts = []
-
-
-def refuse_coroutines_for_events(nodes) -> None:
-    """rclpy's EventsExecutor calls a callback without awaiting what it returns: an ``async def``
-    callback would never run, in a process of its own too. Said before tick 0."""
-    for node in nodes:
-        for entity in (*node.subscriptions, *node.timers, *node.services):
-            if inspect.iscoroutinefunction(entity.callback):
-                raise HostError(f"{node.get_fully_qualified_name()} has an async def callback ({type(entity).__name__} "
-                                f"{getattr(entity, 'topic_name', None) or getattr(entity, 'srv_name', '')}): rclpy's "
-                                f"EventsExecutor never awaits it (in a process of its own too); choose another "
-                                f"--executor (the default runs it)")
-
-
-class RelayingExchange(NodesExchange):
-    """The simulator nodes of every robot's participant groups (the composed host's), and their
-    run-wide relay: each tick opens with the run-wide messages of the tick before (hosting/run_wide/relay.py).
-    A worker process does the same steps itself, its batches coming from the main process."""
-
-    def __init__(self, groups: ParticipantGroups):
-        super().__init__(groups.simulator_nodes, node_time=groups.node_time)
-        self._groups = groups
-        self._batch: Optional[list[Message]] = None     # what opens the next tick
-        self._tick = 0
-
-    def publish_tick(self, frame: SensorFrame) -> None:
-        if self._batch is None:               # tick 0: what the nodes published while being built
-            self._batch = self._groups.close_run_wide(frame.tick)
-        self._tick = frame.tick
-        self._groups.open_tick(frame.tick, self._batch)
-        super().publish_tick(frame)
-
-    def close_tick(self, fallback: str, previous: tuple[np.ndarray, np.ndarray],
-                   commands: tuple[np.ndarray, np.ndarray]) -> None:
-        super().close_tick(fallback, previous, commands)
-        self._batch = self._groups.close_run_wide(self._tick + 1)

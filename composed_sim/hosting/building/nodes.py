@@ -6,7 +6,7 @@ from __future__ import annotations
 import sys
 import dataclasses
 from dataclasses import dataclass
-from typing import Collection, Container, Mapping, Optional, Sequence
+from typing import Container, Mapping, Optional
 
 from rclpy.context import Context
 from rclpy.node import Node
@@ -27,7 +27,7 @@ from composed_sim.hosting.building.wiring import (answer_type, guard_publishers,
                                                   robot_wiring_problem)
 from composed_sim.hosting.run_wide.relay import RunWideRelay
 from composed_sim.hosting.sim_time.timers import SimTimers
-from composed_sim.hosting.calls.directory import wait_during_construction
+from composed_sim.hosting.calls.clients import wait_during_construction
 from composed_sim.hosting.sim_time.sleeps import host_clock_sleeps, host_rates
 from composed_sim.world.problems import format_path
 from composed_sim.world.schema import NodeSpec, RobotGroup, World
@@ -101,28 +101,8 @@ def create_robot_nodes(world: World, group_index: int, name: str, context: Conte
             node = construct_node(classes[spec.node], spec, field, name, options, timers, relay, origin, served)
             built.nodes.append(node)
             timers_of.append(timers)
-        for ni, (node, spec) in enumerate(zip(built.nodes, group.node_specs)):
-            if spec.lifecycle == AUTOSTART:
-                field_of = node_field(group, group_index, ni)
-                try:
-                    autostart(node, f"{_describe(field_of, spec)} of {name}")
-                except LifecycleError as e:
-                    raise plugins.PluginError(str(e), field_of) from None
-        # The publishers of the constructors and the autostart transitions are checked here
-        # (nothing they published can answer a tick: no tick is open yet); the ones made later are
-        # refused when created (guard_publishers).
-        for ni, (node, spec) in enumerate(zip(built.nodes, group.node_specs)):
-            problem = next((p for p in (c.publisher_problem(name, pub.topic_name, pub.msg_type, robots)
-                                        for pub in node.publishers) if p), None)
-            if problem is not None:
-                raise plugins.PluginError(f"{_describe(node_field(group, group_index, ni), spec)} for {name}: "
-                                          f"{problem}", node_field(group, group_index, ni))
+        _bring_up(world, group_index, name, built, robots, relay)
         served.building = False
-        built.inactive = inactive_nodes(built.nodes)
-        problem = None if built.inactive else robot_wiring_problem(world, group_index, name, built.nodes, relay)
-        if problem is not None:
-            raise plugins.PluginError(f"{_describe(node_field(group, group_index, 0), group.node_specs[0])} "
-                                      f"for {name}: {problem}", node_field(group, group_index, 0))
     except BaseException:
         for node in built.nodes:
             node.destroy_node()
@@ -138,6 +118,34 @@ def create_robot_nodes(world: World, group_index: int, name: str, context: Conte
         for warning in timers.period_warnings(spec.node, every):
             warnings.say(warning)
     return built
+
+
+def _bring_up(world: World, group_index: int, name: str, built: BuiltNodes, robots: Container[str],
+              relay: Optional[RunWideRelay]) -> None:
+    """Robot ``name``'s nodes just built: its autostart lifecycle nodes configured and activated,
+    their publishers checked against the contract, and whether they can answer its ticks."""
+    group = world.robots[group_index]
+    for ni, (node, spec) in enumerate(zip(built.nodes, group.node_specs)):
+        if spec.lifecycle == AUTOSTART:
+            field_of = node_field(group, group_index, ni)
+            try:
+                autostart(node, f"{_describe(field_of, spec)} of {name}")
+            except LifecycleError as e:
+                raise plugins.PluginError(str(e), field_of) from None
+    # The publishers of the constructors and the autostart transitions are checked here
+    # (nothing they published can answer a tick: no tick is open yet); the ones made later are
+    # refused when created (guard_publishers).
+    for ni, (node, spec) in enumerate(zip(built.nodes, group.node_specs)):
+        problem = next((p for p in (c.publisher_problem(name, pub.topic_name, pub.msg_type, robots)
+                                    for pub in node.publishers) if p), None)
+        if problem is not None:
+            raise plugins.PluginError(f"{_describe(node_field(group, group_index, ni), spec)} for {name}: "
+                                      f"{problem}", node_field(group, group_index, ni))
+    built.inactive = inactive_nodes(built.nodes)
+    problem = None if built.inactive else robot_wiring_problem(world, group_index, name, built.nodes, relay)
+    if problem is not None:
+        raise plugins.PluginError(f"{_describe(node_field(group, group_index, 0), group.node_specs[0])} "
+                                  f"for {name}: {problem}", node_field(group, group_index, 0))
 
 
 class ServedByTick0:

@@ -26,7 +26,8 @@ from typing import Collection
 
 from rclpy.serialization import deserialize_message, serialize_message
 
-from composed_sim.hosting.calls.directory import CallFuture, ServiceDirectory, completing, hand_over
+from composed_sim.hosting.calls.directory import ServiceDirectory
+from composed_sim.hosting.calls.served import CallFuture, completing, hand_over
 from composed_sim.ros import contract as c
 
 RUN_WIDE_ORIGIN = -1     # the place of the run-wide nodes: before every robot's (robot i's place is i)

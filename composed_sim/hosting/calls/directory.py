@@ -19,137 +19,21 @@ walk polls each action server and client through a wait set of its own, and thei
 """
 from __future__ import annotations
 
-from collections import deque
-from types import CoroutineType
 from typing import Callable, Optional
 
-from greenlet import getcurrent
 from rclpy.action import ActionClient, ActionServer
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.client import Client
-from rclpy.executors import MultiThreadedExecutor, await_or_execute
+from rclpy.executors import MultiThreadedExecutor
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.service import Service
 from rclpy.task import Future
 
+from composed_sim.hosting.calls.clients import host_client
+from composed_sim.hosting.calls.served import (HostedCallError, NodeServices, ServiceEntry, completing,
+                                              hand_over)
 from composed_sim.hosting.sim_time.sleeps import can_set_aside, wait_on_clock
-from composed_sim.ros.message_copy import copy_message, new_message
-
-
-class CallFuture(Future):
-    """A call's future; awaiting it tells the lockstep executor what to wait for (rclpy's says
-    nothing), and a callback blocked on it is woken directly (``waiters``), not by a done callback."""
-
-    def __init__(self, *, executor=None):
-        super().__init__(executor=executor)
-        self.waiters: list = []
-
-    def __await__(self):
-        while self._pending():
-            yield self
-        return self.result()
-
-    def _schedule_or_invoke_done_callbacks(self):
-        super()._schedule_or_invoke_done_callbacks()
-        waiters, self.waiters = self.waiters, []
-        for wake in waiters:
-            wake()
-
-
-class HostedCallError(RuntimeError):
-    """A hosted node's call that would wait forever in any process: the message says why."""
-
-
-def hand_over(executor, group, work: Callable[[], None]) -> None:
-    """Run ``work`` (completing a client's future) once ``group`` may run: the lockstep executor
-    keeps the group's rule; for a stock one it runs now, as rclpy's own executor completes a
-    future from whichever thread took the response, and the future's done callbacks become its
-    tasks."""
-    when_free = getattr(executor, "when_free", None)
-    if when_free is not None:
-        when_free(group, work)
-    else:
-        work()
-
-
-def completing(future: Future, response) -> Callable[[], None]:
-    """Work that completes ``future`` with ``response``, unless it was given up on."""
-    return lambda: future.done() or future.cancelled() or future.set_result(response)
-
-
-class NodeServices:
-    """A node's services served in process, one entry of the lockstep walk: its requests waiting."""
-    __slots__ = ("entries", "pending")
-
-    def __init__(self):
-        self.entries: list[ServiceEntry] = []
-        self.pending = 0
-
-    def serve_ready(self, executor, held) -> int:
-        """Serve every waiting request whose service's group may run, service by service, until a
-        callback is set aside (the walk that resumes it stops there); returns how many."""
-        served, me = 0, getcurrent()
-        for entry in self.entries:
-            while entry.queue and not (held and entry.group in held):
-                self.pending -= 1
-                served += 1
-                entry.serve_next(executor)
-                if executor.scheduler.walker is not me:
-                    return served
-        return served
-
-
-class ServiceEntry:
-    """One service served in process: its queue of (request, reply) and what serves it."""
-    __slots__ = ("name", "srv_type", "node", "group", "queue", "service", "_callback", "_owner", "on_outside")
-
-    def __init__(self, name: str, srv_type, node: Node, group, owner: Optional[NodeServices],
-                 service: Optional[Service] = None, callback: Optional[Callable] = None):
-        """``owner``: the node's services the lockstep walk serves (None: a stock executor's tasks)."""
-        self.name, self.srv_type, self.node, self.group = name, srv_type, node, group
-        self.queue: deque = deque()
-        self.service = service            # the rclpy Service (its DDS endpoint), or None: in process only
-        self._callback = callback
-        self._owner = owner
-        self.on_outside: Optional[Callable[[], None]] = None   # an in-process one a client elsewhere wants
-    @property
-    def callback(self) -> Callable:
-        # The service's current callback: the host's guard may have wrapped it since.
-        return self.service.callback if self.service is not None else self._callback
-
-    def submit(self, request, reply: Callable) -> None:
-        """A request, whose response goes to ``reply(response)``."""
-        if self._owner is not None:
-            self.queue.append((request, reply))
-            self._owner.pending += 1
-        else:
-            self.node.executor.create_task(self._serve_as_task, request, reply)
-
-    def serve_next(self, executor) -> None:
-        """The lockstep walk: run the callback on the oldest request."""
-        request, reply = self.queue.popleft()
-        executor.running_group = self.group
-        response = self.callback(request, new_message(self.srv_type.Response))
-        if response.__class__ is CoroutineType:
-            task = executor.start_coroutine(response, self.group, self.node)
-            task.add_done_callback(lambda done: done.exception() is None and self._respond(executor, reply, done.result()))
-        else:
-            self._respond(executor, reply, response)
-
-    async def _serve_as_task(self, request, reply: Callable) -> None:
-        response = await await_or_execute(self.callback, request, new_message(self.srv_type.Response))
-        self._respond(self.node.executor, reply, response)
-
-    def _respond(self, executor, reply: Callable, response) -> None:
-        if isinstance(response, self.srv_type.Response):
-            reply(response)
-            return
-        watcher = getattr(executor, "watcher", None)
-        if watcher is not None and (response is not None or watcher.owner_alive(self.node)):
-            # rclpy's executor raises on it: the serving node's fault, as in its own process.
-            watcher.node_failed(self.node, TypeError(
-                f"service {self.name} returned {type(response).__name__}, not a {self.srv_type.__name__}.Response"))
 
 
 class ServiceDirectory:
@@ -234,50 +118,12 @@ class ServiceDirectory:
     def host_client(self, node: Node, client: Client, origin: Optional[int] = None) -> None:
         """Calls of ``client`` to a service served here go in process; to another place of the run
         (``origin``: the node's place, hosting/calls/between_places.py) through the relay; others through
-        DDS, whose responses the walk takes."""
+        DDS, whose responses the walk takes (hosting/calls/clients.py)."""
         if id(client) in self._clients:
             return
         self._clients.add(id(client))
         self._client_names[client.service_name] = self._client_names.get(client.service_name, 0) + 1
-        directory, executor = self, self.executor
-        through_dds, blocking_call, name = client.call_async, client.call, client.service_name
-
-        def call_async(request):
-            if not isinstance(request, client.srv_type.Request):
-                raise TypeError()
-            entry = directory.lookup(name, client.srv_type)
-            if entry is None:
-                relay = directory.relay
-                if relay is not None and origin is not None and relay.leaves(origin, name):
-                    return relay.call(origin, client, request, directory)
-                return through_dds(request)
-            future = CallFuture(executor=executor)
-            entry.submit(copy_message(request), lambda response: hand_over(
-                executor, client.callback_group, completing(future, copy_message(response))))
-            return future
-
-        def call(request, timeout_sec: Optional[float] = None):
-            if not directory.may_block(node, f"{name} (Client.call)"):
-                return blocking_call(request, timeout_sec)
-            future = call_async(request)
-            directory.wait(node, client.callback_group, future, f"{name} (Client.call)", timeout_sec)
-            if not future.done():
-                client.remove_pending_request(future)
-                if directory.relay is not None:
-                    directory.relay.forget(future)
-                return None
-            if future.exception() is not None:
-                raise future.exception()
-            return future.result()
-
-        def wait_for_service(timeout_sec: Optional[float] = None) -> bool:
-            relay = directory.relay
-            if directory.lookup(name, client.srv_type) is not None or (
-                    relay is not None and origin is not None and relay.leaves(origin, name)):
-                return True
-            return Client.wait_for_service(client, timeout_sec)
-
-        client.call_async, client.call, client.wait_for_service = call_async, call, wait_for_service
+        host_client(self, node, client, origin)
         self.executor.wake()
 
     def may_block(self, node: Node, what: str) -> bool:
@@ -429,23 +275,3 @@ class ServiceDirectory:
                              service.send_response(response, header))
                 taken += 1
         return taken
-
-
-
-def wait_during_construction(node: Node, will_be_served: Callable[[str], bool]) -> None:
-    """Before ``node``'s constructor: a client it makes there may wait for its service (the ROS 2
-    tutorials' ``while not client.wait_for_service(timeout_sec=1.0)``). Hosted, the service may
-    belong to a node built after it, or in another process, and is served by tick 0, when calls
-    can first be made: such a wait ends at once (``will_be_served(name)``, true only while the
-    nodes are built), instead of for ever."""
-    create_client = node.create_client
-
-    def hosted_create_client(srv_type, srv_name, *args, **kwargs):
-        client = create_client(srv_type, srv_name, *args, **kwargs)
-        plain = client.wait_for_service
-
-        def wait_for_service(timeout_sec: Optional[float] = None) -> bool:
-            return will_be_served(client.service_name) or plain(timeout_sec)
-        client.wait_for_service = wait_for_service
-        return client
-    node.create_client = hosted_create_client

@@ -4,15 +4,12 @@ semantics of a process of its own under rclpy's MultiThreadedExecutor.
 The stock executors rebuild a wait set over every entity of every node on each spin: with
 thousands of hosted nodes that dominates the tick. In a lockstep tick the work is known: the
 simulator publishes every robot's sensors, and inside one DDS participant a published message is
-ready to take at once. So this executor walks its nodes' entities in a fixed order (nodes in the
-order they were added; per node its subscriptions, the waitables it can take without a wait set,
-its services, action endpoints and clients, then its timers), takes what is ready and runs the
-callbacks; what a callback publishes or calls is picked up by the same walk. One message per
-sensor subscription and walk (a robot's sensors come once per tick), every ready message of any
-other. A controller whose host set its ``lockstep_batch`` (ros/controller.py) gets a tick's sensor
-messages in one call when all wait in process. Only what the walk cannot take (a user's guard
-condition, a waitable of an unknown kind) waits for the ordinary wait set, when a walk finds
-nothing.
+ready to take at once. So this executor walks its nodes' entities in a fixed order
+(hosting/executors/walk_entries.py), takes what is ready and runs the callbacks; what a callback
+publishes or calls is picked up by the same walk. One message per sensor subscription and walk (a
+robot's sensors come once per tick), every ready message of any other. Only what the walk cannot
+take (a user's guard condition, a waitable of an unknown kind) waits for the ordinary wait set,
+when a walk finds nothing.
 
 What a node's own process gives it, given here in that one order (docs/contract.md, "What a
 node may do"):
@@ -41,43 +38,15 @@ from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.event_handler import EventHandler
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
-from rclpy.subscription import Subscription
 from rclpy.task import Future, Task
 
 from composed_sim.hosting.executors.scheduler import Scheduler
 from composed_sim.hosting.executors.tasks import CallbackWatcher, HostedTask, awaits_future
 from composed_sim.hosting.executors.idle import wait_for_work
-from composed_sim.ros import contract as c
-from composed_sim.ros.in_process import inbox_of
+from composed_sim.hosting.executors.walk_entries import (BATCH, POLLED, SERVICE, TIMER, WAITABLE, WalkEntry,
+                                                         walk_entries)
 
-_SENSOR_NAMES = frozenset(t.name for t in c.SENSOR_TOPICS)
-
-
-def _once_per_tick(topic: str) -> bool:
-    """A robot's sensor topic (``/<robot>/<sensor>``): one message per tick."""
-    parts = topic.split("/")
-    return len(parts) == 3 and parts[2] in _SENSOR_NAMES
-
-
-# What an entry of the walk is (its third field, where a subscription has its message type).
-_WAITABLE = object()     # a waitable with dispatch_ready() (the simulator's answer subscriptions)
-_BATCH = object()        # a node's sensor subscriptions handled in one call (``lockstep_batch``)
-_SERVICE = object()      # a service served in process (hosting/calls/directory.py)
-_POLLED = object()       # polled by the service directory: action endpoints, clients' DDS responses
 _UNSET = object()
-
-
-def _batch_entity(node: Node) -> list[tuple]:
-    """The walk's entry for a node's ``lockstep_batch`` (ros/controller.py), set by its host:
-    its subscriptions must be the node's first ones, all linked in process."""
-    batch = getattr(node, "lockstep_batch", None)
-    if not batch or not batch[0]:
-        return []
-    subscriptions, callback = batch
-    inboxes = tuple(inbox_of(s) for s in subscriptions)
-    if list(node.subscriptions)[:len(subscriptions)] != list(subscriptions) or None in inboxes:
-        return []
-    return [(callback, None, _BATCH, None, None, len(subscriptions), inboxes, subscriptions[0].callback_group, node)]
 
 
 class LockstepExecutor(SingleThreadedExecutor):
@@ -89,8 +58,8 @@ class LockstepExecutor(SingleThreadedExecutor):
         self.on_entities_changed: Optional[Callable[[Node], None]] = None   # the host hosts what is new
         self.running_group = None                 # the callback group of the callback the walk runs
         self._ordered_nodes: list[Node] = []
-        self._entities: Optional[list[tuple]] = None   # rebuilt when entities change
-        self._service_entities: Optional[list[tuple]] = None
+        self._entities: Optional[list[WalkEntry]] = None   # rebuilt when entities change
+        self._service_entities: Optional[list[WalkEntry]] = None
         self._covers_all: Optional[bool] = None
         self._changed: list[Node] = []            # nodes that created or destroyed entities
         self._held: set = set()                   # mutually exclusive groups whose callback waits
@@ -284,48 +253,30 @@ class LockstepExecutor(SingleThreadedExecutor):
 
     # --- the walk -------------------------------------------------------------------------------
 
-    def _build_entities(self) -> list[tuple]:
-        """What a walk needs of each entity, resolved once (properties cost a call each). A timer
-        on sim time is due only after its robot's sensor callbacks of the tick
-        (hosting/sim_time/timers.py), which the walk has just run: its answer is then taken by the
-        simulator node later in the same walk."""
+    def _build_entities(self) -> list[WalkEntry]:
+        """What a walk needs of each entity, resolved once (hosting/executors/walk_entries.py)."""
         changed, self._changed = self._changed, []
         if changed:
             self._covers_all = None          # it was known while they were pending
         if self.on_entities_changed is not None:
             for node in changed:
                 self.on_entities_changed(node)
-        message_only = Subscription.CallbackType.MessageOnly
-        services = self.services
-        entities = []
-        for node in self._ordered_nodes:
-            entities += _batch_entity(node)
-            # A subscription linked in process (ros/in_process.py) takes from its inbox first.
-            entities += [(s, s.handle, s.msg_type, s.raw, s._callback_type is message_only,
-                          _once_per_tick(s.topic_name), inbox_of(s), s.callback_group, node)
-                         for s in node.subscriptions]
-            entities += [(w, None, _WAITABLE, None, None, True, None, None, node)
-                         for w in node.waitables if hasattr(w, "dispatch_ready")]
-            if services is not None:
-                served = services.services_of(node)
-                entities += [(served, None, _SERVICE, None, None, None, None, None, node)] if served is not None else []
-                entities += [(w, None, _POLLED, None, None, None, None, w.callback_group, node)
-                             for w in node.waitables if services.polls(w)]
-                entities += [(cl, None, _POLLED, None, None, None, None, None, node)
-                             for cl in node.clients if services.takes_responses(cl)]
-            entities += [(t, t.handle, None, None, None, True, None, t.callback_group, node) for t in node.timers]
-        return entities
+        return walk_entries(self._ordered_nodes, self.services)
+
+    def _start_walk(self, services_only: bool) -> None:
+        """A new walk's cursor, over every entry or only the services' (``serve_handed_over``)."""
+        entities = self._entities
+        if entities is None:
+            entities = self._entities = self._build_entities()
+        if services_only:
+            entities = self._service_entities
+            if entities is None:
+                entities = self._service_entities = [e for e in self._entities if e.kind is SERVICE]
+        self._cursor = iter(entities)
 
     def _walk(self, services_only: bool = False) -> None:
         if self._cursor is None:
-            entities = self._entities
-            if entities is None:
-                entities = self._entities = self._build_entities()
-            if services_only:
-                entities = self._service_entities
-                if entities is None:
-                    entities = self._service_entities = [e for e in self._entities if e[2] is _SERVICE]
-            self._cursor = iter(entities)
+            self._start_walk(services_only)
         scheduler = self.scheduler
         tasks, held = scheduler.tasks, self._held
         coroutine = CoroutineType
@@ -334,25 +285,25 @@ class LockstepExecutor(SingleThreadedExecutor):
         self._run_tasks()
         if scheduler.walker is not me:
             return
-        for entity, handle, msg_type, raw, message_only, once, inbox, group, node in self._cursor:
+        for entity, handle, kind, raw, message_only, once, inbox, group, node in self._cursor:
             if skip:                               # a batch's subscriptions, handled by it this walk
                 skip -= 1
                 continue
             if held and group in held:             # a callback of its group waits: later
                 continue
             result = None
-            if msg_type is _BATCH:
+            if kind is BATCH:
                 result, skip = self._run_batch(entity, inbox, once, group)
-            elif msg_type is _WAITABLE:
+            elif kind is WAITABLE:
                 self._ran += entity.dispatch_ready()
                 continue
-            elif msg_type is _SERVICE:
+            elif kind is SERVICE:
                 if not entity.pending:
                     continue
                 self._ran += entity.serve_ready(self, held)
-            elif msg_type is _POLLED:
+            elif kind is POLLED:
                 self._ran += self.services.poll(entity, node, self)
-            elif msg_type is None:                 # a timer
+            elif kind is TIMER:
                 with handle:
                     if not handle.is_timer_ready():
                         continue
@@ -362,19 +313,7 @@ class LockstepExecutor(SingleThreadedExecutor):
                 self._ran += 1
             else:
                 self.running_group = group
-                if inbox is not None:              # linked: its callback takes the message alone
-                    if inbox.queue:
-                        result = entity.callback(inbox.take())
-                        self._ran += 1
-                        while not once and inbox.queue and result.__class__ is not coroutine:
-                            result = entity.callback(inbox.take())
-                            self._ran += 1
-                    # DDS is asked only when it may hold a message too (an empty take costs a call
-                    # into rcl per subscription and walk).
-                    if result.__class__ is not coroutine and inbox.dds_may_hold():
-                        result = self._take_from_dds(entity, handle, msg_type, raw, message_only, once, inbox)
-                else:
-                    result = self._take_from_dds(entity, handle, msg_type, raw, message_only, once, None)
+                result = self._take(entity, handle, kind, raw, message_only, once, inbox)
             if result.__class__ is coroutine:
                 self.start_coroutine(result, group, node)
             if scheduler.walker is not me:         # set aside in a callback, resumed later: stop
@@ -386,6 +325,24 @@ class LockstepExecutor(SingleThreadedExecutor):
         self._run_tasks()
         if self._polled_tasks and scheduler.walker is me:
             self._step_polled(me)
+
+    def _take(self, entity, handle, msg_type, raw, message_only, once, inbox):
+        """A subscription's ready messages: from its in-process inbox (its callback takes the
+        message alone), then from DDS; returns its last callback's result."""
+        if inbox is None:
+            return self._take_from_dds(entity, handle, msg_type, raw, message_only, once, None)
+        result = None
+        if inbox.queue:
+            result = entity.callback(inbox.take())
+            self._ran += 1
+            while not once and inbox.queue and result.__class__ is not CoroutineType:
+                result = entity.callback(inbox.take())
+                self._ran += 1
+        # DDS is asked only when it may hold a message too (an empty take costs a call into rcl per
+        # subscription and walk).
+        if result.__class__ is not CoroutineType and inbox.dds_may_hold():
+            result = self._take_from_dds(entity, handle, msg_type, raw, message_only, once, inbox)
+        return result
 
     def _run_batch(self, callback, inboxes, count: int, group) -> tuple[object, int]:
         """A controller's sensor messages of the tick, all waiting in process and none in DDS: one

@@ -2,6 +2,7 @@
 a thread of its own (``Spinning``), and until nothing is ready (``run_until_idle``)."""
 from __future__ import annotations
 
+import inspect
 import threading
 from typing import Callable, Iterable, Optional
 
@@ -109,3 +110,15 @@ def run_until_idle(executor: Executor, callbacks_run: Optional[Callable[[], int]
     """Run what is ready until nothing is (``is_idle``), at most ``rounds`` looks: a robot's chain
     of nodes may go on after its answer, and what it publishes belongs to the tick."""
     return any(is_idle(executor, callbacks_run) for _ in range(rounds))
+
+
+def refuse_coroutines_for_events(nodes) -> None:
+    """rclpy's EventsExecutor calls a callback without awaiting what it returns: an ``async def``
+    callback would never run, in a process of its own too. Said before tick 0."""
+    for node in nodes:
+        for entity in (*node.subscriptions, *node.timers, *node.services):
+            if inspect.iscoroutinefunction(entity.callback):
+                raise HostError(f"{node.get_fully_qualified_name()} has an async def callback ({type(entity).__name__} "
+                                f"{getattr(entity, 'topic_name', None) or getattr(entity, 'srv_name', '')}): rclpy's "
+                                f"EventsExecutor never awaits it (in a process of its own too); choose another "
+                                f"--executor (the default runs it)")

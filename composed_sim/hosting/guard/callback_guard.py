@@ -140,17 +140,9 @@ class CallbackGuard(CallbackWatcher):
                 self._running, self._started = robot, started
                 self.calls += 1
                 calls_of[robot] = calls_of.get(robot, 0) + 1
-            else:
-                with self._workers_lock:
-                    self._workers[robot] = get_ident()
-                    self.calls += 1
-                    self.running += 1
-                    calls_of[robot] = calls_of.get(robot, 0) + 1
-                self._depth.inside = True
-            if in_main:
                 self._cpu_started = time.thread_time() if own_time else 0.0
             else:
-                cpu = time.thread_time() if own_time else 0.0
+                cpu = self._enter_thread(robot, own_time)
             try:
                 try:
                     result = callback(*args)
@@ -158,21 +150,9 @@ class CallbackGuard(CallbackWatcher):
                     if in_main:
                         self._running = None
                     else:
-                        self._depth.inside = False
-                        with self._workers_lock:   # after this, stop_worker cannot reach us
-                            self._workers.pop(robot, None)
-                            self.running -= 1
-            except ControllerHung as e:
-                self._running = None
-                sim_node.mark_failed(robot, f"hung: callback still running after "
-                                            f"{time.monotonic() - started:.1f} s, interrupted")
-                if self.on_exception is not None:     # where it hung
-                    self.on_exception(robot, node, e)
-                return None
-            except (Exception, SystemExit) as e:    # sys.exit() fails its robot, not the host
-                sim_node.mark_failed(robot, _failure(e))
-                if self.on_exception is not None:
-                    self.on_exception(robot, node, e)
+                        self._leave_thread(robot)
+            except (ControllerHung, Exception, SystemExit) as e:    # sys.exit() fails its robot, not the host
+                self._callback_failed(robot, node, sim_node, e, started)
                 return None
             # A callback set aside while it waited (hosting/executors/scheduler.py) is timed without
             # the wait: ``take_back`` moved its start on.
@@ -188,6 +168,33 @@ class CallbackGuard(CallbackWatcher):
         # rclpy picks a subscription's call signature from the callback's: keep the original's
         # (``run`` itself binds one argument, or none for a timer).
         return (lambda msg, info: run(msg, info)) if with_info else run
+
+    def _enter_thread(self, robot: str, own_time: bool) -> float:
+        """A callback starts on one of a multi-threaded executor's threads: its CPU clock."""
+        with self._workers_lock:
+            self._workers[robot] = threading.get_ident()
+            self.calls += 1
+            self.running += 1
+            self.calls_of[robot] = self.calls_of.get(robot, 0) + 1
+        self._depth.inside = True
+        return time.thread_time() if own_time else 0.0
+
+    def _leave_thread(self, robot: str) -> None:
+        self._depth.inside = False
+        with self._workers_lock:   # after this, stop_worker cannot reach us
+            self._workers.pop(robot, None)
+            self.running -= 1
+
+    def _callback_failed(self, robot: str, node: Node, sim_node: ServedRobots, error: BaseException,
+                         started: float) -> None:
+        if isinstance(error, ControllerHung):
+            self._running = None
+            sim_node.mark_failed(robot, f"hung: callback still running after "
+                                        f"{time.monotonic() - started:.1f} s, interrupted")
+        else:
+            sim_node.mark_failed(robot, _failure(error))
+        if self.on_exception is not None:     # where it failed or hung
+            self.on_exception(robot, node, error)
 
     def _wrap_async(self, callback: Callable, node: Node, robot: str, sim_node: ServedRobots,
                     with_info: bool) -> Callable:

@@ -35,7 +35,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Optional, TextIO
 
-from composed_sim.hosting.process_hosting import DEBUG, ERROR, FATAL, INFO, LEVELS, WARN, LogSettings
+from composed_sim.hosting.process_hosting import DEBUG, ERROR, FATAL, INFO, WARN, LogSettings
 
 _NAMES = {DEBUG: "DEBUG", INFO: "INFO", WARN: "WARN", ERROR: "ERROR", FATAL: "FATAL"}
 FLUSH_BYTES = 1 << 20          # pending log text over all files before they are written out

@@ -31,7 +31,6 @@ from rclpy.node import Node
 from rclpy.serialization import deserialize_message, serialize_message
 from rclpy.subscription import Subscription
 
-from composed_sim.hosting.calls.between_places import RUN_WIDE_ORIGIN
 from composed_sim.ros import contract as c
 
 # Topics every node has, or the contract's own run-wide topics: never relayed.

@@ -25,7 +25,8 @@ from composed_sim.core.senses import Senses
 from composed_sim.core.violations import FAILED
 from composed_sim.hosting import HostError, Request, RUN_WIDE_ORIGIN
 from composed_sim.hosts.processes import last_words
-from composed_sim.hosts.workers.worker_host import ANSWER_GRACE_S, WorkerHost, auto_workers, plan_blocks
+from composed_sim.hosts.workers.exchange import ANSWER_GRACE_S
+from composed_sim.hosts.workers.worker_host import WorkerHost, auto_workers, plan_blocks
 from composed_sim.hosts.workers.messages import MachineSetup, TickAnswers
 from composed_sim.hosts.workers.shared_state import SharedState
 

@@ -33,7 +33,8 @@ from composed_sim.hosts.base import SetupInfo
 from composed_sim.hosts.processes import InterruptWatch
 from composed_sim.hosts.machines.agent import ALL_ROBOTS, BLOCK_ROWS, MachineAgent
 from composed_sim.hosts.machines.cluster import ActorConnection, Machine, RunScheduler
-from composed_sim.hosts.workers.worker_host import ANSWER_GRACE_S, Worker, WorkerHost, plan_blocks
+from composed_sim.hosts.workers.exchange import ANSWER_GRACE_S
+from composed_sim.hosts.workers.worker_host import Worker, WorkerHost, plan_blocks
 from composed_sim.hosts.workers.messages import MachineSetup
 from composed_sim.hosts.workers.shared_state import SharedState
 from composed_sim.world.schema import World

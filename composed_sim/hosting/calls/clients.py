@@ -1,0 +1,75 @@
+"""A hosted node's clients: where a call goes (in process, through the call relay to another place of
+the run, or through DDS), a blocking ``Client.call()`` set aside while it waits, and waits for a
+service while the nodes are built."""
+from __future__ import annotations
+
+from typing import Callable, Optional
+
+from rclpy.client import Client
+from rclpy.node import Node
+
+from composed_sim.hosting.calls.served import CallFuture, completing, hand_over
+from composed_sim.ros.message_copy import copy_message
+
+
+def host_client(directory, node: Node, client: Client, origin: Optional[int]) -> None:
+    """``client``'s calls as its own process would make them, through ``directory`` (the node's
+    ServiceDirectory); ``origin``: the node's place in the run."""
+    executor = directory.executor
+    through_dds, blocking_call, name = client.call_async, client.call, client.service_name
+
+    def call_async(request):
+        if not isinstance(request, client.srv_type.Request):
+            raise TypeError()
+        entry = directory.lookup(name, client.srv_type)
+        if entry is None:
+            relay = directory.relay
+            if relay is not None and origin is not None and relay.leaves(origin, name):
+                return relay.call(origin, client, request, directory)
+            return through_dds(request)
+        future = CallFuture(executor=executor)
+        entry.submit(copy_message(request), lambda response: hand_over(
+            executor, client.callback_group, completing(future, copy_message(response))))
+        return future
+
+    def call(request, timeout_sec: Optional[float] = None):
+        if not directory.may_block(node, f"{name} (Client.call)"):
+            return blocking_call(request, timeout_sec)
+        future = call_async(request)
+        directory.wait(node, client.callback_group, future, f"{name} (Client.call)", timeout_sec)
+        if not future.done():
+            client.remove_pending_request(future)
+            if directory.relay is not None:
+                directory.relay.forget(future)
+            return None
+        if future.exception() is not None:
+            raise future.exception()
+        return future.result()
+
+    def wait_for_service(timeout_sec: Optional[float] = None) -> bool:
+        relay = directory.relay
+        if directory.lookup(name, client.srv_type) is not None or (
+                relay is not None and origin is not None and relay.leaves(origin, name)):
+            return True
+        return Client.wait_for_service(client, timeout_sec)
+
+    client.call_async, client.call, client.wait_for_service = call_async, call, wait_for_service
+
+
+def wait_during_construction(node: Node, will_be_served: Callable[[str], bool]) -> None:
+    """Before ``node``'s constructor: a client it makes there may wait for its service (the ROS 2
+    tutorials' ``while not client.wait_for_service(timeout_sec=1.0)``). Hosted, the service may
+    belong to a node built after it, or in another process, and is served by tick 0, when calls
+    can first be made: such a wait ends at once (``will_be_served(name)``, true only while the
+    nodes are built), instead of for ever."""
+    create_client = node.create_client
+
+    def hosted_create_client(srv_type, srv_name, *args, **kwargs):
+        client = create_client(srv_type, srv_name, *args, **kwargs)
+        plain = client.wait_for_service
+
+        def wait_for_service(timeout_sec: Optional[float] = None) -> bool:
+            return will_be_served(client.service_name) or plain(timeout_sec)
+        client.wait_for_service = wait_for_service
+        return client
+    node.create_client = hosted_create_client
