@@ -23,7 +23,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-PROFILE = Path(__file__).resolve().parent.parent / "data" / "fastdds_participants.xml"
+PROFILE = Path(__file__).resolve().parents[2] / "data" / "fastdds_participants.xml"
 PROFILE_VARIABLES = ("FASTRTPS_DEFAULT_PROFILES_FILE", "FASTDDS_DEFAULT_PROFILES_FILE")
 
 
