@@ -50,7 +50,7 @@ _EXPORTS = {
                           "shut_down"),
     # calls between places, and their rounds across processes
     "calls.between_places": ("CallRelay", "Request", "handover_order", "RUN_WIDE_ORIGIN"),
-    "calls.rounds": ("CallRounds",),
+    "calls.rounds": ("CallRounds", "replies"),
     # run-wide topics
     "run_wide.relay": ("RunWideRelay", "Message", "is_run_wide"),
     "run_wide_nodes": ("RunWideNodes", "create_run_wide_nodes"),

@@ -53,24 +53,10 @@ class CallRounds:
     def _collect_idle(self) -> list:
         calls = []
         waiting = {w.conn: w for w in self._workers if w.dead is None}
-        deadline = time.monotonic() + self._patience_s
-        while waiting:
-            left = deadline - time.monotonic()
-            if left <= 0:
-                for w in waiting.values():
-                    self._lost(w, f"worker process stopped answering ({self._patience_s:.0f} s without "
-                                  f"finishing a round of calls), killed")
-                break
-            for conn in wait_for_connections(list(waiting), timeout=left):
-                w = waiting.pop(conn)
-                try:
-                    kind, made = conn.recv()
-                except (EOFError, OSError):
-                    self._lost(w, None)
-                    continue
-                if kind != "idle":
-                    raise RuntimeError(f"a worker answered a round with {kind!r}, not 'idle'")
-                calls += made
+        for _, (kind, made) in replies(waiting, self._patience_s, self._lost, "finishing a round of calls"):
+            if kind != "idle":
+                raise RuntimeError(f"a worker answered a round with {kind!r}, not 'idle'")
+            calls += made
         return calls
 
     def _send(self, workers: list, message: Callable) -> None:
@@ -79,3 +65,24 @@ class CallRounds:
                 w.conn.send(message(w))
             except OSError:
                 self._lost(w, None)
+
+
+def replies(waiting: dict, patience_s: float, lost: Callable[[object, Optional[str]], None], what: str):
+    """``(worker, message)`` as each worker of ``waiting`` (its connection → the worker) sends its
+    next message, until every one has or ``patience_s`` passed: those still silent then are lost
+    ("stopped answering … without ``what``"), as is one whose connection closed (it died)."""
+    deadline = time.monotonic() + patience_s
+    while waiting:
+        left = deadline - time.monotonic()
+        if left <= 0:
+            for w in waiting.values():
+                lost(w, f"worker process stopped answering ({patience_s:.0f} s without {what}), killed")
+            return
+        for conn in wait_for_connections(list(waiting), timeout=left):
+            w = waiting.pop(conn)
+            try:
+                message = conn.recv()
+            except (EOFError, OSError):
+                lost(w, None)
+                continue
+            yield w, message

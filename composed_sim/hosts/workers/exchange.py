@@ -3,14 +3,13 @@ out once, to every worker; their answers come back as arrays and the lists of th
 from __future__ import annotations
 
 import time
-from multiprocessing.connection import wait as wait_for_connections
 from typing import Optional
 
 import numpy as np
 
 from composed_sim.core.simulation import Simulation
 from composed_sim.core.violations import FAILED, Violation
-from composed_sim.hosting import CallRounds
+from composed_sim.hosting import CallRounds, replies
 from composed_sim.hosts.workers.shared_state import SharedState
 from composed_sim.hosts.processes import last_words
 
@@ -101,34 +100,21 @@ class WorkersExchange:
         patience_s = timeout_s + self._lockstep.unresponsive_s + self._grace_s
         if self.rounds.needed:
             self.rounds.run()           # the tick's calls between places, until none is in flight
-        deadline = time.monotonic() + patience_s
-        while pending := {w.conn: w for w in self.workers if w.dead is None and w.answers is None}:
-            left = deadline - time.monotonic()
-            if left <= 0:
-                for w in pending.values():
-                    self._lost(w, f"worker process stopped answering ({patience_s:.0f} s without the tick's "
-                                  f"answers), killed")
-                break
-            for conn in wait_for_connections(list(pending), timeout=left):
-                w = pending[conn]
-                started = time.perf_counter()
-                try:
-                    _, answers = conn.recv()
-                except (EOFError, OSError):
-                    self._lost(w)
-                    continue
-                w.answers = answers
-                w.peak_rss_kb = answers.peak_rss_kb
-                w.last_times = answers.cpu_s, answers.node_code_s
-                self.run_wide[w.index] = answers.run_wide
-                self.rounds.pending += answers.calls
-                self._violations[w.index].extend(Violation(*v) for v in answers.violations)
-                if self.logs is not None and answers.logs:
-                    self.logs.merge(answers.logs)
-                if self.tap is not None:
-                    for topic, msgtype, data, stamp_ns in answers.tapped:
-                        self.tap.write_serialized(topic, msgtype, data, stamp_ns)
-                self._gathering_s += time.perf_counter() - started
+        pending = {w.conn: w for w in self.workers if w.dead is None and w.answers is None}
+        for w, (_, answers) in replies(pending, patience_s, self._lost, "the tick's answers"):
+            started = time.perf_counter()
+            w.answers = answers
+            w.peak_rss_kb = answers.peak_rss_kb
+            w.last_times = answers.cpu_s, answers.node_code_s
+            self.run_wide[w.index] = answers.run_wide
+            self.rounds.pending += answers.calls
+            self._violations[w.index].extend(Violation(*v) for v in answers.violations)
+            if self.logs is not None and answers.logs:
+                self.logs.merge(answers.logs)
+            if self.tap is not None:
+                for topic, msgtype, data, stamp_ns in answers.tapped:
+                    self.tap.write_serialized(topic, msgtype, data, stamp_ns)
+            self._gathering_s += time.perf_counter() - started
         return True
 
     def _lost(self, w, reason: Optional[str] = None) -> None:
