@@ -61,7 +61,9 @@ class BuiltPackage:
 
 def cache_root() -> Path:
     base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-    return Path(base) / "composed_sim" / "interfaces"
+    # Resolved: a build's path is compared with where a module was imported from (resolved by
+    # Python), and one folder spelt two ways (``/a/b/../c``) must be one build.
+    return Path(base).resolve() / "composed_sim" / "interfaces"
 
 
 def build_package(path: str | os.PathLike, *, after: Iterable[BuiltPackage] = (),
@@ -74,7 +76,7 @@ def build_package(path: str | os.PathLike, *, after: Iterable[BuiltPackage] = ()
     after = list(after)
     key = hashlib.sha256("\n".join([pkg.content_hash(), tools.fingerprint(),
                                     *(p.prefix.name for p in after)]).encode()).hexdigest()[:16]
-    root = Path(cache) if cache is not None else cache_root()
+    root = Path(cache).resolve() if cache is not None else cache_root()
     final = root / f"{pkg.name}-{key}"
     if (final / MARKER).is_file():
         return BuiltPackage(pkg.name, final, True, time.perf_counter() - start, pkg.root)

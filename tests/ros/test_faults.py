@@ -11,7 +11,7 @@ import time
 import numpy as np
 import pytest
 
-from composed_sim.hosts.multiprocess import host as multiprocess
+from composed_sim.hosts.multiprocess import multiprocess_host as multiprocess
 from composed_sim.hosts.composed import ComposedHost
 from composed_sim.hosts.multiprocess.multiprocess_host import MultiProcessHost
 from composed_sim.hosts.workers.worker_host import WorkerHost
