@@ -192,9 +192,9 @@ def run(args: BenchSettings) -> int:
     if args.replot is not None:
         return _replot(args)
     if args.physics is not None:
-        from composed_sim.bench import physics_step
+        from composed_sim.bench.physics_step import main as measure_physics_step
         args.out.mkdir(parents=True, exist_ok=True)
-        return physics_step.main(["--robots", ",".join(map(str, args.sizes)),
+        return measure_physics_step(["--robots", ",".join(map(str, args.sizes)),
                                   "--regions", ",".join(map(str, args.physics)), "--out", str(args.out / "physics.json")])
 
     from composed_sim.world.loader import WorldFileError, load_world
