@@ -5,7 +5,7 @@ subscription is created with ``raw=True``. Both skip the conversion between Pyth
 objects and C structs, which is most of what a message costs in rclpy (docs/speed.md). The
 bytes are the very CDR
 that rclpy itself would produce: subscribers see ordinary typed messages, and the tests check
-every codec against ``rclpy.serialization`` (tests/ros/test_cdr.py). ROS-free: each message's
+every codec against ``rclpy.serialization`` (tests/devices/test_cdr.py). ROS-free: each message's
 template is written here (``Writer``), field by field in its type's order.
 
 CDR (XCDR1, little endian): a 4-byte encapsulation header, then each primitive aligned to its

@@ -12,7 +12,7 @@ from composed_sim.bench.report import render_report
 from composed_sim.bench.sweep import summary_columns
 from composed_sim.cli import main
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 PNG = b"\x89PNG\r\n\x1a\n"
 MACHINE = {"cpu_model": "test cpu", "logical_cores": 2, "memory_total_mb": 1024, "date": "2026-11-25T00:00:00"}
 
@@ -119,7 +119,7 @@ def test_summary_fields_are_read_when_present_and_empty_when_not():
 
 def test_an_older_runs_json_replots_as_one_flocking_experiment(tmp_path):
     # A sweep's runs.json from before experiments existed (docs/figures' of 2026-11-23).
-    path = ROOT / "tests" / "bench_data" / "runs_before_experiments.json"
+    path = Path(__file__).parent / "data" / "runs_before_experiments.json"
     old = json.loads(path.read_text())
     assert "experiment" not in old["rows"][0] and "experiments" not in old["settings"]
     report = tmp_path / "docs" / "old.md"

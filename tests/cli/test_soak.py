@@ -1,5 +1,5 @@
 """Soak: a long run keeps flat memory; nothing grows per tick except the trajectory buffer.
-Behind the ``slow`` marker (about 10 minutes here): ``pytest -m slow tests/test_soak.py``."""
+Behind the ``slow`` marker (about 10 minutes here): ``pytest -m slow tests/cli/test_soak.py``."""
 import json
 import subprocess
 import sys
@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 ROBOTS, TICKS = 320, 6000
 # positions [T+1, n, 2] and headings [T+1, n] float64, LED colours [T+1, n, 3] uint8: pages of the
 # preallocated buffer become resident as the rows are written.

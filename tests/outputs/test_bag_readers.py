@@ -9,7 +9,7 @@ from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 from rosbags.highlevel import AnyReader
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 # Foot-bots with every device (ground, range and bearing and the topic-switched three on top of
 # their proximity, light and camera), and TurtleBot 3s (LiDAR) whose node answers with a Twist.

@@ -18,7 +18,7 @@ from composed_sim.hosting import HostError
 from composed_sim.hosts.multiprocess.multiprocess_host import MultiProcessHost
 from composed_sim.world.loader import load_world
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 FLOCKING = ROOT / "worlds" / "flocking.yaml"
 
 

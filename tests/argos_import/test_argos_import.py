@@ -10,7 +10,7 @@ from composed_sim.argos_import import (ArgosFileError, is_argos_file, load_argos
 from composed_sim.core.placement import place_robots
 from composed_sim.world.loader import WorldFileError, dump_world, load_world, with_overrides
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 CONTROLLER = """
   <controllers>

@@ -20,7 +20,7 @@ from composed_sim.world.loader import load_world
 from composed_sim.world.robot_models import get_model
 from foxglove_client import channels, free_port, open_connection, receive_until_closed, subscribe
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 FLOCKING = ROOT / "worlds" / "flocking.yaml"
 HETEROGENEOUS = ROOT / "worlds" / "heterogeneous.yaml"
 TICKS = 20

@@ -15,7 +15,7 @@ from composed_sim.world.loader import WorldFileError, load_world, world_from_dic
 from composed_sim.world.schema import Box, FloorCircle
 from tests.conftest import install_plugin
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def _cli(*args, timeout=120):

@@ -21,7 +21,7 @@ from composed_sim.hosts.shards.external_controllers import GONE_REASON, External
 from composed_sim.hosts.shards.robot_ranges import RangeError, format_ranges, parse_ranges
 from composed_sim.world.loader import load_world
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[3]
 FLOCKING = ROOT / "worlds" / "flocking.yaml"
 ROBOTS, TICKS, SEED = 12, 60, 3
 

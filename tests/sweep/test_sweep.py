@@ -15,7 +15,7 @@ from composed_sim.sweep.grid import Grid
 from composed_sim.sweep.runner import dask_cluster, local_pool
 from tests.conftest import install_plugin
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 FLOCKING = ROOT / "worlds" / "flocking.yaml"
 GRID = ["--seeds", "1-2", "--robots", "3", "--set", "robots.0.params.gain=500", "--ticks", "10"]
 FINAL = ["final_centroid_to_light_m", "final_mean_nearest_neighbour_m", "final_lattice_order"]

@@ -15,8 +15,8 @@ import yaml
 
 from composed_sim.hosting.guard.node_logs import INFO, WARN, LogSettings, NodeLogs
 
-ROOT = Path(__file__).resolve().parents[1]
-PLUGINS = Path(__file__).parent / "plugin_pkg"
+ROOT = Path(__file__).resolve().parents[2]
+PLUGINS = ROOT / "tests" / "plugin_pkg"
 RAISING_LINE = next(i for i, line in enumerate((PLUGINS / "chatty.py").read_text().splitlines(), 1)
                     if "RAISES HERE" in line)
 WARNING_LINE = next(i for i, line in enumerate((PLUGINS / "chatty.py").read_text().splitlines(), 1)

@@ -8,7 +8,7 @@ import pytest
 
 from composed_sim.outputs.recording import BagRecorder, read_recording
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 FLOCKING = ROOT / "worlds" / "flocking.yaml"
 TICKS = 60
 

@@ -23,7 +23,7 @@ from composed_sim.hosts.workers.worker_host import WorkerHost, auto_workers, pla
 from composed_sim.ros.taps import TapBuffer
 from composed_sim.world.loader import load_world
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 FLOCKING = ROOT / "worlds" / "flocking.yaml"
 FIREFLY = ROOT / "worlds" / "firefly.yaml"
 

@@ -10,7 +10,7 @@ import yaml
 
 from conftest import install_plugin
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 FLOCKING = ROOT / "worlds" / "flocking.yaml"
 
 

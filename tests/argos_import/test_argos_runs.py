@@ -15,7 +15,7 @@ from composed_sim.world.loader import load_world
 from composed_sim.world.robot_models import get_model
 from composed_sim.world.schema import Box
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 WALLS = """
     <box id="wall_north" size="4,0.1,0.5" movable="false"><body position="0,2,0" orientation="0,0,0" /></box>

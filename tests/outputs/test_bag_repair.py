@@ -29,7 +29,7 @@ from composed_sim.outputs.recording import (CLOCK_TOPIC, FLUSH_EVERY_TICKS, SWAR
                                     RecordingError, read_recording)
 from composed_sim.world.loader import load_world
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 FLOCKING = ROOT / "worlds" / "flocking.yaml"
 NAMES = ["bot0", "bot1", "bot2"]
 TICK_NS = 100_000_000

@@ -24,7 +24,7 @@ from composed_sim.world.loader import load_world
 
 pytest.importorskip("distributed", reason="remote workers need Dask distributed (the cluster extra)")
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[3]
 FLOCKING = ROOT / "worlds" / "flocking.yaml"
 ROBOTS, TICKS, SEED = 12, 60, 3
 JOIN = [sys.executable, "-m", "composed_sim.cli", "join"]
