@@ -5,10 +5,10 @@ per ARGoS element or attribute that the import does not simulate as written (the
 as one warning, also when the import then fails). Problems that make the file unusable raise
 ``ArgosFileError``, one line each: ``file:line: element/attribute: what is wrong (got "value")``.
 
-The package: ``xml_reader`` (safe XML, every element with its line), ``attributes`` (values and
-messages), and one translator per section: ``controllers`` (plugins and their parameters),
-``devices`` (sensors and actuators), ``entities`` (the arena, obstacles, lights, robots and
-<distribute>), ``importer`` (the document, <framework>, <physics_engines>). What maps to what,
+The package: ``xml_reader.py`` (safe XML, every element with its line), ``attributes.py`` (values
+and messages), and one translator per section: ``controllers.py`` (plugins and their parameters),
+``devices.py`` (sensors and actuators), ``entities.py`` (the arena, obstacles, lights, robots and
+<distribute>), ``importer.py`` (the document, <framework>, <physics_engines>). What maps to what,
 with units, is in docs/argos_import.md.
 """
 from __future__ import annotations

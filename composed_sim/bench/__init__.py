@@ -11,11 +11,14 @@ docs/benchmarks.md); the rows go to runs.csv and runs.json in --out, with the fi
 ``--report FILE.md`` writes the report. ``--replot runs.json …`` redraws all that from the stored
 rows of one or several sweeps.
 
-The package: ``arguments`` (the options), ``experiments`` (the experiments --experiments names,
-each a shipped world), ``rules`` (the paper's figures, the skip rule, domains, aggregation), ``tree``
-(measuring one process tree), ``sweep`` (running the grid), ``report`` (CSV, JSON and the markdown
-report), ``figures``, ``sections`` (the report's per-tick phases, host cost and paper comparison) and
-``cells`` (its table cells).
+The package: ``arguments.py`` (the options), ``experiments.py`` (the experiments --experiments
+names, each a shipped world), ``rules.py`` (the paper's figures, the skip rule, domains,
+aggregation), ``tree.py`` (measuring one process tree), ``machine.py`` (the machine a sweep ran on),
+``sweep.py`` (running the grid), ``report.py`` (CSV, JSON and the markdown report), ``figures.py``,
+``sections.py`` (the report's per-tick phases, host cost and paper comparison) and ``cells.py`` (its
+table cells); beside the sweep, ``physics_step.py`` (the physics step alone, ``--physics``),
+``distributed.py`` and ``netns.py`` (the row over machines, ``--machines``, in network namespaces)
+and ``rclpy_floor.py`` (the rclpy calls alone).
 """
 from composed_sim.bench.arguments import BenchSettings, add_arguments, command_line
 from composed_sim.bench.experiments import EXPERIMENTS

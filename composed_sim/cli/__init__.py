@@ -1,7 +1,8 @@
 """The ``composed-sim`` command: its arguments, and the dispatch to each subcommand's module
-(``run``: a run and its outputs, from its typed ``settings``; ``report``: what a run prints;
-``distributed``: ``host`` and ``join``; ``files``: worlds, plugins, results and recordings; ``interfaces``:
-interface packages)."""
+(``run.py``: a run and its outputs, from its typed ``settings.py``, with the observers its settings
+ask for, ``observers.py``; ``report.py``: what a run prints; ``distributed.py``: ``host`` and
+``join``; ``files.py``: worlds, plugins, results and recordings; ``interfaces.py``: interface
+packages; ``common.py``: what they share). ``bench`` and ``sweep`` are packages of their own."""
 from __future__ import annotations
 
 import argparse

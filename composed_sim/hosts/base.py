@@ -10,7 +10,7 @@ A host runs one world's controllers and its simulator in lockstep. The hosts:
 
 Writing one: make it a context manager that builds everything in ``__enter__`` (a ``Simulation``
 as ``sim``, a ``SetupInfo`` as ``setup``) and destroys it in ``__exit__``, also after an
-exception; ``run`` is ``hosts.lockstep.run_lockstep`` over the host's ``Exchange``. Example::
+exception; ``run`` is ``hosts/tick_loop.run_lockstep`` over the host's ``Exchange``. Example::
 
     with ComposedHost(world) as host:
         result = host.run(observers=[RecordingObserver(recorder, Scene(host.sim, world.tick_ns))])

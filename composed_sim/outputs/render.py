@@ -48,7 +48,7 @@ def render(trajectories: Any, world: World, out: str | Path, *, led_colors: Opti
     """Draw a run into ``out`` (.png, .gif or .mp4); returns the number of frames written.
 
     trajectories: anything with ``positions`` [T+1, n, 2] m and ``headings`` [T+1, n] rad
-    (row t = tick t): ``hosts.lockstep.Trajectories``, ``results.load_trajectories(...)``,
+    (row t = tick t): ``hosts/tick_loop.Trajectories``, ``results.load_trajectories(...)``,
     ``recording.read_recording(...)``. led_colors: [T+1, n, 3] or [T+1, n, L, 3] uint8, or
     None. fps: video frame rate. size_px: the square frame's side (rounded up to even, as
     H.264 needs). trail_ticks: trail length in ticks (0: none). every: draw every k-th tick.

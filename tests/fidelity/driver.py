@@ -1,6 +1,6 @@
 """composed_sim's side of the fidelity suite: an experiment of tools/fidelity/experiments/, imported
 as composed-sim imports it, started from ARGoS's own tick-0 poses and obstacle placements, and run
-through the lockstep tick loop (``hosts/lockstep.run_lockstep``, ARGoS's tick order included).
+through the lockstep tick loop (``hosts/tick_loop.run_lockstep``, ARGoS's tick order included).
 
 The controllers answer without ROS: each ported controller's own decision code (its plugin
 module's functions, the flocking node's ``on_tick`` on a stand-in object) is called on the frame's

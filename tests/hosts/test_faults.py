@@ -95,7 +95,7 @@ def test_a_slow_controller_misses_only_its_slow_ticks(faulty_plugin, mode, domai
     reason = "no answer before the watchdog" if mode == "multi-process" else "late: a callback took"
     assert [t for t, _ in violations] == slow_ticks and all(r.startswith(reason) for _, r in violations)
     # zero fallback on its slow ticks, its own commands on the others; the answer to tick 0 drives
-    # nothing (ARGoS's first step applies the initial zero command, hosts/lockstep.acted_commands)
+    # nothing (ARGoS's first step applies the initial zero command, hosts/tick_loop.acted_commands)
     for t in range(TICKS):
         assert moved_at(result, t) == (t not in slow_ticks and t > 0), t
 

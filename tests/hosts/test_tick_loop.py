@@ -1,4 +1,4 @@
-"""The tick loop alone (hosts/lockstep.run_lockstep), over a fake exchange with no ROS: the order
+"""The tick loop alone (hosts/tick_loop.run_lockstep), over a fake exchange with no ROS: the order
 of a tick, the commands reaching the physics, stops, checkpoints and a failing exchange."""
 from pathlib import Path
 
@@ -76,7 +76,7 @@ def test_a_tick_publishes_waits_closes_then_acts_and_the_physics_follows_the_com
     assert result.trajectories.positions.shape == (7, 4, 2) and not result.interrupted
     assert [(v.tick, v.robot) for v in result.violations] == [(3, "bot0")]
     # The same commands given to a Simulation directly give the same trajectories, bit for bit; the
-    # first step applies the initial zero command, as ARGoS's (hosts/lockstep.acted_commands).
+    # first step applies the initial zero command, as ARGoS's (hosts/tick_loop.acted_commands).
     assert (result.trajectories.positions[1] == result.trajectories.positions[0]).all()
     alone = Simulation(w)
     for t in range(6):

@@ -9,7 +9,7 @@ such calls go through the host, in rounds, and are answered within the tick in e
 - a tick's callbacks run until every place is idle; then the calls made since are handed over,
   requests and responses each in one order (by caller: run-wide nodes first, then robot by
   robot; each caller's in the order made), and served by their places, which run until idle
-  again; until no call is left in flight (docs/contract.md, "Calls between robots");
+  again; until no call is left in flight (docs/contract.md, "What a node may do");
 - a run-wide node's calls made in its part of the tick (at the tick's start) reach the robots
   with the tick's run-wide batch, before the tick's sensors.
 

@@ -21,7 +21,7 @@ from composed_sim.hosting.calls.between_places import RUN_WIDE_ORIGIN, Request, 
 
 class CallRounds:
     def __init__(self, workers: list, patience_s: float, lost: Callable[[object, Optional[str]], None]):
-        """``workers``: hosts/workers/host.Worker, in robot order; ``lost(worker, reason)``: a worker
+        """``workers``: hosts/workers/worker_host.Worker, in robot order; ``lost(worker, reason)``: a worker
         that died or stopped answering."""
         self._workers, self._patience_s, self._lost = workers, patience_s, lost
         self.needed = False

@@ -3,8 +3,8 @@
 
 The worker host over machines instead of local processes: the robots are cut into M blocks, one
 per machine, and each machine's agent (agent.py) is one worker to the tick loop, the rounds of
-calls and the answers (host.py's WorkersExchange and rounds.py, unchanged). What differs is only
-what a message carries: the world's state is not in this machine's memory there, so each tick's
+calls and the answers (hosts/workers/exchange.py's WorkersExchange and hosting/calls/rounds.py,
+unchanged). What differs is only what a message carries: the world's state is not in this machine's memory there, so each tick's
 message takes it along, once per machine (``block_state``: every robot's pose, 24 bytes; the LEDs
 and payloads only when they changed; the block's wheels and odometry, 72 bytes a robot), and the
 answers bring the block's commands back into this process's shared state, where the tick loop reads

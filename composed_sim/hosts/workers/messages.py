@@ -14,7 +14,7 @@ class WorkerSetup:
     start: int                # the block: robots start … stop-1
     stop: int
     index: int                # the worker's number; its participant group has the same
-    hosting: object            # hosting/options.ProcessHosting: its executor, domain, where its robots' logs go
+    hosting: object            # hosting/process_hosting.ProcessHosting: its executor, domain, where its robots' logs go
     participant_prefix: bytes  # the GUID prefix of the worker's one participant (hosting/dds/participants.py)
     scratch_dir: str           # where the worker may write its Fast DDS profile
     shared_state: int          # the descriptor of the world's state in shared memory (shared_state.py)
@@ -35,7 +35,7 @@ class TickAnswers:
     logs: tuple = ()                                   # NodeLogs.drain(): console lines, failures, /rosout
     cpu_s: float = 0.0                                 # the worker's CPU seconds since its first tick
     node_code_s: float = 0.0                           # of which inside its nodes' own code (hosting/guard/node_time.py)
-    commands: Optional[tuple] = None                   # a machine's: (linear, angular) of its block (remote.py)
+    commands: Optional[tuple] = None                   # a machine's: (linear, angular) of its block (hosts/machines/remote_host.py)
 
 
 @dataclass
