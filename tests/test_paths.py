@@ -256,6 +256,18 @@ def test_every_dotted_module_name_in_the_code_and_tests_resolves():
     assert not bad, "\n".join(bad)
 
 
+def test_every_test_module_imported_by_its_dotted_name_exists():
+    """``from tests.hosting.test_robot_programs import PROGRAMS``: a test module moved leaves no
+    import of its old place (no quotes around it, so the check above does not see it)."""
+    bad = []
+    for text in [t for t in texts() if t.suffix == ".py"]:
+        for dotted in re.findall(r"^\s*(?:from|import) (tests(?:\.\w+)+)", text.read_text(), flags=re.M):
+            path = ROOT.joinpath(*dotted.split("."))
+            if not (path.with_suffix(".py").is_file() or (path / "__init__.py").is_file() or path.is_dir()):
+                bad.append(f"{where(text)}: {dotted}")
+    assert not bad, "\n".join(bad)
+
+
 @pytest.mark.parametrize("group", ["scripts", "entry-points"])
 def test_the_entry_points_resolve(group):
     project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]

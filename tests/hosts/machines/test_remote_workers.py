@@ -86,7 +86,7 @@ def test_run_wide_services_and_topics_across_machines_match_one_process(tmp_path
     package = ROOT / "tests" / "user_pkg" / "robot_programs"
     monkeypatch.syspath_prepend(str(package))
     monkeypatch.setenv("PYTHONPATH", str(package))
-    from tests.ros.test_robot_programs import PROGRAMS
+    from tests.hosting.test_robot_programs import PROGRAMS
     world = PROGRAMS["run-wide planner"]()
     with ComposedHost(world, domain_id=domain_id) as host:
         reference = host.run()
