@@ -33,20 +33,27 @@ LEGACY_MIN_THRUST, LEGACY_MAX_THRUST = 1000, 60000     # crtp_commander_rpyt.c
 class Setpoints:
     """Every drone's setpoint: ``kind`` [n]; position (hover: the height in z), velocity (hover:
     body-frame x, y), acceleration [n, 3], yaw, yaw rate [n] (rad, rad/s), body rates [n, 3],
-    roll, pitch (rad) and thrust (0-60000) [n] of an attitude setpoint."""
+    roll, pitch (rad) and thrust (0-60000) [n] of an attitude setpoint. The fields are views of
+    one array, ``values`` [n, 17]."""
 
-    FIELDS = ("pos", "vel", "acc", "yaw", "yaw_rate", "omega", "roll", "pitch", "thrust")
+    COLUMNS = {"pos": slice(0, 3), "vel": slice(3, 6), "acc": slice(6, 9), "omega": slice(9, 12), "yaw": 12,
+               "yaw_rate": 13, "roll": 14, "pitch": 15, "thrust": 16}
+    WIDTH = 17
+    FIELDS = tuple(COLUMNS)
 
     def __init__(self, n: int):
         self.kind = np.zeros(n, dtype=np.int8)
-        self.pos, self.vel, self.acc, self.omega = (np.zeros((n, 3)) for _ in range(4))
-        self.yaw, self.yaw_rate, self.roll, self.pitch, self.thrust = (np.zeros(n) for _ in range(5))
+        self.values = np.zeros((n, self.WIDTH))
+
+    def __getattr__(self, name: str):
+        column = Setpoints.COLUMNS.get(name)
+        if column is None:
+            raise AttributeError(name)
+        return self.values[:, column]
 
     def copy(self) -> "Setpoints":
         out = Setpoints(0)
-        out.kind = self.kind.copy()
-        for f in self.FIELDS:
-            setattr(out, f, getattr(self, f).copy())
+        out.kind, out.values = self.kind.copy(), self.values.copy()
         return out
 
 
@@ -66,14 +73,13 @@ class Commander:
         """commanderSetSetpoint for ``drones``: taken where ``priority`` is at least theirs →
         the drones that took it (for a stream: their planners stop)."""
         drones = np.atleast_1d(np.asarray(drones, dtype=np.int64))
-        taken = drones[priority >= self.priority[drones]]
-        cur = self.current
-        cur.kind[taken] = kind
-        for f in Setpoints.FIELDS:
-            value = values.get(f, 0.0)
-            array = getattr(cur, f)
-            array[taken] = np.broadcast_to(np.asarray(value, dtype=np.float64),
-                                           (len(drones),) + array.shape[1:])[priority >= self.priority[drones]]
+        accepted = priority >= self.priority[drones]
+        taken = drones[accepted]
+        block = np.zeros((len(drones), Setpoints.WIDTH))
+        for name, value in values.items():
+            block[:, Setpoints.COLUMNS[name]] = value
+        self.current.kind[taken] = kind
+        self.current.values[taken] = block[accepted]
         self.priority[taken] = priority
         self.stamp[taken] = t
         if priority > PRIORITY_HIGH_LEVEL:

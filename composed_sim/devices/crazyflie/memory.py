@@ -57,6 +57,7 @@ class TrajectoryMemory:
         drones = np.atleast_1d(drones)
         if not 0 <= trajectory_id < TRAJECTORY_IDS:
             return np.full(len(drones), ENOEXEC, dtype=np.int64)
+        self._allocate()
         self.offset[drones, trajectory_id] = offset
         self.n_pieces[drones, trajectory_id] = n_pieces
         self.defined[drones, trajectory_id] = True

@@ -128,20 +128,28 @@ class Planner:
             self.state[landing[ended]] = IDLE
         return self.evaluate(rows, t)
 
-    def _piece_durations(self, rows, index) -> np.ndarray:
-        if len(self.memory.durations) == 0:
-            return self.planned_duration[rows]
-        slots = np.clip(self.first[rows] + index, 0, self.memory.durations.shape[1] - 1)
-        return np.where(self.in_memory[rows], self.memory.durations[rows, slots], self.planned_duration[rows])
+    def _durations(self, rows, width: int) -> np.ndarray:
+        """[r, width]: the durations of each trajectory's pieces 0 … width-1 (0 past its end)."""
+        out = np.zeros((len(rows), width))
+        out[:, 0] = self.planned_duration[rows]
+        in_memory = self.in_memory[rows]
+        if in_memory.any():
+            memory_rows = rows[in_memory]
+            slots = self.first[memory_rows, None] + np.arange(width)
+            inside = slots < (self.first[memory_rows] + self.count[memory_rows])[:, None]
+            durations = self.memory.durations[memory_rows[:, None], np.minimum(slots, self.memory.durations.shape[1] - 1)]
+            out[in_memory] = np.where(inside, durations, 0.0)
+        return out
 
     def _piece_coefficients(self, rows, index) -> np.ndarray:
-        if len(self.memory.coefficients) == 0:
-            return self.planned[rows]
-        slots = np.clip(self.first[rows] + index, 0, self.memory.coefficients.shape[1] - 1)
-        return np.where(self.in_memory[rows][:, None, None], self.memory.coefficients[rows, slots],
-                        self.planned[rows])
+        out = self.planned[rows]
+        in_memory = self.in_memory[rows]
+        if in_memory.any():
+            memory_rows = rows[in_memory]
+            out[in_memory] = self.memory.coefficients[memory_rows, self.first[memory_rows] + index[in_memory]]
+        return out
 
-    def _find_pieces(self, rows, elapsed):
+    def _find_pieces(self, rows, elapsed, durations):
         """Which piece each trajectory is in and the time within it, walking the pieces as the
         firmware does (subtracting each scaled duration in turn) → (piece, local time, found)."""
         count, scale, backwards = self.count[rows], self.timescale[rows], self.reversed[rows]
@@ -149,9 +157,10 @@ class Planner:
         local = np.zeros(len(rows))
         found = np.zeros(len(rows), dtype=bool)
         remaining = np.array(elapsed, dtype=np.float64)
-        for step in range(int(count.max(initial=0))):
+        every = np.arange(len(rows))
+        for step in range(durations.shape[1]):
             index = np.where(backwards, count - 1 - step, step)
-            span = self._piece_durations(rows, index) * scale
+            span = durations[every, np.maximum(index, 0)] * scale
             searching = ~found & (step < count)
             hit = searching & (remaining <= span)
             piece[hit] = index[hit]
@@ -164,7 +173,8 @@ class Planner:
         """piecewise_eval (or its reversed form) of each drone's trajectory at ``t``."""
         rows = np.asarray(rows)
         elapsed = np.broadcast_to(np.asarray(t, dtype=np.float64), (len(rows),)) - self.t_begin[rows]
-        piece, local, found = self._find_pieces(rows, elapsed)
+        durations = self._durations(rows, int(self.count[rows].max(initial=1)))
+        piece, local, found = self._find_pieces(rows, elapsed, durations)
         backwards = self.reversed[rows]
         ended_forward = ~found & ~backwards
         piece = np.where(ended_forward, self.count[rows] - 1, np.where(found, piece, 0))
@@ -174,7 +184,7 @@ class Planner:
         coefficients[going_back, :3, 0] += shift[going_back]
         coefficients = poly.stretch_time(coefficients, np.where(found, self.timescale[rows], 1.0))
         coefficients[going_back] = poly.reflect(coefficients[going_back])
-        local = np.where(ended_forward, self._piece_durations(rows, piece), np.where(found, local, 0.0))
+        local = np.where(ended_forward, durations[np.arange(len(rows)), piece], np.where(found, local, 0.0))
         ev = poly.evaluate(coefficients, local)
         forward = np.flatnonzero(~backwards)
         poly.rotate_and_shift(ev, forward, shift[forward], shift_yaw[forward])

@@ -12,7 +12,6 @@ import numpy as np
 DEGREE = 7
 SIZE = DEGREE + 1
 GRAVITY_MPS2 = 9.81            # the firmware's flatness uses 9.81 m/s² for g
-_DERIVATIVE = np.arange(1, SIZE, dtype=np.float64)   # d/dt c_i t^i = i c_i t^(i-1)
 
 
 def normalize_radians(angle):
@@ -87,22 +86,34 @@ def reflect(coefficients: np.ndarray) -> np.ndarray:
     return out
 
 
-def derivatives(coefficients: np.ndarray) -> np.ndarray:
-    """[d, 4, 8] → [d, 4, 4, 8]: the polynomials and their first three derivatives (polyder)."""
-    out = np.zeros(coefficients.shape[:-1] + (4, SIZE))
-    out[..., 0, :] = coefficients
-    for k in range(1, 4):
-        out[..., k, :-1] = out[..., k - 1, 1:] * _DERIVATIVE
-    return out
+def _derivative_matrix() -> np.ndarray:
+    """[8, 8 × 4]: coefficients → the coefficients of the polynomial and its first three
+    derivatives, column ``power * 4 + k`` for the k-th derivative's coefficient of t^power."""
+    m = np.zeros((SIZE, SIZE, 4))
+    for i in range(SIZE):
+        factor = 1.0
+        for k in range(4):
+            if i - k >= 0:
+                m[i, i - k, k] = factor
+            factor *= i - k
+    return m.reshape(SIZE, SIZE * 4)
 
 
-def horner(coefficients: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """Polynomials [d, ..., 8] at times [d] by Horner's rule (polyval) → [d, ...]."""
-    t = np.asarray(t, dtype=np.float64).reshape((-1,) + (1,) * (coefficients.ndim - 2))
-    x = np.zeros(coefficients.shape[:-1])
-    for i in range(DEGREE, -1, -1):
-        x = x * t + coefficients[..., i]
-    return x
+_DERIVATIVES = _derivative_matrix()
+
+
+def values_and_derivatives(coefficients: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Pieces [d, 4, 8] at times [d] → [d, 4 axes, 4]: value and first three derivatives, by
+    Horner's rule on each (polyder, then polyval), with the drones along the arrays' last axis."""
+    d = len(coefficients)
+    per_power = (coefficients.reshape(d * 4, SIZE) @ _DERIVATIVES).reshape(d, 4, SIZE, 4)
+    per_power = np.ascontiguousarray(per_power.transpose(2, 1, 3, 0)).reshape(SIZE, 16, d)
+    t = np.asarray(t, dtype=np.float64)
+    x = per_power[DEGREE].copy()
+    for i in range(DEGREE - 1, -1, -1):
+        x *= t
+        x += per_power[i]
+    return x.reshape(4, 4, d).transpose(2, 0, 1)
 
 
 class Evaluation:
@@ -117,7 +128,7 @@ class Evaluation:
 def evaluate(coefficients: np.ndarray, t: np.ndarray) -> Evaluation:
     """poly4d_eval for each drone: pieces [d, 4, 8] at times [d], with the body rates the
     firmware derives from differential flatness (thrust along the acceleration plus gravity)."""
-    values = horner(derivatives(coefficients), t)         # [d, 4 axes, 4 derivatives]
+    values = values_and_derivatives(coefficients, t)      # [d, 4 axes, 4 derivatives]
     pos, vel, acc, jerk = (values[:, :3, k].copy() for k in range(4))
     yaw, yaw_rate = values[:, 3, 0].copy(), values[:, 3, 1]
     return Evaluation(pos, vel, acc, jerk, yaw, body_rates(acc, jerk, yaw, yaw_rate))
