@@ -7,6 +7,8 @@ float64: with the firmware compiled in double precision the results agree to the
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 DEGREE = 7
@@ -86,34 +88,30 @@ def reflect(coefficients: np.ndarray) -> np.ndarray:
     return out
 
 
-def _derivative_matrix() -> np.ndarray:
-    """[8, 8 × 4]: coefficients → the coefficients of the polynomial and its first three
-    derivatives, column ``power * 4 + k`` for the k-th derivative's coefficient of t^power."""
-    m = np.zeros((SIZE, SIZE, 4))
-    for i in range(SIZE):
-        factor = 1.0
-        for k in range(4):
-            if i - k >= 0:
-                m[i, i - k, k] = factor
-            factor *= i - k
-    return m.reshape(SIZE, SIZE * 4)
+def _falling_factorials() -> np.ndarray:
+    """[8, 4]: (p + k)! / p!, the factor of the k-th derivative's coefficient of t^p."""
+    return np.array([[math.prod(range(p + 1, p + k + 1)) for k in range(4)] for p in range(SIZE)], dtype=np.float64)
 
 
-_DERIVATIVES = _derivative_matrix()
+_FACTORS = _falling_factorials()
 
 
 def values_and_derivatives(coefficients: np.ndarray, t: np.ndarray) -> np.ndarray:
     """Pieces [d, 4, 8] at times [d] → [d, 4 axes, 4]: value and first three derivatives, by
-    Horner's rule on each (polyder, then polyval), with the drones along the arrays' last axis."""
+    Horner's rule on each (polyder, then polyval), with the drones along the arrays' last axis
+    (elementwise products only: a small matrix product would call BLAS, whose threads cost more
+    than they give on a busy machine)."""
     d = len(coefficients)
-    per_power = (coefficients.reshape(d * 4, SIZE) @ _DERIVATIVES).reshape(d, 4, SIZE, 4)
-    per_power = np.ascontiguousarray(per_power.transpose(2, 1, 3, 0)).reshape(SIZE, 16, d)
+    powers = np.ascontiguousarray(coefficients.transpose(2, 1, 0))         # [8, 4, d]
+    per_power = np.zeros((SIZE, 4, 4, d))                                  # [power, axis, derivative, drone]
+    for k in range(4):
+        per_power[:SIZE - k, :, k, :] = _FACTORS[:SIZE - k, k, None, None] * powers[k:]
     t = np.asarray(t, dtype=np.float64)
     x = per_power[DEGREE].copy()
     for i in range(DEGREE - 1, -1, -1):
         x *= t
         x += per_power[i]
-    return x.reshape(4, 4, d).transpose(2, 0, 1)
+    return x.transpose(2, 0, 1)
 
 
 class Evaluation:
