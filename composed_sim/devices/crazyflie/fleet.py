@@ -6,7 +6,9 @@ a slice, or None (all). A command acts at time ``t`` (s, the simulation's clock 
 and answers a code per addressed drone: 0; 1 (refused by the planner: a take-off while not idle,
 a landing while landing); 16 (EBUSY: locked by an emergency stop); 8 (ENOEXEC: a trajectory id
 the table does not have); or 1 for an upload that does not fit the memory (see memory.py).
-A command with a group mask that a drone is not in is ignored by it and answers 0.
+A command with a group mask that a drone is not in is ignored by it and answers 0 (``in_group``
+tells who obeys a mask). A command's numbers must be finite: anything else is a ValueError naming
+the argument, before any drone is touched.
 
 Each tick, ``advance(t, dt)`` runs every drone's stabilizer loop at ``t`` (the setpoints, from the
 state before the tick) and moves the drones to ``t`` under them (motion.py); the high-level
@@ -39,6 +41,17 @@ class Crazyflies:
         self.battery_voltage_v = battery_voltage_v
         self.setpoints = Setpoints(self.n)     # what flew each drone in the last tick
 
+    @staticmethod
+    def _finite(**values) -> None:
+        for name, value in values.items():
+            if value is not None and not np.isfinite(np.asarray(value, dtype=np.float64)).all():
+                raise ValueError(f"{name} must be finite, got {value!r}")
+
+    def in_group(self, drones, group_mask: int) -> np.ndarray:
+        """[d] bool: which of ``drones`` obey a command with ``group_mask`` (0: all)."""
+        rows = self._rows(drones)
+        return (group_mask == ALL_GROUPS) | ((self.high_level.group_mask[rows] & np.uint8(group_mask)) != 0)
+
     def _rows(self, drones) -> np.ndarray:
         if drones is None:
             return np.arange(self.n)
@@ -52,28 +65,35 @@ class Crazyflies:
     # --- high-level commands (the services) -------------------------------------------------
 
     def takeoff(self, drones, t, height, duration, *, yaw=None, group_mask=ALL_GROUPS):
+        self._finite(t=t, height=height, duration=duration, yaw=yaw)
         return self.high_level.takeoff(self._rows(drones), t, height, duration, yaw, group_mask)
 
     def land(self, drones, t, height, duration, *, yaw=None, group_mask=ALL_GROUPS):
+        self._finite(t=t, height=height, duration=duration, yaw=yaw)
         return self.high_level.land(self._rows(drones), t, height, duration, yaw, group_mask)
 
     def takeoff_with_velocity(self, drones, t, height, velocity, *, relative=False, yaw=None, group_mask=ALL_GROUPS):
+        self._finite(t=t, height=height, velocity=velocity, yaw=yaw)
         return self.high_level.takeoff_with_velocity(self._rows(drones), t, height, velocity, relative, yaw,
                                                      group_mask)
 
     def land_with_velocity(self, drones, t, height, velocity, *, relative=False, yaw=None, group_mask=ALL_GROUPS):
+        self._finite(t=t, height=height, velocity=velocity, yaw=yaw)
         return self.high_level.takeoff_with_velocity(self._rows(drones), t, height, velocity, relative, yaw,
                                                      group_mask, landing=True)
 
     def go_to(self, drones, t, goal, yaw, duration, *, relative=False, linear=False, group_mask=ALL_GROUPS):
+        self._finite(t=t, goal=goal, yaw=yaw, duration=duration)
         return self.high_level.go_to(self._rows(drones), t, goal, yaw, duration, relative, linear, group_mask)
 
     def upload_trajectory(self, drones, trajectory_id, piece_offset, coefficients, durations):
+        self._finite(coefficients=coefficients, durations=durations)
         return self.high_level.upload_trajectory(self._rows(drones), trajectory_id, piece_offset, coefficients,
                                                  durations)
 
     def start_trajectory(self, drones, t, trajectory_id, *, timescale=1.0, reversed=False, relative=False,
                          relative_yaw=False, group_mask=ALL_GROUPS):
+        self._finite(t=t, timescale=timescale)
         return self.high_level.start_trajectory(self._rows(drones), t, trajectory_id, timescale, reversed,
                                                 relative, relative_yaw, group_mask)
 
@@ -96,18 +116,23 @@ class Crazyflies:
     # --- streamed setpoints (the low-level topics) -------------------------------------------
 
     def cmd_full_state(self, drones, t, pos, vel, acc, yaw, omega) -> None:
+        self._finite(t=t, pos=pos, vel=vel, acc=acc, yaw=yaw, omega=omega)
         self.commander.full_state(self._rows(drones), t, pos, vel, acc, yaw, omega)
 
     def cmd_position(self, drones, t, pos, yaw) -> None:
+        self._finite(t=t, pos=pos, yaw=yaw)
         self.commander.position(self._rows(drones), t, pos, yaw)
 
     def cmd_hover(self, drones, t, vx, vy, yaw_rate, z) -> None:
+        self._finite(t=t, vx=vx, vy=vy, yaw_rate=yaw_rate, z=z)
         self.commander.hover(self._rows(drones), t, vx, vy, yaw_rate, z)
 
     def cmd_velocity_world(self, drones, t, vel, yaw_rate) -> None:
+        self._finite(t=t, vel=vel, yaw_rate=yaw_rate)
         self.commander.velocity(self._rows(drones), t, vel, yaw_rate)
 
     def cmd_attitude(self, drones, t, roll, pitch, yaw_rate, thrust) -> None:
+        self._finite(t=t, roll=roll, pitch=pitch, yaw_rate=yaw_rate, thrust=thrust)
         self.commander.attitude(self._rows(drones), t, roll, pitch, yaw_rate, thrust)
 
     # --- per tick ----------------------------------------------------------------------------

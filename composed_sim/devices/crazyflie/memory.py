@@ -64,11 +64,13 @@ class TrajectoryMemory:
         return np.zeros(len(drones), dtype=np.int64)
 
     def is_defined(self, drones: np.ndarray, trajectory_id: int) -> np.ndarray:
-        """[d] bool: the id is a defined trajectory of each drone, within the memory (an id
-        outside the table: False)."""
+        """[d] bool: the id is a defined trajectory of each drone, of at least one piece, within the
+        memory (an id outside the table: False). The firmware would start the others and read
+        past its memory; here they are ignored as undefined ones are."""
         if not 0 <= trajectory_id < TRAJECTORY_IDS:
             return np.zeros(len(np.atleast_1d(drones)), dtype=bool)
-        inside = self.offset[drones, trajectory_id] + self.n_pieces[drones, trajectory_id] <= PIECE_SLOTS
+        count = self.n_pieces[drones, trajectory_id]
+        inside = (count >= 1) & (self.offset[drones, trajectory_id] + count <= PIECE_SLOTS)
         return self.defined[drones, trajectory_id] & inside
 
     def total_duration(self, drones: np.ndarray, first: np.ndarray, count: np.ndarray) -> np.ndarray:

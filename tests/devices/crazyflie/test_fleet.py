@@ -234,3 +234,38 @@ def test_group_masks_address_some_drones():
     assert list(fleet.planner_states()) == [IDLE, FLYING, IDLE]       # drone 2 is in no group: ignores it
     fleet.takeoff(None, 0.0, 1.0, 1.0)                                # mask 0: everyone
     assert list(fleet.planner_states()) == [FLYING, FLYING, FLYING]
+
+
+# --- bad input: answered, never a crash -------------------------------------------------------
+
+def test_bad_numbers_are_refused_by_name_before_any_drone_is_touched():
+    fleet = _fleet(2)
+    with pytest.raises(ValueError, match="height must be finite"):
+        fleet.takeoff(None, 0.0, float("nan"), 1.0)
+    with pytest.raises(ValueError, match="goal must be finite"):
+        fleet.go_to(0, 0.0, [0.0, float("inf"), 1.0], 0.0, 1.0)
+    with pytest.raises(ValueError, match="durations must be finite"):
+        fleet.upload_trajectory(0, 1, 0, np.zeros((1, 4, 8)), [float("nan")])
+    with pytest.raises(IndexError, match=r"drone index out of range 0..1: \[2\]"):
+        fleet.takeoff(2, 0.0, 1.0, 1.0)
+    assert list(fleet.planner_states()) == [IDLE, IDLE]
+
+
+def test_a_trajectory_of_no_pieces_or_past_the_memory_is_never_started():
+    fleet = _fleet(1)
+    fleet.takeoff(0, 0.0, 1.0, 1.0)
+    t = _run(fleet, 0.0, 1.5)
+    assert fleet.upload_trajectory(0, 2, 0, np.zeros((0, 4, 8)), [])[0] == 0      # as the firmware: taken
+    assert fleet.start_trajectory(0, t, 2)[0] == 0                                # …and ignored
+    assert fleet.upload_trajectory(0, 3, 30, np.zeros((2, 4, 8)), [1.0, 1.0])[0] == 1   # past the memory
+    assert fleet.start_trajectory(0, t, 3)[0] == 0
+    t = _run(fleet, t, 0.5)
+    assert fleet.state.pos[0, 2] == pytest.approx(1.0) and fleet.setpoints.kind[0] == HIGH_LEVEL
+
+
+def test_in_group_says_who_obeys_a_mask():
+    fleet = _fleet(3)
+    fleet.set_group_mask([0, 1], 0b100)
+    assert list(fleet.in_group(None, 0b100)) == [True, True, False]
+    assert list(fleet.in_group(None, 0b010)) == [False, False, False]       # a mask no drone has
+    assert list(fleet.in_group(None, 0)) == [True, True, True]
