@@ -110,7 +110,8 @@ def test_near_misses_are_vectorised_pairs_of_the_ellipsoid():
     xy = np.array([[0.0, 0.0], [0.1, 0.0], [0.0, 0.12]])
     near.check(1, xy, np.array([0.0, 0.0, 0.0]))                    # all on the floor: none
     assert near.events == []
-    near.check(2, xy, np.array([1.0, 1.0, 1.4]))                    # 0.1 apart; 0.12 and 0.4 (0.12²/0.15² + 0.4²/0.45² > 1)
+    # 4 and 7: 0.1 m apart; 4 and 9: 0.12 m across, 0.4 m up (0.12²/0.15² + 0.4²/0.45² > 1)
+    near.check(2, xy, np.array([1.0, 1.0, 1.4]))
     assert [(e.tick, e.first, e.second) for e in near.events] == [(2, 4, 7)]
     near.check(3, xy * 0.5, np.array([1.0, 1.0, 1.5]))             # closer: the same event, its closest updated
     assert [(e.tick, e.first, e.second) for e in near.events] == [(2, 4, 7)]

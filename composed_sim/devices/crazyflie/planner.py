@@ -137,7 +137,8 @@ class Planner:
             memory_rows = rows[in_memory]
             slots = self.first[memory_rows, None] + np.arange(width)
             inside = slots < (self.first[memory_rows] + self.count[memory_rows])[:, None]
-            durations = self.memory.durations[memory_rows[:, None], np.minimum(slots, self.memory.durations.shape[1] - 1)]
+            last = self.memory.durations.shape[1] - 1
+            durations = self.memory.durations[memory_rows[:, None], np.minimum(slots, last)]
             out[in_memory] = np.where(inside, durations, 0.0)
         return out
 
