@@ -107,7 +107,11 @@ class Commander:
 
     def attitude(self, drones, t, roll, pitch, yaw_rate, thrust) -> None:
         """The legacy roll, pitch (rad), yaw rate (rad/s) and thrust (0-65535) setpoint: the thrust
-        counts once a setpoint of thrust 0 has unlocked it, is 0 below 1000 and at most 60000."""
+        counts once a setpoint of thrust 0 has unlocked it, is 0 below 1000 and at most 60000.
+        Angles as REP-103's (about x and y: a positive pitch accelerates along +x, a positive roll
+        along -y; the yaw rate counter-clockwise): Crazyswarm2's ``cmd_vel_legacy`` gives degrees in
+        the firmware's legacy frame, whose pitch is inverted and whose legacy yaw rate the firmware
+        negates; converting is the caller's."""
         drones = np.atleast_1d(np.asarray(drones, dtype=np.int64))
         thrust = np.broadcast_to(np.asarray(thrust, dtype=np.float64), drones.shape)
         self.thrust_locked[drones[(self.priority[drones] == PRIORITY_DISABLE)]] = True
