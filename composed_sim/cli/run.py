@@ -93,8 +93,12 @@ class Run:
         summary["logs"] = str(out / "logs")
         summary["failed_by"] = self.logs.console.failures    # "ZeroDivisionError in pkg.mod:Class": robots
         summary["stopped_by_fail_fast"] = self.fail_fast.reason
+        drones = host.sim.drones
+        if drones is not None:
+            summary["near_misses"] = drones.near_misses.summary(result.trajectories.names)
         files = write_results(out, self.world, result, summary,
-                              picture=self.settings.outputs.picture and not checkpoint, checkpoint=checkpoint)
+                              picture=self.settings.outputs.picture and not checkpoint, checkpoint=checkpoint,
+                              near_misses=None if drones is None else drones.near_misses.events)
         return summary, files
 
     def run_and_write(self) -> tuple[dict, list, int]:

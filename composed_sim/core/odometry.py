@@ -121,11 +121,11 @@ class PoseReadings:
 
 def positioning(positions: np.ndarray, headings: np.ndarray, *,
                 position_noise_m: Optional[np.ndarray] = None, yaw_noise_rad: Optional[np.ndarray] = None,
-                rng: Optional[np.random.Generator] = None) -> PoseReadings:
-    """positions [n, 2], headings [n] → readings; noise: uniform(-a, a) per robot [n] on x and
-    y and on the yaw (None: none)."""
+                rng: Optional[np.random.Generator] = None, altitudes: Optional[np.ndarray] = None) -> PoseReadings:
+    """positions [n, 2], headings [n] (and altitudes [n], None: on the floor) → readings; noise:
+    uniform(-a, a) per robot [n] on x and y and on the yaw (None: none)."""
     n = len(positions)
-    xyz = np.column_stack([positions, np.zeros(n)])
+    xyz = np.column_stack([positions, np.zeros(n) if altitudes is None else altitudes])
     yaw = np.asarray(headings, dtype=np.float64)
     if position_noise_m is not None and position_noise_m.any():
         xyz[:, :2] += rng.uniform(-1.0, 1.0, (n, 2)) * position_noise_m[:, None]

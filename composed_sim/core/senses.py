@@ -42,6 +42,7 @@ class SensingInputs:
     floor: Optional[Floor]
     lights: Sequence
     route_messages: bool             # range and bearing: messages sent (false before the first step)
+    altitudes: Optional[np.ndarray] = None   # [n] m above the floor (None: every robot on it)
 
 
 @dataclass
@@ -142,15 +143,17 @@ class Senses:
             if not inputs.route_messages:       # nothing was sent before the first step
                 rab = RangeAndBearingReadings.empty(block.stop - block.start, inputs.rab_payloads.shape[1])
             else:
+                elevations = self.rab_elevations if inputs.altitudes is None else self.rab_elevations + inputs.altitudes
                 rab = range_and_bearing(
-                    p, h, self.radii, self.heights, self.rab_equipped, self.rab_elevations, self.rab_ranges,
+                    p, h, self.radii, self.heights, self.rab_equipped, elevations, self.rab_ranges,
                     inputs.rab_payloads, inputs.scene, mode=self.world.range_and_bearing.mode,
                     check_occlusions=self.world.range_and_bearing.check_occlusions,
                     drop_probability=self.rab_drop, noise_std_m=self.rab_noise,
                     rng=self.streams[RANGE_AND_BEARING].at(tick, ()), tree=tree, receivers=block)
         ids = np.arange(block.start, block.stop)
         pose = positioning(p[block], h[block], position_noise_m=self.pose_noise[0][block],
-                           yaw_noise_rad=self.pose_noise[1][block], rng=self.streams[POSITIONING].at(tick, ids))
+                           yaw_noise_rad=self.pose_noise[1][block], rng=self.streams[POSITIONING].at(tick, ids),
+                           altitudes=None if inputs.altitudes is None else inputs.altitudes[block])
         self.seconds += time.perf_counter() - t0
         return SensorFrame(tick, groups, pose, rows.wheels, rows.odometry, rows.odometry_twist, rab)
 

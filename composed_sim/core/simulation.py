@@ -18,6 +18,7 @@ from typing import Optional
 import numpy as np
 
 from composed_sim.core import world_edits
+from composed_sim.core.flight import Drones
 from composed_sim.core.odometry import Odometry, WheelActuator, WheelNoise, WheelReadings, differential_steering
 from composed_sim.core.frames import SensorFrame
 from composed_sim.core.engine import physics_engine
@@ -58,8 +59,14 @@ class Simulation:
 
         positions, headings = place_robots(world, stream(world.seed, STREAM_PLACEMENT))
         self.initial_positions, self.initial_headings = positions, headings
+        # Drones fly (core/flight.py): their firmware moves them, the 2D physics holds the others.
+        flying = np.array([m.flies for m in self.models], dtype=bool).reshape(self.n)
+        self.drones: Optional[Drones] = Drones(world, self.models, positions, headings) if flying.any() else None
+        self.wheeled = np.flatnonzero(~flying)             # [w] the robots of the physics, in its order
+        self.altitudes = np.zeros(self.n)                  # [n] m above the floor (0 on wheels)
         # One space, cells, or regions in worker processes (core/engine.py): close() ends the workers.
-        self.physics = physics_engine(world, self.models, positions, headings)
+        self.physics = physics_engine(world, [self.models[i] for i in self.wheeled], positions[self.wheeled],
+                                      headings[self.wheeled])
         self.scene = static_scene(world)
         self.floor = (Floor.from_world(world.floor, arena_size=world.arena.size, base_dir=base_dir)
                       if any(GROUND in g.running for g in self.groups) else None)
@@ -85,7 +92,7 @@ class Simulation:
         # Range and bearing: what each robot broadcasts (set before a step, heard after it).
         self.rab_payloads = np.zeros((self.n, world.range_and_bearing.payload_bytes), dtype=np.uint8)   # [n, B]
 
-        self.positions, self.headings = self.physics.poses()
+        self.positions, self.headings = self._poses()
         self._inputs = self._snapshot(route_messages=False)
         self._frame: Optional[SensorFrame] = None
 
@@ -129,8 +136,13 @@ class Simulation:
         """ARGoS-style wheel speeds [n] each (m/s), with the actuator noise, at the next step."""
         left, right = self.wheel_actuator.apply(np.asarray(left_mps, dtype=np.float64),
                                                 np.asarray(right_mps, dtype=np.float64), self.tick)
-        self.physics.set_wheel_speeds(left, right)
-        self._applied = self.physics.wheel_speeds()
+        if self.drones is None:
+            self.physics.set_wheel_speeds(left, right)
+            self._applied = self.physics.wheel_speeds()
+            return
+        self.physics.set_wheel_speeds(left[self.wheeled], right[self.wheeled])     # a drone's wheels: none
+        self._applied = (np.zeros(self.n), np.zeros(self.n))
+        self._applied[0][self.wheeled], self._applied[1][self.wheeled] = self.physics.wheel_speeds()
 
     def set_led_colors(self, robot: int, colors: np.ndarray) -> None:
         """colors: [L, 3] uint8 for one robot (L = its model's LED count)."""
@@ -158,7 +170,9 @@ class Simulation:
         t0 = time.perf_counter()
         self.physics.step()
         self.tick += 1
-        self.positions, self.headings = self.physics.poses()
+        if self.drones is not None:
+            self.drones.advance(self.tick)
+        self.positions, self.headings = self._poses()
         self._wheels = differential_steering(*self._applied, self.world.tick_s, self.wheel_separation_m,
                                              velocity_noise_mps=self._wheel_sensor_noise[0],
                                              distance_noise_m=self._wheel_sensor_noise[1],
@@ -168,10 +182,20 @@ class Simulation:
         self._frame = None
         self.times.physics_s += time.perf_counter() - t0
 
+    def _poses(self) -> tuple[np.ndarray, np.ndarray]:
+        """Every robot's position [n, 2] and heading [n]: the physics' and the drones' (whose
+        altitudes are written too)."""
+        if self.drones is None:
+            return self.physics.poses()
+        positions, headings = np.zeros((self.n, 2)), np.zeros(self.n)
+        positions[self.wheeled], headings[self.wheeled] = self.physics.poses()
+        self.drones.place(positions, headings, self.altitudes)
+        return positions, headings
+
     def _snapshot(self, *, route_messages: bool) -> SensingInputs:
         return SensingInputs(self.tick, self.positions, self.headings, self.led_colors.copy(),
                              self.rab_payloads.copy(), self.current_scene(), self.floor, tuple(self.world.lights),
-                             route_messages)
+                             route_messages, None if self.drones is None else self.altitudes.copy())
 
     def sensing_inputs(self) -> SensingInputs:
         """What the sensors read after the last step (the world edits made since are not in it)."""

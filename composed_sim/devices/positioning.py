@@ -26,7 +26,8 @@ TOPIC = Topic("pose", "geometry_msgs/msg/PoseStamped", "sensor",
 
 
 def encoder() -> cdr.FixedEncoder:
-    """Its ``encode(stamp, x, y, qz, qw)``: a planar pose, position (x, y, 0), orientation (0, 0, qz, qw)."""
+    """Its ``encode(stamp, x, y, z, qz, qw)``: position (x, y, z; z 0 but for a drone), orientation
+    (0, 0, qz, qw)."""
     return cdr.FixedEncoder(cdr.pose_stamped_bytes(WORLD_FRAME), cdr.pose_f64_at)
 
 
@@ -43,9 +44,9 @@ class Publisher(DevicePublisher):
         return encoder()
 
     def publish(self, plan, frame, out):
-        xy, q = frame.pose.positions[plan.rows, :2], frame.pose.quaternions[plan.rows]     # q: (x, y, z, w)
+        xyz, q = frame.pose.positions[plan.rows], frame.pose.quaternions[plan.rows]     # q: (x, y, z, w)
         self.encode_and_send(*self.to_send(plan, out), out,
-                             *(column.tolist() for column in (xy[:, 0], xy[:, 1], q[:, 2], q[:, 3])))
+                             *(column.tolist() for column in (xyz[:, 0], xyz[:, 1], xyz[:, 2], q[:, 2], q[:, 3])))
 
 
 DEVICE = Device(NAME, (TOPIC,), Publisher, reads_into("pose", decode), tick_fields=("pose",),

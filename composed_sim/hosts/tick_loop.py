@@ -27,13 +27,17 @@ class Trajectories:
     headings: np.ndarray      # [T+1, n] rad
     ticks_done: int = 0       # rows filled beyond the initial pose
     led_colors: Optional[np.ndarray] = None   # [T+1, n, 3] uint8: each robot's display colour
+    altitudes: Optional[np.ndarray] = None    # [T+1, n] m above the floor; None: no robot flies
 
     @classmethod
     def allocate(cls, sim: Simulation, ticks: int) -> "Trajectories":
         t = cls(sim.names, np.zeros((ticks + 1, sim.n, 2)), np.zeros((ticks + 1, sim.n)),
-                led_colors=np.zeros((ticks + 1, sim.n, 3), dtype=np.uint8))
+                led_colors=np.zeros((ticks + 1, sim.n, 3), dtype=np.uint8),
+                altitudes=None if sim.drones is None else np.zeros((ticks + 1, sim.n)))
         t.positions[0], t.headings[0] = sim.positions, sim.headings
         t.led_colors[0] = display_colors(sim.led_colors)
+        if t.altitudes is not None:
+            t.altitudes[0] = sim.altitudes
         return t
 
     def record(self, sim: Simulation) -> None:
@@ -41,12 +45,15 @@ class Trajectories:
         self.positions[self.ticks_done] = sim.positions
         self.headings[self.ticks_done] = sim.headings
         self.led_colors[self.ticks_done] = display_colors(sim.led_colors)
+        if self.altitudes is not None:
+            self.altitudes[self.ticks_done] = sim.altitudes
 
     def filled(self) -> "Trajectories":
         """Only the rows written so far (a run stopped early keeps what it has)."""
         k = self.ticks_done + 1
         leds = None if self.led_colors is None else self.led_colors[:k]
-        return Trajectories(self.names, self.positions[:k], self.headings[:k], self.ticks_done, leds)
+        altitudes = None if self.altitudes is None else self.altitudes[:k]
+        return Trajectories(self.names, self.positions[:k], self.headings[:k], self.ticks_done, leds, altitudes)
 
 
 # Where the main process's time goes in a tick (summary.json's ``phases_per_tick_ms``; every

@@ -5,8 +5,9 @@ summary.json     figures of the run (sizes, times per phase, real-time factor, v
 metrics.csv      the loop functions' metrics, one row per tick they were taken (only with loop functions)
 world.yaml       the resolved world, loadable as is to re-run the same experiment
 trajectories.npz positions [T+1, n, 2], headings [T+1, n], led_colors [T+1, n, 3] (each robot's
-                 display colour), names [n], tick_s
+                 display colour), names [n], tick_s; with drones also altitudes [T+1, n] (m)
 violations.csv   tick, robot, reason for each watchdog or contract violation
+near_misses.csv  tick, first, second, distance_m: each approach of two drones (with drones only)
 arena.png        the arena: whole-run trails, final poses with LED colours, lights, obstacles (outputs/render.py)
 """
 from __future__ import annotations
@@ -37,6 +38,7 @@ VIOLATIONS = "violations.csv"
 METRICS = "metrics.csv"
 PICTURE = "arena.png"
 WORLD = "world.yaml"
+NEAR_MISSES = "near_misses.csv"
 
 
 def versions() -> dict[str, str]:
@@ -130,17 +132,20 @@ def _save_npz(f, compress: bool, **arrays: np.ndarray) -> None:
 
 
 def write_results(out_dir: Path, world: World, result: LoopResult, summary: dict,
-                  picture: bool = True, checkpoint: bool = False) -> list[str]:
+                  picture: bool = True, checkpoint: bool = False, near_misses: Optional[list] = None) -> list[str]:
     """Write every file of a run; each file is complete on its own, the picture last. Each file
     replaces the one before in one step (written aside, then renamed): a run killed while writing
     leaves the previous checkpoint's file, never half a file. Returns the names written, in order
-    (what the run says it wrote)."""
+    (what the run says it wrote). ``near_misses``: the drones' (core/near_misses.py), None
+    without drones."""
     out_dir.mkdir(parents=True, exist_ok=True)
     written = [WORLD, TRAJECTORIES, VIOLATIONS]
     with _replacing(out_dir / WORLD) as f:
         f.write(dump_world(world).encode())
     t = result.trajectories
     extra = {} if t.led_colors is None else {"led_colors": t.led_colors}
+    if t.altitudes is not None:
+        extra["altitudes"] = t.altitudes
     with _replacing(out_dir / TRAJECTORIES) as f:
         _save_npz(f, compress=not checkpoint, positions=t.positions, headings=t.headings,
                   names=np.asarray(t.names), tick_s=np.asarray(world.tick_s), **extra)
@@ -150,6 +155,14 @@ def write_results(out_dir: Path, world: World, result: LoopResult, summary: dict
         w.writerow(["tick", "robot", "reason"])
         w.writerows((v.tick, v.robot, v.reason) for v in result.violations)
         text.detach()
+    if near_misses is not None:
+        written.append(NEAR_MISSES)
+        with _replacing(out_dir / NEAR_MISSES) as f:
+            text = io.TextIOWrapper(f, newline="")
+            w = csv.writer(text)
+            w.writerow(["tick", "first", "second", "distance_m"])
+            w.writerows((e.tick, t.names[e.first], t.names[e.second], f"{e.distance_m:.4f}") for e in near_misses)
+            text.detach()
     if result.metrics:
         written.append(METRICS)
         with _replacing(out_dir / METRICS) as f:
@@ -193,4 +206,5 @@ def load_trajectories(path: Path) -> Trajectories:
     with np.load(path) as data:
         positions = data["positions"]
         leds = data["led_colors"] if "led_colors" in data else None
-        return Trajectories(list(data["names"]), positions, data["headings"], len(positions) - 1, leds)
+        altitudes = data["altitudes"] if "altitudes" in data else None
+        return Trajectories(list(data["names"]), positions, data["headings"], len(positions) - 1, leds, altitudes)

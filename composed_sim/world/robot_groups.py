@@ -12,6 +12,8 @@ from composed_sim.devices.differential_steering import WheelsConfig
 from composed_sim.world.robot_models import MODELS, RobotModel
 from composed_sim.world.validation import ROS_TOKEN, Vec2, finite, invalid
 
+WHEELED = ("differential_steering", "odometry")     # the devices a model that flies does not have
+
 
 class Placement(Strict):
     """Where a group's robots start. Overlapping draws are re-drawn up to max_trials."""
@@ -240,6 +242,11 @@ class RobotGroup(Strict):
                     for name in WITH_LAYOUT
                     if getattr(self.devices, name) is not None and getattr(self.devices, name).enabled
                     and getattr(model, name) is None]
+        if model.flies:      # its firmware moves it: no wheels to steer, count or turn into odometry
+            problems += [(("devices", name), f"the {self.model} flies: it has no wheels, so no {name}",
+                          getattr(self.devices, name).model_dump())
+                         for name in WHEELED if getattr(self.devices, name) is not None
+                         and getattr(self.devices, name).enabled]
         if problems:
             raise invalid(problems)
         return self

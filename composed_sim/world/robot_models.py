@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any, Mapping
+from typing import Any, Mapping, Optional
 
 import numpy as np
 
@@ -39,6 +39,29 @@ TF = tf.NAME
 
 
 @dataclass(frozen=True)
+class FlightLimits:
+    """What a model that flies has instead of wheels: its size and the limits its firmware flies
+    it within (docs/devices.md's table names each number's source)."""
+    motor_diagonal_m: float              # motor to motor, across the frame
+    max_speed_mps: float                 # the position controller's velocity limit, per axis
+    max_tilt_rad: float                  # the velocity controller's roll and pitch limit
+    max_thrust_n: float                  # all motors together
+    flight_time_s: float                 # on a full battery, hovering
+    battery_full_v: float                # the battery's voltage when full
+
+    def max_horizontal_acceleration_mps2(self) -> float:
+        """What the tilt limit allows: g tan(tilt)."""
+        return GRAVITY_MPS2 * math.tan(self.max_tilt_rad)
+
+    def max_climb_acceleration_mps2(self, mass_kg: float) -> float:
+        """Full thrust against gravity."""
+        return self.max_thrust_n / mass_kg - GRAVITY_MPS2
+
+
+GRAVITY_MPS2 = 9.81
+
+
+@dataclass(frozen=True)
 class RobotModel:
     name: str
     body_radius_m: float           # the footprint is a circle (the dynamics2d robots are)
@@ -61,6 +84,8 @@ class RobotModel:
     # its mass and moment of inertia add to the robot's when it accelerates.
     carried_mass_kg: float = 0.0
     carried_moment_kg_m2: float = 0.0
+    # A model that flies (its firmware moves it, not wheels and the 2D physics; core/flight.py).
+    flight: Optional[FlightLimits] = None
 
     def __post_init__(self):
         for name, layout in self.layouts.items():
@@ -86,6 +111,10 @@ class RobotModel:
     def devices(self) -> tuple[str, ...]:
         """Names of the devices this model carries (the always-on ones included)."""
         return tuple(name for name in WITH_LAYOUT if name in self.layouts) + ALWAYS_ON
+
+    @property
+    def flies(self) -> bool:
+        return self.flight is not None
 
     @property
     def n_leds(self) -> int:
@@ -251,8 +280,26 @@ KHEPERAIV = RobotModel.of(
     default_devices=frozenset({PROXIMITY, GROUND}),
 )
 
+# --- Crazyflie 2.1 (Bitcraze; its firmware, crazyflie-firmware) ---------------------------
+# docs/devices.md, "Crazyflie 2.1", names the source of each number. It flies: no wheels, not a
+# body of the 2D physics; its firmware's setpoints move it (devices/crazyflie, core/flight.py).
+# Its wheel fields are unused and only kept finite (a wheel command to it does nothing).
+CRAZYFLIE = RobotModel.of(
+    name="crazyflie",
+    body_radius_m=0.092 / 2,            # half the 92 mm motor-to-motor diagonal
+    body_height_m=0.029,                # 29 mm, motor mount feet included
+    mass_kg=0.027,                      # 27 g
+    wheel_separation_m=0.092, wheel_radius_m=0.0, max_wheel_speed_mps=0.0, max_force_n=0.0, max_torque_nm=0.0,
+    friction=0.0,
+    flight=FlightLimits(motor_diagonal_m=0.092, max_speed_mps=1.0, max_tilt_rad=math.radians(20.0),
+                        max_thrust_n=4 * 0.12, flight_time_s=7 * 60.0, battery_full_v=4.2),
+    # The Crazyswarm2 swarms' range and bearing, at the body's centre; 3 m as the other models'.
+    range_and_bearing=RangeAndBearingDevice(elevation_m=0.0, range_m=3.0),
+    default_devices=frozenset(),
+)
+
 MODELS: dict[str, RobotModel] = {m.name: m for m in (FOOTBOT, EPUCK, TURTLEBOT3_BURGER, THYMIO2,
-                                                     KHEPERAIV)}
+                                                     KHEPERAIV, CRAZYFLIE)}
 
 
 def get_model(name: str) -> RobotModel:

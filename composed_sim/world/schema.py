@@ -19,10 +19,11 @@ from composed_sim.devices.common.settings import NonNegativeFloat, PositiveFloat
 from composed_sim.entry_points import installed
 from composed_sim.world.arena import (Arena, Box, Cylinder, Floor, FloorCircle, FloorRectangle, Light, Obstacle,
                                       RangeAndBearingMedium)
+from composed_sim.world.flight import Flight
 from composed_sim.world.robot_groups import CameraConfig, Devices, Heading, NodeSpec, Placement, RobotGroup
 from composed_sim.world.validation import RGB, Vec2, invalid
 
-__all__ = ["Arena", "Box", "CameraConfig", "Cylinder", "Devices", "Floor", "FloorCircle", "FloorRectangle", "Heading",
+__all__ = ["Arena", "Box", "CameraConfig", "Cylinder", "Devices", "Flight", "Floor", "FloorCircle", "FloorRectangle", "Heading",
            "LOOP_FUNCTIONS_GROUP", "Light", "Lockstep", "LoopFunctionsRef", "MAX_DOMAIN", "MultiProcess",
            "NodeSpec", "Obstacle", "Physics", "Placement", "RGB", "ROBOTS_PER_DOMAIN", "RangeAndBearingMedium",
            "RobotGroup", "Vec2", "World"]
@@ -152,6 +153,7 @@ class World(Strict):
     arena: Arena = Arena()
     floor: Floor = Floor()
     range_and_bearing: RangeAndBearingMedium = RangeAndBearingMedium()
+    flight: Flight = Flight()            # the drones' motion and near misses (a world with drones)
     lights: list[Light] = []
     obstacles: list[Obstacle] = []
     robots: list[RobotGroup]

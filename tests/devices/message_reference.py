@@ -71,9 +71,9 @@ def _pose_message():
     return msg
 
 
-def _pose_fill(msg, stamp, x, y, qz, qw):
+def _pose_fill(msg, stamp, x, y, qz, qw, z=0.0):
     msg.header.stamp = stamp
-    msg.pose.position.x, msg.pose.position.y = x, y
+    msg.pose.position.x, msg.pose.position.y, msg.pose.position.z = x, y, z
     msg.pose.orientation.z, msg.pose.orientation.w = qz, qw
 
 

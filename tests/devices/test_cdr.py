@@ -52,9 +52,9 @@ def test_sensor_bytes_are_the_contract_messages(name):
 
     stamp_cdr = cdr.stamp_bytes(stamp.sec, stamp.nanosec)
     pose = ref.positioning.message()
-    x, y, qz, qw = rng.uniform(-5, 5, 4)
-    ref.positioning.fill(pose, stamp, x, y, qz, qw)
-    assert deserialize_message(positioning.encoder().encode(stamp_cdr, x, y, qz, qw), PoseStamped) == pose
+    x, y, z, qz, qw = rng.uniform(-5, 5, 5)
+    ref.positioning.fill(pose, stamp, x, y, qz, qw, z)
+    assert deserialize_message(positioning.encoder().encode(stamp_cdr, x, y, z, qz, qw), PoseStamped) == pose
 
     odom = ref.odometry.message(name)
     values = rng.uniform(-5, 5, 6)

@@ -85,7 +85,7 @@ def test_rab_tx_round_trip_and_wrong_size_names_the_setting():
 
 def test_pose_odometry_and_wheels_round_trip():
     qz, qw = c.half_yaw(np.array([2.5]))
-    data = positioning.encoder().encode(STAMP_CDR, 1.5, -2.0, float(qz[0]), float(qw[0]))
+    data = positioning.encoder().encode(STAMP_CDR, 1.5, -2.0, 0.0, float(qz[0]), float(qw[0]))
     assert deserialize_message(data, PoseStamped).header.frame_id == "world"
     np.testing.assert_allclose(positioning.decode(data), [1.5, -2.0, 2.5])
     qz, qw = c.half_yaw(np.array([-3.0]))

@@ -189,7 +189,7 @@ def test_base_world_is_valid(tmp_path):
      "must be one of 'uniform', 'gaussian', 'grid' or 'explicit'", '(got "spiral")'),
     ({"aperture": 95}, 16, "robots[0].camera.aperture_deg", "must be < 90", "(got 95)"),
     ({"light": "[1, 10]"}, 7, "lights[0].position", "outside the arena", "(got [1.0, 10.0])"),
-    ({"model": "rover"}, 9, "robots[0].model", "unknown robot model; known: e-puck, foot-bot, kheperaiv, thymio2, turtlebot3-burger",
+    ({"model": "rover"}, 9, "robots[0].model", "unknown robot model; known: crazyflie, e-puck, foot-bot, kheperaiv, thymio2, turtlebot3-burger",
      '(got "rover")'),
     ({"method": "explicit", "placement_extra": "positions: [[0, 0], [1, 1]]"}, 14,
      "robots[0].placement.positions", "must list exactly count = 3 positions, lists 2",

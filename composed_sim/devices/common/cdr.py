@@ -363,10 +363,10 @@ class FixedEncoder:
         return bytes(buffer)
 
 
-def pose_f64_at(data) -> tuple[int, int, int, int]:
-    """PoseStamped: where position.x, position.y, orientation.z and orientation.w are."""
+def pose_f64_at(data) -> tuple[int, int, int, int, int]:
+    """PoseStamped: where position.x, .y, .z, orientation.z and orientation.w are."""
     pose = align(after_header(data), 8)                   # position x y z, orientation x y z w
-    return pose, pose + 8, pose + 40, pose + 48
+    return pose, pose + 8, pose + 16, pose + 40, pose + 48
 
 
 def after_string(data, pos: int) -> int:

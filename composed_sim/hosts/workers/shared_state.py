@@ -29,7 +29,8 @@ def _layout(n: int, leds: int, payload_bytes: int) -> list[tuple[str, tuple, np.
             ("rab_payloads", (n, payload_bytes), u1),
             ("wheel_velocities", (n, 2), f8), ("wheel_distances", (n, 2), f8), ("axis_lengths", (n,), f8),
             ("odometry", (n, 3), f8), ("odometry_twist", (n, 2), f8),
-            ("linear", (n,), f8), ("angular", (n,), f8)]          # the commands, written by the workers
+            ("linear", (n,), f8), ("angular", (n,), f8),           # the commands, written by the workers
+            ("altitudes", (n,), f8)]                               # [n] m: 0 on wheels (core/flight.py)
 
 
 class SharedState:
@@ -59,13 +60,15 @@ class SharedState:
         v["wheel_velocities"][:], v["wheel_distances"][:] = rows.wheels.velocities_mps, rows.wheels.distances_m
         v["axis_lengths"][:] = rows.wheels.axis_length_m
         v["odometry"][:], v["odometry_twist"][:] = rows.odometry, rows.odometry_twist
+        if inputs.altitudes is not None:
+            v["altitudes"][:] = inputs.altitudes
 
     # --- a worker -------------------------------------------------------------------------------
 
     def inputs(self, tick: int, route_messages: bool, scene, floor, lights) -> SensingInputs:
         v = self.views
         return SensingInputs(tick, v["positions"], v["headings"], v["led_colors"], v["rab_payloads"], scene,
-                             floor, lights, route_messages)
+                             floor, lights, route_messages, v["altitudes"])
 
     def rows(self, block: slice) -> RobotRows:
         """The block's wheels and odometry, copied: its frame may outlive the tick."""
