@@ -141,7 +141,7 @@ class ParticipantGroups(TickServing):
                               classes, warnings)
         self.exchange = NodesExchange(self.simulator_nodes, node_time=self.node_time)
         self._quiet_robots = any(node.when_published.any() for node in self.simulator_nodes)
-        self.executor = make_executor(self.hosting.executor, self.contexts[0])
+        self.executor = make_executor(self.hosting.executor, self.contexts[0], robots=self.stop - self.start)
         if isinstance(self.executor, LockstepExecutor):
             self.executor.watcher = self.guard
         self.spinning = Spinning(self.executor)

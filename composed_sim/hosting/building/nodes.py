@@ -28,7 +28,8 @@ from composed_sim.hosting.building.wiring import (answer_type, guard_publishers,
 from composed_sim.hosting.run_wide.relay import RunWideRelay
 from composed_sim.hosting.sim_time.timers import SimTimers
 from composed_sim.hosting.calls.clients import wait_during_construction
-from composed_sim.hosting.sim_time.sleeps import host_clock_sleeps, host_rates
+from composed_sim.hosting.guard.callback_guard import stop_robots_that_shut_down
+from composed_sim.hosting.sim_time.sleeps import host_clock_sleeps, host_rates, host_wall_sleeps
 from composed_sim.world.problems import format_path
 from composed_sim.world.schema import NodeSpec, RobotGroup, World
 
@@ -215,6 +216,11 @@ def construct_node(cls: type[Node], spec: NodeSpec, field: tuple, owner: str, op
 def load_classes(world: World) -> dict[str, type[Node]]:
     """Every node class the world names (robots' and run-wide), imported once, after the world's
     interface packages are built (or found built) and importable (composed_sim/interfaces/)."""
+    # Before the nodes' modules are imported (one may bind ``from time import sleep``): the calls
+    # that would act on their whole process act on their robot (hosting/sim_time/sleeps.py,
+    # hosting/guard/callback_guard.py).
+    host_wall_sleeps()
+    stop_robots_that_shut_down()
     try:
         activate(world.interfaces)
     except InterfaceError as e:

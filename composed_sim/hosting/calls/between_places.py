@@ -22,7 +22,7 @@ from __future__ import annotations
 import itertools
 import threading
 from dataclasses import dataclass
-from typing import Collection
+from typing import Collection, Optional
 
 from rclpy.serialization import deserialize_message, serialize_message
 
@@ -83,11 +83,12 @@ class CallRelay:
 
     # --- calls out ------------------------------------------------------------------------------
 
-    def call(self, origin: int, client, request, directory: ServiceDirectory) -> CallFuture:
+    def call(self, origin: int, client, request, directory: ServiceDirectory,
+             future: Optional[CallFuture] = None) -> CallFuture:
         """A client of place ``origin`` calls a service of another place: the request waits for
-        the next handover; the future completes when its response is delivered."""
+        the next handover; ``future`` (a new one if None) completes when its response is delivered."""
         call = (origin, next(self._sequence))
-        future = CallFuture(executor=directory.executor)
+        future = CallFuture(executor=directory.executor) if future is None else future
         self._pending[call] = (future, client, directory)
         self._send(Request(call, self.place_of(client.service_name), client.service_name,
                            serialize_message(request)))

@@ -24,6 +24,7 @@ from typing import Callable, Optional
 from rclpy.action import ActionClient, ActionServer
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.client import Client
+from rclpy.exceptions import InvalidHandle
 from rclpy.executors import MultiThreadedExecutor
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
@@ -194,26 +195,25 @@ class ServiceDirectory:
             wait_set = self._polled[id(entity)] = _rclpy.WaitSet(
                 counts.num_subscriptions, counts.num_guard_conditions, counts.num_timers, counts.num_clients,
                 counts.num_services, counts.num_events, executor.context.handle)
-        wait_set.clear_entities()
-        entity.add_to_wait_set(wait_set)
-        wait_set.wait(0)
-        if not entity.is_ready(wait_set):
+        try:
+            wait_set.clear_entities()
+            entity.add_to_wait_set(wait_set)
+            wait_set.wait(0)
+            if not entity.is_ready(wait_set):
+                return 0
+            data = entity.take_data()
+        except InvalidHandle:            # destroyed by a callback of this walk
             return 0
-        data = entity.take_data()
         if not data:
             return 0
-        parts = [data]
-        if isinstance(entity, ActionClient) and "feedback" in data:
-            # In its own process the client hears each feedback as it is published, while the
-            # server still runs; here the server may have finished by the time the client is
-            # polled: every feedback first, then what else came (its result).
-            parts = [{"feedback": data.pop("feedback")}]
-            while (more := entity._client_handle.take_feedback(entity._action_type.Impl.FeedbackMessage)) is not None:
-                parts.append({"feedback": more})
-            parts += [data] if data else []
-        for part in parts:
-            executor.running_group = entity.callback_group
-            executor.start_coroutine(entity.execute(part), entity.callback_group, node)
+        parts = _in_order_made(entity, data) if isinstance(entity, ActionClient) else [data]
+        group = entity.callback_group
+        executor.running_group = group
+        executor.start_coroutine(entity.execute(parts[0]), group, node)
+        for part in parts[1:]:
+            # Each after what the part before made ready (a goal's done callbacks, say): as tasks.
+            executor.scheduler.tasks.append(
+                lambda part=part: executor.start_coroutine(entity.execute(part), group, node))
         return len(parts)
 
     def _take_responses(self, client: Client, executor) -> int:
@@ -275,3 +275,17 @@ class ServiceDirectory:
                              service.send_response(response, header))
                 taken += 1
         return taken
+
+
+def _in_order_made(client: ActionClient, data: dict) -> list[dict]:
+    """What an action client took at once, in the order its own process would hear it: the goal's
+    acceptance, every feedback, then the rest (cancel, result, status). In its own process the
+    client hears each as it comes, while the server still runs; here the server may have accepted
+    the goal, sent feedback and finished by the time the client is polled."""
+    parts = [{"goal": data.pop("goal")}] if "goal" in data else []
+    if "feedback" in data:
+        parts.append({"feedback": data.pop("feedback")})
+        feedback_type = client._action_type.Impl.FeedbackMessage
+        while (more := client._client_handle.take_feedback(feedback_type)) is not None:
+            parts.append({"feedback": more})
+    return parts + ([data] if data else [])
