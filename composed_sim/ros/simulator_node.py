@@ -303,6 +303,11 @@ class SimulatorNode(Node):
         multi-threaded executor takes them on its own threads, when it gets to them)."""
         return sum(sub.dispatch_ready() for sub in self._cmd_subs if sub is not None)
 
+    def answer_later(self, robots: Collection[str], until_tick: Optional[int] = None) -> None:
+        """Robots whose nodes will publish cmd_vel later: quiet until their first answer, or
+        ``until_tick`` (ros/answer_ledger.py)."""
+        self._ledger.answer_later(robots, until_tick)
+
     def settle_idle(self, robots: Optional[Collection[str]] = None) -> int:
         """The quiet robots whose nodes are done with the open tick keep their last command
         (ros/answer_ledger.py); how many."""

@@ -118,7 +118,7 @@ def read_logs(folder: Path) -> dict[str, list[Line]]:
 def run_in(programs, tmp_path, domain_id, mp_domain):
     """``run_in(world, mode)``: the world run by the host that ``composed-sim run`` starts for the
     mode, its nodes' log lines in files as the command line writes them."""
-    from composed_sim.hosting.node_logs import WARN, Console, LogSettings, NodeLogs
+    from composed_sim.hosting import WARN, Console, LogSettings, NodeLogs
     from composed_sim.hosts.make import make_host
     from composed_sim.hosts.settings import HostSettings
     settings = {"workers 1": HostSettings(workers=1), "workers 2": HostSettings(workers=2),
@@ -241,7 +241,7 @@ def test_a_run_wide_node_finds_each_robots_parameter_services_ready(run_in, mode
     client before it sets ``speed``. A node's parameter services exist from its construction; in
     its own process they are on the ROS graph before the first /clock: ready at the first check,
     and each robot drives at its new speed from then on."""
-    run = run_in(world_of("parameters:Tunable", ticks=12, run_wide=["parameters:SpeedDispatcher"]), mode)
+    run = run_in(world_of("parameters:Tunable", ticks=16, run_wide=["parameters:SpeedDispatcher"]), mode)
     assert run.violations == []
     dispatched = run.of("dispatcher")
     assert [line.text for line in dispatched if "not ready" in line.text] == []
@@ -414,7 +414,7 @@ def test_an_action_server_that_pauses_between_feedbacks_behaves_as_in_its_own_pr
     cancels the goal; a second goal sent at once waits in the queueing server's queue. The same
     with the pause on the node's clock (``sleep_for``)."""
     server, client = ACTION_PROGRAMS[program]
-    world = world_of("driving:Drive", pacer(sleep_on, server), f"actions:{client}", ticks=14, watchdog_s=2.0)
+    world = world_of("driving:Drive", pacer(sleep_on, server), f"actions:{client}", ticks=20, watchdog_s=2.0)
     run = run_in(world, mode)
     assert run.violations == []
     assert_as_in_its_own_process(run, program)

@@ -19,6 +19,9 @@ def host_client(directory, node: Node, client: Client, origin: Optional[int]) ->
     (from its node's constructor) are sent now, completing the futures they returned."""
     executor = directory.executor
     name = client.service_name
+    relay = directory.relay
+    if relay is not None and origin is not None and relay.leaves(origin, name):
+        relay.clients_leave = True
 
     def send(request, future: Optional[CallFuture] = None):
         entry = directory.lookup(name, client.srv_type)
@@ -52,14 +55,19 @@ def host_client(directory, node: Node, client: Client, origin: Optional[int]) ->
             raise future.exception()
         return future.result()
 
-    def wait_for_service(timeout_sec: Optional[float] = None) -> bool:
-        relay = directory.relay
-        if directory.lookup(name, client.srv_type) is not None or (
-                relay is not None and origin is not None and relay.leaves(origin, name)):
+    def service_is_ready() -> bool:
+        # What its own process would see on the ROS graph: a service served here, or by another
+        # place of the run (hosting/calls/between_places.py), else through DDS. rclpy's waits
+        # (wait_for_service, AsyncParameterClient.wait_for_services) ask this.
+        if directory.lookup(name, client.srv_type) is not None:
             return True
-        return Client.wait_for_service(client, timeout_sec)
+        relay = directory.relay
+        if relay is not None and origin is not None and relay.leaves(origin, name):
+            return relay.serves(name)
+        return Client.service_is_ready(client)
 
-    client.call_async, client.call, client.wait_for_service = call_async, call, wait_for_service
+    client.call_async, client.call, client.service_is_ready = call_async, call, service_is_ready
+    client.__dict__.pop("wait_for_service", None)          # rclpy's own, polling the above
     for request, future in getattr(client, "calls_before_hosted", ()):
         future._set_executor(executor)
         send(request, future)
@@ -85,11 +93,10 @@ def wait_during_construction(node: Node, will_be_served: Callable[[str], bool]) 
 
     def hosted_create_client(srv_type, srv_name, *args, **kwargs):
         client = create_client(srv_type, srv_name, *args, **kwargs)
-        plain = client.wait_for_service
         client.calls_before_hosted = []
 
-        def wait_for_service(timeout_sec: Optional[float] = None) -> bool:
-            return will_be_served(client.service_name) or plain(timeout_sec)
+        def service_is_ready() -> bool:
+            return will_be_served(client.service_name) or Client.service_is_ready(client)
 
         def call_async(request):
             if not isinstance(request, client.srv_type.Request):
@@ -97,6 +104,6 @@ def wait_during_construction(node: Node, will_be_served: Callable[[str], bool]) 
             future = CallFuture()
             client.calls_before_hosted.append((copy_message(request), future))
             return future
-        client.wait_for_service, client.call_async = wait_for_service, call_async
+        client.service_is_ready, client.call_async = service_is_ready, call_async
         return client
     node.create_client = hosted_create_client

@@ -55,6 +55,7 @@ class ServiceDirectory:
         self._outside: Optional[set[int]] = None  # ids of the entries another process may call (None: any)
         self._polled: dict[int, object] = {}      # action servers and clients: their wait sets
         self._node_names: set[str] = set()        # the names of the nodes it serves (a run-wide node's is its own)
+        self._entries_of: dict[int, list[ServiceEntry]] = {}     # id(node) → the services it serves
         if self._walked:
             executor.services = self
 
@@ -108,7 +109,12 @@ class ServiceDirectory:
         self._served.add(id(service))
         self.executor.wake()
 
+    def served_by(self, node: Node) -> list[ServiceEntry]:
+        """The services ``node`` serves here, in the order hosted."""
+        return self._entries_of.get(id(node), [])
+
     def _add(self, entry: ServiceEntry) -> None:
+        self._entries_of.setdefault(id(entry.node), []).append(entry)
         self._node_names.add(entry.node.get_name())
         self._by_name.setdefault(entry.name, entry)
         self._entries.append(entry)

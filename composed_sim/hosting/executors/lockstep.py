@@ -103,7 +103,7 @@ class LockstepExecutor(SingleThreadedExecutor):
 
     def create_task(self, callback, *args, **kwargs) -> Task:
         """A task run by the walks, after the callback that made it, in the order made."""
-        task = HostedTask(callback, args, kwargs, executor=self, robot=self.watcher.owner())
+        task = HostedTask(callback, args, kwargs, executor=self, robot=self.watcher.owner(), node=self.running_node)
         self.scheduler.tasks.append(task)
         return task
 
@@ -111,7 +111,7 @@ class LockstepExecutor(SingleThreadedExecutor):
         """An ``async def`` callback's coroutine, run as a task of ``node``'s robot: its first step
         now; its group, if mutually exclusive, held until it is done."""
         robot = self.watcher.robot_of(node) if node is not None else self.watcher.owner()
-        task = HostedTask(coroutine, executor=self, robot=robot)
+        task = HostedTask(coroutine, executor=self, robot=robot, node=node or self.running_node)
         if isinstance(group, MutuallyExclusiveCallbackGroup):
             self._held.add(group)
             task.group = group
@@ -120,6 +120,7 @@ class LockstepExecutor(SingleThreadedExecutor):
 
     def _run_task(self, task: HostedTask, polled: bool = False) -> None:
         watcher = self.watcher
+        self.running_node = task.node
         if not watcher.task_started(task.robot):
             task.cancel()
             self._release(task.group)
@@ -192,11 +193,12 @@ class LockstepExecutor(SingleThreadedExecutor):
         hold = isinstance(group, MutuallyExclusiveCallbackGroup) and group not in self._held
         if hold:
             self._held.add(group)
-        state = self.watcher.set_aside()
+        state, node = self.watcher.set_aside(), self.running_node
         try:
             self.scheduler.wait(future)
         finally:
             self.watcher.take_back(state)
+            self.running_node = node             # resumed: the callback's node again
             if hold:
                 self._release(group)
 

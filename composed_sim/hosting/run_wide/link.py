@@ -39,16 +39,17 @@ def outbox_topic(robot: str) -> str:
 
 
 def pack(stamp_ns: int, messages: list[Message], answered: bool = False, logs: tuple = (), calls=(),
-         final: bool = True) -> UInt8MultiArray:
+         final: bool = True, answer_type: Optional[str] = None) -> UInt8MultiArray:
     """``answered``: a robot's part says whether its nodes published cmd_vel in the tick; ``logs``:
     what its log lines give the simulator's console and /rosout (``NodeLogs.drain``); ``calls``: a
     robot's calls, or the simulator's for each robot ({index: calls}); ``final``: the robot's last
-    part of the tick (else its reply to calls)."""
-    return UInt8MultiArray(data=array("B", pickle.dumps((stamp_ns, messages, answered, logs, calls, final),
+    part of the tick (else its reply to calls); ``answer_type``: the type of a cmd_vel publisher
+    its nodes made in the tick, the first the robot has (the simulator subscribes then)."""
+    return UInt8MultiArray(data=array("B", pickle.dumps((stamp_ns, messages, answered, logs, calls, final, answer_type),
                                                         protocol=pickle.HIGHEST_PROTOCOL)))
 
 
-def unpack(msg: UInt8MultiArray) -> tuple[int, list[Message], bool, tuple, object, bool]:
+def unpack(msg: UInt8MultiArray) -> tuple[int, list[Message], bool, tuple, object, bool, Optional[str]]:
     return pickle.loads(bytes(msg.data))
 
 
@@ -76,6 +77,7 @@ class RunWideLink:
         self.tick = -1              # stamp of the last tick whose sensors arrived
         self.sent = -1              # stamp of the last tick whose messages went out
         self.answered = -1          # stamp of the last tick the robot's nodes published cmd_vel in
+        self.answer_type: Optional[str] = None      # a first cmd_vel publisher's type, to tell the simulator
         # Where delivered messages' callbacks run: the lockstep executor's ``run_callback`` (as
         # tasks, their callback groups respected), else at once.
         self.run_callback: Optional[Callable[[Callable, object], None]] = None
@@ -117,14 +119,15 @@ class RunWideLink:
     def _handle(self, msg) -> bool:
         """A batch or a round message of the simulator: its run-wide messages (a batch's) and the
         calls for this robot delivered; True if it brought calls (to be replied to)."""
-        stamp, batch, _, _, calls, final = unpack(msg)
+        stamp, batch, _, _, calls, final, _ = unpack(msg)
         if final:                    # a tick's batch (a round message carries calls only)
             self._relay.deliver(batch, run=self.run_callback)
             self.delivered = max(self.delivered, stamp)
-        mine = calls.get(self._index, []) if calls else []
+        # Its own calls, and what is for every process (what the run's places serve).
+        mine = [*calls.get(None, ()), *calls.get(self._index, ())] if calls else []
         if mine and self._calls is not None:
             self._calls.deliver(mine)
-        return bool(mine)
+        return bool(calls) and self._index in calls      # to be replied to
 
     def _on_batch(self, msg) -> None:
         if self._handle(msg):
@@ -141,7 +144,9 @@ class RunWideLink:
         """What the robot's nodes published in the tick of the last sensors, to the simulator."""
         logs = self._logs.drain() if self._logs is not None else ()
         calls = self._calls.take_outbox() if self._calls is not None else []
-        self._outbox.publish(pack(self.tick, self._relay.take_outbox(), self.answered == self.tick, logs, calls))
+        answer_type, self.answer_type = self.answer_type, None
+        self._outbox.publish(pack(self.tick, self._relay.take_outbox(), self.answered == self.tick, logs, calls,
+                                  answer_type=answer_type))
         self.sent = self.tick
 
     def send_logs(self) -> None:
@@ -173,6 +178,7 @@ class SimulatorLink:
         self.answered: set[int] = set()               # … of which those that published cmd_vel in it
         self.calls: list = []                         # the calls the robots made (in parts and replies)
         self.replied: set[int] = set()                # robots that replied to the calls they were sent
+        self.answer_types: dict[int, str] = {}        # robots whose first cmd_vel publisher came since: its type
 
     def add_robot(self, index: int, robot: str, topics: Collection[str]) -> dict[str, object]:
         """A controller process reported its link's topics: its endpoints on this side, by topic
@@ -213,8 +219,10 @@ class SimulatorLink:
                     taken = sub.handle.take_message(UInt8MultiArray, False)
                 if taken is None:
                     break
-                stamp, messages, answered, logs, calls, final = unpack(taken[0])
+                stamp, messages, answered, logs, calls, final, answer_type = unpack(taken[0])
                 self._merge_logs(logs)
+                if answer_type is not None:
+                    self.answer_types[index] = answer_type
                 self.calls += calls
                 if not final:                       # a reply to calls
                     self.replied.add(index)

@@ -16,6 +16,7 @@ whole host instead. So the callback is set aside for that long on the node's clo
 """
 from __future__ import annotations
 
+import sys
 import time
 from typing import Callable, Optional
 
@@ -123,9 +124,11 @@ def _sleep(seconds: float) -> None:
         return _wall_sleep(seconds)
     if not getattr(executor, "said_sleeps", False):
         executor.said_sleeps = True
-        node.get_logger().warning(
-            f"a callback called time.sleep({seconds:g}): hosted, it is set aside for that long on the run's "
-            f"clock while the other callbacks run, as its own process's other threads would run them "
-            f"(docs/contract.md, \"Timeouts and sleeps\")")
+        logger = node.get_logger()
+        text = (f"a callback of {logger.name} called time.sleep({seconds:g}): hosted, a callback that sleeps is "
+                f"set aside for that long on the run's clock while the others run, as its own process's other "
+                f"threads would run them (docs/contract.md, \"Timeouts and sleeps\")")
+        (logger.host_note if hasattr(logger, "host_note") else lambda line: print(f"composed-sim: {line}",
+                                                                                     file=sys.stderr))(text)
     future = Future()
     wait_on_clock(node, executor, future, executor.group_of_caller(), seconds, lambda: future.set_result(None))

@@ -5,9 +5,9 @@ from __future__ import annotations
 import time
 from typing import Callable, Optional
 
-from composed_sim.hosting import (CallRelay, handover_order, NodesExchange, Request, RunWideNodes, RunWideRelay,
+from composed_sim.hosting import (CallRelay, handover_order, NodesExchange, RunWideNodes, RunWideRelay,
                                   SimulatorLink)
-from composed_sim.ros.simulator_node import SimulatorNode
+from composed_sim.ros.simulator_node import AnswerTypeError, SimulatorNode
 from composed_sim.world.schema import World
 
 
@@ -80,12 +80,15 @@ class LinkedExchange(NodesExchange):
 
     def _route(self, items: list) -> dict[int, dict[int, list]]:
         """Calls for robots, by domain and robot index; the run-wide nodes' own delivered here."""
-        routed: dict[int, dict[int, list]] = {}
+        routed: dict[int, dict[Optional[int], list]] = {}
         for item in handover_order(items):
-            place = item.place if isinstance(item, Request) else item.call[0]
-            if place < 0:
+            place = item.destination
+            if place is None or place < 0:
                 self._run_wide.calls.deliver([item])
-            else:
+            if place is None:              # for every process: each domain's robots read it (key None)
+                for domain in self._run_wide.links:
+                    routed.setdefault(domain, {}).setdefault(None, []).append(item)
+            elif place >= 0:
                 routed.setdefault(self._domains[self._names[place]], {}).setdefault(place, []).append(item)
         return routed
 
@@ -97,7 +100,7 @@ class LinkedExchange(NodesExchange):
         while True:
             deadline = time.monotonic() + self._round_timeout_s
             for domain, calls in sent.items():
-                waiting = [i for i in calls if not self._failed(i)]
+                waiting = [i for i in calls if i is not None and not self._failed(i)]
                 while waiting and time.monotonic() < deadline:
                     links[domain].take(self._stamp, waiting, replies=True)
                     waiting = [i for i in waiting if i not in links[domain].replied]
@@ -114,7 +117,7 @@ class LinkedExchange(NodesExchange):
                 links[domain].publish_calls(self._stamp, calls)
 
     def _run_wide_bound(self, item) -> bool:
-        return (item.place if isinstance(item, Request) else item.call[0]) < 0
+        return item.destination is not None and item.destination < 0
 
     def _route_run_wide(self, made: list) -> None:
         """The calls for the run-wide nodes, handed to them; they run until idle."""
@@ -167,4 +170,23 @@ class LinkedExchange(NodesExchange):
             # A robot failed in the tick may have sent its last part (its last log lines) as it ended.
             link.take(self._stamp, [i for i in link.senders if self._failed(i)])
             sent.update(link.collect())
+            self._subscribe_later_answers(link)
         self._batch = self._run_wide.batch(self._tick + 1, sent)
+
+    def _subscribe_later_answers(self, link) -> None:
+        """Robots whose nodes made their first cmd_vel publisher in the tick (a lifecycle node
+        configured): their answers subscribed to with its type, matched before the next tick's
+        sensors go out, so that their first answer is taken as in one process."""
+        new, link.answer_types = link.answer_types, {}
+        for index, type_name in new.items():
+            name = self._names[index]
+            node = self._by_domain[self._domains[name]]
+            try:
+                node.take_answers_as(name, type_name)
+            except AnswerTypeError as e:
+                node.mark_failed(name, f"controller failed: {e}")
+                continue
+            subscription = node.answer_subscription(name)
+            deadline = time.monotonic() + self._round_timeout_s * 5
+            while subscription.get_publisher_count() < 1 and time.monotonic() < deadline:
+                time.sleep(0.001)
