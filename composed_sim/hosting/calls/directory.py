@@ -56,6 +56,7 @@ class ServiceDirectory:
         self._polled: dict[int, object] = {}      # action servers and clients: their wait sets
         self._node_names: set[str] = set()        # the names of the nodes it serves (a run-wide node's is its own)
         self._entries_of: dict[int, list[ServiceEntry]] = {}     # id(node) → the services it serves
+        self._action_servers: set[str] = set()    # the resolved names of the action servers polled here
         if self._walked:
             executor.services = self
 
@@ -172,6 +173,8 @@ class ServiceDirectory:
         self._polled[id(waitable)] = None
         if isinstance(waitable, ActionClient):
             self._host_action_client(node, waitable)
+        else:
+            self._action_servers.add(node.resolve_service_name(waitable._action_name))
         self.executor.wake()
 
     def _host_action_client(self, node: Node, client: ActionClient) -> None:
@@ -189,6 +192,10 @@ class ServiceDirectory:
         client.send_goal = blocking(client.send_goal_async, client.send_goal, "send_goal")
         client._get_result = blocking(client._get_result_async, client._get_result, "get_result")
         client._cancel_goal = blocking(client._cancel_goal_async, client._cancel_goal, "cancel_goal")
+        # Ready as its own process would find it once discovered: at once for a server of this
+        # executor's nodes (rclpy's wait_for_server asks this).
+        resolved = node.resolve_service_name(name)
+        client.server_is_ready = lambda: resolved in directory._action_servers or ActionClient.server_is_ready(client)
 
     def poll(self, entity, node: Node, executor) -> int:
         """Take what is ready for a polled entity (an action server or client, or a client with

@@ -93,8 +93,8 @@ def host_clock_sleeps(node: Node) -> None:
 
     def sleep_until(until: Time, context=None) -> bool:
         executor = _executor_that_can_wait(node)
-        if executor is None:
-            return plain_until(until, context)
+        if executor is None:        # rclpy's wait, in the node's context (its process's default)
+            return plain_until(until, context or node.context)
         left_ns = until.nanoseconds - clock.now().nanoseconds
         if left_ns > 0:
             future = Future()
