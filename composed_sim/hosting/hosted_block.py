@@ -50,11 +50,12 @@ class HostedBlock:
             calls.serve(places, self.directory)
         self._relay, self._guard = relay, guard
         self._node_info: dict[int, tuple[Optional[str], int, object]] = {}   # id(node) → robot, place, simulator
-        self._publishers: dict[int, set[int]] = {}                          # id(node) → ids of its publishers seen
+        self._seen: dict[int, set[int]] = {}              # id(node) → ids of its publishers and subscriptions seen
         self._outside: Optional[OutsideCalls] = None
-        # Told of each cmd_vel publisher a robot's node makes after it was adopted (a lifecycle
-        # node's, in a transition): where the simulator is in another process, it must hear of it.
-        self.on_answer_publishers: Optional[Callable[[str, list], None]] = None
+        # Told of the publishers and subscriptions a robot's node makes after it was adopted (a
+        # lifecycle node's, in a transition): where the simulator is in another process, it must
+        # hear of a new cmd_vel publisher, or of a new reader of the robot's sensors.
+        self.on_new_endpoints: Optional[Callable[[str, list, list], None]] = None
         if hasattr(executor, "on_entities_changed"):      # the lockstep executor tells
             executor.on_entities_changed = self.host_new
 
@@ -65,7 +66,7 @@ class HostedBlock:
         ``place``: the robot's index in the run, or RUN_WIDE_ORIGIN; ``simulator``: the simulator
         node that serves the robot)."""
         self._node_info[id(node)] = (robot, place, simulator)
-        self._publishers[id(node)] = {id(p) for p in node.publishers}
+        self._seen[id(node)] = {id(e) for e in (*node.publishers, *node.subscriptions)}
         if self._guard is not None and robot is not None:
             self._guard.guard(node, robot, simulator, self._relayed(node))
         self._host(node, place)
@@ -83,7 +84,7 @@ class HostedBlock:
         self._host(node, place)
         self._announce(node, place)
         if robot is not None:
-            self._note_answers(node, robot, simulator)
+            self._note_endpoints(node, robot, simulator)
 
     def _relayed(self, node: Node) -> list:
         return self._relay.subscriptions_of(node) if self._relay is not None else []
@@ -105,14 +106,16 @@ class HostedBlock:
             self._calls.announce([(place, entry.name, service_type_name(entry.srv_type))
                                   for entry in self.directory.served_by(node)])
 
-    def _note_answers(self, node: Node, robot: str, simulator) -> None:
-        """A new publisher on the robot's cmd_vel: the simulator takes its answers."""
-        seen = self._publishers[id(node)]
-        new = [p for p in node.publishers if id(p) not in seen]
-        seen.update(id(p) for p in new)
-        answers = [p for p in new if p.topic_name == c.topic_name(robot, c.CMD_VEL)]
-        if answers and self.on_answer_publishers is not None:
-            self.on_answer_publishers(robot, answers)
+    def _note_endpoints(self, node: Node, robot: str, simulator) -> None:
+        """New publishers and subscriptions of a robot's node; a new publisher on its cmd_vel: the
+        simulator takes its answers."""
+        seen = self._seen[id(node)]
+        publishers = [p for p in node.publishers if id(p) not in seen]
+        subscriptions = [s for s in node.subscriptions if id(s) not in seen]
+        seen.update(id(e) for e in (*publishers, *subscriptions))
+        if (publishers or subscriptions) and self.on_new_endpoints is not None:
+            self.on_new_endpoints(robot, publishers, subscriptions)
+        answers = [p for p in publishers if p.topic_name == c.topic_name(robot, c.CMD_VEL)]
         if simulator is None or not answers:
             return
         try:

@@ -391,6 +391,14 @@ class SimulatorNode(Node):
     def answered_count(self) -> int:
         return self._ledger.answered_count
 
+    def take_carried_answer(self, robot: str, data: bytes) -> None:
+        """An answer that came another way than its subscription: a controller process's first,
+        published before this node subscribed (its type was not known yet), carried with the
+        robot's part of the tick (hosting/run_wide/link.py)."""
+        i = self._index[robot]
+        on_answer = self._on_cmd_vel if self._answer_types[i] is c.msg_type(c.CMD_VEL) else self._on_unstamped_cmd_vel
+        on_answer(i, data, None)
+
     def _on_unstamped_cmd_vel(self, i: int, data: bytes, gid: bytes) -> None:
         """A Twist answers the tick whose sensors it follows: the open one. One that arrives while
         no tick is open answers a tick already closed (whose miss is recorded): it is dropped."""

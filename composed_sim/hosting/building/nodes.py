@@ -27,6 +27,7 @@ from composed_sim.hosting.building.wiring import answer_rule, answer_type, guard
 from composed_sim.hosting.run_wide.relay import RunWideRelay
 from composed_sim.hosting.sim_time.timers import SimTimers
 from composed_sim.hosting.calls.clients import wait_during_construction
+from composed_sim.hosting.calls.directory import remember_action_server_names
 from composed_sim.hosting.guard.callback_guard import stop_robots_that_shut_down
 from composed_sim.hosting.sim_time.sleeps import host_clock_sleeps, host_rates, host_wall_sleeps
 from composed_sim.world.problems import format_path
@@ -224,6 +225,7 @@ def load_classes(world: World) -> dict[str, type[Node]]:
     # hosting/guard/callback_guard.py).
     host_wall_sleeps()
     stop_robots_that_shut_down()
+    remember_action_server_names()
     try:
         activate(world.interfaces)
     except InterfaceError as e:

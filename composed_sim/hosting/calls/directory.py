@@ -173,8 +173,8 @@ class ServiceDirectory:
         self._polled[id(waitable)] = None
         if isinstance(waitable, ActionClient):
             self._host_action_client(node, waitable)
-        else:
-            self._action_servers.add(node.resolve_service_name(waitable._action_name))
+        elif getattr(waitable, "hosted_name", None) is not None:
+            self._action_servers.add(node.resolve_service_name(waitable.hosted_name))
         self.executor.wake()
 
     def _host_action_client(self, node: Node, client: ActionClient) -> None:
@@ -302,3 +302,17 @@ def _in_order_made(client: ActionClient, data: dict) -> list[dict]:
         while (more := client._client_handle.take_feedback(feedback_type)) is not None:
             parts.append({"feedback": more})
     return parts + ([data] if data else [])
+
+
+def remember_action_server_names() -> None:
+    """rclpy's ``ActionServer`` keeps no name (its client does): each remembers it as
+    ``hosted_name``, so that a client of the same executor finds it ready (``server_is_ready``)."""
+    init = ActionServer.__init__
+    if getattr(init, "remembers", False):
+        return
+
+    def remembering(self, node, action_type, action_name, *args, **kwargs):
+        self.hosted_name = action_name
+        init(self, node, action_type, action_name, *args, **kwargs)
+    remembering.remembers = True
+    ActionServer.__init__ = remembering

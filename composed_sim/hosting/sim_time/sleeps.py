@@ -13,6 +13,8 @@ callback would hold one thread of the executor for that long while the others go
 node's other callbacks: an action server's cancel, the next goal) and, on sim time at real-time
 pace, see the world move on by as much. Hosted by the hundred in one thread, it would hold up the
 whole host instead. So the callback is set aside for that long on the node's clock, said once.
+rclpy's own polling sleeps (``wait_for_service``, ``wait_for_server``) stay on the wall clock, as
+in any process: they poll the ROS graph, on which what the run serves is there at once.
 """
 from __future__ import annotations
 
@@ -119,6 +121,10 @@ def host_wall_sleeps() -> None:
 def _sleep(seconds: float) -> None:
     scheduler = getattr(getcurrent(), "scheduler", None)      # the walk's (hosting/executors/scheduler.py)
     executor = scheduler.owner if scheduler is not None else None
+    if executor is not None and sys._getframe(1).f_globals.get("__name__", "").startswith("rclpy"):
+        # rclpy's own polling (wait_for_service, wait_for_server): its process would poll the ROS
+        # graph in wall time, and so does the host (what the run serves is ready at once).
+        return _wall_sleep(seconds)
     node = None if executor is None else executor.running_node or next(iter(executor.get_nodes()), None)
     if node is None or not seconds > 0:
         return _wall_sleep(seconds)

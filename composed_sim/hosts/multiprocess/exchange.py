@@ -109,6 +109,8 @@ class LinkedExchange(NodesExchange):
             made = [item for link in links.values() for item in link.calls]
             for link in links.values():
                 link.calls = []
+                if link.notes:             # what a call made (a configure's subscriptions, say)
+                    self._take_notes(link)
             self._route_run_wide(made)
             sent = self._route(self._run_wide.calls.take_outbox() + [i for i in made if not self._run_wide_bound(i)])
             if not sent:
@@ -138,6 +140,8 @@ class LinkedExchange(NodesExchange):
             for link in self._run_wide.links.values():
                 pending = [i for i in link.senders if not link.done(i) and not self._failed(i)]
                 link.take(self._stamp, pending)
+                if link.notes:
+                    self._take_notes(link)
                 for i in pending:
                     if not link.done(i):
                         waiting = True
@@ -170,23 +174,38 @@ class LinkedExchange(NodesExchange):
             # A robot failed in the tick may have sent its last part (its last log lines) as it ended.
             link.take(self._stamp, [i for i in link.senders if self._failed(i)])
             sent.update(link.collect())
-            self._subscribe_later_answers(link)
         self._batch = self._run_wide.batch(self._tick + 1, sent)
 
-    def _subscribe_later_answers(self, link) -> None:
-        """Robots whose nodes made their first cmd_vel publisher in the tick (a lifecycle node
-        configured): their answers subscribed to with its type, matched before the next tick's
-        sensors go out, so that their first answer is taken as in one process."""
-        new, link.answer_types = link.answer_types, {}
-        for index, type_name in new.items():
+    def _take_notes(self, link) -> None:
+        """What robots' nodes made since they started, as their parts and replies said
+        (hosting/run_wide/link.py): a first cmd_vel publisher (a lifecycle node configured) is
+        subscribed to with its type, and its first answer, published before, taken now; the
+        simulator's publishers of sensors that new subscriptions read wait until those are
+        matched. So that the next sensors and answers go as in one process."""
+        notes, link.notes = link.notes, {}
+        deadline = time.monotonic() + self._round_timeout_s * 5
+        for index, parts in notes.items():
             name = self._names[index]
             node = self._by_domain[self._domains[name]]
-            try:
-                node.take_answers_as(name, type_name)
-            except AnswerTypeError as e:
-                node.mark_failed(name, f"controller failed: {e}")
-                continue
-            subscription = node.answer_subscription(name)
-            deadline = time.monotonic() + self._round_timeout_s * 5
-            while subscription.get_publisher_count() < 1 and time.monotonic() < deadline:
-                time.sleep(0.001)
+            for part in parts:
+                if "answer" in part:
+                    self._subscribe_later_answers(node, name, *part["answer"])
+                endpoints = node.endpoints_by_topic() if part.get("reads") else {}
+                for topic, count in part.get("reads", {}).items():
+                    publisher = endpoints.get(topic)
+                    while publisher is not None and publisher.get_subscription_count() < count \
+                            and time.monotonic() < deadline:
+                        time.sleep(0.001)
+
+    def _subscribe_later_answers(self, node, name: str, type_name: str, answer) -> None:
+        try:
+            node.take_answers_as(name, type_name)
+        except AnswerTypeError as e:
+            node.mark_failed(name, f"controller failed: {e}")
+            return
+        if answer is not None:
+            node.take_carried_answer(name, answer)
+        subscription = node.answer_subscription(name)
+        deadline = time.monotonic() + self._round_timeout_s * 5
+        while subscription.get_publisher_count() < 1 and time.monotonic() < deadline:
+            time.sleep(0.001)

@@ -100,6 +100,7 @@ class HostedRobot:
         # timers of its nodes that read no sensors moved to the tick's time.
         sensors = {c.topic_name(robot, t) for t in c.SENSOR_TOPICS}
         read = [s for n in self.nodes for s in n.subscriptions if s.topic_name in sensors]
+        self._tick_timers = built.tick_timers
         before_each_tick(read, lambda stamp: self._starting_tick(stamp, built.tick_timers))
         if self.link is not None and (not read or built.answers_later):
             # Nothing it reads yet marks a tick's start (its sensor subscriptions may come later):
@@ -114,18 +115,29 @@ class HostedRobot:
         # Its nodes hosted as in the composed host (hosting/hosted_block.py).
         self.block = HostedBlock(self.spinning.executor, calls=self.calls, places=[place], relay=relay)
         if self.link is not None:
-            self.block.on_answer_publishers = self._answer_publishers
+            self.block.on_new_endpoints = self._new_endpoints
         for node in self.nodes:
             self.block.adopt(node, robot, place)
         self.block.watch_outside_calls(names, graph_of=self.nodes[0])
         return True
 
-    def _answer_publishers(self, robot: str, publishers: list) -> None:
-        """Its nodes made cmd_vel publishers (a lifecycle node configured): the link notes their
-        answers and, for the robot's first, tells the simulator their type to subscribe with."""
-        self.link.watch_answers(publishers)
-        if self.answers_later and self.link.answer_type is None:
-            self.link.answer_type = c.type_name(publishers[0].msg_type)
+    def _new_endpoints(self, robot: str, publishers: list, subscriptions: list) -> None:
+        """Its nodes made publishers or subscriptions after start-up (a lifecycle node configured):
+        the link notes a cmd_vel publisher's answers and, for the robot's first, tells the
+        simulator its type to subscribe with; and tells it of new readers of the robot's sensors,
+        which the simulator's publishers must match before they publish (or DDS would drop what
+        they publish meanwhile)."""
+        answers = [p for p in publishers if p.topic_name == c.topic_name(robot, c.CMD_VEL)]
+        if answers:
+            self.link.watch_answers(answers)
+            if self.answers_later and self.link.answer_type is None:
+                self.link.answer_type = c.type_name(answers[0].msg_type)
+        sensors = {c.topic_name(robot, t) for t in c.SENSOR_TOPICS}
+        reading = [s for s in subscriptions if s.topic_name in sensors]
+        # A tick starts at its first reading, whichever comes first of /clock and the sensors.
+        before_each_tick(reading, lambda stamp: self._starting_tick(stamp, self._tick_timers))
+        for topic in {s.topic_name for s in reading}:
+            self.link.reads[topic] = sum(s.topic_name == topic for n in self.nodes for s in n.subscriptions)
 
     def _starting_tick(self, stamp: int, tick_timers) -> None:
         for timers in tick_timers:
