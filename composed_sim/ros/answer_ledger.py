@@ -187,14 +187,9 @@ class AnswerLedger:
         with self.lock:
             if self.current_key < 0:
                 return 0
-            if robots is None:
-                rows = np.flatnonzero(self.when_published & ~self.answered & ~self.failed)
-            else:
-                # … and those with no cmd_vel publisher yet, which no callback of theirs may answer
-                # (a lifecycle node not active has none to run).
-                silent = {int(i) for i in np.flatnonzero(self.later & np.isinf(self._later_until))}
-                rows = [i for i in sorted({self._index[r] for r in robots} | silent)
-                        if self.when_published[i] and not self.answered[i] and not self.failed[i]]
+            rows = np.flatnonzero(self.when_published & ~self.answered & ~self.failed) if robots is None \
+                else [i for i in (self._index[r] for r in robots)
+                      if self.when_published[i] and not self.answered[i] and not self.failed[i]]
             for i in rows:
                 self._settle(i)
                 self._last_accepted_s[i] = time.monotonic()     # quiet by design, not unresponsive

@@ -103,7 +103,8 @@ def test_timer_slower_than_the_tick_answers_every_kth_tick_without_violations(st
     undeclared = with_timer(load_world(FLOCKING, robots=3, ticks=6, seed=2), 0.2)
     undeclared = undeclared.model_copy(update={"lockstep": Lockstep(watchdog_s=2.0)})
     result = composed(undeclared, domain_id)
-    assert sorted({v.tick for v in result.violations}) == [1, 3, 5]
+    # (ticks 0 and 1 come before its timer first fires: it had no chance to answer them)
+    assert sorted({v.tick for v in result.violations}) == [3, 5]
     assert "set answers_every_ticks: 2" in capfd.readouterr().err
 
 

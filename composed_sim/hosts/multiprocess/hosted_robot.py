@@ -49,6 +49,8 @@ class HostedRobot:
         self.nodes: list = []
         self.answers_later = False          # no cmd_vel publisher yet (hosting/building/wiring.answer_rule)
         self.first_timer_tick = 0           # before it, its timers have not fired (BuiltNodes)
+        self._reads_sensors = False         # do its nodes read its sensors (which then mark a tick's start)?
+        self._tick_timers: list = []
         self.link: Optional[RunWideLink] = None
         self.spinning: Optional[Spinning] = None
         self.block: Optional[HostedBlock] = None
@@ -102,11 +104,13 @@ class HostedRobot:
         read = [s for n in self.nodes for s in n.subscriptions if s.topic_name in sensors]
         self._tick_timers = built.tick_timers
         before_each_tick(read, lambda stamp: self._starting_tick(stamp, built.tick_timers))
+        self._reads_sensors = bool(read)
         if self.link is not None and (not read or built.answers_later):
-            # Nothing it reads yet marks a tick's start (its sensor subscriptions may come later):
-            # /clock does, on the link's node, which the executor walks first.
-            self.link.node.create_subscription(c.CLOCK_TYPE, c.CLOCK_TOPIC, lambda msg: self._starting_tick(
-                RosTime.from_msg(msg.clock).nanoseconds, built.tick_timers), 10)
+            # While nothing it reads marks a tick's start (its sensor subscriptions may come
+            # later), /clock does, on the link's node, which the executor walks first. Once it
+            # reads its sensors they do: its part of the tick then waits for them.
+            self.link.node.create_subscription(c.CLOCK_TYPE, c.CLOCK_TOPIC, lambda msg: self._reads_sensors or (
+                self._starting_tick(RosTime.from_msg(msg.clock).nanoseconds, built.tick_timers)), 10)
         self.spinning = Spinning(make_executor(self.hosting.executor, self.context))
         if self.link is not None and isinstance(self.spinning.executor, LockstepExecutor):
             self.link.run_callback = self.spinning.executor.run_callback
@@ -134,8 +138,8 @@ class HostedRobot:
                 self.link.answer_type = c.type_name(answers[0].msg_type)
         sensors = {c.topic_name(robot, t) for t in c.SENSOR_TOPICS}
         reading = [s for s in subscriptions if s.topic_name in sensors]
-        # A tick starts at its first reading, whichever comes first of /clock and the sensors.
         before_each_tick(reading, lambda stamp: self._starting_tick(stamp, self._tick_timers))
+        self._reads_sensors = self._reads_sensors or bool(reading)
         for topic in {s.topic_name for s in reading}:
             self.link.reads[topic] = sum(s.topic_name == topic for n in self.nodes for s in n.subscriptions)
 
