@@ -26,6 +26,7 @@ from composed_sim.hosting import ContractViolation
 from composed_sim.hosting.guard.callback_guard import CallbackGuard
 from composed_sim.hosting.calls.outside import OutsideCalls
 from composed_sim.hosting.calls.parameters import HostedParameterServices
+from composed_sim.hosting.calls.between_places import service_type_name
 from composed_sim.hosting.calls.directory import ServiceDirectory
 from composed_sim.ros import contract as c
 from composed_sim.ros.answer_subscription import cmd_vel_gids
@@ -44,12 +45,17 @@ class HostedBlock:
                  guard: Optional[CallbackGuard] = None):
         self.executor = executor
         self.directory = ServiceDirectory(executor, relay=calls)
+        self._calls = calls
         if calls is not None:
             calls.serve(places, self.directory)
         self._relay, self._guard = relay, guard
         self._node_info: dict[int, tuple[Optional[str], int, object]] = {}   # id(node) → robot, place, simulator
-        self._publishers: dict[int, set[int]] = {}                          # id(node) → ids of its publishers seen
+        self._seen: dict[int, set[int]] = {}              # id(node) → ids of its publishers and subscriptions seen
         self._outside: Optional[OutsideCalls] = None
+        # Told of the publishers and subscriptions a robot's node makes after it was adopted (a
+        # lifecycle node's, in a transition): where the simulator is in another process, it must
+        # hear of a new cmd_vel publisher, or of a new reader of the robot's sensors.
+        self.on_new_endpoints: Optional[Callable[[str, list, list], None]] = None
         if hasattr(executor, "on_entities_changed"):      # the lockstep executor tells
             executor.on_entities_changed = self.host_new
 
@@ -60,11 +66,12 @@ class HostedBlock:
         ``place``: the robot's index in the run, or RUN_WIDE_ORIGIN; ``simulator``: the simulator
         node that serves the robot)."""
         self._node_info[id(node)] = (robot, place, simulator)
-        self._publishers[id(node)] = {id(p) for p in node.publishers}
+        self._seen[id(node)] = {id(e) for e in (*node.publishers, *node.subscriptions)}
         if self._guard is not None and robot is not None:
             self._guard.guard(node, robot, simulator, self._relayed(node))
         self._host(node, place)
         HostedParameterServices(node, self.directory)      # kept by its services
+        self._announce(node, place)
 
     def host_new(self, node: Node) -> None:
         """``node`` created or destroyed entities since it was last looked at."""
@@ -75,8 +82,9 @@ class HostedBlock:
         if self._guard is not None and robot is not None:
             self._guard.guard_new(node, self._relayed(node))
         self._host(node, place)
+        self._announce(node, place)
         if robot is not None:
-            self._note_answers(node, robot, simulator)
+            self._note_endpoints(node, robot, simulator)
 
     def _relayed(self, node: Node) -> list:
         return self._relay.subscriptions_of(node) if self._relay is not None else []
@@ -91,12 +99,23 @@ class HostedBlock:
             if directory.is_action(waitable):
                 directory.host_action(node, waitable)
 
-    def _note_answers(self, node: Node, robot: str, simulator) -> None:
-        """A new publisher on the robot's cmd_vel: the simulator takes its answers."""
-        seen = self._publishers[id(node)]
-        new = [p for p in node.publishers if id(p) not in seen]
-        seen.update(id(p) for p in new)
-        answers = [p for p in new if p.topic_name == c.topic_name(robot, c.CMD_VEL)]
+    def _announce(self, node: Node, place: int) -> None:
+        """The node's services, on the run's graph of calls between places: a client of another
+        place (another process, maybe) finds them ready, as its own process would on the ROS graph."""
+        if self._calls is not None:
+            self._calls.announce([(place, entry.name, service_type_name(entry.srv_type))
+                                  for entry in self.directory.served_by(node)])
+
+    def _note_endpoints(self, node: Node, robot: str, simulator) -> None:
+        """New publishers and subscriptions of a robot's node; a new publisher on its cmd_vel: the
+        simulator takes its answers."""
+        seen = self._seen[id(node)]
+        publishers = [p for p in node.publishers if id(p) not in seen]
+        subscriptions = [s for s in node.subscriptions if id(s) not in seen]
+        seen.update(id(e) for e in (*publishers, *subscriptions))
+        if (publishers or subscriptions) and self.on_new_endpoints is not None:
+            self.on_new_endpoints(robot, publishers, subscriptions)
+        answers = [p for p in publishers if p.topic_name == c.topic_name(robot, c.CMD_VEL)]
         if simulator is None or not answers:
             return
         try:

@@ -31,10 +31,9 @@ from composed_sim.hosting.process_hosting import ROBOTS_PER_PARTICIPANT, Process
 from composed_sim.hosting import HostError
 from composed_sim.hosting.building.nodes import SetupWarnings, create_robot_nodes, load_classes
 from composed_sim.hosting.run_wide_nodes import create_run_wide_nodes
-from composed_sim.hosting.building.wiring import answer_type, robot_wiring_problem
+from composed_sim.hosting.building.wiring import answer_type
 from composed_sim.hosting.hosted_block import HostedBlock
 from composed_sim.hosting.executors.tick_serving import TickServing
-from composed_sim.hosting.building.lifecycle import state_label
 from composed_sim.hosting.executors.running import (SETTLE_ROUNDS, Spinning, check_executor, make_executor,
                                                    refuse_coroutines_for_events)
 from composed_sim.hosting.guard.node_logs import NodeLogs
@@ -91,9 +90,10 @@ class ParticipantGroups(TickServing):
         self._robot_set = frozenset(world.robot_names())
         self.calls = CallRelay(world.robot_names())          # service calls between places (robots, run-wide)
         self.block: Optional[HostedBlock] = None            # how their nodes are hosted
-        # Robots with lifecycle nodes not active when built: (robot, its group, its nodes), their
-        # wiring checked once the tick-0 transitions had their chance (``_check_activated``).
-        self._inactive: list[tuple[str, int, list[Node]]] = []
+        # Robots whose nodes publish no cmd_vel yet (building/wiring.answer_rule): they keep their
+        # last command until their first answer.
+        self.answers_later: list[str] = []
+        self._first_timer_ticks: dict[str, int] = {}      # robots answering from timers: when they first may
         # Where a round of calls between places goes when this block is one of several processes
         # (a worker: hosting/calls/rounds.py): given the calls made here, the calls for here, or
         # None once the run is quiet everywhere. None: every place is in this process.
@@ -141,7 +141,7 @@ class ParticipantGroups(TickServing):
                               classes, warnings)
         self.exchange = NodesExchange(self.simulator_nodes, node_time=self.node_time)
         self._quiet_robots = any(node.when_published.any() for node in self.simulator_nodes)
-        self.executor = make_executor(self.hosting.executor, self.contexts[0])
+        self.executor = make_executor(self.hosting.executor, self.contexts[0], robots=self.stop - self.start)
         if isinstance(self.executor, LockstepExecutor):
             self.executor.watcher = self.guard
         self.spinning = Spinning(self.executor)
@@ -184,8 +184,10 @@ class ParticipantGroups(TickServing):
             self.robot_nodes.append(built.nodes)
             self.controllers += built.nodes
             self._tick_timers += built.tick_timers
-            if built.inactive:
-                self._inactive.append((names[i], groups[i], built.nodes))
+            if built.answers_later:
+                self.answers_later.append(names[i])
+            elif built.first_timer_tick:
+                self._first_timer_ticks[names[i]] = built.first_timer_tick
         block_nodes = self.robot_nodes[first_robot:]
         sim_node = SimulatorNode([names[i] for i in block], [get_model(world.robots[groups[i]].model) for i in block],
                                  context=context, tick_ns=world.tick_ns,
@@ -197,6 +199,11 @@ class ParticipantGroups(TickServing):
                                     "answer_types": [answer_type(nodes, names[i], world.robots[groups[i]].cmd_vel)
                                                      for i, nodes in zip(block, block_nodes)]})
         sim_node.on_failed.append(self.guard.stop_worker)
+        later = set(self.answers_later)
+        sim_node.answer_later([names[i] for i in block if names[i] in later])
+        for i in block:
+            if names[i] in self._first_timer_ticks:
+                sim_node.answer_later([names[i]], until_tick=self._first_timer_ticks[names[i]])
         self.simulator_nodes.append(sim_node)
         for nodes in block_nodes:
             for node in nodes:
@@ -295,29 +302,12 @@ class ParticipantGroups(TickServing):
             if not self._hand_over():
                 break
         self._rounds_over = False           # the tick's own rounds come after its sensors
-        if self._inactive:
-            self._check_activated()
-
-    def _check_activated(self) -> None:
-        """At tick 0, the robots whose lifecycle nodes were not active when built: their nodes'
-        transitions (their own, a lifecycle manager's) have run; each must now answer its ticks."""
-        for robot, group, nodes in self._inactive:
-            problem = robot_wiring_problem(self.world, group, robot, nodes, self.relay)
-            if problem is not None:
-                states = ", ".join(f"{node.get_fully_qualified_name()} ({state})" for node, state in
-                                   ((n, state_label(n)) for n in nodes) if state not in (None, "active"))
-                raise HostError(f"{robot} cannot answer tick 0: {problem}. Its lifecycle nodes not active by "
-                                f"then: {states or 'none'}; activate them before tick 0 (lifecycle: autostart in "
-                                f"their node entries, or a lifecycle manager)")
-        self._inactive = []
 
     @property
     def calls_leave(self) -> bool:
         """May this block's nodes call another place of the run, or be called from one (a run-wide
         node here, a client of another place's service)? Then processes hand calls over in rounds."""
-        return self.run_wide is not None or any(
-            self.calls.leaves(i, client.service_name)
-            for i, nodes in enumerate(self.robot_nodes, self.start) for node in nodes for client in node.clients)
+        return self.run_wide is not None or self.calls.clients_leave
 
     def _hand_over(self) -> bool:
         """One round of the calls between places (hosting/calls/between_places.py), once this block is
@@ -366,9 +356,9 @@ class ParticipantGroups(TickServing):
             time.sleep(0.01)
 
     def _unmatched(self) -> list[str]:
-        inactive = {robot for robot, _, _ in self._inactive}
+        later = set(self.answers_later)
         try:
-            return [r for node in self.simulator_nodes for r in node.unmatched_robots() if r not in inactive]
+            return [r for node in self.simulator_nodes for r in node.unmatched_robots() if r not in later]
         except AnswerTypeError as e:
             raise HostError(str(e)) from None
 

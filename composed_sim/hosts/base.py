@@ -18,6 +18,7 @@ exception; ``run`` is ``hosts/tick_loop.run_lockstep`` over the host's ``Exchang
 """
 from __future__ import annotations
 
+import sys
 from dataclasses import dataclass
 from typing import Callable, Optional, Protocol, Sequence
 
@@ -33,6 +34,17 @@ class SetupInfo:
     nodes: int
     participants: int = 1
     workers: int = 1        # processes hosting the controller nodes (composed mode)
+
+
+def say_answers_later(robots: Sequence[str]) -> None:
+    """The line at start that names the robots with no active cmd_vel publisher yet (a lifecycle
+    node not active, a publisher to be made in a callback): each keeps its last command until its
+    first answer (hosting/building/wiring.answer_rule), in every host mode alike."""
+    if robots:
+        shown = ", ".join(robots[:8]) + (f" and {len(robots) - 8} more" if len(robots) > 8 else "")
+        print(f"composed-sim: {shown} {'has' if len(robots) == 1 else 'have'} no active cmd_vel publisher yet: "
+              f"{'it keeps its' if len(robots) == 1 else 'each keeps its'} last command (none yet: standing) "
+              f"until its nodes publish one", file=sys.stderr)
 
 
 class Host(Protocol):

@@ -12,7 +12,7 @@ from typing import Callable, Optional, Sequence
 from composed_sim.core.simulation import Simulation
 from composed_sim.hosting import (DEFAULT_EXECUTOR, NodeLogs, ParticipantGroups, ProcessHosting, RelayingExchange,
                                   ROBOTS_PER_PARTICIPANT)
-from composed_sim.hosts.base import HostBase, SetupInfo
+from composed_sim.hosts.base import say_answers_later, HostBase, SetupInfo
 from composed_sim.hosts.tick_loop import LoopResult, TickObserver, run_lockstep
 from composed_sim.world.schema import World
 
@@ -47,6 +47,7 @@ class ComposedHost(HostBase):
         t0 = time.perf_counter()
         self.sim = Simulation(self.world)
         self.groups.__enter__()
+        say_answers_later(self.groups.answers_later)
         self.setup = SetupInfo(time.perf_counter() - t0, self.groups.nodes, len(self.groups.contexts))
         return self
 

@@ -37,6 +37,11 @@ class AnswerLedger:
             else np.asarray(answers_every_ticks)
         self.when_published = np.zeros(n, dtype=bool) if answers_when_published is None \
             else np.asarray(answers_when_published, dtype=bool)
+        # Robots whose nodes will publish cmd_vel later (``answer_later``): quiet until their first
+        # answer, then as the world file says (``_as_said``).
+        self._as_said = self.when_published.copy()
+        self.later = np.zeros(n, dtype=bool)
+        self._later_until = np.full(n, math.inf)          # the tick at which ``later`` ends at the latest
         self.linear = np.zeros(n)       # [n] m/s
         self.angular = np.zeros(n)      # [n] rad/s
         self.answered = np.zeros(n, dtype=bool)  # the robot's part of this tick is settled
@@ -60,6 +65,9 @@ class AnswerLedger:
     def open_tick(self, tick: int, key: int) -> None:
         """Tick ``tick``, stamped ``key`` ns, is being published: its answer window opens."""
         with self.lock:
+            if self.later.any():
+                due = self.later & (self._later_until <= tick)
+                self.later[due], self.when_published[due] = False, self._as_said[due]
             # Robots answering every k-th tick are settled, keeping their last command, in between.
             self.answered[:] = False if self._every is None else tick % self._every != 0
             self.rejected[:] = False
@@ -90,9 +98,23 @@ class AnswerLedger:
             return False
         return not self.answered[i]
 
+    def answer_later(self, robots: Collection[str], until_tick: Optional[int] = None) -> None:
+        """``robots``' nodes cannot answer yet: no active cmd_vel publisher (a lifecycle node not
+        yet active, a publisher made in a callback), or (``until_tick``) their timers' first
+        period has not passed. Each keeps its last command, without a violation, until its first
+        answer (or that tick), as a robot's base does; from then on it answers as its world file
+        says."""
+        with self.lock:
+            for robot in robots:
+                i = self._index[robot]
+                self.later[i] = self.when_published[i] = True
+                self._later_until[i] = math.inf if until_tick is None else until_tick
+
     def take(self, i: int, linear: float, angular: float) -> None:
         """Called with the lock held, for an answer ``accepts`` took: a finite command is robot
         i's, else the answer is a violation."""
+        if self.later[i]:
+            self.later[i], self.when_published[i] = False, self._as_said[i]
         if not (math.isfinite(linear) and math.isfinite(angular)):
             self.rejected[i] = True
             self.record(self.current_tick, i, f"non-finite velocity command rejected "

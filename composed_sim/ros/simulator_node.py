@@ -303,6 +303,11 @@ class SimulatorNode(Node):
         multi-threaded executor takes them on its own threads, when it gets to them)."""
         return sum(sub.dispatch_ready() for sub in self._cmd_subs if sub is not None)
 
+    def answer_later(self, robots: Collection[str], until_tick: Optional[int] = None) -> None:
+        """Robots whose nodes will publish cmd_vel later: quiet until their first answer, or
+        ``until_tick`` (ros/answer_ledger.py)."""
+        self._ledger.answer_later(robots, until_tick)
+
     def settle_idle(self, robots: Optional[Collection[str]] = None) -> int:
         """The quiet robots whose nodes are done with the open tick keep their last command
         (ros/answer_ledger.py); how many."""
@@ -385,6 +390,14 @@ class SimulatorNode(Node):
     @property
     def answered_count(self) -> int:
         return self._ledger.answered_count
+
+    def take_carried_answer(self, robot: str, data: bytes) -> None:
+        """An answer that came another way than its subscription: a controller process's first,
+        published before this node subscribed (its type was not known yet), carried with the
+        robot's part of the tick (hosting/run_wide/link.py)."""
+        i = self._index[robot]
+        on_answer = self._on_cmd_vel if self._answer_types[i] is c.msg_type(c.CMD_VEL) else self._on_unstamped_cmd_vel
+        on_answer(i, data, None)
 
     def _on_unstamped_cmd_vel(self, i: int, data: bytes, gid: bytes) -> None:
         """A Twist answers the tick whose sensors it follows: the open one. One that arrives while

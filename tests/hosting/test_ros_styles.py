@@ -80,7 +80,7 @@ def test_best_effort_subscriber_receives_every_tick_and_timers_fire_once_per_tic
         decisions = [n.decisions for n in host.controllers if type(n).__name__ == "TwistTimer"]
     assert result.violations == []
     assert readings == [20, 20]          # best effort (qos_profile_sensor_data): no tick lost
-    assert decisions == [20, 20]         # a 0.1 s timer on a 10 Hz world: ticks 0 … 19
+    assert decisions == [19, 19]         # a 0.1 s timer on a 10 Hz world: ticks 1 … 19, as rclpy's on sim time
 
 
 def with_timer(world, period, **group):
@@ -93,17 +93,18 @@ def test_timer_slower_than_the_tick_answers_every_kth_tick_without_violations(st
     world = with_timer(load_world(FLOCKING, robots=3, ticks=20, seed=2), 0.2, answers_every_ticks=2)
     with ComposedHost(world, executor="lockstep", domain_id=domain_id) as host:
         result = host.run()
-        assert [n.decisions for n in host.controllers] == [10, 10, 10]     # ticks 0, 2 … 18
+        assert [n.decisions for n in host.controllers] == [9, 9, 9]        # ticks 2, 4 … 18
     assert result.violations == []
-    # In between, each robot kept its last command: it moved on every tick.
+    # From its first answer (tick 2) on, each robot kept its last command in between: it moved every tick.
     step = np.linalg.norm(np.diff(result.trajectories.positions, axis=0), axis=2)
-    assert (step[1:] > 0).all()
+    assert (step[2:] > 0).all()
     # Not declared: each tick in between is a violation, and the set-up said why.
     # (A short watchdog: each of those ticks waits for it.)
     undeclared = with_timer(load_world(FLOCKING, robots=3, ticks=6, seed=2), 0.2)
     undeclared = undeclared.model_copy(update={"lockstep": Lockstep(watchdog_s=2.0)})
     result = composed(undeclared, domain_id)
-    assert sorted({v.tick for v in result.violations}) == [1, 3, 5]
+    # (ticks 0 and 1 come before its timer first fires: it had no chance to answer them)
+    assert sorted({v.tick for v in result.violations}) == [3, 5]
     assert "set answers_every_ticks: 2" in capfd.readouterr().err
 
 
@@ -111,7 +112,7 @@ def test_timer_faster_than_the_tick_fires_once_per_tick_and_odd_periods_are_warn
     world = with_timer(load_world(FLOCKING, robots=3, ticks=10, seed=2), 0.05)
     with ComposedHost(world, executor="lockstep", domain_id=domain_id) as host:
         result = host.run()
-        assert [n.decisions for n in host.controllers] == [10, 10, 10]
+        assert [n.decisions for n in host.controllers] == [9, 9, 9]        # ticks 1 … 9
     assert result.violations == []
     odd = with_timer(load_world(FLOCKING, robots=3, ticks=3, seed=2), 0.15)
     # (A short watchdog: its ticks without an answer wait for it.)

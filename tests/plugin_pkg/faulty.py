@@ -50,13 +50,15 @@ class Faulty(Node):
         if self.announce:
             with open(self.announce, "w"):
                 pass
-        if fault == "slow":
-            time.sleep(self.duration_s)
+        if fault == "slow":                         # computes for that long (a time.sleep would be
+            until = time.monotonic() + self.duration_s  # set aside on the run's clock: docs/contract.md)
+            while time.monotonic() < until:
+                pass
         elif fault == "hang":
             threading.Event().wait()                # blocked for good
         elif fault == "busy_hang":
             while True:                             # never returns, but runs Python code
-                time.sleep(0.01)
+                sum(range(100))
         elif fault == "raise":
             raise RuntimeError("injected fault")
         elif fault == "silent":

@@ -3,8 +3,8 @@ contract: shared by the composed host, the worker processes, each controller pro
 multi-process host and the shards (which therefore import no physics)."""
 from __future__ import annotations
 
+import math
 import sys
-import dataclasses
 from dataclasses import dataclass
 from typing import Container, Mapping, Optional
 
@@ -21,14 +21,15 @@ from composed_sim.ros import contract as c
 from composed_sim.world.robot_models import RANGE_AND_BEARING, get_model
 from composed_sim.ros.controller import (PARAM_RAB_PAYLOAD_BYTES, PARAM_ROBOT_MODEL, PARAM_RUN_SEED,
                                          PARAM_SENSOR_TOPICS)
-from composed_sim.hosting.building.lifecycle import AUTOSTART, LifecycleError, autostart, inactive_nodes
+from composed_sim.hosting.building.lifecycle import AUTOSTART, LifecycleError, autostart
 from composed_sim.hosting.building.node_options import HostedNodeOptions, construct
-from composed_sim.hosting.building.wiring import (answer_type, guard_publishers, robot_sensor_topics,
-                                                  robot_wiring_problem)
+from composed_sim.hosting.building.wiring import answer_rule, answer_type, guard_publishers, robot_sensor_topics
 from composed_sim.hosting.run_wide.relay import RunWideRelay
 from composed_sim.hosting.sim_time.timers import SimTimers
 from composed_sim.hosting.calls.clients import wait_during_construction
-from composed_sim.hosting.sim_time.sleeps import host_clock_sleeps, host_rates
+from composed_sim.hosting.calls.directory import remember_action_server_names
+from composed_sim.hosting.guard.callback_guard import stop_robots_that_shut_down
+from composed_sim.hosting.sim_time.sleeps import host_clock_sleeps, host_rates, host_wall_sleeps
 from composed_sim.world.problems import format_path
 from composed_sim.world.schema import NodeSpec, RobotGroup, World
 
@@ -51,9 +52,12 @@ class BuiltNodes:
     # The timers of the nodes that do not follow the robot's sensors: the host moves them to each
     # tick's time (hosting/sim_time/timers.py).
     tick_timers: list[SimTimers]
-    # Lifecycle nodes not active yet (their transitions to come from themselves or another node):
-    # the robot's wiring is checked at tick 0 (``wiring_problem``), not now.
-    inactive: list[tuple[Node, str]] = dataclasses.field(default_factory=list)
+    # No cmd_vel publisher yet, but one may come (wiring.answer_rule): the robot keeps its last
+    # command until its first answer.
+    answers_later: bool = False
+    # The tick at which the first of its nodes' timers made before tick 0 first fires (0: none):
+    # until then a robot that answers from a timer has had no chance to (sim_time/timers.py).
+    first_timer_tick: int = 0
 
 
 def node_field(group: RobotGroup, group_index: int, node_index: int) -> tuple:
@@ -110,6 +114,8 @@ def create_robot_nodes(world: World, group_index: int, name: str, context: Conte
     answers = answer_type(built.nodes, name, group.cmd_vel)
     # A robot that answers when published has no tick to miss: its timers' periods are its own.
     every = group.answers_every_ticks if group.answers == "every_tick" else None
+    due = min((t.first_due_ns for t in timers_of), default=math.inf)
+    built.first_timer_tick = 0 if due == math.inf else math.ceil(due / world.tick_ns - 1e-9)
     for node, timers, spec in zip(built.nodes, timers_of, group.node_specs):
         guard_publishers(node, name, robots, answers, built.nodes)
         timers.started(sensors)
@@ -141,8 +147,7 @@ def _bring_up(world: World, group_index: int, name: str, built: BuiltNodes, robo
         if problem is not None:
             raise plugins.PluginError(f"{_describe(node_field(group, group_index, ni), spec)} for {name}: "
                                       f"{problem}", node_field(group, group_index, ni))
-    built.inactive = inactive_nodes(built.nodes)
-    problem = None if built.inactive else robot_wiring_problem(world, group_index, name, built.nodes, relay)
+    problem, built.answers_later = answer_rule(world, group_index, name, built.nodes, relay)
     if problem is not None:
         raise plugins.PluginError(f"{_describe(node_field(group, group_index, 0), group.node_specs[0])} "
                                   f"for {name}: {problem}", node_field(group, group_index, 0))
@@ -215,6 +220,12 @@ def construct_node(cls: type[Node], spec: NodeSpec, field: tuple, owner: str, op
 def load_classes(world: World) -> dict[str, type[Node]]:
     """Every node class the world names (robots' and run-wide), imported once, after the world's
     interface packages are built (or found built) and importable (composed_sim/interfaces/)."""
+    # Before the nodes' modules are imported (one may bind ``from time import sleep``): the calls
+    # that would act on their whole process act on their robot (hosting/sim_time/sleeps.py,
+    # hosting/guard/callback_guard.py).
+    host_wall_sleeps()
+    stop_robots_that_shut_down()
+    remember_action_server_names()
     try:
         activate(world.interfaces)
     except InterfaceError as e:

@@ -7,6 +7,7 @@ from typing import Collection, Container, Mapping, Optional, Sequence
 from rclpy.node import Node
 
 from composed_sim.hosting import ContractViolation
+from composed_sim.hosting.building.lifecycle import is_active
 from composed_sim.hosting.run_wide.relay import RunWideRelay
 from composed_sim.ros import contract as c
 from composed_sim.world.robot_models import get_model
@@ -37,23 +38,47 @@ def robot_sensor_topics(group: RobotGroup, name: str) -> list[str]:
             if t.direction == "sensor"]
 
 
-def robot_wiring_problem(world: World, group_index: int, name: str, nodes: Sequence[Node],
-                         relay: Optional[RunWideRelay]) -> Optional[str]:
-    """Why robot ``name``'s nodes cannot answer its ticks (``wiring_problem``), or its cmd_vel type
-    differs from the world file's (``answer_type_problem``); None if they can."""
+def answer_rule(world: World, group_index: int, name: str, nodes: Sequence[Node],
+                relay: Optional[RunWideRelay]) -> tuple[Optional[str], bool]:
+    """When robot ``name``'s nodes answer its ticks, one rule for every host mode: ``(problem,
+    later)``. A problem refuses the robot before tick 0: its nodes could never answer (a
+    subscription to a topic it does not have, a cmd_vel of another type than the world file's,
+    or no cmd_vel publisher where nothing could make one). ``later``: none of its nodes publishes
+    cmd_vel (or reads its sensors) yet, but one may: a lifecycle node not active yet (its
+    transitions make its entities), or a group whose robots answer when published (a node may
+    make its publisher in a callback). Such a robot keeps its last command until its first
+    answer, as a robot's base does (ros/answer_ledger.py)."""
     group = world.robots[group_index]
     sensors = robot_sensor_topics(group, name)
     run_wide = {t for node in nodes for t in relay.topics_published_by(node)} if relay is not None else set()
-    return wiring_problem(nodes, name, sensors, run_wide) or answer_type_problem(nodes, name, group.cmd_vel)
+    problem, silent = wiring_problem(nodes, name, sensors, run_wide)
+    problem = problem or answer_type_problem(nodes, name, group.cmd_vel)
+    if problem is None:
+        return None, False
+    may_later = group.answers == "when_published" or any(not is_active(node) for node in nodes)
+    if silent and may_later:
+        return None, True
+    if silent:
+        problem += ("; if a node makes its publisher later (in a callback), say answers: when_published in "
+                    "the robot's group; a lifecycle node not active yet is waited for")
+    return problem, False
+
+
+def robot_wiring_problem(world: World, group_index: int, name: str, nodes: Sequence[Node],
+                         relay: Optional[RunWideRelay]) -> Optional[str]:
+    """Why robot ``name``'s nodes cannot answer its ticks (``answer_rule``'s problem)."""
+    return answer_rule(world, group_index, name, nodes, relay)[0]
 
 
 def wiring_problem(nodes: Sequence[Node], robot: str, sensors: Sequence[str],
-                   run_wide: Collection[str] = ()) -> Optional[str]:
+                   run_wide: Collection[str] = ()) -> tuple[Optional[str], bool]:
     """Why a robot's nodes cannot answer its ticks, found as soon as they are built: no node
     publishes its cmd_vel, none subscribes to one of its sensor topics, or one subscribes to a
     robot topic that nobody publishes (a sensor its model lacks, a misspelt name). The message
-    names what the robot has and the closest name. ``run_wide``: the topics outside the robots'
-    namespaces the nodes publish (hosting/run_wide/relay.py)."""
+    names what the robot has and the closest name; with it, whether the nodes are only silent
+    (no cmd_vel publisher or sensor subscription yet), which a node may mend later.
+    ``run_wide``: the topics outside the robots' namespaces the nodes publish
+    (hosting/run_wide/relay.py)."""
     published = {p.topic_name for node in nodes for p in node.publishers} | set(run_wide)
     subscribed = [(node, s.topic_name, s.msg_type) for node in nodes for s in node.subscriptions]
     sensor_types = {t: c.msg_type(c.TOPICS[t.rsplit("/", 1)[1]]) for t in sensors}
@@ -66,18 +91,19 @@ def wiring_problem(nodes: Sequence[Node], robot: str, sensors: Sequence[str],
                          {t[len(own):]: ty for t, ty in sensor_types.items()})
         if name in c.TOPICS or close is not None:
             return (f"node {node.get_fully_qualified_name()} subscribes to {topic}, which {robot} does not have "
-                    f"(its sensor topics: {', '.join(sensors) or 'none'}){f'; did you mean {close}?' if close else ''}")
+                    f"(its sensor topics: {', '.join(sensors) or 'none'}){f'; did you mean {close}?' if close else ''}",
+                    False)
     cmd_vel = c.topic_name(robot, c.CMD_VEL)
     if cmd_vel not in published:
         tails = {t.rsplit("/", 1)[1]: t for t in sorted(published, reverse=True)}
         close = _closest(c.CMD_VEL.name, list(tails), None, {})
         return (f"none of {robot}'s nodes publishes {cmd_vel}, the robot's answer to each tick (they publish: "
                 f"{', '.join(sorted(published)) or 'nothing'})"
-                f"{f'; remap {tails[close]} to cmd_vel?' if close else ''}")
+                f"{f'; remap {tails[close]} to cmd_vel?' if close else ''}", True)
     if not any(topic in sensor_types for _, topic, _ in subscribed):
         return (f"none of {robot}'s nodes subscribes to one of its sensor topics ({', '.join(sensors)}); they "
-                f"subscribe to: {', '.join(sorted({t for _, t, _ in subscribed})) or 'nothing'}")
-    return None
+                f"subscribe to: {', '.join(sorted({t for _, t, _ in subscribed})) or 'nothing'}", True)
+    return None, False
 
 
 def _closest(name: str, candidates: Sequence[str], msg_type: Optional[type], types: Mapping[str, type]) -> Optional[str]:

@@ -22,7 +22,7 @@ from __future__ import annotations
 import itertools
 import threading
 from dataclasses import dataclass
-from typing import Collection
+from typing import Collection, Optional
 
 from rclpy.serialization import deserialize_message, serialize_message
 
@@ -34,23 +34,49 @@ RUN_WIDE_ORIGIN = -1     # the place of the run-wide nodes: before every robot's
 
 
 @dataclass(frozen=True)
+class Served:
+    """Services that a process's places serve, as (place, resolved name, type name): every
+    process's clients then find them on the run's graph (``CallRelay.serves``)."""
+    services: tuple[tuple[int, str, str], ...]
+    rank = 0                     # in a round's handover: first, before the calls that may use them
+    call = (RUN_WIDE_ORIGIN - 1, 0)
+    destination = None           # every process
+
+
+@dataclass(frozen=True)
 class Request:
     call: tuple[int, int]        # (caller's place, sequence): the call's identity and its order
     place: int                   # the serving place
     service: str                 # resolved name
     data: bytes
+    rank = 2
+
+    @property
+    def destination(self) -> int:
+        return self.place
 
 
 @dataclass(frozen=True)
 class Response:
     call: tuple[int, int]
     data: bytes
+    rank = 1
+
+    @property
+    def destination(self) -> int:
+        return self.call[0]
+
+
+def service_type_name(srv_type: type) -> str:
+    """``std_srvs/srv/Trigger`` for its class."""
+    return f"{srv_type.__module__.split('.')[0]}/srv/{srv_type.__name__}"
 
 
 def handover_order(items: list) -> list:
-    """The one order of a round's handover, whatever process made each item: responses first,
-    then requests, each by caller (run-wide nodes, then robot by robot) and the caller's order."""
-    return sorted(items, key=lambda item: (isinstance(item, Request), item.call))
+    """The one order of a round's handover, whatever process made each item: what is served
+    first, then responses, then requests, each by caller (run-wide nodes, then robot by robot) and
+    the caller's order. An item's ``destination`` is the place it goes to; None: every process."""
+    return sorted(items, key=lambda item: (item.rank, item.call))
 
 
 class CallRelay:
@@ -64,6 +90,8 @@ class CallRelay:
         self._outbox_lock = threading.Lock()
         self._pending: dict[tuple[int, int], tuple[CallFuture, object, ServiceDirectory]] = {}
         self._sequence = itertools.count()
+        self._served: dict[str, str] = {}        # every service of the run's places known here → its type
+        self.clients_leave = False               # has a client here been hosted whose calls leave its place?
 
     # --- set-up -------------------------------------------------------------------------------
 
@@ -71,6 +99,23 @@ class CallRelay:
         """``directory`` serves the calls to ``places`` in this process."""
         for place in places:
             self._directories[place] = directory
+
+    def announce(self, services: list[tuple[int, str, str]]) -> None:
+        """Services of places this process hosts (or hears of first), as (place, name, type name):
+        known here at once, and to the other processes with the next handover."""
+        new = tuple(s for s in services if s[1] not in self._served)
+        if new:
+            self._served.update((name, kind) for _, name, kind in new)
+            self._send(Served(new))
+
+    def serves(self, service: str) -> bool:
+        """Does a place of the run serve ``service``, as far as this process has heard?"""
+        return service in self._served
+
+    @property
+    def services(self) -> dict[str, str]:
+        """The run's services served in process, by name: their type names."""
+        return self._served
 
     def place_of(self, service: str) -> int:
         """The place a service name belongs to: its robot's, by namespace; the run-wide nodes'
@@ -83,11 +128,12 @@ class CallRelay:
 
     # --- calls out ------------------------------------------------------------------------------
 
-    def call(self, origin: int, client, request, directory: ServiceDirectory) -> CallFuture:
+    def call(self, origin: int, client, request, directory: ServiceDirectory,
+             future: Optional[CallFuture] = None) -> CallFuture:
         """A client of place ``origin`` calls a service of another place: the request waits for
-        the next handover; the future completes when its response is delivered."""
+        the next handover; ``future`` (a new one if None) completes when its response is delivered."""
         call = (origin, next(self._sequence))
-        future = CallFuture(executor=directory.executor)
+        future = CallFuture(executor=directory.executor) if future is None else future
         self._pending[call] = (future, client, directory)
         self._send(Request(call, self.place_of(client.service_name), client.service_name,
                            serialize_message(request)))
@@ -118,6 +164,9 @@ class CallRelay:
         completing their futures. Returns what is not for this process (another process's)."""
         elsewhere = []
         for item in items:
+            if isinstance(item, Served):
+                self._served.update((name, kind) for _, name, kind in item.services)
+                continue
             if isinstance(item, Response):
                 pending = self._pending.pop(item.call, None)
                 if pending is None:

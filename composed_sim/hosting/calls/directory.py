@@ -24,6 +24,7 @@ from typing import Callable, Optional
 from rclpy.action import ActionClient, ActionServer
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.client import Client
+from rclpy.exceptions import InvalidHandle
 from rclpy.executors import MultiThreadedExecutor
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
@@ -54,6 +55,8 @@ class ServiceDirectory:
         self._outside: Optional[set[int]] = None  # ids of the entries another process may call (None: any)
         self._polled: dict[int, object] = {}      # action servers and clients: their wait sets
         self._node_names: set[str] = set()        # the names of the nodes it serves (a run-wide node's is its own)
+        self._entries_of: dict[int, list[ServiceEntry]] = {}     # id(node) → the services it serves
+        self._action_servers: set[str] = set()    # the resolved names of the action servers polled here
         if self._walked:
             executor.services = self
 
@@ -107,7 +110,12 @@ class ServiceDirectory:
         self._served.add(id(service))
         self.executor.wake()
 
+    def served_by(self, node: Node) -> list[ServiceEntry]:
+        """The services ``node`` serves here, in the order hosted."""
+        return self._entries_of.get(id(node), [])
+
     def _add(self, entry: ServiceEntry) -> None:
+        self._entries_of.setdefault(id(entry.node), []).append(entry)
         self._node_names.add(entry.node.get_name())
         self._by_name.setdefault(entry.name, entry)
         self._entries.append(entry)
@@ -165,6 +173,8 @@ class ServiceDirectory:
         self._polled[id(waitable)] = None
         if isinstance(waitable, ActionClient):
             self._host_action_client(node, waitable)
+        elif getattr(waitable, "hosted_name", None) is not None:
+            self._action_servers.add(node.resolve_service_name(waitable.hosted_name))
         self.executor.wake()
 
     def _host_action_client(self, node: Node, client: ActionClient) -> None:
@@ -182,6 +192,10 @@ class ServiceDirectory:
         client.send_goal = blocking(client.send_goal_async, client.send_goal, "send_goal")
         client._get_result = blocking(client._get_result_async, client._get_result, "get_result")
         client._cancel_goal = blocking(client._cancel_goal_async, client._cancel_goal, "cancel_goal")
+        # Ready as its own process would find it once discovered: at once for a server of this
+        # executor's nodes (rclpy's wait_for_server asks this).
+        resolved = node.resolve_service_name(name)
+        client.server_is_ready = lambda: resolved in directory._action_servers or ActionClient.server_is_ready(client)
 
     def poll(self, entity, node: Node, executor) -> int:
         """Take what is ready for a polled entity (an action server or client, or a client with
@@ -194,26 +208,25 @@ class ServiceDirectory:
             wait_set = self._polled[id(entity)] = _rclpy.WaitSet(
                 counts.num_subscriptions, counts.num_guard_conditions, counts.num_timers, counts.num_clients,
                 counts.num_services, counts.num_events, executor.context.handle)
-        wait_set.clear_entities()
-        entity.add_to_wait_set(wait_set)
-        wait_set.wait(0)
-        if not entity.is_ready(wait_set):
+        try:
+            wait_set.clear_entities()
+            entity.add_to_wait_set(wait_set)
+            wait_set.wait(0)
+            if not entity.is_ready(wait_set):
+                return 0
+            data = entity.take_data()
+        except InvalidHandle:            # destroyed by a callback of this walk
             return 0
-        data = entity.take_data()
         if not data:
             return 0
-        parts = [data]
-        if isinstance(entity, ActionClient) and "feedback" in data:
-            # In its own process the client hears each feedback as it is published, while the
-            # server still runs; here the server may have finished by the time the client is
-            # polled: every feedback first, then what else came (its result).
-            parts = [{"feedback": data.pop("feedback")}]
-            while (more := entity._client_handle.take_feedback(entity._action_type.Impl.FeedbackMessage)) is not None:
-                parts.append({"feedback": more})
-            parts += [data] if data else []
-        for part in parts:
-            executor.running_group = entity.callback_group
-            executor.start_coroutine(entity.execute(part), entity.callback_group, node)
+        parts = _in_order_made(entity, data) if isinstance(entity, ActionClient) else [data]
+        group = entity.callback_group
+        executor.running_group = group
+        executor.start_coroutine(entity.execute(parts[0]), group, node)
+        for part in parts[1:]:
+            # Each after what the part before made ready (a goal's done callbacks, say): as tasks.
+            executor.scheduler.tasks.append(
+                lambda part=part: executor.start_coroutine(entity.execute(part), group, node))
         return len(parts)
 
     def _take_responses(self, client: Client, executor) -> int:
@@ -275,3 +288,31 @@ class ServiceDirectory:
                              service.send_response(response, header))
                 taken += 1
         return taken
+
+
+def _in_order_made(client: ActionClient, data: dict) -> list[dict]:
+    """What an action client took at once, in the order its own process would hear it: the goal's
+    acceptance, every feedback, then the rest (cancel, result, status). In its own process the
+    client hears each as it comes, while the server still runs; here the server may have accepted
+    the goal, sent feedback and finished by the time the client is polled."""
+    parts = [{"goal": data.pop("goal")}] if "goal" in data else []
+    if "feedback" in data:
+        parts.append({"feedback": data.pop("feedback")})
+        feedback_type = client._action_type.Impl.FeedbackMessage
+        while (more := client._client_handle.take_feedback(feedback_type)) is not None:
+            parts.append({"feedback": more})
+    return parts + ([data] if data else [])
+
+
+def remember_action_server_names() -> None:
+    """rclpy's ``ActionServer`` keeps no name (its client does): each remembers it as
+    ``hosted_name``, so that a client of the same executor finds it ready (``server_is_ready``)."""
+    init = ActionServer.__init__
+    if getattr(init, "remembers", False):
+        return
+
+    def remembering(self, node, action_type, action_name, *args, **kwargs):
+        self.hosted_name = action_name
+        init(self, node, action_type, action_name, *args, **kwargs)
+    remembering.remembers = True
+    ActionServer.__init__ = remembering

@@ -8,7 +8,7 @@ one order of the handover (``("calls", calls)``), and each runs until idle again
 finds no call in flight anywhere, the main process says so (``("go",)``) and the phase is over.
 Two phases a tick: before the sensors (what reached the robots at the tick's start: the
 run-wide nodes' calls from their part of it) and after them. Only runs whose nodes may call
-across places pay for them (``needed``: a worker said so when ready).
+across places pay for them (``needed``: a worker said so when ready, or with a tick's answers).
 """
 from __future__ import annotations
 
@@ -16,7 +16,7 @@ import time
 from multiprocessing.connection import wait as wait_for_connections
 from typing import Callable, Optional
 
-from composed_sim.hosting.calls.between_places import RUN_WIDE_ORIGIN, Request, handover_order
+from composed_sim.hosting.calls.between_places import RUN_WIDE_ORIGIN, handover_order
 
 
 class CallRounds:
@@ -27,11 +27,14 @@ class CallRounds:
         self.needed = False
         self.pending: list = []      # calls of the run-wide nodes' part of the next tick, for its first round
 
-    def _worker_of(self, item):
-        place = item.place if isinstance(item, Request) else item.call[0]
+    def _workers_of(self, item) -> list:
+        """The workers an item goes to: its place's, or every one (``destination`` None)."""
+        place = item.destination
+        if place is None:
+            return self._workers
         if place == RUN_WIDE_ORIGIN:
-            return self._workers[0]          # the run-wide nodes live with robot 0 (participant group 0)
-        return next(w for w in self._workers if w.start <= place < w.stop)
+            return self._workers[:1]         # the run-wide nodes live with robot 0 (participant group 0)
+        return [next(w for w in self._workers if w.start <= place < w.stop)]
 
     def run(self) -> None:
         """One phase's rounds, until no call is in flight anywhere."""
@@ -44,9 +47,9 @@ class CallRounds:
                 return
             routed: dict[int, list] = {w.index: [] for w in live}
             for item in handover_order(calls):
-                w = self._worker_of(item)
-                if w.dead is None:
-                    routed[w.index].append(item)
+                for w in self._workers_of(item):
+                    if w.dead is None:
+                        routed[w.index].append(item)
             self._send(live, lambda w: ("calls", routed[w.index]))
             calls = []
 

@@ -113,7 +113,7 @@ class ServiceEntry:
     def serve_next(self, executor) -> None:
         """The lockstep walk: run the callback on the oldest request."""
         request, reply = self.queue.popleft()
-        executor.running_group = self.group
+        executor.running_group, executor.running_node = self.group, self.node
         response = self.callback(request, new_message(self.srv_type.Response))
         if response.__class__ is CoroutineType:
             task = executor.start_coroutine(response, self.group, self.node)

@@ -36,6 +36,7 @@ from typing import Callable, Optional
 from greenlet import GreenletExit, getcurrent
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.event_handler import EventHandler
+from rclpy.exceptions import InvalidHandle
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.task import Future, Task
@@ -43,7 +44,7 @@ from rclpy.task import Future, Task
 from composed_sim.hosting.executors.scheduler import Scheduler
 from composed_sim.hosting.executors.tasks import CallbackWatcher, HostedTask, awaits_future
 from composed_sim.hosting.executors.idle import wait_for_work
-from composed_sim.hosting.executors.walk_entries import (BATCH, POLLED, SERVICE, TIMER, WAITABLE, WalkEntry,
+from composed_sim.hosting.executors.walk_entries import (BATCH, OWN_GROUP, POLLED, SERVICE, TIMER, WAITABLE, WalkEntry,
                                                          walk_entries)
 
 _UNSET = object()
@@ -52,11 +53,12 @@ _UNSET = object()
 class LockstepExecutor(SingleThreadedExecutor):
     def __init__(self, *, context=None, watcher: Optional[CallbackWatcher] = None) -> None:
         super().__init__(context=context)
-        self.scheduler = Scheduler()
+        self.scheduler = Scheduler(self)
         self.watcher = watcher or CallbackWatcher()
         self.services = None                      # its ServiceDirectory (hosting/calls/directory.py), if hosted
         self.on_entities_changed: Optional[Callable[[Node], None]] = None   # the host hosts what is new
         self.running_group = None                 # the callback group of the callback the walk runs
+        self.running_node: Optional[Node] = None  # and its node (None: a task's)
         self._ordered_nodes: list[Node] = []
         self._entities: Optional[list[WalkEntry]] = None   # rebuilt when entities change
         self._service_entities: Optional[list[WalkEntry]] = None
@@ -101,7 +103,7 @@ class LockstepExecutor(SingleThreadedExecutor):
 
     def create_task(self, callback, *args, **kwargs) -> Task:
         """A task run by the walks, after the callback that made it, in the order made."""
-        task = HostedTask(callback, args, kwargs, executor=self, robot=self.watcher.owner())
+        task = HostedTask(callback, args, kwargs, executor=self, robot=self.watcher.owner(), node=self.running_node)
         self.scheduler.tasks.append(task)
         return task
 
@@ -109,7 +111,7 @@ class LockstepExecutor(SingleThreadedExecutor):
         """An ``async def`` callback's coroutine, run as a task of ``node``'s robot: its first step
         now; its group, if mutually exclusive, held until it is done."""
         robot = self.watcher.robot_of(node) if node is not None else self.watcher.owner()
-        task = HostedTask(coroutine, executor=self, robot=robot)
+        task = HostedTask(coroutine, executor=self, robot=robot, node=node or self.running_node)
         if isinstance(group, MutuallyExclusiveCallbackGroup):
             self._held.add(group)
             task.group = group
@@ -118,6 +120,7 @@ class LockstepExecutor(SingleThreadedExecutor):
 
     def _run_task(self, task: HostedTask, polled: bool = False) -> None:
         watcher = self.watcher
+        self.running_node = task.node
         if not watcher.task_started(task.robot):
             task.cancel()
             self._release(task.group)
@@ -190,11 +193,12 @@ class LockstepExecutor(SingleThreadedExecutor):
         hold = isinstance(group, MutuallyExclusiveCallbackGroup) and group not in self._held
         if hold:
             self._held.add(group)
-        state = self.watcher.set_aside()
+        state, node = self.watcher.set_aside(), self.running_node
         try:
             self.scheduler.wait(future)
         finally:
             self.watcher.take_back(state)
+            self.running_node = node             # resumed: the callback's node again
             if hold:
                 self._release(group)
 
@@ -303,16 +307,21 @@ class LockstepExecutor(SingleThreadedExecutor):
                 self._ran += entity.serve_ready(self, held)
             elif kind is POLLED:
                 self._ran += self.services.poll(entity, node, self)
+            elif kind is OWN_GROUP:
+                result = self._run_in_own_group(entity)
             elif kind is TIMER:
-                with handle:
-                    if not handle.is_timer_ready():
-                        continue
-                    handle.call_timer()
-                self.running_group = group
+                try:
+                    with handle:
+                        if not handle.is_timer_ready():
+                            continue
+                        handle.call_timer()
+                except InvalidHandle:              # destroyed since the entries were made (rclpy's way)
+                    continue
+                self.running_group, self.running_node = group, node
                 result = entity.callback()
                 self._ran += 1
             else:
-                self.running_group = group
+                self.running_group, self.running_node = group, node
                 result = self._take(entity, handle, kind, raw, message_only, once, inbox)
             if result.__class__ is coroutine:
                 self.start_coroutine(result, group, node)
@@ -325,6 +334,37 @@ class LockstepExecutor(SingleThreadedExecutor):
         self._run_tasks()
         if self._polled_tasks and scheduler.walker is me:
             self._step_polled(me)
+
+    def _run_in_own_group(self, entry: WalkEntry):
+        """A timer or subscription whose callback group is the node's own kind: taken and run only
+        once the group allows it (``can_execute``, then ``beginning_execution``), and the group told
+        when it ended (``ending_execution``), as rclpy's executors do; a timer the group holds back
+        stays ready for a later walk."""
+        entity, handle, kind, raw, message_only, _, inbox, group, _ = entry
+        if kind is TIMER:
+            try:
+                with handle:
+                    if not handle.is_timer_ready() or not group.can_execute(entity):
+                        return None
+                    if not group.beginning_execution(entity):
+                        return None
+                    handle.call_timer()
+            except InvalidHandle:
+                return None
+            take = entity.callback
+        elif (inbox is not None and inbox.queue) or inbox is None or inbox.dds_may_hold():
+            if not group.can_execute(entity) or not group.beginning_execution(entity):
+                return None
+            take = lambda: self._take(entity, handle, kind, raw, message_only, True, inbox)     # noqa: E731
+        else:
+            return None
+        self.running_group, self.running_node = group, entry.node
+        try:
+            result = take()
+        finally:
+            group.ending_execution(entity)
+        self._ran += kind is TIMER
+        return result
 
     def _take(self, entity, handle, msg_type, raw, message_only, once, inbox):
         """A subscription's ready messages: from its in-process inbox (its callback takes the
@@ -370,8 +410,11 @@ class LockstepExecutor(SingleThreadedExecutor):
         """One message (``once``) or every message DDS holds for a subscription, until a
         callback returns a coroutine (started by the walk, which takes the rest later)."""
         while True:
-            with handle:
-                taken = handle.take_message(msg_type, raw)
+            try:
+                with handle:
+                    taken = handle.take_message(msg_type, raw)
+            except InvalidHandle:                  # destroyed by a callback of this walk
+                return None
             if taken is None:
                 if inbox is not None:
                     inbox.emptied()
@@ -388,7 +431,7 @@ class LockstepExecutor(SingleThreadedExecutor):
         tasks, scheduler, me = self.scheduler.tasks, self.scheduler, getcurrent()
         while tasks:
             task = tasks.popleft()
-            self.running_group = None
+            self.running_group = self.running_node = None
             if task.__class__ is HostedTask:
                 self._run_task(task)
             else:

@@ -3,6 +3,7 @@ a thread of its own (``Spinning``), and until nothing is ready (``run_until_idle
 from __future__ import annotations
 
 import inspect
+import os
 import threading
 from typing import Callable, Iterable, Optional
 
@@ -22,9 +23,13 @@ def check_executor(kind: str) -> None:
         raise HostError(f"unknown executor {kind!r}; choose one of {', '.join(EXECUTORS)}")
 
 
-def make_executor(kind: str, context: Context) -> Executor:
+def make_executor(kind: str, context: Context, robots: int = 1) -> Executor:
+    """The executor of a process's nodes; ``robots``: how many robots' nodes it runs. rclpy's
+    multi-threaded executor gets the threads of that many processes of their own (a pool of one
+    per core each, started as callbacks need them): a callback blocked on a call holds one of its
+    robot's, as in its own process, not one shared by every robot of this one."""
     if kind == "multi-threaded":
-        return MultiThreadedExecutor(context=context)
+        return MultiThreadedExecutor(num_threads=robots * (os.cpu_count() or 2), context=context)
     if kind == "single-threaded":
         return SingleThreadedExecutor(context=context)
     if kind == "events":

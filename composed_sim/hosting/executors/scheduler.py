@@ -26,7 +26,8 @@ _TAKE_OVER = object()       # what a waiting walker tells ``run``: another must 
 class Scheduler:
     """The walks of one executor, and the callbacks set aside while they wait."""
 
-    def __init__(self):
+    def __init__(self, owner=None):
+        self.owner = owner                                    # its executor
         self.tasks: deque[Callable[[], None]] = deque()     # ready work, first in, first out
         self._home: Optional[greenlet] = None                 # who asked for the walk (the host's loop)
         self.walker: Optional[greenlet] = None                # the greenlet that walks now
@@ -88,6 +89,11 @@ class Scheduler:
         self.walker = None
 
     # --- the walk's side ------------------------------------------------------------------------
+
+    @staticmethod
+    def of_caller() -> Optional["Scheduler"]:
+        """The scheduler whose walk runs the caller, or None."""
+        return getattr(getcurrent(), "scheduler", None)
 
     def in_walk(self) -> bool:
         """Is the caller a callback run by a walk (so that it can be set aside)?"""

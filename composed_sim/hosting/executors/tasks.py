@@ -58,9 +58,10 @@ class HostedTask(Task):
     robot it belongs to, and the mutually exclusive group it holds until done (an ``async def``
     callback's, as rclpy holds it)."""
 
-    def __init__(self, handler, args=None, kwargs=None, executor=None, robot: Optional[str] = None):
+    def __init__(self, handler, args=None, kwargs=None, executor=None, robot: Optional[str] = None, node=None):
         super().__init__(handler, args, kwargs, executor)
         self.robot = robot
+        self.node = node             # the node whose callback made it, where known
         self.group = None
 
     def __await__(self):

@@ -67,7 +67,10 @@ class TickServing:
         """The robots that ran a callback since the tick opened: only those have had their tick's
         readings; an idle executor that has not reached a robot yet says nothing about it."""
         calls_of = dict(self.guard.calls_of)     # a copy: the executor's threads add robots to it
-        return {r for r, calls in calls_of.items() if calls > self._calls_at_open.get(r, 0)}
+        # … and those with no cmd_vel publisher yet (a lifecycle node not active has no callback
+        # to run): their nodes are done with the tick too.
+        ran = {r for r, calls in calls_of.items() if calls > self._calls_at_open.get(r, 0)}
+        return ran | set(self.answers_later)
 
     def _threads_quiet(self) -> Optional[int]:
         """Wait until no callback runs and none started since the last look, twice in a row (a

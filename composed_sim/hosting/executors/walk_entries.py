@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from typing import NamedTuple, Optional
 
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.node import Node
 from rclpy.subscription import Subscription
 
@@ -24,6 +25,7 @@ BATCH = object()        # a node's sensor subscriptions handled in one call (``l
 SERVICE = object()      # a node's services served in process (hosting/calls/served.py)
 POLLED = object()       # polled by the service directory: action endpoints, clients' DDS responses
 TIMER = None
+OWN_GROUP = object()    # a timer or subscription whose callback group is the node's own kind (below)
 
 _SENSOR_NAMES = frozenset(t.name for t in c.SENSOR_TOPICS)
 
@@ -69,8 +71,8 @@ def walk_entries(nodes: list[Node], services) -> list[WalkEntry]:
     for node in nodes:
         entries += batch_entry(node)
         # A subscription linked in process (ros/in_process.py) takes from its inbox first.
-        entries += [WalkEntry(s, s.handle, s.msg_type, s.raw, s._callback_type is message_only,
-                              once_per_tick(s.topic_name), inbox_of(s), s.callback_group, node)
+        entries += [in_own_group(WalkEntry(s, s.handle, s.msg_type, s.raw, s._callback_type is message_only,
+                                           once_per_tick(s.topic_name), inbox_of(s), s.callback_group, node))
                     for s in node.subscriptions]
         entries += [WalkEntry(w, kind=WAITABLE, once=True, node=node)
                     for w in node.waitables if hasattr(w, "dispatch_ready")]
@@ -81,5 +83,16 @@ def walk_entries(nodes: list[Node], services) -> list[WalkEntry]:
                         for w in node.waitables if services.polls(w)]
             entries += [WalkEntry(cl, kind=POLLED, node=node)
                         for cl in node.clients if services.takes_responses(cl)]
-        entries += [WalkEntry(t, t.handle, TIMER, once=True, group=t.callback_group, node=node) for t in node.timers]
+        entries += [in_own_group(WalkEntry(t, t.handle, TIMER, once=True, group=t.callback_group, node=node))
+                    for t in node.timers]
     return entries
+
+
+def in_own_group(entry: WalkEntry) -> WalkEntry:
+    """A timer's or subscription's entry; wrapped in an ``OWN_GROUP`` entry where its callback group is
+    a kind of the node's own (a subclass of rclpy's ``CallbackGroup`` that decides itself, in
+    ``can_execute`` and ``beginning_execution``, when its callbacks may run: a throttle, say), which
+    the walk asks as rclpy's executors do. rclpy's two kinds cost the walk nothing more."""
+    if entry.group is None or type(entry.group) in (MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup):
+        return entry
+    return WalkEntry(entry, kind=OWN_GROUP, group=entry.group, node=entry.node)

@@ -38,6 +38,7 @@ import time
 from typing import Callable, Optional, Protocol, Sequence, runtime_checkable
 
 import numpy as np
+import rclpy
 from rclpy.node import Node
 from rclpy.subscription import Subscription
 
@@ -323,6 +324,31 @@ class HostContextShutdown(RuntimeError):
     """Raised by ``rclpy.shutdown(context=…)`` on a host's context from inside a callback."""
 
 
+class RobotShutdown(SystemExit):
+    """A hosted node called ``rclpy.shutdown()``: in its own process that ends the process, so here
+    it ends its robot's nodes (the robot is stopped, with this as the reason), not the host."""
+
+
+def stop_robots_that_shut_down() -> None:
+    """``rclpy.shutdown()`` and ``rclpy.try_shutdown()`` of the default context, which a host never
+    initialises (each hosted node has its process's context), stop the calling robot: raised from
+    the call, the robot's guard (or its controller process) takes it as the end its own process
+    would have had. The host's own calls name their context and are untouched."""
+    if getattr(rclpy.shutdown, "stops_robot", False):
+        return
+    for name in ("shutdown", "try_shutdown"):
+        original = getattr(rclpy, name)
+
+        def call(*, context=None, uninstall_handlers=None, original=original, name=name):
+            if context is None:
+                raise RobotShutdown(f"stopped: a node called rclpy.{name}(), which ends its own process: "
+                                    f"its robot's nodes end here")
+            kwargs = {} if uninstall_handlers is None else {"uninstall_handlers": uninstall_handlers}
+            return original(context=context, **kwargs)
+        call.stops_robot = True
+        setattr(rclpy, name, call)
+
+
 def refuse_shutdown_from_callbacks(context, guard: CallbackGuard) -> None:
     """Make ``rclpy.shutdown`` of a hosted context, called from a controller's callback, raise
     instead: the context is its participant group's, and shutting it down would silently stop
@@ -344,6 +370,8 @@ _SPIN_CALLS = frozenset({"spin", "spin_once", "spin_until_future_complete", "spi
 
 def _failure(error: BaseException) -> str:
     """The failed robot's reason; a controller that spun inside its callback is told why that fails."""
+    if isinstance(error, RobotShutdown):
+        return str(error)
     tb = error.__traceback__
     while tb is not None:
         code = tb.tb_frame.f_code

@@ -189,6 +189,11 @@ class NodeLogs:
                          f"composed-sim: {owner}: a node ({label}) raised {kind} at tick {tick}; the robot is "
                          f"failed (its log: {where}):\n{text.rstrip()}")
 
+    @_locked
+    def note(self, owner: str, text: str) -> None:
+        """A line of the host's for the console, once per text (in a worker: by the main process)."""
+        self._to_console(("note", text), owner, f"composed-sim: {text}")
+
     # --- the console, here or in the main process ---------------------------------------------
 
     def _to_console(self, key: tuple, owner: str, text: str, first: str = "") -> None:
@@ -296,6 +301,11 @@ class NodeLogger:
 
     def set_level(self, level) -> None:
         self._level = int(level)
+
+    def host_note(self, text: str) -> None:
+        """A line of the host's about this node, for the console once per text (not for its log,
+        which holds what the node itself said)."""
+        self._logs.note(self._owner, text)
 
     def get_effective_level(self):
         from rclpy.logging import LoggingSeverity

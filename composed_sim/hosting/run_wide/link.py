@@ -23,6 +23,7 @@ from typing import Callable, Collection, Optional
 
 from rclpy.duration import Duration
 from rclpy.node import Node
+from rclpy.serialization import serialize_message
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import UInt8MultiArray
 
@@ -39,16 +40,19 @@ def outbox_topic(robot: str) -> str:
 
 
 def pack(stamp_ns: int, messages: list[Message], answered: bool = False, logs: tuple = (), calls=(),
-         final: bool = True) -> UInt8MultiArray:
+         final: bool = True, notes: Optional[dict] = None) -> UInt8MultiArray:
     """``answered``: a robot's part says whether its nodes published cmd_vel in the tick; ``logs``:
     what its log lines give the simulator's console and /rosout (``NodeLogs.drain``); ``calls``: a
     robot's calls, or the simulator's for each robot ({index: calls}); ``final``: the robot's last
-    part of the tick (else its reply to calls)."""
-    return UInt8MultiArray(data=array("B", pickle.dumps((stamp_ns, messages, answered, logs, calls, final),
+    part of the tick (else its reply to calls); ``notes``: what its nodes made since, for the
+    simulator: ``answer``, (type name, answer's bytes or None) of its first cmd_vel publisher (the
+    simulator subscribes then, and takes the answer it could not hear yet); ``reads``, {sensor
+    topic: how many of its subscriptions read it} (the simulator waits until they are matched)."""
+    return UInt8MultiArray(data=array("B", pickle.dumps((stamp_ns, messages, answered, logs, calls, final, notes),
                                                         protocol=pickle.HIGHEST_PROTOCOL)))
 
 
-def unpack(msg: UInt8MultiArray) -> tuple[int, list[Message], bool, tuple, object, bool]:
+def unpack(msg: UInt8MultiArray) -> tuple[int, list[Message], bool, tuple, object, bool, Optional[dict]]:
     return pickle.loads(bytes(msg.data))
 
 
@@ -76,6 +80,9 @@ class RunWideLink:
         self.tick = -1              # stamp of the last tick whose sensors arrived
         self.sent = -1              # stamp of the last tick whose messages went out
         self.answered = -1          # stamp of the last tick the robot's nodes published cmd_vel in
+        self.answer_type: Optional[str] = None      # a first cmd_vel publisher's type, to tell the simulator
+        self._carried: Optional[bytes] = None        # … and its first answer, which the simulator cannot hear yet
+        self.reads: dict[str, int] = {}              # sensor topics read by subscriptions made since: how many
         # Where delivered messages' callbacks run: the lockstep executor's ``run_callback`` (as
         # tasks, their callback groups respected), else at once.
         self.run_callback: Optional[Callable[[Callable, object], None]] = None
@@ -99,6 +106,8 @@ class RunWideLink:
 
             def noting(msg, publish=publish):
                 self.answered = self.tick
+                if self.answer_type is not None and self._carried is None:
+                    self._carried = serialize_message(msg)
                 return publish(msg)
             publisher.publish = noting
 
@@ -117,14 +126,15 @@ class RunWideLink:
     def _handle(self, msg) -> bool:
         """A batch or a round message of the simulator: its run-wide messages (a batch's) and the
         calls for this robot delivered; True if it brought calls (to be replied to)."""
-        stamp, batch, _, _, calls, final = unpack(msg)
+        stamp, batch, _, _, calls, final, _ = unpack(msg)
         if final:                    # a tick's batch (a round message carries calls only)
             self._relay.deliver(batch, run=self.run_callback)
             self.delivered = max(self.delivered, stamp)
-        mine = calls.get(self._index, []) if calls else []
+        # Its own calls, and what is for every process (what the run's places serve).
+        mine = [*calls.get(None, ()), *calls.get(self._index, ())] if calls else []
         if mine and self._calls is not None:
             self._calls.deliver(mine)
-        return bool(mine)
+        return bool(calls) and self._index in calls      # to be replied to
 
     def _on_batch(self, msg) -> None:
         if self._handle(msg):
@@ -135,13 +145,23 @@ class RunWideLink:
         self.reply_due = False
         calls = self._calls.take_outbox() if self._calls is not None else []
         self._outbox.publish(pack(max(self.tick, self.delivered), [], self.answered == self.tick, (), calls,
-                                  final=False))
+                                  final=False, notes=self._take_notes()))
+
+    def _take_notes(self) -> Optional[dict]:
+        notes = {}
+        if self.answer_type is not None:
+            notes["answer"] = (self.answer_type, self._carried)
+            self.answer_type = self._carried = None
+        if self.reads:
+            notes["reads"], self.reads = self.reads, {}
+        return notes or None
 
     def send(self) -> None:
         """What the robot's nodes published in the tick of the last sensors, to the simulator."""
         logs = self._logs.drain() if self._logs is not None else ()
         calls = self._calls.take_outbox() if self._calls is not None else []
-        self._outbox.publish(pack(self.tick, self._relay.take_outbox(), self.answered == self.tick, logs, calls))
+        self._outbox.publish(pack(self.tick, self._relay.take_outbox(), self.answered == self.tick, logs, calls,
+                                  notes=self._take_notes()))
         self.sent = self.tick
 
     def send_logs(self) -> None:
@@ -173,6 +193,7 @@ class SimulatorLink:
         self.answered: set[int] = set()               # … of which those that published cmd_vel in it
         self.calls: list = []                         # the calls the robots made (in parts and replies)
         self.replied: set[int] = set()                # robots that replied to the calls they were sent
+        self.notes: dict[int, list[dict]] = {}        # what robots' nodes made since (RunWideLink._take_notes)
 
     def add_robot(self, index: int, robot: str, topics: Collection[str]) -> dict[str, object]:
         """A controller process reported its link's topics: its endpoints on this side, by topic
@@ -213,8 +234,10 @@ class SimulatorLink:
                     taken = sub.handle.take_message(UInt8MultiArray, False)
                 if taken is None:
                     break
-                stamp, messages, answered, logs, calls, final = unpack(taken[0])
+                stamp, messages, answered, logs, calls, final, notes = unpack(taken[0])
                 self._merge_logs(logs)
+                if notes:
+                    self.notes.setdefault(index, []).append(notes)
                 self.calls += calls
                 if not final:                       # a reply to calls
                     self.replied.add(index)

@@ -7,11 +7,22 @@ there. Hosted, the callback is set aside by the lockstep executor (hosting/execu
 and resumed from the walk once the node's timer for that time fires, at the tick the clock gets
 there (hosting/sim_time/timers.py): the same tick in every run. With a stock executor, or outside a
 callback, rclpy's own wait.
+
+``time.sleep`` in a hosted callback is the same wait, on the run's clock: in its own process the
+callback would hold one thread of the executor for that long while the others go on (serving the
+node's other callbacks: an action server's cancel, the next goal) and, on sim time at real-time
+pace, see the world move on by as much. Hosted by the hundred in one thread, it would hold up the
+whole host instead. So the callback is set aside for that long on the node's clock, said once.
+rclpy's own polling sleeps (``wait_for_service``, ``wait_for_server``) stay on the wall clock, as
+in any process: they poll the ROS graph, on which what the run serves is there at once.
 """
 from __future__ import annotations
 
+import sys
+import time
 from typing import Callable, Optional
 
+from greenlet import getcurrent
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.clock import Clock
 from rclpy.duration import Duration
@@ -84,8 +95,8 @@ def host_clock_sleeps(node: Node) -> None:
 
     def sleep_until(until: Time, context=None) -> bool:
         executor = _executor_that_can_wait(node)
-        if executor is None:
-            return plain_until(until, context)
+        if executor is None:        # rclpy's wait, in the node's context (its process's default)
+            return plain_until(until, context or node.context)
         left_ns = until.nanoseconds - clock.now().nanoseconds
         if left_ns > 0:
             future = Future()
@@ -96,3 +107,34 @@ def host_clock_sleeps(node: Node) -> None:
     def sleep_for(rel_time: Duration, context=None) -> bool:
         return sleep_until(clock.now() + rel_time, context)
     clock.sleep_until, clock.sleep_for = sleep_until, sleep_for
+
+
+_wall_sleep = time.sleep
+
+
+def host_wall_sleeps() -> None:
+    """``time.sleep`` waits on the run's clock when a lockstep walk runs the caller (a hosted
+    callback), and on the wall clock everywhere else: the host's own code, other threads."""
+    time.sleep = _sleep
+
+
+def _sleep(seconds: float) -> None:
+    scheduler = getattr(getcurrent(), "scheduler", None)      # the walk's (hosting/executors/scheduler.py)
+    executor = scheduler.owner if scheduler is not None else None
+    if executor is not None and sys._getframe(1).f_globals.get("__name__", "").startswith("rclpy"):
+        # rclpy's own polling (wait_for_service, wait_for_server): its process would poll the ROS
+        # graph in wall time, and so does the host (what the run serves is ready at once).
+        return _wall_sleep(seconds)
+    node = None if executor is None else executor.running_node or next(iter(executor.get_nodes()), None)
+    if node is None or not seconds > 0:
+        return _wall_sleep(seconds)
+    if not getattr(executor, "said_sleeps", False):
+        executor.said_sleeps = True
+        logger = node.get_logger()
+        text = (f"a callback of {logger.name} called time.sleep({seconds:g}): hosted, a callback that sleeps is "
+                f"set aside for that long on the run's clock while the others run, as its own process's other "
+                f"threads would run them (docs/contract.md, \"Timeouts and sleeps\")")
+        (logger.host_note if hasattr(logger, "host_note") else lambda line: print(f"composed-sim: {line}",
+                                                                                     file=sys.stderr))(text)
+    future = Future()
+    wait_on_clock(node, executor, future, executor.group_of_caller(), seconds, lambda: future.set_result(None))

@@ -7,11 +7,13 @@ The order within tick k, for each robot, in every executor and both host modes:
 3. then its timers due at or before tick k's time fire. A ``cmd_vel`` published from a timer
    callback answers tick k, exactly as one published from a sensor callback.
 
-A timer created while the controller is constructed (before tick 0) fires first at tick 0 and then
-every period: a 0.1 s timer on a 10 Hz world answers every tick, tick 0 included. One created
-later fires first one period after the time it was created at, as in ROS. A timer slower than the
-tick fires every k-th tick (the world file says so with ``answers_every_ticks``); one faster than
-the tick fires once per tick, at the tick's time (rcl skips the periods a time jump passed over).
+A timer fires first one period after the time it was created at, as rclpy's does on sim time: one
+created while the controller is constructed (before tick 0, the clock at 0) first at its period, a
+0.1 s timer on a 10 Hz world at tick 1, then every tick. Until then its robot has had no chance to
+answer from it, and is not late (``first_due_ns``: ros/answer_ledger.py keeps its last command
+until then). A timer slower than the tick fires every k-th tick (the world file says so with
+``answers_every_ticks``); one faster than the tick fires once per tick, at the tick's time (rcl
+skips the periods a time jump passed over).
 
 How: each timer runs on a clock of its own (a ``ROSClock`` in ROS-time mode, which only we set),
 advanced to tick k's time when the node's last sensor callback of tick k has returned. So no
@@ -44,8 +46,9 @@ class SimTimers:
         self._tick_ns = tick_ns
         self._follow_stamps = follow_stamps
         self._node: Optional[Node] = None
-        self._clocks: list[tuple[ROSClock, int]] = []   # (a timer's clock, ns it runs ahead of sim time)
+        self._clocks: list[ROSClock] = []             # each timer's clock
         self.periods_s: list[float] = []
+        self.first_due_ns = math.inf    # when the first of the timers made before tick 0 first fires
         self._constructed = False
         self._sensor_topics: frozenset[str] = frozenset()
         self._watching = False
@@ -75,18 +78,17 @@ class SimTimers:
         create = Node.create_timer.__get__(self._node)
         if clock is not None:       # the controller chose its clock (a steady one, say): its own
             return create(timer_period_sec, callback, callback_group, clock, autostart)
-        period_ns = round(timer_period_sec * 1e9)
         timer_clock = ROSClock()
         timer_clock._set_ros_time_is_active(True)
-        if self._constructed:       # ROS: first due one period after now
-            start, ahead = self._node.get_clock().now().nanoseconds, 0
-        else:                       # before tick 0: due at tick 0, then every period
-            start, ahead = 0, period_ns
+        # First due one period after now, as in rclpy: before tick 0 the node's clock reads 0.
+        start = self._node.get_clock().now().nanoseconds if self._constructed else 0
         timer_clock.set_ros_time_override(Time(nanoseconds=start, clock_type=ClockType.ROS_TIME))
         timer = create(timer_period_sec, callback, callback_group, timer_clock, autostart)
         with self._lock:
-            self._clocks.append((timer_clock, ahead))
+            self._clocks.append(timer_clock)
         self.periods_s.append(timer_period_sec)
+        if not self._constructed and autostart:
+            self.first_due_ns = min(self.first_due_ns, start + round(timer_period_sec * 1e9))
         if self._constructed and not self._watching:
             self._watch()
         return timer
@@ -141,8 +143,9 @@ class SimTimers:
     def _advance(self, now_ns: int) -> None:
         with self._lock:
             clocks = list(self._clocks)
-        for clock, ahead in clocks:
-            clock.set_ros_time_override(Time(nanoseconds=now_ns + ahead, clock_type=ClockType.ROS_TIME))
+        now = Time(nanoseconds=now_ns, clock_type=ClockType.ROS_TIME)
+        for clock in clocks:
+            clock.set_ros_time_override(now)
 
     def period_warnings(self, controller: str, answers_every_ticks: Optional[int]) -> list[str]:
         """Timers that will not answer the ticks as the world file expects. The messages name the

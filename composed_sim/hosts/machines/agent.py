@@ -23,7 +23,7 @@ from typing import Optional
 
 from composed_sim.core.senses import Senses
 from composed_sim.core.violations import FAILED
-from composed_sim.hosting import HostError, Request, RUN_WIDE_ORIGIN
+from composed_sim.hosting import HostError, RUN_WIDE_ORIGIN
 from composed_sim.hosts.processes import last_words
 from composed_sim.hosts.workers.exchange import ANSWER_GRACE_S
 from composed_sim.hosts.workers.worker_host import WorkerHost, auto_workers, plan_blocks
@@ -51,7 +51,7 @@ class MachineWorkers(WorkerHost):
         self.shared = SharedState(Senses(self.world), self.world.range_and_bearing.payload_bytes)
         self._launch(run_prefix)
         self._adopt()
-        return self._wait_ready(lambda: False)
+        return self._wait_ready(lambda: False, tick_0=False)     # tick 0 starts across machines
 
 
 class MachineAgent:
@@ -69,6 +69,9 @@ class MachineAgent:
             return self._setup(message[1])
         if self.host is None:
             return None
+        if kind == "served":            # what every machine's places serve; then tick 0's start
+            run_wide, made = self.host._start_tick_0(message[1])
+            return ("run_wide", [m for part in run_wide for m in part], made)
         if kind == "stop":
             return self._stop()
         if kind == "tick":
@@ -100,7 +103,7 @@ class MachineAgent:
         except (plugins.PluginError, HostError, InterfaceError) as e:
             self._stop()
             return ("error", type(e).__name__, str(e), getattr(e, "field", ()))
-        return ("ready", nodes, [m for part in run_wide for m in part], rounds, calls)
+        return ("ready", nodes, rounds, calls, self.host.answers_later)
 
     def _stop(self) -> None:
         """Its workers stopped and reaped: the run is over for this machine."""
@@ -132,10 +135,11 @@ class MachineAgent:
         """A round's calls for this machine, to the workers of their places, in the order given."""
         routed: dict[int, list] = {w.index: [] for w in self.host.workers}
         for item in calls:
-            place = item.place if isinstance(item, Request) else item.call[0]
+            place = item.destination
             place = self.block.start if place == RUN_WIDE_ORIGIN else place
-            w = next(w for w in self.host.workers if w.start <= place < w.stop)
-            routed[w.index].append(item)
+            for w in self.host.workers:
+                if place is None or w.start <= place < w.stop:
+                    routed[w.index].append(item)
         self._forward(lambda w: ("calls", routed[w.index]))
 
     def _collect(self):
@@ -183,6 +187,7 @@ class MachineAgent:
             merged.tapped += a.tapped
             merged.run_wide += a.run_wide
             merged.calls += a.calls
+            merged.calls_leave = merged.calls_leave or a.calls_leave
             merged.peak_rss_kb += a.peak_rss_kb
             merged.cpu_s += a.cpu_s
             merged.node_code_s += a.node_code_s

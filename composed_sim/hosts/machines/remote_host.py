@@ -29,7 +29,7 @@ import numpy as np
 from composed_sim.core.senses import Senses
 from composed_sim.core.simulation import Simulation
 from composed_sim.hosting import DEFAULT_EXECUTOR, HostError, run_prefix
-from composed_sim.hosts.base import SetupInfo
+from composed_sim.hosts.base import SetupInfo, say_answers_later
 from composed_sim.hosts.processes import InterruptWatch
 from composed_sim.hosts.machines.agent import ALL_ROBOTS, BLOCK_ROWS, MachineAgent
 from composed_sim.hosts.machines.cluster import ActorConnection, Machine, RunScheduler
@@ -141,6 +141,7 @@ class RemoteWorkerHost(WorkerHost):
                 if joined:
                     self._place(joined)
                     ready = self._wait_ready(lambda: interrupts.requested, at_once=len(self.workers))
+                    say_answers_later(sorted(self.answers_later, key=self.sim.names.index))
             self._startup_interrupted = interrupts.requested
             if self._startup_interrupted:
                 ready = 0, [[] for _ in self.workers], False, []

@@ -5,9 +5,9 @@ from __future__ import annotations
 import time
 from typing import Callable, Optional
 
-from composed_sim.hosting import (CallRelay, handover_order, NodesExchange, Request, RunWideNodes, RunWideRelay,
+from composed_sim.hosting import (CallRelay, handover_order, NodesExchange, RunWideNodes, RunWideRelay,
                                   SimulatorLink)
-from composed_sim.ros.simulator_node import SimulatorNode
+from composed_sim.ros.simulator_node import AnswerTypeError, SimulatorNode
 from composed_sim.world.schema import World
 
 
@@ -80,12 +80,15 @@ class LinkedExchange(NodesExchange):
 
     def _route(self, items: list) -> dict[int, dict[int, list]]:
         """Calls for robots, by domain and robot index; the run-wide nodes' own delivered here."""
-        routed: dict[int, dict[int, list]] = {}
+        routed: dict[int, dict[Optional[int], list]] = {}
         for item in handover_order(items):
-            place = item.place if isinstance(item, Request) else item.call[0]
-            if place < 0:
+            place = item.destination
+            if place is None or place < 0:
                 self._run_wide.calls.deliver([item])
-            else:
+            if place is None:              # for every process: each domain's robots read it (key None)
+                for domain in self._run_wide.links:
+                    routed.setdefault(domain, {}).setdefault(None, []).append(item)
+            elif place >= 0:
                 routed.setdefault(self._domains[self._names[place]], {}).setdefault(place, []).append(item)
         return routed
 
@@ -97,7 +100,7 @@ class LinkedExchange(NodesExchange):
         while True:
             deadline = time.monotonic() + self._round_timeout_s
             for domain, calls in sent.items():
-                waiting = [i for i in calls if not self._failed(i)]
+                waiting = [i for i in calls if i is not None and not self._failed(i)]
                 while waiting and time.monotonic() < deadline:
                     links[domain].take(self._stamp, waiting, replies=True)
                     waiting = [i for i in waiting if i not in links[domain].replied]
@@ -106,6 +109,8 @@ class LinkedExchange(NodesExchange):
             made = [item for link in links.values() for item in link.calls]
             for link in links.values():
                 link.calls = []
+                if link.notes:             # what a call made (a configure's subscriptions, say)
+                    self._take_notes(link)
             self._route_run_wide(made)
             sent = self._route(self._run_wide.calls.take_outbox() + [i for i in made if not self._run_wide_bound(i)])
             if not sent:
@@ -114,7 +119,7 @@ class LinkedExchange(NodesExchange):
                 links[domain].publish_calls(self._stamp, calls)
 
     def _run_wide_bound(self, item) -> bool:
-        return (item.place if isinstance(item, Request) else item.call[0]) < 0
+        return item.destination is not None and item.destination < 0
 
     def _route_run_wide(self, made: list) -> None:
         """The calls for the run-wide nodes, handed to them; they run until idle."""
@@ -135,6 +140,8 @@ class LinkedExchange(NodesExchange):
             for link in self._run_wide.links.values():
                 pending = [i for i in link.senders if not link.done(i) and not self._failed(i)]
                 link.take(self._stamp, pending)
+                if link.notes:
+                    self._take_notes(link)
                 for i in pending:
                     if not link.done(i):
                         waiting = True
@@ -168,3 +175,37 @@ class LinkedExchange(NodesExchange):
             link.take(self._stamp, [i for i in link.senders if self._failed(i)])
             sent.update(link.collect())
         self._batch = self._run_wide.batch(self._tick + 1, sent)
+
+    def _take_notes(self, link) -> None:
+        """What robots' nodes made since they started, as their parts and replies said
+        (hosting/run_wide/link.py): a first cmd_vel publisher (a lifecycle node configured) is
+        subscribed to with its type, and its first answer, published before, taken now; the
+        simulator's publishers of sensors that new subscriptions read wait until those are
+        matched. So that the next sensors and answers go as in one process."""
+        notes, link.notes = link.notes, {}
+        deadline = time.monotonic() + self._round_timeout_s * 5
+        for index, parts in notes.items():
+            name = self._names[index]
+            node = self._by_domain[self._domains[name]]
+            for part in parts:
+                if "answer" in part:
+                    self._subscribe_later_answers(node, name, *part["answer"])
+                endpoints = node.endpoints_by_topic() if part.get("reads") else {}
+                for topic, count in part.get("reads", {}).items():
+                    publisher = endpoints.get(topic)
+                    while publisher is not None and publisher.get_subscription_count() < count \
+                            and time.monotonic() < deadline:
+                        time.sleep(0.001)
+
+    def _subscribe_later_answers(self, node, name: str, type_name: str, answer) -> None:
+        try:
+            node.take_answers_as(name, type_name)
+        except AnswerTypeError as e:
+            node.mark_failed(name, f"controller failed: {e}")
+            return
+        if answer is not None:
+            node.take_carried_answer(name, answer)
+        subscription = node.answer_subscription(name)
+        deadline = time.monotonic() + self._round_timeout_s * 5
+        while subscription.get_publisher_count() < 1 and time.monotonic() < deadline:
+            time.sleep(0.001)

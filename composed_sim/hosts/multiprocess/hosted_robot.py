@@ -11,6 +11,7 @@ from typing import Callable, Optional
 
 import rclpy
 from rclpy.context import Context
+from rclpy.time import Time as RosTime
 
 from composed_sim import plugins
 from composed_sim.hosting import (before_each_tick, CallRelay, Console, contract_endpoints, create_robot_nodes,
@@ -27,6 +28,9 @@ READY_TIMEOUT_S = 120.0
 TYPE_PREFIX = "type:"   # of "created": the type its cmd_vel publisher has (geometry_msgs/msg/Twist)
 GID_PREFIX = "gid:"     # of "ready": one cmd_vel publisher's GID, in hex
 RUN_WIDE_PREFIX = "run_wide:"   # of "created": a topic its run-wide link uses (hosting/run_wide/relay.py)
+LATER = "later"                 # of "created": no cmd_vel publisher yet, one may come (wiring.answer_rule)
+FIRST_TIMER_PREFIX = "timers_from:"   # of "created": the tick its first timer first fires (BuiltNodes)
+SERVED_PREFIX = "served:"       # of "ready": a service its nodes serve, name=type (hosting/calls/between_places.py)
 CLEANUP_LIMIT_S = 5         # s from the end of the work to a forced exit (SIGALRM)
 # How often an idle controller process wakes (a message or a due timer ends the wait at once):
 # only to see a stop request. Every wake-up walks the executor and builds a wait set; many a
@@ -43,6 +47,10 @@ class HostedRobot:
         self.context = Context()
         rclpy.init(context=self.context, domain_id=hosting.domain_id)   # a non-default context: no rclpy handlers
         self.nodes: list = []
+        self.answers_later = False          # no cmd_vel publisher yet (hosting/building/wiring.answer_rule)
+        self.first_timer_tick = 0           # before it, its timers have not fired (BuiltNodes)
+        self._reads_sensors = False         # do its nodes read its sensors (which then mark a tick's start)?
+        self._tick_timers: list = []
         self.link: Optional[RunWideLink] = None
         self.spinning: Optional[Spinning] = None
         self.block: Optional[HostedBlock] = None
@@ -66,16 +74,7 @@ class HostedRobot:
         except (plugins.PluginError, HostError) as e:
             print(e, file=sys.stderr)
             return False
-        self.nodes = built.nodes
-        if built.inactive:
-            # Its process reports its endpoints to the simulator before tick 0: a lifecycle node
-            # that another node would activate at tick 0 has none yet.
-            states = ", ".join(f"{node.get_fully_qualified_name()} ({state})" for node, state in built.inactive)
-            print(f"{robot}: in multi-process mode a robot's lifecycle nodes must be active when its process "
-                  f"starts, and {states} {'is' if len(built.inactive) == 1 else 'are'} not: give "
-                  f"{'it' if len(built.inactive) == 1 else 'them'} lifecycle: autostart in the world file "
-                  f"(or run the composed host)", file=sys.stderr)
-            return False
+        self.nodes, self.answers_later, self.first_timer_tick = built.nodes, built.answers_later, built.first_timer_tick
         if self.logs is not None:
             clock = self.nodes[0].get_clock()
             self.logs.clock = lambda: clock.now().nanoseconds
@@ -83,7 +82,10 @@ class HostedRobot:
         # carries the calls between the robot and the run-wide nodes (hosting/calls/between_places.py).
         place = names.index(robot)
         self.calls = CallRelay(names)
-        quiet = world.robots[group_index].answers == "when_published"
+        # A robot whose nodes cannot answer yet (no cmd_vel publisher, wiring.answer_rule; timers
+        # not due) is quiet until they do: the link tells the simulator when its nodes are idle.
+        quiet = world.robots[group_index].answers == "when_published" or built.answers_later \
+            or built.first_timer_tick > 0
         calls_between = bool(world.nodes) or any(self.calls.leaves(place, client.service_name)
                                                  for n in self.nodes for client in n.clients)
         if relay.in_use or quiet or self.logs is not None or calls_between:
@@ -99,8 +101,16 @@ class HostedRobot:
         # Before the robot's first sensor callback of each tick: the tick's run-wide batch, and the
         # timers of its nodes that read no sensors moved to the tick's time.
         sensors = {c.topic_name(robot, t) for t in c.SENSOR_TOPICS}
-        before_each_tick([s for n in self.nodes for s in n.subscriptions if s.topic_name in sensors],
-                         lambda stamp: self._starting_tick(stamp, built.tick_timers))
+        read = [s for n in self.nodes for s in n.subscriptions if s.topic_name in sensors]
+        self._tick_timers = built.tick_timers
+        before_each_tick(read, lambda stamp: self._starting_tick(stamp, built.tick_timers))
+        self._reads_sensors = bool(read)
+        if self.link is not None and (not read or built.answers_later):
+            # While nothing it reads marks a tick's start (its sensor subscriptions may come
+            # later), /clock does, on the link's node, which the executor walks first. Once it
+            # reads its sensors they do: its part of the tick then waits for them.
+            self.link.node.create_subscription(c.CLOCK_TYPE, c.CLOCK_TOPIC, lambda msg: self._reads_sensors or (
+                self._starting_tick(RosTime.from_msg(msg.clock).nanoseconds, built.tick_timers)), 10)
         self.spinning = Spinning(make_executor(self.hosting.executor, self.context))
         if self.link is not None and isinstance(self.spinning.executor, LockstepExecutor):
             self.link.run_callback = self.spinning.executor.run_callback
@@ -108,10 +118,30 @@ class HostedRobot:
             self.spinning.executor.add_node(node)
         # Its nodes hosted as in the composed host (hosting/hosted_block.py).
         self.block = HostedBlock(self.spinning.executor, calls=self.calls, places=[place], relay=relay)
+        if self.link is not None:
+            self.block.on_new_endpoints = self._new_endpoints
         for node in self.nodes:
             self.block.adopt(node, robot, place)
         self.block.watch_outside_calls(names, graph_of=self.nodes[0])
         return True
+
+    def _new_endpoints(self, robot: str, publishers: list, subscriptions: list) -> None:
+        """Its nodes made publishers or subscriptions after start-up (a lifecycle node configured):
+        the link notes a cmd_vel publisher's answers and, for the robot's first, tells the
+        simulator its type to subscribe with; and tells it of new readers of the robot's sensors,
+        which the simulator's publishers must match before they publish (or DDS would drop what
+        they publish meanwhile)."""
+        answers = [p for p in publishers if p.topic_name == c.topic_name(robot, c.CMD_VEL)]
+        if answers:
+            self.link.watch_answers(answers)
+            if self.answers_later and self.link.answer_type is None:
+                self.link.answer_type = c.type_name(answers[0].msg_type)
+        sensors = {c.topic_name(robot, t) for t in c.SENSOR_TOPICS}
+        reading = [s for s in subscriptions if s.topic_name in sensors]
+        before_each_tick(reading, lambda stamp: self._starting_tick(stamp, self._tick_timers))
+        self._reads_sensors = self._reads_sensors or bool(reading)
+        for topic in {s.topic_name for s in reading}:
+            self.link.reads[topic] = sum(s.topic_name == topic for n in self.nodes for s in n.subscriptions)
 
     def _starting_tick(self, stamp: int, tick_timers) -> None:
         for timers in tick_timers:
@@ -130,6 +160,8 @@ class HostedRobot:
                 link_endpoints = self.link.endpoints if self.link is not None else []
                 answer_type = published_answer_type(self.nodes, self.robot)   # None: its publisher comes later
                 words = ["created"] + ([f"{TYPE_PREFIX}{c.type_name(answer_type)}"] if answer_type else [])
+                words += [LATER] if self.answers_later else []
+                words += [f"{FIRST_TIMER_PREFIX}{self.first_timer_tick}"] if self.first_timer_tick else []
                 words += [f"{RUN_WIDE_PREFIX}{e.topic_name}" for e in link_endpoints]
                 report.write(" ".join(words) + "\n")
                 endpoints = contract_endpoints(self.nodes, self.robot) + link_endpoints
@@ -140,7 +172,8 @@ class HostedRobot:
                     return 0 if stopped() else 1
                 topics = sorted({e.topic_name for e in endpoints})
                 gids = [GID_PREFIX + gid.hex() for node in self.nodes for gid in cmd_vel_gids(node, self.robot)]
-                report.write(" ".join(["ready"] + topics + gids) + "\n")
+                served = [f"{SERVED_PREFIX}{name}={kind}" for name, kind in self.calls.services.items()]
+                report.write(" ".join(["ready"] + topics + gids + served) + "\n")
         except BrokenPipeError:     # the host gave up on the start-up and is stopping us
             return 0
         return None

@@ -31,12 +31,13 @@ import rclpy
 from rclpy.context import Context
 
 from composed_sim.core.simulation import Simulation
-from composed_sim.hosts.base import ControllersElsewhere, SetupInfo
+from composed_sim.hosts.base import ControllersElsewhere, SetupInfo, say_answers_later
 from composed_sim.hosting import (check_executor, create_run_wide_nodes, DEFAULT_EXECUTOR, failure_from_output,
                                   HostError, load_classes, LockstepExecutor, matched, NodesExchange, ProcessHosting,
                                   Spinning)
 from composed_sim.hosts.multiprocess.domains import DomainError, assign_domains
-from composed_sim.hosts.multiprocess.hosted_robot import GID_PREFIX, RUN_WIDE_PREFIX, TYPE_PREFIX
+from composed_sim.hosts.multiprocess.hosted_robot import (FIRST_TIMER_PREFIX, GID_PREFIX, LATER, RUN_WIDE_PREFIX,
+                                                        SERVED_PREFIX, TYPE_PREFIX)
 from composed_sim.hosts.processes import InterruptWatch, exit_reason, last_words, reap, signal_group
 from composed_sim.ros import contract as c
 from composed_sim.ros.robot_settings import robot_settings
@@ -70,6 +71,9 @@ class ControllerProcess:
     linked: bool = False                 # the simulator's side of its link exists
     topics: Optional[list[str]] = None   # its contract topics, once matched on its side
     gids: list[bytes] = field(default_factory=list)    # its cmd_vel publishers' (cmd_vel_gids)
+    served: list[tuple] = field(default_factory=list)  # (name, type) of the services its nodes serve
+    answers_later: bool = False          # no cmd_vel publisher yet: quiet until its first answer
+    first_timer_tick: int = 0            # … or its timers' first tick
     startup_s: Optional[float] = None    # spawn → matched on both sides
     _buffer: bytes = b""
 
@@ -83,10 +87,15 @@ class ControllerProcess:
             self.created = True
             if words and words[0] == "created":
                 self.answer_type = next((w[len(TYPE_PREFIX):] for w in words if w.startswith(TYPE_PREFIX)), None)
+                self.answers_later = LATER in words
+                self.first_timer_tick = next((int(w[len(FIRST_TIMER_PREFIX):]) for w in words
+                                              if w.startswith(FIRST_TIMER_PREFIX)), 0)
                 self.run_wide_topics = [w[len(RUN_WIDE_PREFIX):] for w in words if w.startswith(RUN_WIDE_PREFIX)]
             if words and words[0] == "ready":
-                self.topics = [w for w in words[1:] if not w.startswith(GID_PREFIX)]
+                self.topics = [w for w in words[1:] if not w.startswith((GID_PREFIX, SERVED_PREFIX))]
                 self.gids = [bytes.fromhex(w[len(GID_PREFIX):]) for w in words[1:] if w.startswith(GID_PREFIX)]
+                self.served = [tuple(w[len(SERVED_PREFIX):].split("=", 1)) for w in words[1:]
+                               if w.startswith(SERVED_PREFIX)]
         return chunk != b""
 
     def close_pipe(self) -> None:
@@ -224,7 +233,8 @@ class MultiProcessHost(ControllersElsewhere):
                                                                   p.run_wide_topics))
                         p.linked = True
                 for robot, p in list(unmatched.items()):
-                    if p.topics is not None and self._nodes[p.domain].answer_subscription(robot) is not None and all(matched(endpoints[p.domain].get(t)) for t in p.topics):
+                    answers = p.answers_later or self._nodes[p.domain].answer_subscription(robot) is not None
+                    if p.topics is not None and answers and all(matched(endpoints[p.domain].get(t)) for t in p.topics):
                         p.startup_s = time.perf_counter() - p.spawned
                         del unmatched[robot]
                         last_progress = time.monotonic()
@@ -236,6 +246,15 @@ class MultiProcessHost(ControllersElsewhere):
                                     f"subscribe to a sensor; seen: {seen}); {len(waiting)} more not started")
         for node in self._nodes.values():
             node.note_controllers({p.robot: p.gids for p in self.processes})
+        later = [p.robot for p in self.processes if p.answers_later]
+        for p in self.processes:
+            if p.answers_later or p.first_timer_tick:
+                self._nodes[p.domain].answer_later([p.robot], None if p.answers_later else p.first_timer_tick)
+        say_answers_later(sorted(later, key=self.sim.names.index))
+        # What each robot's process serves: to the run-wide nodes here, and with tick 0's first
+        # handover to every robot (their clients find it ready, hosting/calls/between_places.py).
+        places = {name: i for i, name in enumerate(self.sim.names)}
+        self.run_wide.calls.announce([(places[p.robot], name, kind) for p in self.processes for name, kind in p.served])
 
     def _subscribe_answers(self, children: Iterable[ControllerProcess], endpoints: dict, detect: bool) -> None:
         """Subscribe to each created child's robot's cmd_vel with the type the child reported; with

@@ -108,6 +108,7 @@ class WorkersExchange:
             w.last_times = answers.cpu_s, answers.node_code_s
             self.run_wide[w.index] = answers.run_wide
             self.rounds.pending += answers.calls
+            self.rounds.needed = self.rounds.needed or answers.calls_leave
             self._violations[w.index].extend(Violation(*v) for v in answers.violations)
             if self.logs is not None and answers.logs:
                 self.logs.merge(answers.logs)

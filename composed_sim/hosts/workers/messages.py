@@ -30,6 +30,7 @@ class TickAnswers:
     tapped: list = field(default_factory=list)         # (topic, type, bytes, stamp ns)
     run_wide: list = field(default_factory=list)       # (topic, type, bytes) for the next tick's batch
     calls: list = field(default_factory=list)          # calls between places for the next tick (hosting/calls/between_places.py)
+    calls_leave: bool = False                          # may its nodes call another place (ParticipantGroups.calls_leave)?
     peak_rss_kb: int = 0                               # the worker's own peak resident memory so far
     another_simulator: Optional[str] = None            # NodesExchange.another_simulator, this tick
     logs: tuple = ()                                   # NodeLogs.drain(): console lines, failures, /rosout

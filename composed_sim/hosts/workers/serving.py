@@ -51,8 +51,16 @@ def serve(fd: int, adopted: Callable[[], None]) -> int:
             logs.flush()
         conn.send(("error", type(e).__name__, str(e), getattr(e, "field", ())))
         return EXIT_SETUP
-    run_wide = groups.close_run_wide(0)
-    conn.send(("ready", groups.nodes, run_wide, groups.calls_leave, groups.calls.take_outbox()))
+    conn.send(("ready", groups.nodes, groups.calls_leave, groups.calls.take_outbox(), groups.answers_later))
+    # What every place of the run serves, before the run-wide nodes' part of tick 0 (which may ask).
+    try:
+        kind, served = conn.recv()
+    except EOFError:
+        return 0
+    if kind != "served":        # stopped during the start-up
+        return 0
+    groups.calls.deliver(served)
+    conn.send(("run_wide", groups.close_run_wide(0), groups.calls.take_outbox()))
     wait, interrupting_hangs = groups.start_serving()
     block = Block(setup, groups, logs, wait, conn)
     with interrupting_hangs:
@@ -127,6 +135,7 @@ class Block:
             answers.tapped = self.tap.drain()
         answers.run_wide = groups.close_run_wide(frame.tick + 1)
         answers.calls = groups.calls.take_outbox()       # the run-wide nodes' part's calls, for the next tick
+        answers.calls_leave = groups.calls_leave          # (a client made since may call another place)
         answers.peak_rss_kb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
         answers.another_simulator = exchange.another_simulator()
         if self.logs is not None:

@@ -40,8 +40,8 @@ from typing import Callable, Optional
 
 from composed_sim.core.senses import Senses
 from composed_sim.core.simulation import Simulation
-from composed_sim.hosting import check_executor, DEFAULT_EXECUTOR, HostError, ProcessHosting, run_prefix
-from composed_sim.hosts.base import ControllersElsewhere, SetupInfo
+from composed_sim.hosting import check_executor, DEFAULT_EXECUTOR, HostError, ProcessHosting, replies, run_prefix
+from composed_sim.hosts.base import ControllersElsewhere, SetupInfo, say_answers_later
 from composed_sim.hosts.processes import (AdoptedChild, InterruptWatch, become_subreaper, exit_reason,
                                           reap, signal_group)
 from composed_sim.hosts.workers.exchange import WorkersExchange
@@ -121,6 +121,7 @@ class WorkerHost(ControllersElsewhere):
         self.sim: Optional[Simulation] = None
         self.setup: Optional[SetupInfo] = None
         self.workers: list[Worker] = []
+        self.answers_later: list[str] = []      # robots with no active cmd_vel publisher yet (say_answers_later)
         self.exchange: Optional[WorkersExchange] = None
         self._tmp: Optional[Path] = None
         self.shared: Optional[SharedState] = None
@@ -142,6 +143,7 @@ class WorkerHost(ControllersElsewhere):
             self._adopt()
             with InterruptWatch() as interrupts:
                 ready = self._wait_ready(lambda: interrupts.requested)
+            say_answers_later(sorted(self.answers_later, key=self.sim.names.index))
             self._startup_interrupted = interrupts.requested
             nodes = self._open_exchange(ready)
         except BaseException:
@@ -207,16 +209,16 @@ class WorkerHost(ControllersElsewhere):
         for w, pid in zip(self.workers, pids):
             w.popen = AdoptedChild(int(pid))
 
-    def _wait_ready(self, interrupted: Callable[[], bool], at_once: Optional[int] = None
+    def _wait_ready(self, interrupted: Callable[[], bool], at_once: Optional[int] = None, tick_0: bool = True
                     ) -> tuple[int, list[list], bool, list]:
         """Every worker's nodes built and matched: how many nodes in all, per worker what they
-        published on run-wide topics meanwhile, whether any may call across places (the ticks then
-        have rounds of calls, hosting/calls/rounds.py) and the calls made meanwhile; a worker's
-        set-up error is raised here as the error it was (a plugin's names the world file's field).
-        ``at_once``: how many build at a time (default: one per usable core)."""
+        published on run-wide topics by the run-wide nodes' part of tick 0 (``_start_tick_0``; with
+        ``tick_0`` only), whether any may call across places (the ticks then have rounds of calls,
+        hosting/calls/rounds.py) and the calls made meanwhile; a worker's set-up error is raised
+        here as the error it was (a plugin's names the world file's field). ``at_once``: how many
+        build at a time (default: one per usable core)."""
         from composed_sim import plugins
         ready: dict[int, int] = {}      # worker → its nodes
-        run_wide: dict[int, list] = {}  # worker → what its nodes published before tick 0
         rounds, calls = False, []
         # At most one worker per core builds its nodes at a time: more would only take turns on
         # the cores and thrash their caches (docs/speed.md, "Set-up").
@@ -241,9 +243,32 @@ class WorkerHost(ControllersElsewhere):
                     if kind == "PluginError":
                         raise plugins.PluginError(text, field)
                     raise HostError(text)
-                _, ready[w.index], run_wide[w.index], calls_leave, made = message
+                _, ready[w.index], calls_leave, made, later = message
                 rounds, calls = rounds or calls_leave, calls + made
-        return sum(ready.values()), [run_wide.get(w.index, []) for w in self.workers], rounds, calls
+                self.answers_later += later
+        run_wide: list[list] = [[] for _ in self.workers]
+        if tick_0 and not interrupted():
+            run_wide, made = self._start_tick_0(calls)
+            calls += made
+        return sum(ready.values()), run_wide, rounds, calls
+
+    def _start_tick_0(self, calls: list) -> tuple[list[list], list]:
+        """What every worker's places serve goes to every worker (a client elsewhere then finds it
+        ready, hosting/calls/between_places.py); then the run-wide nodes' part of tick 0 runs. Per
+        worker what its nodes published on run-wide topics by then, and the calls made meanwhile."""
+        served = [item for item in calls if item.destination is None]
+        for w in self.workers:
+            w.conn.send(("served", served))
+        run_wide: dict[int, list] = {}
+        made: list = []
+
+        def lost(w, reason: Optional[str]) -> None:
+            raise HostError(w.startup_failure() if reason is None else f"worker {w.index}: {reason}")
+        for w, (_, batch, outbox) in replies({w.conn: w for w in self.workers}, STARTUP_TIMEOUT_S, lost,
+                                             "its part of tick 0"):
+            run_wide[w.index] = batch
+            made += outbox
+        return [run_wide.get(w.index, []) for w in self.workers], made
 
     def workers_peak_rss_mb(self) -> list[float]:
         """Each worker's peak resident memory, as last reported with its answers."""
