@@ -28,6 +28,7 @@ from composed_sim.cli import main
 from composed_sim.outputs.recording import (CLOCK_TOPIC, FLUSH_EVERY_TICKS, SWARM_STATE_TOPIC, UNFINISHED, BagRecorder,
                                     RecordingError, read_recording)
 from composed_sim.world.loader import load_world
+from composed_sim.outputs.results import load_trajectories
 
 ROOT = Path(__file__).resolve().parents[1]
 FLOCKING = ROOT / "worlds" / "flocking.yaml"
@@ -255,8 +256,7 @@ def test_a_full_disk_stops_the_run_with_one_line_and_keeps_what_was_written(smal
                         rf"of ticks 0…{summary['ticks']} in {out}/ and the recording up to its last flush in {bag}/ "
                         rf"\(with room again: composed-sim bag repair {bag}\)", lines[0]), lines[0]
     assert not list(out.glob("*.part"))                           # the half-written file gave its room back
-    with np.load(out / "trajectories.npz") as t:
-        assert t["positions"].shape == (summary["ticks"] + 1, 20, 2)
+    assert load_trajectories(out).positions.shape == (summary["ticks"] + 1, 20, 2)   # as streamed
     clocks, whole = on_disk(bag / "bag.mcap")                      # cut back to its last flush
     assert whole and clocks >= FLUSH_EVERY_TICKS + 2
     moved = shutil.copytree(bag, tmp_path / "bag")                 # with room again

@@ -60,6 +60,7 @@ class Run:
         from composed_sim.hosts.make import host_in_own_domains
         self.settings, self.world, self.logs, self.json_stdout = settings, world, logs, json_stdout
         self.fail_fast = FailFast(settings.control.fail_fast)
+        self.worker_memory = None       # with worker processes: their memory, sampled (cli/observers.py)
         try:
             self.host, self.claim, picked = host_in_own_domains(settings.hosting, world, logs)
         except (HostError, DomainTaken) as e:
@@ -85,6 +86,9 @@ class Run:
         if workers_peak_rss_mb is not None:     # every process's peak (pages shared between them count in each)
             summary["workers_peak_rss_mb"] = [round(mb, 1) for mb in workers_peak_rss_mb]
             summary["peak_rss_mb"] += sum(summary["workers_peak_rss_mb"])
+        if self.worker_memory is not None and result.trajectories.ticks_done:
+            self.worker_memory.sample(result.trajectories.ticks_done)
+            summary["workers_rss_mb_by_tick"] = self.worker_memory.samples
         summary["domain_id"], summary["domains"] = self.domains[0], self.domains
         if hosting.machines is not None:       # the state sent per tick to all machines, payload bytes
             summary["state_bytes_per_tick"] = round(host.bytes_sent_per_tick(result.trajectories.ticks_done))
@@ -117,11 +121,18 @@ class Run:
         host, settings, out = self.host, self.settings, self.settings.outputs.out
         self._say_workers()
         observers = run_observers(settings, self.world, host, outputs, interrupts, self.logs)
+        if host.workers_rss_mb() is not None:
+            from composed_sim.cli.observers import WorkerMemory
+            self.worker_memory = WorkerMemory(host, self.world.length_ticks)
+            observers.append(self.worker_memory)
         progress = progress_bar(self.world.length_ticks, disabled=not settings.control.progress)
+        from composed_sim.outputs.stream import TrajectoryStream
         try:
+            # The poses, metrics and violations go to --out as the run goes (outputs/stream.py).
             result = host.run(progress=progress.update,
                               should_stop=lambda: interrupts.requested or self.fail_fast.stops(host),
-                              observers=observers, checkpoint=lambda partial: self.finish(partial, True))
+                              observers=observers, checkpoint=lambda partial: self.finish(partial, True),
+                              trajectories=TrajectoryStream.factory(out, self.world.tick_s))
         except Exception as e:
             partial = getattr(e, "partial_result", None)
             if isinstance(e, OSError) and e.errno in DISK_FULL:
