@@ -24,7 +24,10 @@ def cmd_run(settings: RunSettings, json_stdout: JsonStdout) -> int:
     from composed_sim.hosting.participants import remove_stale_shared_memory
 
     world = settings.lockstep.applied_to(load_any_world(settings.world))
-    remove_stale_shared_memory()        # what dead runs left in /dev/shm (hosting/participants.py)
+    removed = remove_stale_shared_memory()    # what dead processes left in /dev/shm (hosting/participants.py)
+    if removed:
+        print(f"composed-sim: removed {removed} shared-memory file{'s' if removed != 1 else ''} of dead "
+              f"processes from /dev/shm", file=sys.stderr)
     out = settings.outputs.out
     check_writable(out)
     if settings.hosting.discovery is not None:
@@ -159,6 +162,7 @@ class Run:
             # reclaims the nodes (Host.end_before_exit).
             outputs.close()
             host.sim.close()         # the physics regions' workers end in order, not by the death signal
+            _leave_no_shared_memory()
             print_summary(self.json_stdout if settings.outputs.json else None, self.world, summary,
                           files + (["logs/"] if _kept(out / "logs") else []))
             sys.stdout.flush()
@@ -177,6 +181,14 @@ class Run:
             auto = self.settings.hosting.workers == AUTO_WORKERS
             print(f"composed-sim: {len(host.sim.names)} robots in {host.setup.workers} worker processes"
                   + (f" (--workers auto, {usable_cores()} usable cores)" if auto else ""), file=sys.stderr)
+
+
+def _leave_no_shared_memory() -> None:
+    """This process ends without destroying its participants: the shared-memory files of its own
+    and of its ended workers go now, not at the next run (hosting/participants.py)."""
+    from composed_sim.hosting.participants import remove_own_shared_memory, remove_stale_shared_memory
+    remove_stale_shared_memory()
+    remove_own_shared_memory()
 
 
 def _kept(folder) -> bool:
