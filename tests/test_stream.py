@@ -12,6 +12,7 @@ import pytest
 from composed_sim.core.simulation import Simulation
 from composed_sim.core.violations import Violation
 from composed_sim.hosts.lockstep import CHECKPOINT_EVERY, run_lockstep
+from composed_sim.outputs.export import trajectory_table
 from composed_sim.outputs.results import load_trajectories, summarize, write_results
 from composed_sim.outputs.stream import GrowingArray, RowsFile, TrajectoryStream
 from composed_sim.world.loader import load_world
@@ -77,6 +78,8 @@ def test_after_a_kill_the_folder_reads_up_to_the_last_checkpoint(tmp_path):
         assert np.lib.format.read_array(f).shape == (2 * CHECKPOINT_EVERY + 1, 4)   # np.load without mmap too
     rows = list(csv.DictReader(open(out / "metrics.csv")))
     assert [int(r["tick"]) for r in rows] == list(range(0, 2 * CHECKPOINT_EVERY + 1, 10))
+    table = trajectory_table(out)           # `composed-sim export` of the killed run
+    assert table.num_rows == (2 * CHECKPOINT_EVERY + 1) * 4 and table["tick"][-1].as_py() == 2 * CHECKPOINT_EVERY
 
 
 def test_a_new_run_into_the_same_out_starts_without_the_old_trajectories(tmp_path):
