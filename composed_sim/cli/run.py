@@ -85,6 +85,7 @@ class Run:
         summary["participants"] = host.setup.participants
         summary["workers"] = host.setup.workers
         summary["workers_requested"] = hosting.workers if hosting.mode == "composed" else None
+        summary["physics_processes"] = host.sim.physics_processes     # core/engine.py: cells or regions
         workers_peak_rss_mb = host.workers_peak_rss_mb()
         if workers_peak_rss_mb is not None:     # every process's peak (pages shared between them count in each)
             summary["workers_peak_rss_mb"] = [round(mb, 1) for mb in workers_peak_rss_mb]
@@ -177,10 +178,13 @@ class Run:
         host = self.host
         if self.settings.hosting.machines is not None:      # also with --json: a script watches for it
             print(f"composed-sim: {len(host.sim.names)} robots on {host.placement()}", file=sys.stderr, flush=True)
-        elif host.setup.workers > 1 and not self.settings.outputs.json:
+        elif (host.setup.workers > 1 or host.sim.physics_processes > 1) and not self.settings.outputs.json:
             auto = self.settings.hosting.workers == AUTO_WORKERS
-            print(f"composed-sim: {len(host.sim.names)} robots in {host.setup.workers} worker processes"
-                  + (f" (--workers auto, {usable_cores()} usable cores)" if auto else ""), file=sys.stderr)
+            physics = host.sim.physics_processes
+            print(f"composed-sim: {len(host.sim.names)} robots in {host.setup.workers} worker "
+                  f"process{'es' if host.setup.workers > 1 else ''}"
+                  + (f" (--workers auto, {usable_cores()} usable cores)" if auto else "")
+                  + (f"; physics in {physics} processes" if physics > 1 else ""), file=sys.stderr)
 
 
 def _leave_no_shared_memory() -> None:
