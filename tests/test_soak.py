@@ -1,6 +1,6 @@
 """Soak: a long run keeps flat memory, in the main process and in every worker: nothing grows per
 tick (the trajectories, metrics and violations go to --out as the run goes: outputs/stream.py).
-Behind the ``slow`` marker (about 5 minutes here): ``pytest -m slow tests/test_soak.py``."""
+Behind the ``slow`` marker (about 3 minutes here): ``pytest -m slow tests/test_soak.py``."""
 import json
 import subprocess
 import sys
