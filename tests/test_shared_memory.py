@@ -1,4 +1,4 @@
-"""Fast DDS's shared-memory files of dead processes are removed (hosting/participants.py): by
+"""Fast DDS's shared-memory files of dead processes are removed (hosting/shared_memory.py): by
 Fast DDS's own lock rule and the processes' maps, never a live process's; a run killed outright
 leaves nothing in /dev/shm after the next run, and a run that ends leaves nothing of its own.
 Other test processes share this machine's /dev/shm: the end-to-end test looks only at the files
@@ -16,7 +16,7 @@ from pathlib import Path
 import psutil
 import pytest
 
-from composed_sim.hosting.participants import (CREATING_S, remove_own_shared_memory,
+from composed_sim.hosting.shared_memory import (CREATING_S, remove_own_shared_memory,
                                                remove_stale_shared_memory)
 
 ROOT = Path(__file__).resolve().parents[1]

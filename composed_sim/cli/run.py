@@ -21,13 +21,10 @@ DISK_FULL = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)
 
 def cmd_run(settings: RunSettings, json_stdout: JsonStdout) -> int:
     from composed_sim.hosting.node_logs import LEVELS, Console, LogSettings, NodeLogs
-    from composed_sim.hosting.participants import remove_stale_shared_memory
+    from composed_sim.hosting.shared_memory import remove_stale_shared_memory
 
     world = settings.lockstep.applied_to(load_any_world(settings.world))
-    removed = remove_stale_shared_memory()    # what dead processes left in /dev/shm (hosting/participants.py)
-    if removed:
-        print(f"composed-sim: removed {removed} shared-memory file{'s' if removed != 1 else ''} of dead "
-              f"processes from /dev/shm", file=sys.stderr)
+    removed = remove_stale_shared_memory()    # what dead processes left in /dev/shm (hosting/shared_memory.py)
     out = settings.outputs.out
     check_writable(out)
     if settings.hosting.discovery is not None:
@@ -41,6 +38,7 @@ def cmd_run(settings: RunSettings, json_stdout: JsonStdout) -> int:
                                 rosout=settings.outputs.record is not None),
                     world.tick_ns, console=Console(logs_hint=str(logs_dir)))
     run = Run(settings, world, logs, json_stdout)
+    run.removed_shared_memory = removed
     try:
         summary, files, code = run.run_and_write()
     except OSError as e:
@@ -64,6 +62,7 @@ class Run:
         self.settings, self.world, self.logs, self.json_stdout = settings, world, logs, json_stdout
         self.fail_fast = FailFast(settings.control.fail_fast)
         self.worker_memory = None       # with worker processes: their memory, sampled (cli/observers.py)
+        self.removed_shared_memory = 0  # files of dead processes removed from /dev/shm before the run
         try:
             self.host, self.claim, picked = host_in_own_domains(settings.hosting, world, logs)
         except (HostError, DomainTaken) as e:
@@ -123,6 +122,10 @@ class Run:
 
     def _ticks(self, interrupts, outputs: contextlib.ExitStack) -> tuple[dict, list, int]:
         host, settings, out = self.host, self.settings, self.settings.outputs.out
+        if self.removed_shared_memory:      # said once the run is set up: an error stays the only line
+            n = self.removed_shared_memory
+            print(f"composed-sim: removed {n} shared-memory file{'s' if n != 1 else ''} of dead processes "
+                  f"from /dev/shm", file=sys.stderr)
         self._say_workers()
         observers = run_observers(settings, self.world, host, outputs, interrupts, self.logs)
         if host.workers_rss_mb() is not None:
@@ -189,8 +192,8 @@ class Run:
 
 def _leave_no_shared_memory() -> None:
     """This process ends without destroying its participants: the shared-memory files of its own
-    and of its ended workers go now, not at the next run (hosting/participants.py)."""
-    from composed_sim.hosting.participants import remove_own_shared_memory, remove_stale_shared_memory
+    and of its ended workers go now, not at the next run (hosting/shared_memory.py)."""
+    from composed_sim.hosting.shared_memory import remove_own_shared_memory, remove_stale_shared_memory
     remove_stale_shared_memory()
     remove_own_shared_memory()
 

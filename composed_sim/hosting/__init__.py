@@ -11,7 +11,8 @@ have given it, run in lockstep ticks.
 - ``participants.py``, ``participant_groups.py``: a block of robots in DDS participants that ignore
   one another, with one executor, and the tick's exchange over their simulator nodes
   (``nodes_exchange.py``);
-- ``run_wide/``: the topics outside every robot's namespace, relayed at one point of the tick.
+- ``run_wide/``: the topics outside every robot's namespace, relayed at one point of the tick;
+- ``shared_memory.py``: Fast DDS's files in /dev/shm of processes that are gone, removed.
 
 Below it, ``ros/`` holds the topic contract, the simulator node and the in-process delivery;
 above it, ``hosts/`` holds the tick loop and the host modes that use all this.
