@@ -21,7 +21,7 @@ controllers never see the loop functions: they are ROS nodes and only get their 
 """
 from __future__ import annotations
 
-from typing import Optional
+from typing import Callable, Optional
 
 from composed_sim import entry_points
 
@@ -94,6 +94,9 @@ class LoopHooks:
         self.functions = make(sim.world)
         self.every = sim.world.loop_functions.every_ticks if self.functions is not None else 1
         self.rows: list[dict] = []
+        # Where each row goes as it is taken (a results stream); then ``rows`` keeps only the
+        # first and the last, so that memory does not grow with the ticks.
+        self.rows_to: Optional[Callable[[dict], None]] = None
         self.finished = False        # is_finished() said so
 
     def _call(self, hook: str, *args):
@@ -129,7 +132,11 @@ class LoopHooks:
     def _take_metrics(self, sim: Simulation) -> None:
         values = self._call("metrics", sim) if self.functions is not None else None
         if values:
-            self.rows.append({"tick": sim.tick, **{k: _plain(v) for k, v in values.items()}})
+            row = {"tick": sim.tick, **{k: _plain(v) for k, v in values.items()}}
+            if self.rows_to is not None:
+                self.rows_to(row)
+                del self.rows[1:]
+            self.rows.append(row)
 
     @property
     def final(self) -> Optional[dict]:

@@ -1,7 +1,7 @@
 """The physics step alone: ms per tick and µs per robot of the flocking world's swarm, one space,
 cells in one process and K regions in worker processes (docs/speed.md, "Physics that scales").
 
-  python -m composed_sim.bench.physics_step --robots 1280,10240,102400 --regions 1,2 --out physics.json
+  python -m composed_sim.bench.physics_step --robots 1280,10240,102400 --regions 1,2 --processes 2 --out physics.json
 
 Each size builds its engines from the same start (the shipped flocking world, 5 robots/m²) and
 fixed commands (0.1 m/s, each robot its own turn rate), warms them up, then steps them in turn,
@@ -27,8 +27,9 @@ from composed_sim.world.loader import SHIPPED_WORLDS, load_world
 from composed_sim.world.robot_models import get_model
 
 
-def engines_of(robots: int, regions: list[int], single_space: bool) -> dict:
-    """label → engine, from the flocking world's start for ``robots`` robots."""
+def engines_of(robots: int, regions: list[int], single_space: bool, processes: tuple[int, ...] = ()) -> dict:
+    """label → engine, from the flocking world's start for ``robots`` robots; ``processes``: the
+    one-region cells also spread over that many processes each (physics.processes)."""
     world = load_world(SHIPPED_WORLDS / "flocking.yaml", robots=robots)
     positions, headings = place_robots(world, stream(world.seed, STREAM_PLACEMENT))
     models = [get_model(world.robots[0].model)] * robots
@@ -36,14 +37,19 @@ def engines_of(robots: int, regions: list[int], single_space: bool) -> dict:
     if single_space:
         out["one space"] = PhysicsWorld(world, models, positions, headings)
     for k in regions:
-        physics = world.physics.model_copy(update={"regions": k})
+        physics = world.physics.model_copy(update={"regions": k, "processes": 1})
         engine = physics_engine(world.model_copy(update={"physics": physics}), models, positions, headings)
         out["cells, one process" if k == 1 else f"{k} regions"] = engine
+    for k in processes:
+        physics = world.physics.model_copy(update={"regions": 1, "processes": k})
+        out[f"cells, {k} processes"] = physics_engine(world.model_copy(update={"physics": physics}), models,
+                                                      positions, headings)
     return out
 
 
-def measure(robots: int, regions: list[int], ticks: int, warmup: int, single_space: bool) -> list[dict]:
-    engines = engines_of(robots, regions, single_space)
+def measure(robots: int, regions: list[int], ticks: int, warmup: int, single_space: bool,
+            processes: tuple[int, ...] = ()) -> list[dict]:
+    engines = engines_of(robots, regions, single_space, processes)
     rng = np.random.default_rng(0)
     left = np.full(robots, 0.1) - rng.uniform(0.0, 0.02, robots)
     times = {label: [] for label in engines}
@@ -73,6 +79,8 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--robots", default="1280,10240,102400", help="sizes, comma-separated")
     p.add_argument("--regions", default="1,2", help="region counts, comma-separated (1: cells in one process)")
+    p.add_argument("--processes", default="", help="also the one-region cells in this many processes each "
+                                                   "(physics.processes), comma-separated")
     p.add_argument("--ticks", type=int, default=20)
     p.add_argument("--warmup", type=int, default=5)
     p.add_argument("--single-space-up-to", type=int, default=102400,
@@ -83,7 +91,8 @@ def main(argv: list[str] | None = None) -> int:
     rows = []
     print("| robots | engine | cells | ms per tick | µs per robot |\n|---:|---|---:|---:|---:|")
     for robots in (int(n) for n in args.robots.split(",")):
-        for row in measure(robots, regions, args.ticks, args.warmup, robots <= args.single_space_up_to):
+        for row in measure(robots, regions, args.ticks, args.warmup, robots <= args.single_space_up_to,
+                           tuple(int(k) for k in args.processes.split(",") if k)):
             rows.append(row)
             print(f"| {robots} | {row['engine']} | {row['cells']} | {row['ms_per_tick']:.1f} | "
                   f"{row['us_per_robot']:.2f} |", flush=True)

@@ -149,18 +149,18 @@ def _read_recording(path: Path):
 
 def _load_results_or_recording(source: Path):
     """(trajectories, world, led colours [T+1, n, 3] or None, tick_s) from either kind of directory."""
-    from composed_sim.outputs.results import TRAJECTORIES, WORLD, load_trajectories
+    from composed_sim.outputs.results import TRAJECTORIES, WORLD, has_trajectories, load_trajectories
     from composed_sim.world.loader import WorldFileError, load_world
     if (source / "metadata.yaml").exists():
         rec = _read_recording(source)
         return rec, rec.world, rec.led_colors, rec.tick_s
-    if not (source / TRAJECTORIES).exists():
+    if not has_trajectories(source):
         raise UserError(f"{source}: neither a results directory ({TRAJECTORIES}) nor a recording (metadata.yaml)")
     try:
         world = load_world(source / WORLD)
     except WorldFileError as e:
         raise UserError(str(e)) from None
-    traj = load_trajectories(source / TRAJECTORIES)
+    traj = load_trajectories(source)
     return traj, world, traj.led_colors, world.tick_s
 
 

@@ -75,3 +75,24 @@ def _warn_unmatched_globs(globs, world, flag: str) -> None:
             print(f"composed-sim: warning: {flag} {glob!r} matches no topic of this run "
                   f"(its topics are like {topics[0]} and {topics[-2] if len(topics) > 1 else topics[0]})",
                   file=sys.stderr)
+
+
+class WorkerMemory:
+    """Samples each worker process's resident memory at the ticks where the tick loop samples
+    the main process's (``hosts/tick_loop.MEMORY_SAMPLES`` a run): summary.json's
+    ``workers_rss_mb_by_tick``, [tick, [MB per worker]] (null for a worker on another machine)."""
+
+    def __init__(self, host, ticks: int):
+        from composed_sim.hosts.tick_loop import MEMORY_SAMPLES
+        self.host = host
+        self.every = max(1, ticks // MEMORY_SAMPLES)
+        self.samples: list = []
+
+    def on_tick(self, sim) -> None:
+        if sim.tick % self.every == 0:
+            self.sample(sim.tick)
+
+    def sample(self, tick: int) -> None:
+        found = self.host.workers_rss_mb()
+        if found is not None and (not self.samples or self.samples[-1][0] != tick):
+            self.samples.append([tick, [None if mb is None else round(mb, 1) for mb in found]])

@@ -20,11 +20,10 @@ DISK_FULL = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)
 
 
 def cmd_run(settings: RunSettings, json_stdout: JsonStdout) -> int:
-    from composed_sim.hosting import LEVELS, Console, LogSettings, NodeLogs
-    from composed_sim.hosting import remove_stale_shared_memory
+    from composed_sim.hosting import LEVELS, Console, LogSettings, NodeLogs, remove_stale_shared_memory
 
     world = settings.lockstep.applied_to(load_any_world(settings.world))
-    remove_stale_shared_memory()        # what dead runs left in /dev/shm (hosting/dds/participants.py)
+    removed = remove_stale_shared_memory()    # what dead processes left in /dev/shm (hosting/dds/shared_memory.py)
     out = settings.outputs.out
     check_writable(out)
     if settings.hosting.discovery is not None:
@@ -38,6 +37,7 @@ def cmd_run(settings: RunSettings, json_stdout: JsonStdout) -> int:
                                 rosout=settings.outputs.record is not None),
                     world.tick_ns, console=Console(logs_hint=str(logs_dir)))
     run = Run(settings, world, logs, json_stdout)
+    run.removed_shared_memory = removed
     try:
         summary, files, code = run.run_and_write()
     except OSError as e:
@@ -60,6 +60,8 @@ class Run:
         from composed_sim.hosts.make import host_in_own_domains
         self.settings, self.world, self.logs, self.json_stdout = settings, world, logs, json_stdout
         self.fail_fast = FailFast(settings.control.fail_fast)
+        self.worker_memory = None       # with worker processes: their memory, sampled (cli/observers.py)
+        self.removed_shared_memory = 0  # files of dead processes removed from /dev/shm before the run
         try:
             self.host, self.claim, picked = host_in_own_domains(settings.hosting, world, logs)
         except (HostError, DomainTaken) as e:
@@ -81,10 +83,14 @@ class Run:
         summary["participants"] = host.setup.participants
         summary["workers"] = host.setup.workers
         summary["workers_requested"] = hosting.workers if hosting.mode == "composed" else None
+        summary["physics_processes"] = host.sim.physics_processes     # core/engine.py: cells or regions
         workers_peak_rss_mb = host.workers_peak_rss_mb()
         if workers_peak_rss_mb is not None:     # every process's peak (pages shared between them count in each)
             summary["workers_peak_rss_mb"] = [round(mb, 1) for mb in workers_peak_rss_mb]
             summary["peak_rss_mb"] += sum(summary["workers_peak_rss_mb"])
+        if self.worker_memory is not None and result.trajectories.ticks_done:
+            self.worker_memory.sample(result.trajectories.ticks_done)
+            summary["workers_rss_mb_by_tick"] = self.worker_memory.samples
         summary["domain_id"], summary["domains"] = self.domains[0], self.domains
         if hosting.machines is not None:       # the state sent per tick to all machines, payload bytes
             summary["state_bytes_per_tick"] = round(host.bytes_sent_per_tick(result.trajectories.ticks_done))
@@ -119,13 +125,24 @@ class Run:
 
     def _ticks(self, interrupts, outputs: contextlib.ExitStack) -> tuple[dict, list, int]:
         host, settings, out = self.host, self.settings, self.settings.outputs.out
+        if self.removed_shared_memory:      # said once the run is set up: an error stays the only line
+            n = self.removed_shared_memory
+            print(f"composed-sim: removed {n} shared-memory file{'s' if n != 1 else ''} of dead processes "
+                  f"from /dev/shm", file=sys.stderr)
         self._say_workers()
         observers = run_observers(settings, self.world, host, outputs, interrupts, self.logs)
+        if host.workers_rss_mb() is not None:
+            from composed_sim.cli.observers import WorkerMemory
+            self.worker_memory = WorkerMemory(host, self.world.length_ticks)
+            observers.append(self.worker_memory)
         progress = progress_bar(self.world.length_ticks, disabled=not settings.control.progress)
+        from composed_sim.outputs.stream import TrajectoryStream
         try:
+            # The poses, metrics and violations go to --out as the run goes (outputs/stream.py).
             result = host.run(progress=progress.update,
                               should_stop=lambda: interrupts.requested or self.fail_fast.stops(host),
-                              observers=observers, checkpoint=lambda partial: self.finish(partial, True))
+                              observers=observers, checkpoint=lambda partial: self.finish(partial, True),
+                              trajectories=TrajectoryStream.factory(out, self.world.tick_s))
         except Exception as e:
             partial = getattr(e, "partial_result", None)
             if isinstance(e, OSError) and e.errno in DISK_FULL:
@@ -152,6 +169,7 @@ class Run:
             # reclaims the nodes (Host.end_before_exit).
             outputs.close()
             host.sim.close()         # the physics regions' workers end in order, not by the death signal
+            _leave_no_shared_memory()
             print_summary(self.json_stdout if settings.outputs.json else None, self.world, summary,
                           files + (["logs/"] if _kept(out / "logs") else []))
             sys.stdout.flush()
@@ -166,10 +184,21 @@ class Run:
         host = self.host
         if self.settings.hosting.machines is not None:      # also with --json: a script watches for it
             print(f"composed-sim: {len(host.sim.names)} robots on {host.placement()}", file=sys.stderr, flush=True)
-        elif host.setup.workers > 1 and not self.settings.outputs.json:
+        elif (host.setup.workers > 1 or host.sim.physics_processes > 1) and not self.settings.outputs.json:
             auto = self.settings.hosting.workers == AUTO_WORKERS
-            print(f"composed-sim: {len(host.sim.names)} robots in {host.setup.workers} worker processes"
-                  + (f" (--workers auto, {usable_cores()} usable cores)" if auto else ""), file=sys.stderr)
+            physics = host.sim.physics_processes
+            print(f"composed-sim: {len(host.sim.names)} robots in {host.setup.workers} worker "
+                  f"process{'es' if host.setup.workers > 1 else ''}"
+                  + (f" (--workers auto, {usable_cores()} usable cores)" if auto else "")
+                  + (f"; physics in {physics} processes" if physics > 1 else ""), file=sys.stderr)
+
+
+def _leave_no_shared_memory() -> None:
+    """This process ends without destroying its participants: the shared-memory files of its own
+    and of its ended workers go now, not at the next run (hosting/dds/shared_memory.py)."""
+    from composed_sim.hosting import remove_own_shared_memory, remove_stale_shared_memory
+    remove_stale_shared_memory()
+    remove_own_shared_memory()
 
 
 def _kept(folder) -> bool:

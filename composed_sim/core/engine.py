@@ -6,6 +6,9 @@
   (core/cell_layout.py, core/cells.py), stepped one after the other in this process.
 - Regions (``core/regions.py``'s ``RegionPhysics``): the same cells, each region's stepped by a
   worker process of its own, the state in shared memory.
+- A one-region world with several cells: its cells spread over ``physics.processes`` worker
+  processes ("auto": one per usable core, at most one per cell), as regions are, the cells and
+  the run unchanged.
 
 Cells and regions step the same layout the same way: a world gives the same run whichever of
 them steps it (tested), and whichever host runs its controllers.
@@ -13,6 +16,8 @@ them steps it (tested), and whichever host runs its controllers.
 from __future__ import annotations
 
 from typing import Sequence
+
+import os
 
 import numpy as np
 
@@ -47,4 +52,18 @@ def physics_engine(world: World, models: Sequence[RobotModel], positions: np.nda
         return PhysicsWorld(world, models, positions, headings)
     if layout.n_regions > 1 and processes:
         return RegionPhysics(world, models, positions, headings, layout)
+    count = cell_processes(world, layout.n_cells)
+    if count > 1 and processes:
+        return RegionPhysics(world, models, positions, headings, layout,
+                             groups=[part.tolist() for part in np.array_split(np.arange(layout.n_cells), count)])
     return TiledPhysics(world, models, positions, headings, layout)
+
+
+def cell_processes(world: World, cells: int) -> int:
+    """How many processes step the ``cells`` cells of a one-region world: ``physics.processes``,
+    or for "auto" one per usable core (this process's CPU affinity), at most one per cell. The
+    cells are stepped from the state at the tick's start, each on its own: how they are grouped
+    into processes never changes the run."""
+    wanted = world.physics.processes
+    cores = len(os.sched_getaffinity(0)) if wanted == "auto" else wanted
+    return max(1, min(cores, cells))

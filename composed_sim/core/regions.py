@@ -28,7 +28,7 @@ import sys
 import time
 import traceback
 import weakref
-from typing import Sequence
+from typing import Optional, Sequence
 
 import numpy as np
 
@@ -51,7 +51,8 @@ class RegionPhysics(CellEngine):
     """The cells of ``layout``, each region's in a worker process of its own."""
 
     def __init__(self, world: World, models: Sequence[RobotModel], positions: np.ndarray, headings: np.ndarray,
-                 layout: CellLayout):
+                 layout: CellLayout, groups: Optional[list[list[int]]] = None):
+        """``groups``: the cells each process steps (default: each region's cells)."""
         super().__init__(models, positions, headings, layout)
         n = self.n
         # [2, n, 6] the state of the ticks t and t + 1 in turn, then [n, 2] the wheel speeds.
@@ -62,13 +63,14 @@ class RegionPhysics(CellEngine):
         self._states[0] = self.initial_state(positions, headings)
         self._current = 0
         cells = layout.cell_region()
+        if groups is None:
+            groups = [np.flatnonzero(cells == region).tolist() for region in range(layout.n_regions)]
         self.pids: list[int] = []
         self._sockets: list[socket.socket] = []
         self._closer = weakref.finalize(self, _shut_down, self.pids, self._sockets)
         try:
-            for region in range(layout.n_regions):
-                mine = np.flatnonzero(cells == region).tolist()
-                self._fork(lambda: CellGroup(world, models, layout, mine, self._states[0]))
+            for mine in groups:
+                self._fork(lambda mine=mine: CellGroup(world, models, layout, mine, self._states[0]))
             self._wait_all()       # each worker answers once its cells are built
         except BaseException:
             self.close()

@@ -43,6 +43,9 @@ class SensingInputs:
     lights: Sequence
     route_messages: bool             # range and bearing: messages sent (false before the first step)
     altitudes: Optional[np.ndarray] = None   # [n] m above the floor (None: every robot on it)
+    # The neighbour index of ``positions`` (devices/common/sensors.kd_tree) when its reader got it
+    # built (a worker gets the main process's, hosts/workers/shared_state.py); None: built here.
+    tree: Optional[object] = None
 
 
 @dataclass
@@ -116,7 +119,7 @@ class Senses:
         p, h = inputs.positions, inputs.headings
         # One neighbour index per tick, shared by every sensor. (Balanced: unbalanced, it builds
         # faster but finds all pairs within a LiDAR's reach much slower, docs/speed.md.)
-        tree = kd_tree(p)
+        tree = kd_tree(p) if inputs.tree is None else inputs.tree
         tick = inputs.tick
         sensing = Sensing(p, h, self.radii, self.heights, inputs.scene, tree,
                           lambda device, robots: self.streams[device].at(tick, robots), inputs.lights,

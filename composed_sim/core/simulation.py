@@ -96,6 +96,11 @@ class Simulation:
         self._inputs = self._snapshot(route_messages=False)
         self._frame: Optional[SensorFrame] = None
 
+    @property
+    def physics_processes(self) -> int:
+        """Processes stepping the physics: 1 (this one), or the regions' or cells' workers (core/engine.py)."""
+        return len(getattr(self.physics, "pids", ())) or 1
+
     def close(self) -> None:
         """End the physics regions' worker processes, if any (idempotent; they also end with this process)."""
         close = getattr(self.physics, "close", None)

@@ -16,7 +16,8 @@ Inside, by job:
 - ``run_wide/``: the topics outside every robot's namespace, relayed at one point of the tick;
 - ``sim_time/``: the nodes' timers, rates and sleeps on sim time;
 - ``guard/``: a robot's faulty callback stays that robot's fault; the nodes' log lines; their CPU time;
-- ``dds/``: the participants' discovery among themselves and the simulator's endpoints.
+- ``dds/``: the participants' discovery among themselves, the simulator's endpoints, and Fast DDS's
+  files in /dev/shm of processes that are gone.
 
 Below it, ``ros/`` holds the topic contract, the simulator node and the in-process delivery;
 above it, ``hosts/`` holds the tick loop and the host modes that use all this.
@@ -60,8 +61,8 @@ _EXPORTS = {
     "guard.node_logs": ("NodeLogs", "Console", "FAILURE_MARK", "failure_from_output",
                         "node_label", "raising_node"),
     # DDS: participants, shared memory, matched endpoints
-    "dds.participants": ("ignore_participants_of_this_process", "remove_stale_shared_memory", "run_prefix",
-                         "use_worker_prefix"),
+    "dds.participants": ("ignore_participants_of_this_process", "run_prefix", "use_worker_prefix"),
+    "dds.shared_memory": ("remove_stale_shared_memory", "remove_own_shared_memory"),
     "dds.matching": ("matched", "contract_endpoints", "poll_until"),
 }
 _MODULE_OF = {name: module for module, names in _EXPORTS.items() for name in names}

@@ -57,10 +57,11 @@ class Host(Protocol):
 
     def run(self, ticks: Optional[int] = None, *, progress: Optional[Callable[[int], None]] = None,
             should_stop: Callable[[], bool] = lambda: False, observers: Sequence[TickObserver] = (),
-            checkpoint: Optional[Callable[[LoopResult], None]] = None) -> LoopResult:
+            checkpoint: Optional[Callable[[LoopResult], None]] = None, trajectories=None) -> LoopResult:
         """Run ``ticks`` ticks (the world's length by default); stops at a tick boundary once
         ``should_stop()``; every observer sees tick 0 and each tick after; ``checkpoint`` gets the
-        result so far every ``lockstep.CHECKPOINT_EVERY`` ticks."""
+        result so far every ``lockstep.CHECKPOINT_EVERY`` ticks; ``trajectories``: what records the
+        poses (``lockstep.run_lockstep``; default in memory)."""
 
     @property
     def exchange(self) -> Exchange:
@@ -78,6 +79,9 @@ class Host(Protocol):
 
     def workers_peak_rss_mb(self) -> Optional[list[float]]:
         """Each worker process's peak resident memory (the worker host), else None."""
+
+    def workers_rss_mb(self) -> Optional[list[Optional[float]]]:
+        """Each worker process's resident memory now (None for one on another machine), else None."""
 
     def end_before_exit(self) -> bool:
         """Stop what must not outlive this process (worker and controller processes) so that it
@@ -105,6 +109,9 @@ class HostBase:
     def workers_peak_rss_mb(self) -> Optional[list[float]]:
         return None
 
+    def workers_rss_mb(self) -> Optional[list[Optional[float]]]:
+        return None
+
     def end_before_exit(self) -> bool:
         return False
 
@@ -120,10 +127,10 @@ class ControllersElsewhere(HostBase):
 
     def run(self, ticks: Optional[int] = None, *, progress: Optional[Callable[[int], None]] = None,
             should_stop: Callable[[], bool] = lambda: False, observers: Sequence[TickObserver] = (),
-            checkpoint: Optional[Callable[[LoopResult], None]] = None) -> LoopResult:
+            checkpoint: Optional[Callable[[LoopResult], None]] = None, trajectories=None) -> LoopResult:
         ticks = self.world.length_ticks if ticks is None else ticks
         if self._startup_interrupted:      # stopped before tick 0: an interrupted run of 0 ticks
             should_stop = lambda: True     # noqa: E731
         return run_lockstep(self.sim, self.exchange, self.exchange.wait_for_answers, ticks,
                             progress=progress, should_stop=should_stop, observers=observers,
-                            checkpoint=checkpoint)
+                            checkpoint=checkpoint, trajectories=trajectories)

@@ -53,12 +53,13 @@ class ComposedHost(HostBase):
 
     def run(self, ticks: Optional[int] = None, *, progress: Optional[Callable[[int], None]] = None,
             should_stop: Callable[[], bool] = lambda: False, observers: Sequence[TickObserver] = (),
-            checkpoint: Optional[Callable[[LoopResult], None]] = None) -> LoopResult:
+            checkpoint: Optional[Callable[[LoopResult], None]] = None, trajectories=None) -> LoopResult:
         ticks = self.world.length_ticks if ticks is None else ticks
         wait, interrupting_hangs = self.groups.start_serving()
         with interrupting_hangs:
             return run_lockstep(self.sim, RelayingExchange(self.groups), wait, ticks, progress=progress,
-                                should_stop=should_stop, observers=observers, checkpoint=checkpoint)
+                                should_stop=should_stop, observers=observers, checkpoint=checkpoint,
+                                trajectories=trajectories)
 
     def end_before_exit(self) -> bool:
         return True          # nothing of it lives in another process

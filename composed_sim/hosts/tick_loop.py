@@ -28,6 +28,9 @@ class Trajectories:
     ticks_done: int = 0       # rows filled beyond the initial pose
     led_colors: Optional[np.ndarray] = None   # [T+1, n, 3] uint8: each robot's display colour
     altitudes: Optional[np.ndarray] = None    # [T+1, n] m above the floor; None: no robot flies
+    # Where the loop functions' metric rows go as they are taken; None: they stay in memory
+    # (LoopResult.metrics). A subclass that streams the rows to disk (outputs/stream.py) sets it.
+    metrics_sink = None
 
     @classmethod
     def allocate(cls, sim: Simulation, ticks: int) -> "Trajectories":
@@ -211,15 +214,18 @@ def run_lockstep(sim: Simulation, exchange: Exchange, wait_for_answers: Callable
                  ticks: int, *, progress: Optional[Callable[[int], None]] = None,
                  should_stop: Callable[[], bool] = lambda: False,
                  observers: Sequence[TickObserver] = (),
-                 checkpoint: Optional[Callable[[LoopResult], None]] = None) -> LoopResult:
+                 checkpoint: Optional[Callable[[LoopResult], None]] = None,
+                 trajectories: Optional[Callable[[Simulation, int], Trajectories]] = None) -> LoopResult:
     """Run ``ticks`` lockstep ticks; ``wait_for_answers(timeout_s)`` runs or awaits the controllers
     until every robot answered the published tick or the watchdog time is over. ``checkpoint``
     gets the result so far at tick 0 and every CHECKPOINT_EVERY ticks (marked interrupted): what a
-    run killed outright, or quit by a second Ctrl-C, leaves behind."""
+    run killed outright, or quit by a second Ctrl-C, leaves behind. ``trajectories(sim, ticks)``
+    makes what records each tick's poses, at tick 0 (default: ``Trajectories.allocate``, in memory)."""
     lockstep = sim.world.lockstep
-    traj = Trajectories.allocate(sim, ticks)
+    traj = (trajectories or Trajectories.allocate)(sim, ticks)
     previous = (np.zeros(sim.n), np.zeros(sim.n))
     hooks = LoopHooks(sim)      # the world's loop functions (composed_sim/loop_functions.py)
+    hooks.rows_to = traj.metrics_sink
     hooks.start(sim)
     sim.sense()              # tick 0: the world as the loop functions' start left it
     hooks.at_tick_0(sim)

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 import pyarrow as pa
 
-from composed_sim.outputs.results import TRAJECTORIES, WORLD, load_trajectories
+from composed_sim.outputs.results import TRAJECTORIES, WORLD, has_trajectories, load_trajectories
 from composed_sim.world.loader import WorldFileError, load_world
 
 FORMATS = ("csv", "parquet")
@@ -33,15 +33,15 @@ class ExportError(Exception):
 
 
 def trajectory_table(results: Path) -> pa.Table:
-    """The tidy table of a results directory (``--out`` of ``composed-sim run``)."""
-    path = Path(results) / TRAJECTORIES
-    if not path.is_file():
+    """The tidy table of a results directory (``--out`` of ``composed-sim run``; of a run that
+    goes or was killed, its ticks up to the last checkpoint)."""
+    if not has_trajectories(results):
         raise ExportError(f"{results}: no {TRAJECTORIES}; not a results directory of `composed-sim run`")
     try:
         world = load_world(Path(results) / WORLD)
     except WorldFileError as e:
         raise ExportError(str(e)) from None
-    traj = load_trajectories(path)
+    traj = load_trajectories(results)
     ticks, n = traj.positions.shape[:2]
     groups = np.asarray(world.group_of_robot(), dtype=np.int64)
     if len(groups) != n:

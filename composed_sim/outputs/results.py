@@ -6,6 +6,9 @@ metrics.csv      the loop functions' metrics, one row per tick they were taken (
 world.yaml       the resolved world, loadable as is to re-run the same experiment
 trajectories.npz positions [T+1, n, 2], headings [T+1, n], led_colors [T+1, n, 3] (each robot's
                  display colour), names [n], tick_s; with drones also altitudes [T+1, n] (m)
+trajectories/    the same arrays as .npy files while the run goes, and after it was killed
+                 (outputs/stream.py): appended each tick, whole up to the last checkpoint;
+                 packed into trajectories.npz when the run ends
 violations.csv   tick, robot, reason for each watchdog or contract violation
 near_misses.csv  tick, first, second, distance_m: each approach of two drones (with drones only)
 arena.png        the arena: whole-run trails, final poses with LED colours, lights, obstacles (outputs/render.py)
@@ -19,6 +22,7 @@ import json
 import os
 import platform
 import resource
+import shutil
 import zipfile
 from collections import Counter
 from importlib.metadata import PackageNotFoundError, version
@@ -135,13 +139,63 @@ def write_results(out_dir: Path, world: World, result: LoopResult, summary: dict
                   picture: bool = True, checkpoint: bool = False, near_misses: Optional[list] = None) -> list[str]:
     """Write every file of a run; each file is complete on its own, the picture last. Each file
     replaces the one before in one step (written aside, then renamed): a run killed while writing
-    leaves the previous checkpoint's file, never half a file. Returns the names written, in order
-    (what the run says it wrote). ``near_misses``: the drones' (core/near_misses.py), None
-    without drones."""
+    leaves the previous checkpoint's file, never half a file. Trajectories streamed as the run
+    went (outputs/stream.py) are flushed at a checkpoint and packed into trajectories.npz at the
+    end. Returns the names written, in order (what the run says it wrote). ``near_misses``: the
+    drones' (core/near_misses.py), None without drones."""
+    from composed_sim.outputs.stream import TrajectoryStream
     out_dir.mkdir(parents=True, exist_ok=True)
-    written = [WORLD, TRAJECTORIES, VIOLATIONS]
     with _replacing(out_dir / WORLD) as f:
         f.write(dump_world(world).encode())
+    t = result.trajectories
+    if isinstance(t, TrajectoryStream):
+        written = _write_stream(out_dir, t, result, checkpoint)
+    else:
+        written = _write_in_memory(out_dir, world, result, checkpoint)
+    if near_misses is not None:
+        written.append(NEAR_MISSES)
+        _write_near_misses(out_dir / NEAR_MISSES, t.names, near_misses)
+    with _replacing(out_dir / SUMMARY) as f:
+        f.write((json.dumps(summary, indent=2) + "\n").encode())
+    written.append(SUMMARY)
+    if picture:
+        from composed_sim.outputs.render import render
+        # The whole run's trails: the picture summarises the run, not its last seconds.
+        render(t, world, out_dir / PICTURE, led_colors=t.led_colors, trail_ticks=t.ticks_done,
+               tick_s=world.tick_s)
+        written.append(PICTURE)
+    if isinstance(t, TrajectoryStream) and not checkpoint:
+        shutil.rmtree(t.folder, ignore_errors=True)     # packed into trajectories.npz; drawn from
+    return written
+
+
+def _write_near_misses(path: Path, names: list[str], near_misses: list) -> None:
+    with _replacing(path) as f:
+        text = io.TextIOWrapper(f, newline="")
+        w = csv.writer(text)
+        w.writerow(["tick", "first", "second", "distance_m"])
+        w.writerows((e.tick, names[e.first], names[e.second], f"{e.distance_m:.4f}") for e in near_misses)
+        text.detach()
+
+
+def _write_stream(out_dir: Path, t, result: LoopResult, checkpoint: bool) -> list[str]:
+    """The streamed files brought up to date; at the end, the trajectories packed."""
+    from composed_sim.outputs.stream import pack_folder
+    t.write_violations(result.violations)
+    if checkpoint:
+        t.flush()
+        written = [f"{t.folder.name}/", VIOLATIONS]
+    else:
+        t.close()
+        with _replacing(out_dir / TRAJECTORIES) as f:
+            pack_folder(t.folder, f)
+        written = [TRAJECTORIES, VIOLATIONS]
+    return [WORLD, *written] + ([METRICS] if t.metrics.first is not None else [])
+
+
+def _write_in_memory(out_dir: Path, world: World, result: LoopResult, checkpoint: bool) -> list[str]:
+    """Trajectories, violations and metrics of a result held in memory, each file whole."""
+    written = [WORLD, TRAJECTORIES, VIOLATIONS]
     t = result.trajectories
     extra = {} if t.led_colors is None else {"led_colors": t.led_colors}
     if t.altitudes is not None:
@@ -155,14 +209,6 @@ def write_results(out_dir: Path, world: World, result: LoopResult, summary: dict
         w.writerow(["tick", "robot", "reason"])
         w.writerows((v.tick, v.robot, v.reason) for v in result.violations)
         text.detach()
-    if near_misses is not None:
-        written.append(NEAR_MISSES)
-        with _replacing(out_dir / NEAR_MISSES) as f:
-            text = io.TextIOWrapper(f, newline="")
-            w = csv.writer(text)
-            w.writerow(["tick", "first", "second", "distance_m"])
-            w.writerows((e.tick, t.names[e.first], t.names[e.second], f"{e.distance_m:.4f}") for e in near_misses)
-            text.detach()
     if result.metrics:
         written.append(METRICS)
         with _replacing(out_dir / METRICS) as f:
@@ -172,15 +218,6 @@ def write_results(out_dir: Path, world: World, result: LoopResult, summary: dict
             w.writeheader()
             w.writerows(result.metrics)
             text.detach()
-    with _replacing(out_dir / SUMMARY) as f:
-        f.write((json.dumps(summary, indent=2) + "\n").encode())
-    written.append(SUMMARY)
-    if picture:
-        from composed_sim.outputs.render import render
-        # The whole run's trails: the picture summarises the run, not its last seconds.
-        render(t, world, out_dir / PICTURE, led_colors=t.led_colors, trail_ticks=t.ticks_done,
-               tick_s=world.tick_s)
-        written.append(PICTURE)
     return written
 
 
@@ -203,8 +240,24 @@ def _replacing(path: Path):
 
 
 def load_trajectories(path: Path) -> Trajectories:
+    """A run's trajectories: from ``trajectories.npz``, or from the ``trajectories/`` folder of a
+    run that goes or was killed (outputs/stream.py), or from the results directory holding either."""
+    from composed_sim.outputs.stream import FOLDER, load_folder
+    path = Path(path)
+    if path.is_dir() and (path / TRAJECTORIES).is_file():
+        path = path / TRAJECTORIES
+    elif path.is_dir() and (path / FOLDER).is_dir():
+        path = path / FOLDER
+    if path.is_dir():
+        return load_folder(path)
     with np.load(path) as data:
         positions = data["positions"]
         leds = data["led_colors"] if "led_colors" in data else None
         altitudes = data["altitudes"] if "altitudes" in data else None
         return Trajectories(list(data["names"]), positions, data["headings"], len(positions) - 1, leds, altitudes)
+
+
+def has_trajectories(results: Path) -> bool:
+    """Does a results directory hold trajectories (packed, or streamed by a run that goes or was killed)?"""
+    from composed_sim.outputs.stream import FOLDER
+    return (Path(results) / TRAJECTORIES).is_file() or (Path(results) / FOLDER / "positions.npy").is_file()

@@ -67,6 +67,10 @@ class Physics(Strict):
     # Robots per pymunk space (cell) in a region; 0: one space per region. Chipmunk's cost per
     # robot grows once a space outgrows the cache (docs/speed.md, "Physics that scales").
     robots_per_cell: Annotated[int, Field(ge=0)] = 1024
+    # Processes that step the cells of a one-region world: "auto", one per usable core up to one
+    # per cell; 1: the cells in the simulator's process. The cells do not change with it, nor the
+    # run (docs/speed.md, "Every core by default"). With regions > 1: one process per region.
+    processes: Union[Annotated[int, Field(ge=1, le=MAX_REGIONS)], Literal["auto"]] = "auto"
 
     @field_validator("regions", mode="before")
     @classmethod

@@ -79,13 +79,14 @@ def _parallel_swarm():
 
 @pytest.mark.parametrize("physics", [dict(regions=dict(x_m=[-0.6, 0.3]), robots_per_cell=0),
                                      dict(regions=dict(y_m=[0.1]), robots_per_cell=20),
-                                     dict(robots_per_cell=10)])
+                                     dict(robots_per_cell=10, processes=1),
+                                     dict(robots_per_cell=10, processes=3)])
 def test_without_contacts_across_borders_cells_and_regions_move_robots_as_one_space(physics):
     positions, headings = _parallel_swarm()
     world = world_of(64, **physics)
     one = PhysicsWorld(world_of(64), [FOOTBOT] * 64, positions, headings)
     cut = engines(world, positions, headings)
-    assert isinstance(cut, RegionPhysics if "regions" in physics else TiledPhysics)
+    assert isinstance(cut, RegionPhysics if "regions" in physics or physics.get("processes", 1) > 1 else TiledPhysics)
     try:
         for tick in range(80):     # 0.8 m along the heading: many robots cross a border
             speeds = np.full(64, 0.1 + 0.02 * math.sin(tick)), np.full(64, 0.11)
@@ -123,6 +124,35 @@ def test_regions_in_processes_give_the_run_of_their_cells_in_this_process_every_
     finally:
         for engine in runs:
             engine.close()
+
+
+def test_the_cells_of_one_region_give_the_same_run_in_any_number_of_processes():
+    """physics.processes spreads a one-region world's cells over processes: the cells, and so the
+    run, are the same as in one process, contacts included, bit for bit."""
+    positions, headings, rng = _crowd(7)
+    world = world_of(len(positions), robots_per_cell=25, processes=1)
+    serial = engines(world, positions, headings)
+    assert isinstance(serial, TiledPhysics) and serial.layout.n_cells == 6
+    spread = [engines(world_of(len(positions), robots_per_cell=25, processes=k), positions, headings) for k in (2, 6)]
+    assert [len(e.pids) for e in spread] == [2, 6]
+    try:
+        left, right = rng.uniform(-0.1, 0.1, len(positions)), rng.uniform(-0.1, 0.1, len(positions))
+        for _ in range(30):
+            for engine in (serial, *spread):
+                engine.set_wheel_speeds(left, right)
+                engine.step()
+            assert all(np.array_equal(serial.state(), e.state()) for e in spread)
+        assert np.abs(serial.poses()[0] - positions).max() > 0.1
+    finally:
+        for engine in spread:
+            engine.close()
+
+
+def test_auto_processes_are_one_per_usable_core_up_to_the_cells(monkeypatch):
+    from composed_sim.core.engine import cell_processes
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: set(range(16)))
+    assert [cell_processes(world_of(10), cells) for cells in (1, 6, 10, 40)] == [1, 6, 10, 16]
+    assert cell_processes(world_of(10, processes=4), 40) == 4 and cell_processes(world_of(10, processes=4), 3) == 3
 
 
 def _head_on(border_contacts: str):

@@ -456,8 +456,13 @@ def test_vectorised_sensors_match_the_looped_references(seed):
                                               tree=tree).angles, blobs.angles)
 
 
-def test_dense_swarm_light_occlusion_matches_the_reference():
-    """Long rays through a dense swarm exercise the multi-round walk of the occlusion search."""
+@pytest.mark.parametrize("rounds", [(1, 2), (8, 4), (1000, 2)])
+def test_dense_swarm_light_occlusion_matches_the_reference(monkeypatch, rounds):
+    """Long rays through a dense swarm exercise the multi-round walk of the occlusion search,
+    whatever its rounds (the first's samples, the growth: one round to many)."""
+    import composed_sim.devices.common.sensors as sensors
+    monkeypatch.setattr(sensors, "_FIRST_ROUND", rounds[0])
+    monkeypatch.setattr(sensors, "_ROUND_GROWTH", rounds[1])
     rng = np.random.default_rng(11)
     pos = rng.uniform(-2, 2, (80, 2))
     hd = rng.uniform(-3, 3, 80)

@@ -1,3 +1,4 @@
-"""DDS below the hosted nodes: a process's participants that ignore one another and what dead runs
-left in shared memory (``participants.py``); whether the simulator's and the nodes' endpoints are
-matched (``matching.py``)."""
+"""DDS below the hosted nodes: a process's participants that ignore one another
+(``participants.py``); what processes that are gone left in /dev/shm, removed by owner
+(``shared_memory.py``); whether the simulator's and the nodes' endpoints are matched
+(``matching.py``)."""

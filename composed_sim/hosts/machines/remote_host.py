@@ -130,7 +130,8 @@ class RemoteWorkerHost(WorkerHost):
     def __enter__(self) -> "RemoteWorkerHost":
         t0 = time.perf_counter()
         try:
-            self.shared = SharedState(Senses(self.world), self.world.range_and_bearing.payload_bytes)
+            self.shared = SharedState(Senses(self.world), self.world.range_and_bearing.payload_bytes,
+                                      share_tree=False)       # the machines get the state without it
             self.sim = Simulation(self.world)
             # Half the watchdog, checked every half: a silent machine is lost within one watchdog.
             self.scheduler = RunScheduler(self.listen, self.run_id, self.world.lockstep.watchdog_s / 2)

@@ -274,6 +274,17 @@ class WorkerHost(ControllersElsewhere):
         """Each worker's peak resident memory, as last reported with its answers."""
         return [w.peak_rss_kb / 1024 for w in self.workers]
 
+    def workers_rss_mb(self) -> list[Optional[float]]:
+        """Each worker's resident memory now, read here (/proc); None for one that is gone or elsewhere."""
+        import psutil
+        found = []
+        for w in self.workers:
+            try:
+                found.append(psutil.Process(w.popen.pid).memory_info().rss / 2**20 if w.popen is not None else None)
+            except psutil.Error:
+                found.append(None)
+        return found
+
     def set_message_tap(self, tap) -> None:
         """The workers buffer the tapped messages of a tick and send them with its answers."""
         self.exchange.tap = tap
