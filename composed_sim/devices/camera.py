@@ -18,7 +18,7 @@ import numpy as np
 if TYPE_CHECKING:
     from scipy.spatial import cKDTree
 
-from composed_sim.devices.common import cdr
+from composed_sim.devices.common import cdr_clouds
 from composed_sim.devices.common.device import Device, DevicePublisher, csr_take, reads_cloud_into
 from composed_sim.devices.common.geometry import StaticScene
 from composed_sim.devices.common.noise import entry_noise
@@ -221,8 +221,8 @@ TOPIC = Topic("blobs", "sensor_msgs/msg/PointCloud2", "sensor",
 BLOB_DTYPE = np.dtype([("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("rgb", "<u4")])
 
 
-def encoder(robot: str) -> cdr.CloudEncoder:
-    return cdr.CloudEncoder(cdr.cloud_bytes(base_link(robot), BLOB_DTYPE))
+def encoder(robot: str) -> cdr_clouds.CloudEncoder:
+    return cdr_clouds.CloudEncoder(cdr_clouds.cloud_bytes(base_link(robot), BLOB_DTYPE))
 
 
 def points_of(angles: np.ndarray, distances: np.ndarray, colors: np.ndarray) -> np.ndarray:
@@ -298,9 +298,9 @@ class Blobs:
                      None if self.rgb is None else self.rgb[keep])
 
 
-def decode(data: bytes, decoder: Optional[cdr.CloudDecoder] = None) -> Blobs:
+def decode(data: bytes, decoder: Optional[cdr_clouds.CloudDecoder] = None) -> Blobs:
     """``decoder``: one per stream of clouds (a subscription), so their layout is parsed once."""
-    width, fields, point_step, points = (decoder or cdr.CloudDecoder()).decode(data)
+    width, fields, point_step, points = (decoder or cdr_clouds.CloudDecoder()).decode(data)
     return _blobs(np.frombuffer(points, dtype=_cloud_dtype(fields, point_step), count=width))
 
 
@@ -332,7 +332,7 @@ def _cloud_dtype(fields: tuple, point_step: int) -> np.dtype:
     dtype = _CLOUD_DTYPES.get(key)
     if dtype is None:
         found = {name: (offset, datatype) for name, offset, datatype in fields}
-        wanted = {"x": cdr.FLOAT32, "y": cdr.FLOAT32, "rgb": cdr.UINT32}
+        wanted = {"x": cdr_clouds.FLOAT32, "y": cdr_clouds.FLOAT32, "rgb": cdr_clouds.UINT32}
         if any(found.get(name, (0, None))[1] != datatype for name, datatype in wanted.items()):
             raise ValueError(f"not a blob cloud: fields {sorted(found)} (need x, y float32 and rgb uint32)")
         dtype = _CLOUD_DTYPES[key] = np.dtype({"names": list(wanted), "formats": ["<f4", "<f4", "<u4"],

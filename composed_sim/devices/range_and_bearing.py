@@ -33,7 +33,7 @@ import numpy as np
 if TYPE_CHECKING:
     from scipy.spatial import cKDTree
 
-from composed_sim.devices.common import cdr
+from composed_sim.devices.common import cdr_clouds
 from composed_sim.devices.common.device import Device, DevicePublisher, csr_take, reads_cloud_into
 from composed_sim.devices.common.geometry import StaticScene
 from composed_sim.devices.common.noise import entry_noise
@@ -215,8 +215,8 @@ def point_dtype(payload_bytes: int) -> np.dtype:
                      ("elevation", "<f4"), ("payload", "u1", (payload_bytes,))])
 
 
-def encoder(robot: str, payload_bytes: int) -> cdr.CloudEncoder:
-    return cdr.CloudEncoder(cdr.cloud_bytes(base_link(robot), point_dtype(payload_bytes)))
+def encoder(robot: str, payload_bytes: int) -> cdr_clouds.CloudEncoder:
+    return cdr_clouds.CloudEncoder(cdr_clouds.cloud_bytes(base_link(robot), point_dtype(payload_bytes)))
 
 
 def points_of(ranges: np.ndarray, bearings: np.ndarray, elevations: np.ndarray,
@@ -247,9 +247,9 @@ class RabMessages:
         return len(self.ranges)
 
 
-def decode(data: bytes, decoder: Optional[cdr.CloudDecoder] = None) -> RabMessages:
+def decode(data: bytes, decoder: Optional[cdr_clouds.CloudDecoder] = None) -> RabMessages:
     """``decoder``: one per stream of clouds (a subscription), so their layout is parsed once."""
-    width, fields, point_step, points = (decoder or cdr.CloudDecoder()).decode(data)
+    width, fields, point_step, points = (decoder or cdr_clouds.CloudDecoder()).decode(data)
     payload_bytes = point_step - _HEAD_BYTES
     if payload_bytes < 0 or fields != _cloud_fields(payload_bytes):
         raise ValueError(f"not a rab_rx cloud: fields {[name for name, _, _ in fields]} (need x, y, z, range, "
@@ -278,8 +278,8 @@ _HEAD_BYTES = point_dtype(0).itemsize      # a point's bytes before its payload
 
 @functools.lru_cache(maxsize=None)
 def _cloud_fields(payload_bytes: int) -> tuple:
-    """A rab_rx cloud's (name, offset, datatype) per field, as ``cdr.CloudDecoder`` gives them."""
-    return tuple((name, offset, datatype) for name, offset, datatype, _ in cdr.point_fields(point_dtype(payload_bytes)))
+    """A rab_rx cloud's (name, offset, datatype) per field, as ``cdr_clouds.CloudDecoder`` gives them."""
+    return tuple((name, offset, datatype) for name, offset, datatype, _ in cdr_clouds.point_fields(point_dtype(payload_bytes)))
 
 
 class Publisher(DevicePublisher):
