@@ -118,9 +118,7 @@ def range_and_bearing(positions: np.ndarray, headings: np.ndarray, radii: np.nda
         return RangeAndBearingReadings.empty(rows.stop - rows.start, payloads.shape[1])
     emitters = np.column_stack([positions, np.asarray(elevations, dtype=np.float64)])   # [n, 3]
     if mode == "global":
-        rx, tx = np.meshgrid(members, members, indexing="ij")     # receiver-major, sender order
-        keep = rx != tx
-        rx, tx = rx[keep], tx[keep]
+        rx, tx = _heard_globally(members)
     else:
         rx, tx = _heard_locally(positions, emitters, radii, heights, equipped, members, ranges, scene,
                                 check_occlusions, kd_tree(positions) if tree is None else tree, receivers, rows)
@@ -134,13 +132,26 @@ def range_and_bearing(positions: np.ndarray, headings: np.ndarray, radii: np.nda
         draws = entry_noise(rng, rx, tx) if noisy else None
     v = emitters[tx] - emitters[rx]                                   # [m, 3] world frame
     if noisy:
-        # ARGoS: CVector3 from spherical (Gaussian length, uniform inclination, uniform azimuth).
-        length = draws.normal(0.0, 1.0, 1) * noise_std_m[rx]
-        inclination = draws.uniform(0.0, math.pi, 2)
-        azimuth = draws.uniform(0.0, 2.0 * math.pi, 3)
-        v = v + (length * np.stack([np.sin(inclination) * np.cos(azimuth),
-                                    np.sin(inclination) * np.sin(azimuth),
-                                    np.cos(inclination)])).T
+        v = v + _receiver_noise(draws, noise_std_m[rx])
+    return _readings(rx, tx, v, headings, payloads, rows)
+
+
+def _receiver_noise(draws, sigma_m: np.ndarray) -> np.ndarray:
+    """[m, 3] world-frame noise vectors, one per message, from its draws and its receiver's σ [m]:
+    as ARGoS, a CVector3 from spherical coordinates (Gaussian length, uniform inclination, uniform
+    azimuth)."""
+    length = draws.normal(0.0, 1.0, 1) * sigma_m
+    inclination = draws.uniform(0.0, math.pi, 2)
+    azimuth = draws.uniform(0.0, 2.0 * math.pi, 3)
+    return (length * np.stack([np.sin(inclination) * np.cos(azimuth),
+                               np.sin(inclination) * np.sin(azimuth),
+                               np.cos(inclination)])).T
+
+
+def _readings(rx: np.ndarray, tx: np.ndarray, v: np.ndarray, headings, payloads: np.ndarray,
+              rows: slice) -> RangeAndBearingReadings:
+    """The messages heard, receivers rx [m] (sorted) from senders tx [m], each sender's emitter at
+    v [m, 3] (world frame) from its receiver's, as the readings of the receivers ``rows``."""
     planar = np.hypot(v[:, 0], v[:, 1])
     offsets = np.zeros(rows.stop - rows.start + 1, dtype=np.int64)
     np.cumsum(np.bincount(rx - rows.start, minlength=rows.stop - rows.start), out=offsets[1:])
@@ -162,6 +173,14 @@ def _check_inputs(n: int, payloads: np.ndarray, headings, radii, heights, equipp
             raise ValueError(f"{name} must have shape ({n},), got {np.shape(a)}")
     if mode not in ("local", "global"):
         raise ValueError(f"mode must be 'local' or 'global', got {mode!r}")
+
+
+def _heard_globally(members: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(receivers [m], senders [m]): every ordered pair of distinct ``members``, by receiver then
+    sender ("global" mode: no range, no occlusion)."""
+    rx, tx = np.meshgrid(members, members, indexing="ij")     # receiver-major, sender order
+    keep = rx != tx
+    return rx[keep], tx[keep]
 
 
 def _heard_locally(positions: np.ndarray, emitters: np.ndarray, radii, heights, equipped: np.ndarray,
@@ -279,7 +298,8 @@ _HEAD_BYTES = point_dtype(0).itemsize      # a point's bytes before its payload
 @functools.lru_cache(maxsize=None)
 def _cloud_fields(payload_bytes: int) -> tuple:
     """A rab_rx cloud's (name, offset, datatype) per field, as ``cdr_clouds.CloudDecoder`` gives them."""
-    return tuple((name, offset, datatype) for name, offset, datatype, _ in cdr_clouds.point_fields(point_dtype(payload_bytes)))
+    return tuple((name, offset, datatype)
+                 for name, offset, datatype, _ in cdr_clouds.point_fields(point_dtype(payload_bytes)))
 
 
 class Publisher(DevicePublisher):
