@@ -24,8 +24,9 @@ from geometry_msgs.msg import Twist
 from robot_programs_interfaces.action import Drive
 from robot_programs_interfaces.srv import Plan
 
+from differential.spec import STEP_TICKS
+
 QUEUE = 10
-STEP_TICKS = 2          # an action server's execute callback sleeps this long between feedbacks
 
 
 class Entities:

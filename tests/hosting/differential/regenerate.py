@@ -12,30 +12,27 @@ import sys
 import tempfile
 from pathlib import Path
 
-HERE = Path(__file__).resolve().parent
-FIXED = HERE / "fixed_programs.json"
-KNOWN = HERE / "known_mismatches.json"
-TICKS = 16
-# Programs of the default run: (seed, how many). Their constructs: ``test_differential.DEFAULT``.
-SEEDS = ((1, 3), (2, 3))
+from differential.known import DEFAULT, FIXED, known_cases
+from differential.spec import TICKS
+
+SEEDS = ((1, 3), (2, 3))     # the default run's programs: (seed, how many), drawn from DEFAULT
 
 
-def fixed_programs() -> list[dict]:
+def draw_fixed() -> list[dict]:
     from differential.strategies import draw_programs
-    from differential.test_differential import DEFAULT
     return [p for seed, count in SEEDS for p in draw_programs(count, seed, DEFAULT)]
 
 
 def main() -> int:
     from differential.truth import FIXTURES, run_truth, store
-    programs = fixed_programs()
+    programs = draw_fixed()
     FIXED.write_text(json.dumps(programs, indent=1) + "\n")
-    known = [case["program"] for case in json.loads(KNOWN.read_text())]
+    known = [case["program"] for case in known_cases()]
     for old in FIXTURES.glob("*.json"):
         old.unlink()
     unstable = 0
     with tempfile.TemporaryDirectory() as tmp:
-        for batch in (programs, known):
+        for batch in filter(None, (programs, known)):
             for record in run_truth(batch, TICKS, Path(tmp)):
                 if not record["stable"]:
                     unstable += 1

@@ -6,8 +6,8 @@ from __future__ import annotations
 from hypothesis import strategies as st
 
 from differential.bodies import free_body
+from differential.spec import STEP_TICKS, TICKS
 
-TICKS = 16
 LAST = TICKS - 2            # the last tick a scheduled statement's effect is still compared at
 
 
@@ -182,7 +182,7 @@ def schedule_goal(draw, b) -> None:
     b.add(server, {"kind": "action_server", "name": "a0", "group": draw(st.sampled_from(["ac1", "re1"])),
                    "execute": execute, "cancel": draw(st.sampled_from(["accept", "reject"]))})
     steps = draw(st.integers(1, 3))
-    length = 2 * steps if execute != "immediate" else 0
+    length = STEP_TICKS * steps if execute != "immediate" else 0
     sent = draw(st.integers(1, max(1, LAST - length - 2)))
     sched = scheduler(draw, b, client_node)
     how = draw(st.sampled_from([h for h in scheduled_hows(b, sched) if h in ("done", "await")]))
@@ -190,7 +190,7 @@ def schedule_goal(draw, b) -> None:
     client = b.client_for(client_node, b.to(client_node, server, "a0", robot),
                           draw(st.sampled_from(["default", "re1", "cl1"])), kind="action_client")
     at(sched, {"do": "goal", "client": client, "ticks": steps, "how": how}, sent)
-    wakes = [t for t in ([sent + 2 * k + 1 for k in range(steps)] if length else [sent + 1]) if t <= LAST]
+    wakes = [t for t in ([sent + STEP_TICKS * k + 1 for k in range(steps)] if length else [sent + 1]) if t <= LAST]
     if wakes and draw(st.booleans()):
         at(sched, {"do": "cancel", "client": client}, draw(st.sampled_from(wakes)))
 

@@ -24,15 +24,17 @@ from typing import Callable, Iterator, Optional
 from differential.check import FILLER
 from differential.events import compare
 from differential.hosted import run_hosted
+from differential.spec import TICKS
 from differential.truth import truths
 
 ERROR = re.compile(r"\b(\w*(?:Error|Exception|InvalidHandle))\b")
 
 
 def signature(mode: str, diffs, notes: list[str]) -> tuple:
-    """What makes two mismatches the same: the mode, the error a run ended with, else which kinds
-    of event the first differing tick lacks and has too many of."""
-    errors = sorted({m.group(1) for n in notes for m in ERROR.finditer(n)})
+    """What makes two mismatches the same: the mode, the error a run ended with (or its refusal
+    to start), else which kinds of event the first differing tick lacks and has too many of."""
+    errors = sorted({m.group(1) for n in notes for m in ERROR.finditer(n)} |
+                    {"refused" for n in notes if n.startswith("exit status 2")})
     if errors:
         return mode, tuple(errors)
     first = diffs[0]
@@ -86,6 +88,9 @@ def repair(program: dict) -> dict:
             node["entities"] = kept
             changed |= _prune(node, own | {"own", "self", "cmd_vel"})
         if not changed:
+            for node in nodes.values():           # the groups still used
+                used = {e.get("group", "default") for e in _all_entities(node)}
+                node["groups"] = sorted(used - {"default"})
             return program
 
 
@@ -122,7 +127,21 @@ def _prune(value, names: set) -> bool:
     return changed
 
 
+def wiring(program: dict) -> tuple[bool, bool]:
+    """Has a robot node a scan subscription and a cmd_vel publisher from its constructor? (What
+    the hosts require of every robot, by design: a shrink keeps them.)"""
+    entities = [e for n in program["nodes"] for e in n["entities"] if not e.get("configured")]
+    return any(e["kind"] == "scan" for e in entities), any(e["kind"] == "cmd_vel" for e in entities)
+
+
 def candidates(program: dict) -> Iterator[dict]:
+    wired = wiring(program)
+    for candidate in _candidates(program):
+        if all(now or not before for now, before in zip(wiring(candidate), wired)):
+            yield candidate
+
+
+def _candidates(program: dict) -> Iterator[dict]:
     if program["robots"] > 1:
         yield {**copy.deepcopy(program), "robots": 1}
     for path in _paths(program):
@@ -167,7 +186,7 @@ def minimize(program: dict, mode: str, ticks: int, workdir: Path, budget_s: floa
 def main(argv: list[str]) -> None:
     mode, program = argv[0], json.loads(Path(argv[1]).read_text())
     with tempfile.TemporaryDirectory() as tmp:
-        print(json.dumps(minimize(program, mode, 16, Path(tmp), log=lambda s: print(s, file=sys.stderr)), indent=1))
+        print(json.dumps(minimize(program, mode, TICKS, Path(tmp), log=lambda s: print(s, file=sys.stderr)), indent=1))
 
 
 if __name__ == "__main__":

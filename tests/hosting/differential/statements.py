@@ -196,7 +196,14 @@ class Statements:
     # --- statements done at once ---------------------------------------------------------------
 
     def _do_ready(self, act, i, st):
-        act.log("ready", st["client"], self.entities[st["client"]].service_is_ready())
+        entity = self.entities[st["client"]]
+        if isinstance(entity, AsyncParameterClient):
+            ready = entity.services_are_ready()
+        elif isinstance(entity, tuple):            # a parameter client's own clients
+            ready = all(part.service_is_ready() for part in entity)
+        else:
+            ready = entity.service_is_ready()
+        act.log("ready", st["client"], ready)
 
     def _do_wait_service(self, act, i, st):
         act.log("waited", st["client"], self.entities[st["client"]].wait_for_service(timeout_sec=WAIT_S))

@@ -32,7 +32,6 @@ from hypothesis import strategies as st
 from differential.bodies import free_body
 from differential.schedule import schedule_all
 
-TICKS = 16
 CONSTRUCTS = ("block", "timeout", "done", "await", "async_service", "sleep_rate", "sleep_clock", "odd_periods",
               "pubsub", "run_wide", "two_robots", "nested", "ready", "init_call", "actions", "params", "apc",
               "lifecycle_autostart", "lifecycle_self", "lifecycle_other", "lifecycle_run_wide",
