@@ -38,8 +38,11 @@ class Outcome:
         return "\n\n".join(str(m) for m in self.mismatches)
 
 
-def check(programs: list[dict], ticks: int, workdir: Path, modes=tuple(MODES)) -> Outcome:
-    records = truths(programs, ticks, workdir)
+def check(programs: list[dict], ticks: int, workdir: Path, modes=tuple(MODES), recorded_only: bool = False,
+          attribute: bool = False) -> Outcome:
+    """``attribute``: a program that mismatches in a batch is run again alone, to tell whether the
+    mismatch is its own (doubles the cost of a mismatch)."""
+    records = truths(programs, ticks, workdir, recorded_only)
     batch = programs + ([FILLER] if sum(p["robots"] for p in programs) < 2 else [])
     mismatches = []
     for mode in modes:
@@ -48,7 +51,7 @@ def check(programs: list[dict], ticks: int, workdir: Path, modes=tuple(MODES)) -
             if not record["stable"]:
                 continue
             diffs, notes = compare(record["events"], hosted.events.get(i, []), ticks), hosted.notes
-            if diffs and len(programs) > 1:
+            if diffs and attribute and len(programs) > 1:
                 # Whose fault is it? The program alone says; where it matches alone, the batch's
                 # differences count only if the batch's run itself did not fail (another
                 # program's error would stop it too).

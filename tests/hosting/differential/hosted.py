@@ -24,7 +24,7 @@ HERE = Path(__file__).resolve().parent
 STAMP = re.compile(r"^\[\w+\] \[(?:set-up|sim [-\d.]+ s, tick (-?\d+))\] \[[^\]]*\]: (.*)$")
 FAILED_LINE = re.compile(r"callback raised (\w+); (\w+) is failed")
 OWNER = re.compile(r"p(\d+)([rw]\d+)")
-WATCHDOG_S = 10.0
+WATCHDOG_S = 3.0       # only the multi-threaded executor's known stalls wait for it
 TAIL = 1500
 
 

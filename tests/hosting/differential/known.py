@@ -1,29 +1,94 @@
-"""Where the hosts differ from rclpy today, as the generator found it, and what matches.
-
-``known_mismatches.json``: one case per distinct mismatch, each a minimal program (shrunk by
-``shrink.py``), the modes it fails in, and the diagnosis (the hosting code at fault and why).
-``DEFAULT``: the constructs whose generated programs match rclpy in every mode today; the default
-run's fixed programs (``fixed_programs.json``) are drawn from them. When a fix lands, its case's
-test passes unexpectedly (strict xfail): take the mode out of the case's ``fails`` (the case
-goes once no mode is left), and add the constructs it concerned to ``DEFAULT``
-(then ``python -m differential.regenerate``).
+"""The known differences between the hosts and rclpy, as the differential test found them, each
+with the construct, the modes, and why (docs/contract.md says the same for users). A mismatch of a
+program that uses a known construct, in a mode the difference is known for, is explained; every
+other mismatch fails the test. Fix one, and its entry goes.
 """
 from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import Iterator
 
 HERE = Path(__file__).resolve().parent
-KNOWN = HERE / "known_mismatches.json"
 FIXED = HERE / "fixed_programs.json"
-
-DEFAULT = frozenset({"done", "async_service", "odd_periods", "pubsub", "run_wide", "two_robots", "ready",
-                     "params", "apc", "make", "late_service"})
-
-
-def known_cases() -> list[dict]:
-    return json.loads(KNOWN.read_text()) if KNOWN.is_file() else []
 
 
 def fixed_programs() -> list[dict]:
     return json.loads(FIXED.read_text())
+
+
+def _entities(program: dict, nodes: str) -> Iterator[dict]:
+    """The entities of a program's robot nodes (``nodes="robot"``) or run-wide nodes, with those
+    its statements make."""
+    stack = [e for n in program.get("nodes" if nodes == "robot" else "run_wide", ()) for e in n.get("entities", ())]
+    while stack:
+        e = stack.pop()
+        yield e
+        stack += [s["entity"] for s in e.get("body", ()) if s.get("do") == "make"]
+
+
+def run_wide_calls_a_robot(program: dict) -> bool:
+    """A run-wide node has a client (service, action, parameters, lifecycle) of a robot's node."""
+    return any("to" in e and not e["to"]["node"].startswith("w") for e in _entities(program, "run_wide"))
+
+
+def action_between_places(program: dict) -> bool:
+    """An action client of one place (a robot, the run-wide nodes) and its server in another."""
+    robot = [e for e in _entities(program, "robot") if e["kind"] == "action_client" and e["to"]["node"].startswith("w")]
+    run_wide = [e for e in _entities(program, "run_wide") if e["kind"] == "action_client" and "robot" in e["to"]]
+    return bool(robot or run_wide)
+
+
+def calls_between_places(program: dict) -> bool:
+    """A client of one place for a server of another (a robot's node and a run-wide node)."""
+    return run_wide_calls_a_robot(program) or \
+        any("to" in e and e["to"]["node"].startswith("w") for e in _entities(program, "robot"))
+
+
+def sleeps_on_sim_time(program: dict) -> bool:
+    """A callback sleeps on the node's clock (a rate, ``sleep_for``) or an action server's execute
+    callback paces its feedback so."""
+    def sleeps(e):
+        return e.get("execute") in ("rate", "clock") or any(s.get("do") == "sleep" for s in e.get("body", ()))
+    return any(sleeps(e) for part in ("robot", "run_wide") for e in _entities(program, part))
+
+
+KNOWN: list[dict] = [
+    {"construct": "a callback sleeps on sim time (a rate, sleep_for, a slow action execute callback)",
+     "modes": ("threads",), "uses": sleeps_on_sim_time,
+     "why": "rclpy's multi-threaded executor (kept for comparison) runs rclpy's own sleep in one of its threads, "
+            "which wakes when the node's clock reaches a later tick; the host closes a tick only once its "
+            "callbacks have returned, so the tick waits for the watchdog and the robot is failed as hung "
+            "(the default executor sets the callback aside instead, and matches)"},
+    {"construct": "an action between a robot's node and a run-wide node",
+     "modes": ("workers1", "workers2", "threads", "processes"), "uses": action_between_places,
+     "why": "an action's goal, cancel and result services and its feedback and status topics stay rclpy's, "
+            "through DDS, and do not go through the rounds of calls between places: what one place sends "
+            "in tick k is taken by the other as tick k + 1 starts (rclpy: in tick k). Within a robot an "
+            "action matches"},
+    {"construct": "calls between a robot's node and a run-wide node",
+     "modes": ("threads",), "uses": calls_between_places,
+     "why": "rclpy's multi-threaded executor (kept for comparison) looks at new tasks late (rclpy 7.1.6): a "
+            "call between places completes a tick or more late, and a robot waiting on it misses its tick "
+            "(docs/contract.md, what cannot be hosted)"},
+    {"construct": "a run-wide node calls a robot's node (a service, its parameters, its lifecycle)",
+     "modes": ("processes",), "uses": run_wide_calls_a_robot,
+     "why": "multi-process mode: the robot's controller process serves the calls the run-wide nodes make at "
+            "the start of tick k before its nodes' clocks (on /clock, through DDS) read tick k, so the call "
+            "is served, and what it logs is stamped, at tick k - 1 (rclpy: at tick k). The fix belongs in "
+            "hosts/multiprocess (the controller process would set its clocks before serving the tick's calls)"},
+]
+
+
+SHARED_EXECUTOR = ("a program of the same batch stalls rclpy's multi-threaded executor (a known difference above): "
+                   "its robots share that executor with the batch's other robots, whose ticks it holds up too")
+
+
+def explained(program: dict, mode: str, batch: list[dict] = ()) -> list[str]:
+    """The known differences that explain a mismatch of ``program`` in ``mode`` (empty: none),
+    run in one world with ``batch``."""
+    own = [k["construct"] for k in KNOWN if mode in k["modes"] and k["uses"](program)]
+    if own or mode != "threads":
+        return own
+    neighbours = any(k["uses"](p) for p in batch if p is not program for k in KNOWN if mode in k["modes"])
+    return [SHARED_EXECUTOR] if neighbours else []

@@ -25,9 +25,9 @@ def cache_dir() -> Path:
     return Path(os.environ.get("DIFFERENTIAL_CACHE", Path.home() / ".cache" / "composed_sim" / "differential"))
 
 
-def load(program: dict, ticks: int) -> Optional[dict]:
+def load(program: dict, ticks: int, recorded_only: bool = False) -> Optional[dict]:
     name = f"{program_hash(program, ticks)}.json"
-    for folder in (FIXTURES, cache_dir()):
+    for folder in (FIXTURES,) if recorded_only else (FIXTURES, cache_dir()):
         if (folder / name).is_file():
             return json.loads((folder / name).read_text())
     return None
@@ -63,10 +63,14 @@ def run_truth(programs: list[dict], ticks: int, workdir: Path) -> list[dict]:
     return records
 
 
-def truths(programs: list[dict], ticks: int, workdir: Path) -> list[dict]:
-    """Each program's ground-truth record: cached, or run (the missing ones in one batch) and stored."""
-    found = [load(p, ticks) for p in programs]
+def truths(programs: list[dict], ticks: int, workdir: Path, recorded_only: bool = False) -> list[dict]:
+    """Each program's ground-truth record: cached, or run (the missing ones in one batch) and
+    stored. ``recorded_only``: a program with no record is an error, not a run of rclpy."""
+    found = [load(p, ticks, recorded_only) for p in programs]
     missing = [i for i, r in enumerate(found) if r is None]
+    if missing and recorded_only:
+        raise AssertionError(f"programs {missing} have no recorded rclpy run (their text and truth/ disagree): "
+                             f"record it with python -m differential.regenerate (from tests/hosting)")
     if missing:
         for i, record in zip(missing, run_truth([programs[i] for i in missing], ticks, workdir)):
             store(record)
