@@ -13,7 +13,6 @@ import json
 import re
 from collections import Counter
 from dataclasses import dataclass, field
-from typing import Optional
 
 EVENT = re.compile(r"\bEV (p\d+) (\S+) (\[.*\])\s*$")
 FAILED = "failed"
@@ -85,7 +84,3 @@ def describe(diffs: list[TickDiff], limit: int = 6, per_tick: int = 8) -> str:
     if len(diffs) > limit:
         lines.append(f"  … {len(diffs) - limit} more ticks differ (first: {diffs[0].tick}, last: {diffs[-1].tick})")
     return "\n".join(lines)
-
-
-def first_difference(diffs: list[TickDiff]) -> Optional[int]:
-    return diffs[0].tick if diffs else None

@@ -10,7 +10,7 @@ Everything a node observes is logged, one line per event, through its own logger
 a batch (``p3``), ``who`` the node's name within its program (``r0/n1``, ``w0``); an activation is one run of one callback (a timer's 3rd firing ``t0#3``, the
 scan of tick 4 ``scan@4``, the request with value 17 to service ``s0`` ``s0<17``, a done callback
 ``t0#3/1``), and ``seq`` counts the events within it, so that the events of one activation keep
-their order in any comparison while activations are compared as sets (see ``compare.py``).
+their order in any comparison while activations are compared as sets (see ``events.py``).
 The statements a callback runs are in ``statements.py``.
 """
 from __future__ import annotations

@@ -1,5 +1,5 @@
 """The differential harness itself, without ROS: the comparison, the names a batch gives, the
-generator's rules, shrinking's repairs."""
+generator's rules."""
 from __future__ import annotations
 
 import copy
@@ -9,7 +9,6 @@ from hypothesis import HealthCheck, given, settings
 
 from differential.events import compare
 from differential.rules import problems
-from differential.shrink import candidates, repair
 from differential.spec import batch_world, compile_node, program_hash
 from differential.strategies import programs
 
@@ -59,16 +58,7 @@ def test_a_programs_hash_is_its_content():
 @given(programs())
 def test_generated_programs_keep_the_rules_that_make_rclpys_behaviour_defined(program):
     assert problems(program) == []
-    assert repair(copy.deepcopy(program)) == program          # every name it uses is there
     json.dumps(program)
-
-
-@settings(max_examples=30, deadline=None, suppress_health_check=list(HealthCheck))
-@given(programs())
-def test_shrinking_keeps_the_rules_and_the_robots_node(program):
-    for candidate in candidates(program):
-        assert problems(candidate) == []
-        assert candidate["nodes"][0]["name"] == "n0"
 
 
 def test_a_rule_broken_is_named():
