@@ -53,6 +53,29 @@ def sleeps_on_sim_time(program: dict) -> bool:
     return any(sleeps(e) for part in ("robot", "run_wide") for e in _entities(program, part))
 
 
+def sensor_callback_sleeps_beside_timers(program: dict) -> bool:
+    for node in (*program.get("nodes", ()), *program.get("run_wide", ())):
+        entities = list(_entities({"nodes": [node]}, "robot"))
+        sleeping = any(e["kind"] == "scan" and any(s.get("do") == "sleep" for s in e.get("body", ())) for e in entities)
+        if sleeping and any(e["kind"] == "timer" for e in entities):
+            return True
+    return False
+
+
+def cleanup_destroys(program: dict) -> bool:
+    """A node whose on_cleanup destroys what on_configure made is cleaned up at some tick."""
+    nodes = (*program.get("nodes", ()), *program.get("run_wide", ()))
+    return any(n.get("cleanup_destroys") for n in nodes) and '"t": "cleanup"' in json.dumps(program)
+
+
+def makes_a_timer(program: dict) -> bool:
+    return any(e["kind"] == "timer" for part in ("robot", "run_wide") for e in _made(program, part))
+
+
+def _made(program: dict, part: str) -> list[dict]:
+    return [s["entity"] for e in _entities(program, part) for s in e.get("body", ()) if s.get("do") == "make"]
+
+
 KNOWN: list[dict] = [
     {"construct": "a callback sleeps on sim time (a rate, sleep_for, a slow action execute callback)",
      "modes": ("threads",), "uses": sleeps_on_sim_time,
@@ -72,11 +95,26 @@ KNOWN: list[dict] = [
             "call between places completes a tick or more late, and a robot waiting on it misses its tick "
             "(docs/contract.md, what cannot be hosted)"},
     {"construct": "a run-wide node calls a robot's node (a service, its parameters, its lifecycle)",
-     "modes": ("processes",), "uses": run_wide_calls_a_robot,
-     "why": "multi-process mode: the robot's controller process serves the calls the run-wide nodes make at "
-            "the start of tick k before its nodes' clocks (on /clock, through DDS) read tick k, so the call "
-            "is served, and what it logs is stamped, at tick k - 1 (rclpy: at tick k). The fix belongs in "
-            "hosts/multiprocess (the controller process would set its clocks before serving the tick's calls)"},
+     "modes": ("workers1", "workers2", "processes"), "uses": run_wide_calls_a_robot,
+     "why": "the calls the run-wide nodes make as tick k starts are served before the tick's sensors "
+            "(docs/contract.md, the order within a tick), and a robot's clock moves to tick k with its "
+            "sensors: the handler reads tick k - 1 on its clock (multi-process mode also stamps its log "
+            "lines so); rclpy: tick k"},
+    {"construct": "a sensor callback sleeps across ticks in a node with timers",
+     "modes": ("workers1", "workers2", "processes"), "uses": sensor_callback_sleeps_beside_timers,
+     "why": "a hosted node's timers fire once the tick's sensor callbacks have returned (the rule that orders "
+            "them after the sensors, the same in every run); one that sleeps holds its node's timers until "
+            "it wakes, where rclpy fires them on time"},
+    {"construct": "a timer made in a callback",
+     "modes": ("threads",), "uses": makes_a_timer,
+     "why": "under rclpy's multi-threaded executor (kept for comparison) a timer made in a callback once missed "
+            "one firing (a tick late, then on time): its threads and the host's check that a tick is done race "
+            "over a timer that just became ready. Seen, not yet explained in full"},
+    {"construct": "a lifecycle node's on_cleanup destroys its timer and publishers",
+     "modes": ("workers1", "workers2", "threads", "processes"), "uses": cleanup_destroys,
+     "why": "in its own process rclpy's executor may raise InvalidHandle (a destroyed timer still in its wait "
+            "set) and the process ends; hosted, destroying an entity from a callback or a transition is safe "
+            "on purpose, and the node runs on"},
 ]
 
 
