@@ -199,17 +199,24 @@ def draw_callbacks(draw, b: Builder) -> None:
 
 
 def draw_programs(count: int, seed: int, constructs: frozenset = ALL) -> list[dict]:
-    """``count`` programs drawn from ``programs(constructs)`` with a fixed seed (the same ones every
-    time with this version of hypothesis)."""
+    """``count`` distinct programs drawn from ``programs(constructs)`` with a fixed seed (the same
+    ones every time with this version of hypothesis). Hypothesis starts every seed with the
+    simplest program: it is left out, so that batches of different seeds do not share it."""
+    import json
     from hypothesis import HealthCheck, Phase, given, settings
     from hypothesis import seed as seeded
-    drawn: list[dict] = []
+    drawn: dict[str, dict] = {}
+    first: list[str] = []
 
-    @settings(max_examples=count, database=None, phases=[Phase.generate], deadline=None,
+    @settings(max_examples=3 * count + 1, database=None, phases=[Phase.generate], deadline=None,
               suppress_health_check=list(HealthCheck))
     @seeded(seed)
     @given(programs(constructs))
     def collect(program):
-        drawn.append(program)
+        key = json.dumps(program, sort_keys=True)
+        if not first:
+            first.append(key)
+        elif key not in drawn and len(drawn) < count:
+            drawn[key] = program
     collect()
-    return drawn[:count]
+    return list(drawn.values())
