@@ -68,3 +68,16 @@ def test_a_rule_broken_is_named():
     waiting = copy.deepcopy(CALL)
     waiting["nodes"][0]["entities"][0]["group"] = "default"
     assert problems(waiting) == ["n0.scan: waits in the default group for s0, which may wait itself"]
+
+
+def test_a_fixed_program_whose_text_changed_has_no_recorded_truth_and_starts_no_rclpy(tmp_path):
+    import pytest
+
+    from differential.known import fixed_programs
+    from differential.truth import truths
+    programs = fixed_programs()
+    assert all(r["stable"] for r in truths(programs, 16, tmp_path, recorded_only=True))
+    changed = copy.deepcopy(programs[0])
+    changed["nodes"][0]["entities"].append({"kind": "timer", "name": "extra", "period": 0.1, "body": []})
+    with pytest.raises(AssertionError, match="no recorded rclpy run"):
+        truths([changed], 16, tmp_path, recorded_only=True)
