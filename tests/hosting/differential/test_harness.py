@@ -9,7 +9,7 @@ from hypothesis import HealthCheck, given, settings
 
 from differential.events import compare
 from differential.rules import problems
-from differential.spec import batch_world, compile_node, program_hash
+from differential.spec import TICKS, batch_world, compile_node, program_hash
 from differential.strategies import programs
 
 CALL = {"robots": 1, "nodes": [
@@ -76,8 +76,8 @@ def test_a_fixed_program_whose_text_changed_has_no_recorded_truth_and_starts_no_
     from differential.known import fixed_programs
     from differential.truth import truths
     programs = fixed_programs()
-    assert all(r["stable"] for r in truths(programs, 16, tmp_path, recorded_only=True))
+    assert all(r["stable"] for r in truths(programs, TICKS, tmp_path, recorded_only=True))
     changed = copy.deepcopy(programs[0])
     changed["nodes"][0]["entities"].append({"kind": "timer", "name": "extra", "period": 0.1, "body": []})
     with pytest.raises(AssertionError, match="no recorded rclpy run"):
-        truths([changed], 16, tmp_path, recorded_only=True)
+        truths([changed], TICKS, tmp_path, recorded_only=True)
