@@ -107,9 +107,10 @@ KNOWN: list[dict] = [
             "it wakes, where rclpy fires them on time"},
     {"construct": "a timer made in a callback",
      "modes": ("threads",), "uses": makes_a_timer,
-     "why": "under rclpy's multi-threaded executor (kept for comparison) a timer made in a callback once missed "
-            "one firing (a tick late, then on time): its threads and the host's check that a tick is done race "
-            "over a timer that just became ready. Seen, not yet explained in full"},
+     "why": "under rclpy's multi-threaded executor (kept for comparison) a timer made in a callback may miss "
+            "a firing (a tick late, then on time) when the machine is loaded: its threads and the host's "
+            "check that a tick is done race over a timer that just became ready. Not deterministic: the "
+            "same programs run again matched"},
     {"construct": "a lifecycle node's on_cleanup destroys its timer and publishers",
      "modes": ("workers1", "workers2", "threads", "processes"), "uses": cleanup_destroys,
      "why": "in its own process rclpy's executor may raise InvalidHandle (a destroyed timer still in its wait "
