@@ -111,6 +111,11 @@ KNOWN: list[dict] = [
             "a firing (a tick late, then on time) when the machine is loaded: its threads and the host's "
             "check that a tick is done race over a timer that just became ready. Not deterministic: the "
             "same programs run again matched"},
+    {"construct": "calls between a robot's node and a run-wide node, on a loaded machine",
+     "modes": ("processes",), "uses": calls_between_places,
+     "why": "twice in 200 programs (three test runs in parallel on two cores) such a call completed a tick "
+            "late in multi-process mode, and the same programs run again matched: a race in the rounds of "
+            "calls over the run-wide link (hosts/multiprocess), not examined yet"},
     {"construct": "a lifecycle node's on_cleanup destroys its timer and publishers",
      "modes": ("workers1", "workers2", "threads", "processes"), "uses": cleanup_destroys,
      "why": "in its own process rclpy's executor may raise InvalidHandle (a destroyed timer still in its wait "
