@@ -3,12 +3,15 @@ each program's events compared tick by tick (``events.py``)."""
 from __future__ import annotations
 
 import json
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from differential.events import TickDiff, compare, describe
 from differential.hosted import MODES, run_hosted
 from differential.truth import truths
+
+PARALLEL_MODES = 2        # the hosted runs of a batch at once (a 2-core machine)
 
 # A robot that only listens: a batch of one robot still fills two worker processes.
 FILLER = {"robots": 1, "nodes": [{"name": "n0", "entities": [{"kind": "scan", "name": "scan", "body": []},
@@ -45,8 +48,11 @@ def check(programs: list[dict], ticks: int, workdir: Path, modes=tuple(MODES), r
     records = truths(programs, ticks, workdir, recorded_only)
     batch = programs + ([FILLER] if sum(p["robots"] for p in programs) < 2 else [])
     mismatches = []
+    # The modes' runs at once: each is a process of its own, mostly waiting on the others of its run.
+    with ThreadPoolExecutor(max_workers=PARALLEL_MODES) as pool:
+        runs = dict(zip(modes, pool.map(lambda mode: run_hosted(batch, ticks, mode, workdir / mode), modes)))
     for mode in modes:
-        hosted = run_hosted(batch, ticks, mode, workdir / mode)
+        hosted = runs[mode]
         for i, record in enumerate(records):
             if not record["stable"]:
                 continue
