@@ -73,6 +73,11 @@ def construct(cls: type[Node], options: HostedNodeOptions,
         if ours:
             kwargs, node = options.node_kwargs(kwargs), None
         plain(self, node_name, *args, **kwargs)
+        if ours:
+            # Its clock is on sim time from the start, as ``use_sim_time`` puts a process's node:
+            # until the host sets the first tick's time it reads 0 (in a constructor, in an
+            # autostart's transitions), never the wall clock.
+            self.get_clock()._set_ros_time_is_active(True)
         if ours and options.logger is not None:
             self._logger = options.logger(self)      # what Node.get_logger() returns
 

@@ -43,8 +43,13 @@ def wait_on_clock(node: Node, executor, future: Future, group, seconds: Optional
     ``seconds`` later on the node's clock (sim time: the same tick in every run), ``at_time()``
     first, if not done."""
     # A group of its own, as rclpy gives its rates: the caller's group may be held while it waits.
+    # On the node's clock itself, which the host moves as each tick opens, not on the timers'
+    # clocks (sim_time/timers.py), which move once the tick's sensor callbacks have returned: a
+    # sensor callback that sleeps has not returned, and the next one, of its mutually exclusive
+    # group, cannot start, so that clock would never get there.
     timer = None if seconds is None else node.create_timer(seconds, lambda: future.done() or at_time(),
-                                                           callback_group=ReentrantCallbackGroup())
+                                                           callback_group=ReentrantCallbackGroup(),
+                                                           clock=node.get_clock())
     try:
         executor.wait_for(future, group)
     finally:

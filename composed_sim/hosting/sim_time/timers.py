@@ -24,6 +24,7 @@ chain, a run-wide node) has its timers moved to tick k's time by the host when t
 """
 from __future__ import annotations
 
+import inspect
 import math
 import threading
 from typing import Callable, Collection, Optional
@@ -125,7 +126,15 @@ class SimTimers:
                 return callback(msg, *info)
             finally:
                 self._handled(stamp)
-        return with_signature_of(sub, run)
+        if not inspect.iscoroutinefunction(callback):
+            return with_signature_of(sub, run)
+
+        async def run_async(msg, *info):
+            # An ``async def`` callback stays one, so that every executor runs its coroutine (rclpy's
+            # awaits only what a coroutine function returns): its tick counts as handled once
+            # the coroutine is made, as a plain callback's once it returned.
+            return await run(msg, *info)
+        return with_signature_of(sub, run_async)
 
     # --- per tick ------------------------------------------------------------------------------
 
@@ -196,6 +205,12 @@ def sensor_stamp(msg, raw: bool) -> int:
 def with_signature_of(sub: Subscription, run: Callable) -> Callable:
     """``run(msg, *info)`` as a callback of ``sub``: rclpy picks a subscription's call signature
     from its callback's, so it keeps the original's."""
-    if sub._callback_type is Subscription.CallbackType.WithMessageInfo:
-        return lambda msg, info: run(msg, info)
-    return lambda msg: run(msg)
+    with_info = sub._callback_type is Subscription.CallbackType.WithMessageInfo
+    if inspect.iscoroutinefunction(run):
+        async def with_message_info(msg, info):
+            return await run(msg, info)
+
+        async def message_only(msg):
+            return await run(msg)
+        return with_message_info if with_info else message_only
+    return (lambda msg, info: run(msg, info)) if with_info else (lambda msg: run(msg))
