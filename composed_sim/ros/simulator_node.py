@@ -68,7 +68,8 @@ class SimulatorNode(Node):
                  rab_payload_bytes: int = 10, publish_clock: bool = True,
                  answer_types: Optional[Sequence[Optional[type]]] = None,
                  answers_every_ticks: Optional[Sequence[int]] = None, global_tf: Optional[Sequence[bool]] = None,
-                 answers_when_published: Optional[Sequence[bool]] = None):
+                 answers_when_published: Optional[Sequence[bool]] = None,
+                 answers_by_firmware: Optional[Sequence[bool]] = None):
         """``lockstep``, ``answers_every_ticks``, ``answers_when_published``: the ledger's
         (ros/answer_ledger.py). ``devices``: per robot, the devices whose topics it has
         (``Devices.published``; None: each model's defaults). ``rab_payload_bytes``: the world's
@@ -77,7 +78,9 @@ class SimulatorNode(Node):
         publishes on cmd_vel (a type of ``contract.ANSWER_TYPES``), or None to read it from the
         ROS graph once the controller's publisher is discovered (``detect_answer_types``); None:
         TwistStamped for all. ``global_tf``: per robot running tf, whether its frames go to /tf
-        and /tf_static instead of its own /<robot>/tf (None: its own)."""
+        and /tf_static instead of its own /<robot>/tf (None: its own). ``answers_by_firmware``: per
+        robot, a drone's, never waited for (ros/answer_ledger.py); its Crazyswarm2 endpoints are
+        ``drones`` (ros/crazyflie/endpoints.py), which the host sets."""
         super().__init__(node_name, context=context, **quiet_node_options())
         n = len(names)
         rows = np.arange(n) if rows is None else np.asarray(rows)
@@ -87,7 +90,11 @@ class SimulatorNode(Node):
         self._index = {name: i for i, name in enumerate(names)}
         self._models = models
         self._tick_ns = tick_ns
-        self._ledger = AnswerLedger(names, rows, lockstep, answers_every_ticks, answers_when_published)
+        self._ledger = AnswerLedger(names, rows, lockstep, answers_every_ticks, answers_when_published,
+                                    answers_by_firmware)
+        self._firmware = np.zeros(n, dtype=bool) if answers_by_firmware is None \
+            else np.asarray(answers_by_firmware, dtype=bool)
+        self.drones = None           # the drones' Crazyswarm2 endpoints beside this node (the host's)
         ledger = self._ledger           # its arrays, read (and filled) in place
         self.rows, self.when_published, self.violations, self.on_failed = \
             ledger.rows, ledger.when_published, ledger.violations, ledger.on_failed
@@ -342,6 +349,8 @@ class SimulatorNode(Node):
                     publisher.publish(plan, frame, out)
         for publisher in self._device_publishers:
             publisher.finish_tick(out)
+        if self.drones is not None:
+            self.drones.publish_status(frame.tick, frame.supervisor_info)
 
     def publish_clock(self, tick: int) -> None:
         """/clock alone, for the state after the last tick: its sensors are never published (no
@@ -365,9 +374,9 @@ class SimulatorNode(Node):
         """Robots whose controller is not connected yet: no publisher matched on its cmd_vel, or no
         subscriber on any of its sensors. Matched counts are local to each endpoint (O(1))."""
         self.detect_answer_types()
-        return [name for i, name in enumerate(self._names)
-                if self._cmd_subs[i] is None or self._cmd_subs[i].get_publisher_count() < 1
-                or not any(p.get_subscription_count() >= 1 for p in self._sensor_pubs[i])]
+        return [name for i, name in enumerate(self._names) if not self._firmware[i] and (
+                self._cmd_subs[i] is None or self._cmd_subs[i].get_publisher_count() < 1
+                or not any(p.get_subscription_count() >= 1 for p in self._sensor_pubs[i]))]
 
     def connection_of(self, robot: str) -> str:
         """What this node sees of ``robot``'s controller: its cmd_vel publisher and which of its
