@@ -68,7 +68,9 @@ class Refusal(NamedTuple):
     text: str
 
 
-_CODES = {1: "refused by the planner", EBUSY: "refused: the drone is locked after an emergency stop (EBUSY)",
+UNDEFINED = -1        # our code: a start of a trajectory the drone has not defined, which the firmware ignores
+_CODES = {UNDEFINED: "ignored: the drone has no such trajectory defined (the firmware ignores it too)",
+          1: "refused by the planner", EBUSY: "refused: the drone is locked after an emergency stop (EBUSY)",
           ENOEXEC: "refused: no such trajectory id (ENOEXEC)"}
 _PLANNER = {"takeoff": "a take-off while the planner is not idle (flying, or not landed yet)",
             "land": "a landing while landing", "upload_trajectory": "the pieces do not fit the trajectory memory "
@@ -175,8 +177,11 @@ class DroneCommander:
 
     def _start_trajectory(self, drones, batch, now):
         trajectory_id, _, reversed_, relative, group_mask = batch[0].args
-        return self.fleet.start_trajectory(drones, now, trajectory_id, timescale=self._column(batch, 1),
-                                           reversed=bool(reversed_), relative=bool(relative), group_mask=group_mask)
+        codes = self.fleet.start_trajectory(drones, now, trajectory_id, timescale=self._column(batch, 1),
+                                            reversed=bool(reversed_), relative=bool(relative), group_mask=group_mask)
+        undefined = self.fleet.in_group(drones, group_mask) & ~self.fleet.high_level.memory.is_defined(drones,
+                                                                                                       trajectory_id)
+        return np.where(undefined & (codes == 0), UNDEFINED, codes)
 
     def _upload_trajectory(self, drones, batch, now):
         trajectory_id, offset, coefficients, durations = batch[0].args     # one drone's (_batch_key)

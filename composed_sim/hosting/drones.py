@@ -15,10 +15,14 @@ from rclpy.context import Context
 from composed_sim.core.drone_commands import DroneCommand
 from composed_sim.core.placement import place_robots
 from composed_sim.core.seeding import STREAM_PLACEMENT, stream
+from composed_sim.hosting.executors.lockstep import LockstepExecutor
+from composed_sim.hosting.executors.running import run_until_idle
+from composed_sim.hosting.hosted_block import HostedBlock
 from composed_sim.ros.crazyflie import messages
 from composed_sim.ros.crazyflie.endpoints import DroneEndpoints
 from composed_sim.ros.crazyflie.outbox import DroneOutbox
 from composed_sim.ros.crazyflie.server import NAME as SERVER_NAME, CrazyflieServer, find, server_parameters
+from composed_sim.ros.rcl_graph import GraphChanges
 from composed_sim.world.crazyflies import crazyflies
 from composed_sim.world.robot_models import get_model
 from composed_sim.world.robot_groups import NodeSpec
@@ -61,6 +65,10 @@ class ProcessDrones:
         self.outbox = DroneOutbox()
         self.endpoints: list[DroneEndpoints] = []
         self._watches: list[Callable[[], bool]] = []   # per endpoints: has its participant's graph changed?
+        # Where the host's threads spin the simulator's nodes (multi-process mode): an executor per
+        # endpoints, driven by the tick's thread (``serve_alone``).
+        self._alone: list[tuple[LockstepExecutor, HostedBlock]] = []
+        self._graphs: list[GraphChanges] = []
         if self.roster and self.interfaces is None:
             print(f"composed-sim: warning: {messages.MISSING}", file=sys.stderr)
 
@@ -114,7 +122,57 @@ class ProcessDrones:
             endpoints.drain()
         return self.outbox.take()
 
+    # --- endpoints with an executor of their own (multi-process mode) -------------------------------
+
+    def serve_alone(self, calls, robots: Sequence[str]) -> None:
+        """Each endpoints' services served by a lockstep executor of its own, which the host drives
+        from the tick's thread (``start_tick``, ``run_until_idle``): ``calls``, the host's call relay
+        (hosting/calls/between_places.py), hands them the calls of the run-wide nodes; other
+        processes' requests are taken as each tick starts (``robots``: the run's)."""
+        for endpoints in self.endpoints:
+            graph = GraphChanges([endpoints.inbox])     # the one watch of its participant's graph
+            self._graphs.append(graph)
+            executor = LockstepExecutor(context=endpoints.node.context)
+            executor.add_node(endpoints.node)
+            block = HostedBlock(executor, calls=calls, places=[d.robot for d in endpoints.drones])
+            block.serve(endpoints.node, endpoints.services())
+            block.watch_outside_calls(robots, graph_changed=graph.poll(0))
+            self._alone.append((executor, block))
+        self.watch([graph.poll(0) for graph in self._graphs])
+
+    def graph_changed(self, context: Context) -> Optional[Callable[[], bool]]:
+        """Has the ROS graph of ``context``'s participant changed since the last look, as the watch of
+        ``serve_alone`` sees it (None: it watches none there)? One watch per participant: a second
+        wait on its graph would take the first's triggers."""
+        for endpoints, graph in zip(self.endpoints, self._graphs):
+            if endpoints.node.context is context:
+                return graph.poll(0)
+        return None
+
+    @property
+    def places(self) -> frozenset[int]:
+        """The drones whose services this process serves (their places, for the calls between places)."""
+        return frozenset(d.robot for endpoints in self.endpoints for d in endpoints.drones)
+
+    def start_tick(self) -> None:
+        """Before the tick's sensors: the setpoint topics begun since, other processes' calls served."""
+        self.refresh()
+        for executor, block in self._alone:
+            block.take_outside_calls()
+            run_until_idle(executor)
+
+    def run_until_idle(self) -> None:
+        """The calls handed over to the drones' services, served."""
+        for executor, _ in self._alone:
+            run_until_idle(executor)
+
     def destroy(self) -> None:
+        for executor, block in self._alone:
+            block.close()
+            executor.shutdown()
+        for graph in self._graphs:
+            graph.close()
+        self._alone, self._graphs = [], []
         for endpoints in self.endpoints:
             endpoints.destroy()
         self.endpoints = []

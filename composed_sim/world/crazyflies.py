@@ -26,7 +26,9 @@ class Crazyflie:
 
 
 def crazyflies(world: World) -> list[Crazyflie]:
-    """The world's drones (robots whose model flies), in robot order."""
+    """The world's drones (robots whose model flies), in robot order. A drone's id is the number in
+    its name (the group's ``crazyflie.ids`` name them): cf231 is ``radio://0/80/2M/E7E7E7E7E7``; past
+    255, the next radio (cf300: ``radio://1/80/2M/E7E7E7E72C``), as a swarm that big uses several."""
     out = []
     names, groups = world.robot_names(), world.group_of_robot()
     first = 0
@@ -35,9 +37,8 @@ def crazyflies(world: World) -> list[Crazyflie]:
             settings = group.crazyflie
             for k in range(group.count):
                 name = names[first + k]
-                number = int(re.search(r"(\d+)$", name).group(1))
-                ident = settings.ids[k] if settings is not None and settings.ids is not None else number % 256
-                radio = 0 if settings is not None and settings.ids is not None else number // 256
+                number = int(re.search(r"(\d+)$", name).group(1))      # its id, where its group lists ids
+                ident, radio = number % 256, number // 256
                 params = {g: dict(v) for g, v in FIRMWARE_DEFAULTS.items()}
                 for g, values in (settings.firmware_params if settings is not None else {}).items():
                     params.setdefault(g, {}).update(values)

@@ -33,8 +33,8 @@ from rclpy.context import Context
 from composed_sim.core.simulation import Simulation
 from composed_sim.hosts.base import ControllersElsewhere, SetupInfo, say_answers_later
 from composed_sim.hosting import (check_executor, create_run_wide_nodes, DEFAULT_EXECUTOR, failure_from_output,
-                                  HostError, load_classes, LockstepExecutor, matched, NodesExchange, ProcessHosting,
-                                  Spinning)
+                                  has_run_wide_nodes, HostError, load_classes, LockstepExecutor, matched, NodesExchange,
+                                  ProcessDrones, ProcessHosting, Spinning)
 from composed_sim.hosts.multiprocess.domains import DomainError, assign_domains
 from composed_sim.hosts.multiprocess.hosted_robot import (FIRST_TIMER_PREFIX, GID_PREFIX, LATER, RUN_WIDE_PREFIX,
                                                         SERVED_PREFIX, TYPE_PREFIX)
@@ -151,7 +151,7 @@ class MultiProcessHost(ControllersElsewhere):
         self._tmp: Optional[Path] = None
         self._last_check = 0.0
         self._startup_interrupted = False
-        self.run_wide = RunWideLinks(world, logs)     # the run-wide topics between the processes
+        self.run_wide, self.drones = RunWideLinks(world, logs), ProcessDrones(world)   # run-wide topics, drones
 
     # --- start-up ---------------------------------------------------------------------------
 
@@ -176,12 +176,17 @@ class MultiProcessHost(ControllersElsewhere):
                                                rab_payload_bytes=self.world.range_and_bearing.payload_bytes,
                                                **robot_settings(self.world, rows))
                 self._nodes[d].on_failed.append(self._stop_failed)
-            if self.world.nodes:
+                self._nodes[d].drones = self.drones.make_endpoints(context, rows, f"composed_sim_d{d}")
+            self.drones.serve_alone(self.run_wide.calls, self.sim.names)
+            if has_run_wide_nodes(self.world):
                 self.run_wide.nodes = create_run_wide_nodes(self.world, self._contexts[0], classes=classes,
                                                             relay=self.run_wide.relay, logs=self.logs)
-                self.run_wide.nodes.host(self.run_wide.relay, self.run_wide.calls, self.sim.names)
+                self.run_wide.nodes.host(self.run_wide.relay, self.run_wide.calls, self.sim.names,
+                                         self.drones.graph_changed(self._contexts[0]))
+                self.drones.attach_server(self.run_wide.nodes)
             self.exchange = LinkedExchange(self._nodes, self.domains, self.sim.names, self.world.tick_ns, self.run_wide,
-                                           self._check_children, lockstep.watchdog_s + lockstep.unresponsive_s)
+                                           self._check_children, lockstep.watchdog_s + lockstep.unresponsive_s,
+                                           drones=self.drones)
             with InterruptWatch() as interrupts:
                 self._start_controllers(world_file, interrupts)
             self._startup_interrupted = interrupts.requested
@@ -205,7 +210,8 @@ class MultiProcessHost(ControllersElsewhere):
         host's) thread on purpose: PR_SET_PDEATHSIG fires when the thread that forked the child
         ends, not only when the process does. A Ctrl-C ends the start-up early (see run()).
         """
-        waiting = list(self.sim.names)
+        waiting = [name for name, g in zip(self.sim.names, self.world.group_of_robot())   # a drone with no
+                   if self.world.robots[g].node_specs]                                   # nodes has no process
         unmatched: dict[str, ControllerProcess] = {}
         endpoints = {d: node.endpoints_by_topic() for d, node in self._nodes.items()}
         last_progress = next_detection = time.monotonic()
@@ -308,8 +314,7 @@ class MultiProcessHost(ControllersElsewhere):
         return p
 
     @property
-    def startup_times_s(self) -> list[float]:
-        """Per child: spawn → its endpoints matched with the simulator's."""
+    def startup_times_s(self) -> list[float]:      # per child: spawn → its endpoints matched with the simulator's
         return [p.startup_s for p in self.processes if p.startup_s is not None]
 
     # --- the run ----------------------------------------------------------------------------
@@ -373,6 +378,7 @@ class MultiProcessHost(ControllersElsewhere):
             spinning.stop()
         self._spinning = []
         self.run_wide.destroy()
+        self.drones.destroy()
         for node in self._nodes.values():
             node.destroy_node()
         self._nodes = {}
