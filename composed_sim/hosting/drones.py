@@ -7,7 +7,6 @@ process, where the firmware runs (core/drone_commands.py).
 """
 from __future__ import annotations
 
-import sys
 from typing import Callable, Optional, Sequence
 
 from rclpy.context import Context
@@ -61,7 +60,7 @@ class ProcessDrones:
     def __init__(self, world: World):
         self.roster = crazyflies(world)             # the run's drones
         self._tick_ns = world.tick_ns
-        self.interfaces = messages.load() if self.roster else None
+        self._interfaces: Optional[messages.Interfaces] = None     # loaded once the world's packages are active
         self.outbox = DroneOutbox()
         self.endpoints: list[DroneEndpoints] = []
         self._watches: list[Callable[[], bool]] = []   # per endpoints: has its participant's graph changed?
@@ -69,8 +68,16 @@ class ProcessDrones:
         # endpoints, driven by the tick's thread (``serve_alone``).
         self._alone: list[tuple[LockstepExecutor, HostedBlock]] = []
         self._graphs: list[GraphChanges] = []
-        if self.roster and self.interfaces is None:
-            print(f"composed-sim: warning: {messages.MISSING}", file=sys.stderr)
+
+    @property
+    def interfaces(self) -> Optional[messages.Interfaces]:
+        """Crazyswarm2's interface classes (None without drones, or where they are not built: the
+        crazyflie_server says so, once)."""
+        if self._interfaces is None and self.roster:
+            self._interfaces = messages.load()
+            if self._interfaces is None:
+                self.roster = []
+        return self._interfaces
 
     def make_endpoints(self, context: Context, robots: Sequence[int], node_name: str,
                        frame_start: int = 0) -> Optional[DroneEndpoints]:
@@ -116,10 +123,12 @@ class ProcessDrones:
             if k >= len(self._watches) or self._watches[k]():
                 endpoints.refresh()
 
-    def take(self) -> list[DroneCommand]:
-        """At the tick's close: the commands taken in it (the setpoints received since are taken now)."""
+    def take(self, published: Optional[dict[str, int]] = None, timeout_s: float = 1.0) -> list[DroneCommand]:
+        """At the tick's close: the commands taken in it (the setpoints received since are taken now;
+        ``published``: how many were sent on each topic by processes whose parts of the tick are in,
+        waited for up to ``timeout_s``)."""
         for endpoints in self.endpoints:
-            endpoints.drain()
+            endpoints.drain(published or {}, timeout_s)
         return self.outbox.take()
 
     # --- endpoints with an executor of their own (multi-process mode) -------------------------------

@@ -1,6 +1,6 @@
 """A client in a process of its own that talks to a run's drones as Crazyswarm2's crazyflie_py does
-(tests/hosting/test_crazyflie.py starts it): it finds the drones by their start_trajectory
-services, reads the crazyflie_server's parameters (list, describe, get), calls the drones' and the
+(tests/hosting/test_crazyflie.py starts it): it finds the drones by the server's robots
+parameters and waits for their services, reads the crazyflie_server's parameters (list, describe, get), calls the drones' and the
 swarm's services, streams setpoints, sleeps on the run's clock, and prints what it did as JSON.
 
     python crazyswarm_tool.py DOMAIN SCENARIO      (crazyflie_interfaces on PYTHONPATH)
@@ -63,18 +63,19 @@ class Script:
         self.report: dict = {"drones": self.names}
 
     def _find_drones(self) -> list[str]:
-        """As crazyflie_py: the swarm's services first, then the drones by their services' type."""
+        """As crazyflie_py: the robots named by the crazyflie_server's ``robots.<name>.*`` parameters,
+        then each drone's services and the swarm's waited for."""
+        listed = self.call(ListParameters, "/crazyflie_server/list_parameters", prefixes=["robots"],
+                           depth=ListParameters.Request.DEPTH_RECURSIVE)
+        names = sorted({n.split(".")[1] for n in listed.result.names if n.startswith("robots.")})
+        if not names:
+            raise SystemExit("the crazyflie_server names no robot")
         for name in ("emergency", "takeoff", "land", "go_to", "start_trajectory"):
             self.client(Empty if name == "emergency" else StartTrajectory if name == "start_trajectory"
                         else {"takeoff": Takeoff, "land": Land, "go_to": GoTo}[name], f"/all/{name}")
-        deadline = time.monotonic() + 60
-        while time.monotonic() < deadline:
-            found = sorted(name[1:-len("/start_trajectory")] for name, types in self.node.get_service_names_and_types()
-                           if "crazyflie_interfaces/srv/StartTrajectory" in types and not name.startswith("/all/"))
-            if found:
-                return found
-            self.executor.spin_once(timeout_sec=0.1)
-        raise SystemExit("no drone found")
+        for drone in names:
+            self.client(StartTrajectory, f"/{drone}/start_trajectory")
+        return names
 
     def client(self, srv_type, name: str, wait: float = 60.0):
         client = self.node.create_client(srv_type, name)

@@ -59,6 +59,7 @@ class LinkedExchange(NodesExchange):
         self._drones = drones
         self._here = drones.places if drones is not None else frozenset()     # places served here
         self._served_here = False     # calls were handed to the drones' services here: a round serves them
+        self._published: dict[str, int] = {}     # setpoints the drones' processes sent in the tick, by topic
         self._by_domain, self._domains, self._names, self._tick_ns = nodes, domains, names, tick_ns
         self._run_wide = run_wide
         self._round_timeout_s = round_timeout_s     # how long robots sent calls have to reply
@@ -183,7 +184,8 @@ class LinkedExchange(NodesExchange):
     def close_tick(self, fallback, previous, commands) -> None:
         super().close_tick(fallback, previous, commands)
         if self._drones is not None:        # before the run-wide nodes' part of the next tick
-            self.drone_commands = self._drones.take()
+            self.drone_commands = self._drones.take(self._published, self._round_timeout_s)
+            self._published = {}
         sent = {}
         for link in self._run_wide.links.values():
             # A robot failed in the tick may have sent its last part (its last log lines) as it ended.
@@ -203,6 +205,8 @@ class LinkedExchange(NodesExchange):
             name = self._names[index]
             node = self._by_domain[self._domains[name]]
             for part in parts:
+                for topic, count in part.get("published", {}).items():
+                    self._published[topic] = self._published.get(topic, 0) + count
                 if "answer" in part:
                     self._subscribe_later_answers(node, name, *part["answer"])
                 endpoints = node.endpoints_by_topic() if part.get("reads") else {}

@@ -20,6 +20,8 @@ from composed_sim.hosting import (before_each_tick, CallRelay, Console, contract
                                   ProcessHosting, published_answer_type, raising_node, run_until_idle, RunWideLink,
                                   RunWideRelay, shut_down, Spinning)
 from composed_sim.ros import contract as c
+from composed_sim.ros.crazyflie.messages import SETPOINTS
+from composed_sim.world.robot_models import get_model
 from composed_sim.ros.answer_subscription import cmd_vel_gids
 from composed_sim.world.schema import World
 
@@ -83,9 +85,10 @@ class HostedRobot:
         place = names.index(robot)
         self.calls = CallRelay(names)
         # A robot whose nodes cannot answer yet (no cmd_vel publisher, wiring.answer_rule; timers
-        # not due) is quiet until they do: the link tells the simulator when its nodes are idle.
+        # not due) is quiet until they do: the link tells the simulator when its nodes are idle. So
+        # is a drone (its firmware answers): what its nodes sent in the tick is in when the tick closes.
         quiet = world.robots[group_index].answers == "when_published" or built.answers_later \
-            or built.first_timer_tick > 0
+            or built.first_timer_tick > 0 or get_model(world.robots[group_index].model).flies
         calls_between = bool(world.nodes) or any(self.calls.leaves(place, client.service_name)
                                                  for n in self.nodes for client in n.clients)
         if relay.in_use or quiet or self.logs is not None or calls_between:
@@ -98,6 +101,8 @@ class HostedRobot:
                                     calls=self.calls, index=place)
             self.link.watch_answers([p for n in self.nodes for p in n.publishers
                                      if p.topic_name == c.topic_name(robot, c.CMD_VEL)])
+            setpoints = {f"/{robot}/{name}" for name in SETPOINTS}      # a drone's (ros/crazyflie/messages.py)
+            self.link.count([p for n in self.nodes for p in n.publishers if p.topic_name in setpoints])
         # Before the robot's first sensor callback of each tick: the tick's run-wide batch, and the
         # timers of its nodes that read no sensors moved to the tick's time.
         sensors = {c.topic_name(robot, t) for t in c.SENSOR_TOPICS}

@@ -22,7 +22,7 @@ import subprocess
 import sys
 import tempfile
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 from pathlib import Path
 from typing import Iterable, Optional
 
@@ -33,12 +33,11 @@ from rclpy.context import Context
 from composed_sim.core.simulation import Simulation
 from composed_sim.hosts.base import ControllersElsewhere, SetupInfo, say_answers_later
 from composed_sim.hosting import (check_executor, create_run_wide_nodes, DEFAULT_EXECUTOR, failure_from_output,
-                                  has_run_wide_nodes, HostError, load_classes, LockstepExecutor, matched, NodesExchange,
-                                  ProcessDrones, ProcessHosting, Spinning)
+                                  flying_robots, has_run_wide_nodes, HostError, load_classes, LockstepExecutor, matched,
+                                  NodesExchange, ProcessDrones, ProcessHosting, Spinning)
 from composed_sim.hosts.multiprocess.domains import DomainError, assign_domains
-from composed_sim.hosts.multiprocess.hosted_robot import (FIRST_TIMER_PREFIX, GID_PREFIX, LATER, RUN_WIDE_PREFIX,
-                                                        SERVED_PREFIX, TYPE_PREFIX)
-from composed_sim.hosts.processes import InterruptWatch, exit_reason, last_words, reap, signal_group
+from composed_sim.hosts.multiprocess.children import ControllerProcess, died_reason
+from composed_sim.hosts.processes import InterruptWatch, exit_reason, reap, signal_group
 from composed_sim.ros import contract as c
 from composed_sim.ros.robot_settings import robot_settings
 from composed_sim.hosts.multiprocess.exchange import LinkedExchange, RunWideLinks
@@ -54,66 +53,6 @@ DETECT_PERIOD_S = 0.1      # how often start-up looks up the cmd_vel types not k
 POLL_S = NodesExchange.POLL_S   # look for dead children this often
 TERM_GRACE_S = 5.0         # SIGTERM → SIGKILL
 FAILED_GRACE_S = 2.0       # a failed robot's process: SIGTERM → SIGKILL
-
-
-@dataclass
-class ControllerProcess:
-    robot: str
-    domain: int
-    popen: subprocess.Popen
-    log: Path                          # its stdout and stderr
-    pipe: Optional[int]                # read end of its start-up pipe, until EOF
-    spawned: float = field(default_factory=time.perf_counter)
-    created: bool = False                # its node exists: the CPU-heavy part of start-up is done
-    answer_type: Optional[str] = None    # its cmd_vel publisher's type, as "created" reported it
-    stopping_since: Optional[float] = None   # monotonic s of the SIGTERM that ends a failed robot
-    run_wide_topics: list[str] = field(default_factory=list)   # its run-wide link's, as "created" reported them
-    linked: bool = False                 # the simulator's side of its link exists
-    topics: Optional[list[str]] = None   # its contract topics, once matched on its side
-    gids: list[bytes] = field(default_factory=list)    # its cmd_vel publishers' (cmd_vel_gids)
-    served: list[tuple] = field(default_factory=list)  # (name, type) of the services its nodes serve
-    answers_later: bool = False          # no cmd_vel publisher yet: quiet until its first answer
-    first_timer_tick: int = 0            # … or its timers' first tick
-    startup_s: Optional[float] = None    # spawn → matched on both sides
-    _buffer: bytes = b""
-
-    def read_pipe(self) -> bool:
-        """Read what the child reported ("created type:<type>", then "ready <topics> gid:<hex>…");
-        False at EOF."""
-        chunk = os.read(self.pipe, 65536)
-        self._buffer += chunk
-        *lines, self._buffer = self._buffer.split(b"\n")
-        for words in (line.decode().split() for line in lines):
-            self.created = True
-            if words and words[0] == "created":
-                self.answer_type = next((w[len(TYPE_PREFIX):] for w in words if w.startswith(TYPE_PREFIX)), None)
-                self.answers_later = LATER in words
-                self.first_timer_tick = next((int(w[len(FIRST_TIMER_PREFIX):]) for w in words
-                                              if w.startswith(FIRST_TIMER_PREFIX)), 0)
-                self.run_wide_topics = [w[len(RUN_WIDE_PREFIX):] for w in words if w.startswith(RUN_WIDE_PREFIX)]
-            if words and words[0] == "ready":
-                self.topics = [w for w in words[1:] if not w.startswith((GID_PREFIX, SERVED_PREFIX))]
-                self.gids = [bytes.fromhex(w[len(GID_PREFIX):]) for w in words[1:] if w.startswith(GID_PREFIX)]
-                self.served = [tuple(w[len(SERVED_PREFIX):].split("=", 1)) for w in words[1:]
-                               if w.startswith(SERVED_PREFIX)]
-        return chunk != b""
-
-    def close_pipe(self) -> None:
-        if self.pipe is not None:
-            os.close(self.pipe)
-            self.pipe = None
-
-    def tail(self, chars: int = 2000) -> str:
-        try:
-            text = self.log.read_text(errors="replace")
-        except OSError:
-            return ""
-        return text[-chars:].strip()
-
-
-def died_reason(p: ControllerProcess) -> str:
-    """How a child ended, with the last line it wrote (a plugin's exception, usually)."""
-    return exit_reason(p.popen.returncode) + last_words(p.tail(500))
 
 
 class MultiProcessHost(ControllersElsewhere):
@@ -212,6 +151,7 @@ class MultiProcessHost(ControllersElsewhere):
         """
         waiting = [name for name, g in zip(self.sim.names, self.world.group_of_robot())   # a drone with no
                    if self.world.robots[g].node_specs]                                   # nodes has no process
+        flying = flying_robots(self.world)          # a drone's firmware answers: no cmd_vel to wait for
         unmatched: dict[str, ControllerProcess] = {}
         endpoints = {d: node.endpoints_by_topic() for d, node in self._nodes.items()}
         last_progress = next_detection = time.monotonic()
@@ -232,6 +172,9 @@ class MultiProcessHost(ControllersElsewhere):
                 if detect:
                     next_detection = time.monotonic() + DETECT_PERIOD_S
                 self._subscribe_answers(unmatched.values(), endpoints, detect)
+                for d, node in self._nodes.items():   # a drone's controller: its setpoints subscribed, matched
+                    if detect and node.drones is not None and node.drones.refresh():
+                        endpoints[d].update(node.drones.endpoints_by_topic())
                 for p in unmatched.values():
                     if p.created and p.run_wide_topics and not p.linked:
                         link = self.run_wide.link(p.domain, self._nodes[p.domain].context)
@@ -239,7 +182,8 @@ class MultiProcessHost(ControllersElsewhere):
                                                                   p.run_wide_topics))
                         p.linked = True
                 for robot, p in list(unmatched.items()):
-                    answers = p.answers_later or self._nodes[p.domain].answer_subscription(robot) is not None
+                    answers = p.answers_later or flying[self.sim.names.index(robot)] \
+                        or self._nodes[p.domain].answer_subscription(robot) is not None
                     if p.topics is not None and answers and all(matched(endpoints[p.domain].get(t)) for t in p.topics):
                         p.startup_s = time.perf_counter() - p.spawned
                         del unmatched[robot]

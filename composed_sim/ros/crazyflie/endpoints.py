@@ -20,6 +20,7 @@ The ``pose`` topic is the positioning device's (``/<cf>/pose``, every tick, in t
 from __future__ import annotations
 
 import functools
+import time
 from typing import Callable, Optional, Sequence
 
 from builtin_interfaces.msg import Time
@@ -111,20 +112,30 @@ class DroneEndpoints:
             self._setpoints.sort(key=lambda s: s[0])
         return made
 
-    def drain(self) -> int:
+    def endpoints_by_topic(self) -> dict:
+        """The setpoint subscriptions made so far, by topic (for a host's matching checks)."""
+        return {subscription.topic_name: subscription for _, _, subscription in self._setpoints}
+
+    def drain(self, sent: Optional[dict[str, int]] = None, timeout_s: float = 1.0) -> int:
         """The setpoints received since the last drain, to the outbox, each stamped with when it
-        was published (its order among its drone's calls); how many."""
-        taken = 0
+        was published (its order among its drone's calls); how many. ``sent``: how many a topic's
+        publishers said they sent (a drone's controller in a process of its own): waited for, up
+        to ``timeout_s`` (what DDS still carries belongs to the tick)."""
+        taken, deadline = 0, time.monotonic() + timeout_s
         for robot, convert, subscription in self._setpoints:
             handle, msg_type = subscription.handle, subscription.msg_type
+            owed = sent.get(subscription.topic_name, 0) if sent else 0
             while True:
                 with handle:
                     got = handle.take_message(msg_type, False)
                 if got is None:
-                    break
+                    if owed <= 0 or time.monotonic() > deadline:
+                        break
+                    time.sleep(0.0001)
+                    continue
                 kind, args = convert(got[0])
                 self._outbox.post(robot, kind, args, got[1]["source_timestamp"])
-                taken += 1
+                taken, owed = taken + 1, owed - 1
         return taken
 
     def publish_status(self, tick: int, supervisor_info: Optional[Sequence[int]]) -> None:
