@@ -38,6 +38,24 @@ def importable(monkeypatch, folder: Path):
         del sys.modules[name]
 
 
+def network_namespaces(names: list[str]):
+    """Network namespaces ``names`` for a test's "machines" (a generator for a fixture to yield
+    from); the test is skipped where they cannot be made (no iproute2, no privileges)."""
+    from composed_sim.bench.netns import Netns
+    if shutil.which("ip") is None:
+        pytest.skip("network namespaces: the `ip` command (iproute2) is not installed")
+    nets = Netns(names)
+    try:
+        nets.create()
+    except OSError as e:
+        nets.destroy()
+        pytest.skip(f"network namespaces cannot be created here: {e}")
+    try:
+        yield nets
+    finally:
+        nets.destroy()
+
+
 def start(cmd, log: Path, env=None) -> subprocess.Popen:
     """``cmd`` in a process of its own, its output added to the file ``log``."""
     with open(log, "ab") as out:

@@ -8,8 +8,8 @@ as one warning, also when the import then fails). Problems that make the file un
 The package: ``xml_reader.py`` (safe XML, every element with its line), ``attributes.py`` (values
 and messages), and one translator per section: ``controllers.py`` (plugins and their parameters),
 ``devices.py`` (sensors and actuators), ``entities.py`` (the arena, obstacles, lights, robots and
-<distribute>), ``importer.py`` (the document, <framework>, <physics_engines>). What maps to what,
-with units, is in docs/argos_import.md.
+<distribute>, whose position and orientation generators are ``generators.py``), ``importer.py`` (the
+document, <framework>, <physics_engines>). What maps to what, with units, is in docs/argos_import.md.
 """
 from __future__ import annotations
 

@@ -14,9 +14,9 @@ rows of one or several sweeps.
 The package: ``arguments.py`` (the options), ``experiments.py`` (the experiments --experiments
 names, each a shipped world), ``rules.py`` (the paper's figures, the skip rule, domains,
 aggregation), ``tree.py`` (measuring one process tree), ``machine.py`` (the machine a sweep ran on),
-``sweep.py`` (running the grid), ``report.py`` (CSV, JSON and the markdown report), ``figures.py``,
-``sections.py`` (the report's per-tick phases, host cost and paper comparison) and ``cells.py`` (its
-table cells); beside the sweep, ``physics_step.py`` (the physics step alone, ``--physics``),
+``sweep.py`` (running the grid), ``replot.py`` (``--replot``), ``report.py`` (CSV, JSON and the
+markdown report), ``figures.py``, ``sections.py`` (the report's per-tick phases, host cost and paper
+comparison) and ``cells.py`` (its table cells); beside the sweep, ``physics_step.py`` (the physics step alone, ``--physics``),
 ``distributed.py`` and ``netns.py`` (the row over machines, ``--machines``, in network namespaces)
 and ``rclpy_floor.py`` (the rclpy calls alone).
 """

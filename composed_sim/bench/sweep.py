@@ -2,7 +2,6 @@
 subprocess, in domains no earlier run used, skipped when it would not fit in memory."""
 from __future__ import annotations
 
-import json
 import os
 import signal
 import sys
@@ -15,10 +14,11 @@ from typing import Optional
 from composed_sim.bench.arguments import BenchSettings, command_line
 from composed_sim.bench.machine import available_memory_mb, machine_info
 from composed_sim.bench.experiments import DEFAULT_EXPERIMENT, EXPERIMENTS, experiment_of_world, shipped_world
+from composed_sim.bench.replot import replot
 from composed_sim.bench.report import write_outputs
 from composed_sim.bench.rules import (CALIBRATION_ABOVE, CALIBRATION_ROBOTS, COLUMNS, FALLBACK_PROCESS_MB, PHASE_COLUMNS,
                                       PHASES, DomainAllocator, as_number, domains_needed, host_label, skip_reason)
-from composed_sim.bench.tree import LEFTOVER_GRACE_S, measure_tree, parse_summary, tail
+from composed_sim.bench.tree import LEFTOVER_GRACE_S, TreeMeasurement, measure_tree, parse_summary, tail
 from composed_sim.hosts.settings import AUTO_WORKERS, HostSettings, environment_domain
 
 
@@ -87,63 +87,82 @@ class Sweep:
                                                 f"beyond {self.domains.top}")
             return row
         row["domain_id"] = domain
-        env = dict(os.environ, ROS_DOMAIN_ID=str(domain), MPLBACKEND="Agg")
-        if "ROS_LOCALHOST_ONLY" not in env:
-            env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-        with tempfile.TemporaryDirectory(prefix="composed-sim-bench-") as tmp:
-            m = measure_tree(self.command(robots, mode, executor, domain, Path(tmp), ticks, workers), env=env,
-                             timeout_s=self.timeout_s)
+        m = self.measure(robots, mode, executor, domain, ticks, workers)
         summary = parse_summary(m.stdout)
-        wall = m.wall_s
-        row.update({
-            "WallTime(s)": round(wall, 3), "CPU(%)": round(100 * m.cpu_core_s / wall, 1) if wall > 0 else None,
-            "MaxMem(kB)": m.peak_tree_rss_kb, "MaxPss(kB)": m.peak_tree_pss_kb or None,
-            "total_wall_s": round(wall, 3), "cpu_core_s": round(m.cpu_core_s, 3),
-            "processes": m.max_processes, "exit_code": m.exit_code,
-            "other_load_cores": None if m.other_cores is None else round(m.other_cores, 2),
-        })
-        if mode == "multi-process" and wall > 0:
-            row.update({"ArgosCPU(%)": round(100 * m.root_cpu_s / wall, 1),
-                        "Ros2CPU(%)": round(100 * max(m.cpu_core_s - m.root_cpu_s, 0.0) / wall, 1),
-                        "ArgosMem(kB)": max(m.peak_root_rss_kb, int(1024 * (as_number((summary or {}).get("peak_rss_mb")) or 0))),
-                        "Ros2Mem(kB)": m.peak_others_rss_kb, "Ros2Pss(kB)": m.peak_others_pss_kb or None})
+        row.update(measured_columns(m, mode, summary))
         if summary:
             row.update(summary_columns(summary, mode))
-        notes = []
-        if m.interrupted:
-            row["status"] = "interrupted"
-            notes.append("the sweep was interrupted (Ctrl-C or SIGTERM) during this run")
-        elif m.timed_out:
-            row["status"] = "timeout"
-            notes.append(f"stopped after the {self.timeout_s:g} s timeout")
-        elif m.exit_code == 130:        # the run was stopped from outside the bench
-            row["status"] = "interrupted"
-            notes.append("the run was interrupted from outside the bench (exit code 130)")
-        elif m.exit_code != 0:
-            row["status"] = "failed"
-            notes.append(f"exit code {m.exit_code}")
-        elif summary is None:
-            row["status"] = "failed"
-            notes.append("no JSON summary on stdout")
-        elif summary.get("ticks") != ticks:
-            row["status"] = "failed"
-            notes.append(f"ran {summary.get('ticks')} of {ticks} ticks")
-        else:
-            row["status"] = "ok"
-        if m.leftovers_killed:
-            notes.append(f"{m.leftovers_killed} processes outlived the run by {LEFTOVER_GRACE_S:g} s and were killed")
-        if row["status"] != "ok" and m.stderr.strip():
-            notes.append("stderr: " + tail(m.stderr))
+        row["status"], notes = self.outcome(m, summary, ticks)
         row["reason"] = "; ".join(notes) or None
         if mode == "multi-process" and row["status"] == "ok":
             self.estimate.update(row)
         self.interrupted = m.interrupted
         return row
 
+    def measure(self, robots: int, mode: str, executor: str, domain: int, ticks: int,
+                workers: Optional[str]) -> TreeMeasurement:
+        """One run, its process tree measured, on ROS domain ``domain``, writing into a folder
+        removed after it."""
+        env = dict(os.environ, ROS_DOMAIN_ID=str(domain), MPLBACKEND="Agg")
+        if "ROS_LOCALHOST_ONLY" not in env:
+            env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+        with tempfile.TemporaryDirectory(prefix="composed-sim-bench-") as tmp:
+            return measure_tree(self.command(robots, mode, executor, domain, Path(tmp), ticks, workers), env=env,
+                                timeout_s=self.timeout_s)
+
+    def outcome(self, m: TreeMeasurement, summary: Optional[dict], ticks: int) -> tuple[str, list[str]]:
+        """A measured run's status (ok, failed, timeout, interrupted) and the notes that explain it."""
+        notes = []
+        if m.interrupted:
+            status = "interrupted"
+            notes.append("the sweep was interrupted (Ctrl-C or SIGTERM) during this run")
+        elif m.timed_out:
+            status = "timeout"
+            notes.append(f"stopped after the {self.timeout_s:g} s timeout")
+        elif m.exit_code == 130:        # the run was stopped from outside the bench
+            status = "interrupted"
+            notes.append("the run was interrupted from outside the bench (exit code 130)")
+        elif m.exit_code != 0:
+            status = "failed"
+            notes.append(f"exit code {m.exit_code}")
+        elif summary is None:
+            status = "failed"
+            notes.append("no JSON summary on stdout")
+        elif summary.get("ticks") != ticks:
+            status = "failed"
+            notes.append(f"ran {summary.get('ticks')} of {ticks} ticks")
+        else:
+            status = "ok"
+        if m.leftovers_killed:
+            notes.append(f"{m.leftovers_killed} processes outlived the run by {LEFTOVER_GRACE_S:g} s and were killed")
+        if status != "ok" and m.stderr.strip():
+            notes.append("stderr: " + tail(m.stderr))
+        return status, notes
+
     def calibrate(self, executor: str) -> None:
         """A small multi-process run that measures the per-process cost before bigger ones."""
         row = self.one(CALIBRATION_ROBOTS, "multi-process", executor, 0, ticks=min(self.ticks, 20))
         self.calibration.append(row)
+
+
+def measured_columns(m: TreeMeasurement, mode: str, summary: Optional[dict]) -> dict:
+    """A row's columns from its measured process tree: wall time, CPU, memory; in multi-process
+    mode the simulator's (the root) and the controller processes' apart."""
+    wall = m.wall_s
+    columns = {
+        "WallTime(s)": round(wall, 3), "CPU(%)": round(100 * m.cpu_core_s / wall, 1) if wall > 0 else None,
+        "MaxMem(kB)": m.peak_tree_rss_kb, "MaxPss(kB)": m.peak_tree_pss_kb or None,
+        "total_wall_s": round(wall, 3), "cpu_core_s": round(m.cpu_core_s, 3),
+        "processes": m.max_processes, "exit_code": m.exit_code,
+        "other_load_cores": None if m.other_cores is None else round(m.other_cores, 2),
+    }
+    if mode == "multi-process" and wall > 0:
+        columns.update({"ArgosCPU(%)": round(100 * m.root_cpu_s / wall, 1),
+                        "Ros2CPU(%)": round(100 * max(m.cpu_core_s - m.root_cpu_s, 0.0) / wall, 1),
+                        "ArgosMem(kB)": max(m.peak_root_rss_kb,
+                                            int(1024 * (as_number((summary or {}).get("peak_rss_mb")) or 0))),
+                        "Ros2Mem(kB)": m.peak_others_rss_kb, "Ros2Pss(kB)": m.peak_others_pss_kb or None})
+    return columns
 
 
 def summary_columns(summary: dict, mode: str) -> dict:
@@ -188,22 +207,12 @@ def resolve_worlds(args) -> dict[str, Path]:
 
 
 def run(args: BenchSettings) -> int:
-    from composed_sim.command_line import UserError, check_writable
+    from composed_sim.command_line import check_writable
     if args.replot is not None:
-        return _replot(args)
+        return replot(args)
     if args.physics is not None:
-        from composed_sim.bench.physics_step import main as measure_physics_step
-        args.out.mkdir(parents=True, exist_ok=True)
-        return measure_physics_step(["--robots", ",".join(map(str, args.sizes)),
-                                  "--regions", ",".join(map(str, args.physics)), "--out", str(args.out / "physics.json")])
-
-    from composed_sim.world.loader import WorldFileError, load_world
-    worlds = {}
-    for name, path in resolve_worlds(args).items():
-        try:
-            worlds[name] = (path, load_world(path, ticks=args.ticks))
-        except WorldFileError as e:
-            raise UserError(str(e)) from None
+        return _physics_step(args)
+    worlds = _load_worlds(args)
     if args.machines:
         from composed_sim.bench.distributed import run_distributed
         check_writable(args.out)
@@ -211,16 +220,7 @@ def run(args: BenchSettings) -> int:
             run_distributed(path, args.sizes, args.ticks, args.machines, args.workers[0], args.trials, args.out,
                             machine_info())
         return 0
-    base = args.domain_id
-    if base is None:
-        try:
-            base = environment_domain() or 0
-        except ValueError as e:
-            raise UserError(str(e)) from None
-    try:
-        domains = DomainAllocator(base)
-    except ValueError as e:
-        raise UserError(str(e)) from None
+    base, domains = _domains(args)
     check_writable(args.out)
     if args.report is not None:
         check_writable(args.report.parent / "figures")
@@ -237,14 +237,7 @@ def run(args: BenchSettings) -> int:
     plan = [(name, n, trial, mode, executor, workers) for name in worlds for n in args.sizes
             for trial in range(1, args.trials + 1) for mode in args.modes for executor in args.executors
             for workers in (args.workers if mode == "composed" else (None,))]
-    first_path, first_world = next(iter(worlds.values()))
-    settings = {"sizes": list(args.sizes), "modes": list(args.modes), "executors": list(args.executors),
-                "workers": list(args.workers),
-                "trials": args.trials, "ticks": args.ticks, "world": str(first_path), "world_name": first_world.name,
-                "experiments": {name: {"world": str(path), "world_name": world.name, "tick_s": world.tick_s}
-                                for name, (path, world) in worlds.items()},
-                "tick_s": first_world.tick_s, "timeout_s": args.timeout, "domain_base": base,
-                "robots_per_domain": args.robots_per_domain, "memory_fraction": args.memory_fraction}
+    settings = _settings(args, worlds, base)
     command = command_line(args)
     print(f"bench: {len(plan)} runs of {', '.join(p.name for p, _ in worlds.values())} ({args.ticks} ticks each) "
           f"→ {args.out}/", file=sys.stderr)
@@ -267,6 +260,55 @@ def run(args: BenchSettings) -> int:
     if interrupted:
         return 130
     return 1 if bad else 0
+
+
+def _physics_step(args: BenchSettings) -> int:
+    """``--physics``: the physics step alone, over the sizes and region counts, into physics.json."""
+    from composed_sim.bench.physics_step import main as measure_physics_step
+    args.out.mkdir(parents=True, exist_ok=True)
+    return measure_physics_step(["--robots", ",".join(map(str, args.sizes)),
+                                 "--regions", ",".join(map(str, args.physics)), "--out", str(args.out / "physics.json")])
+
+
+def _load_worlds(args: BenchSettings) -> dict[str, tuple[Path, object]]:
+    """Experiment name → (world file, its World), each loaded; a bad file is the user's error."""
+    from composed_sim.command_line import UserError
+    from composed_sim.world.loader import WorldFileError, load_world
+    worlds = {}
+    for name, path in resolve_worlds(args).items():
+        try:
+            worlds[name] = (path, load_world(path, ticks=args.ticks))
+        except WorldFileError as e:
+            raise UserError(str(e)) from None
+    return worlds
+
+
+def _domains(args: BenchSettings) -> tuple[int, DomainAllocator]:
+    """The first ROS domain (--domain-id, else $ROS_DOMAIN_ID, else 0) and the allocator of the
+    runs' domains from it."""
+    from composed_sim.command_line import UserError
+    base = args.domain_id
+    if base is None:
+        try:
+            base = environment_domain() or 0
+        except ValueError as e:
+            raise UserError(str(e)) from None
+    try:
+        return base, DomainAllocator(base)
+    except ValueError as e:
+        raise UserError(str(e)) from None
+
+
+def _settings(args: BenchSettings, worlds: dict[str, tuple[Path, object]], base: int) -> dict:
+    """The sweep's settings as runs.json records them."""
+    first_path, first_world = next(iter(worlds.values()))
+    return {"sizes": list(args.sizes), "modes": list(args.modes), "executors": list(args.executors),
+            "workers": list(args.workers),
+            "trials": args.trials, "ticks": args.ticks, "world": str(first_path), "world_name": first_world.name,
+            "experiments": {name: {"world": str(path), "world_name": world.name, "tick_s": world.tick_s}
+                            for name, (path, world) in worlds.items()},
+            "tick_s": first_world.tick_s, "timeout_s": args.timeout, "domain_base": base,
+            "robots_per_domain": args.robots_per_domain, "memory_fraction": args.memory_fraction}
 
 
 def _run_plan(plan: list[tuple], sweeps: dict, rows: list[dict], trials: int) -> bool:
@@ -322,57 +364,3 @@ def _progress_line(i: int, total: int, row: dict, trials: int) -> str:
         reason = row["reason"]
         head += f" — {reason if len(reason) <= 300 else '…' + reason[-300:]}"
     return head
-
-
-def _replot(args) -> int:
-    from composed_sim.command_line import UserError, check_writable
-    docs = []
-    for path in args.replot:
-        try:
-            doc = json.loads(path.read_text())
-            doc["rows"], doc["machine"], doc["settings"]["ticks"]
-        except (OSError, ValueError, KeyError, TypeError) as e:
-            raise UserError(f"--replot {path}: not a runs.json of composed-sim bench ({e})") from None
-        docs.append(doc)
-    ticks = {d["settings"]["ticks"] for d in docs}
-    if len(ticks) > 1:
-        raise UserError(f"--replot: the sweeps ran different tick counts ({', '.join(map(str, sorted(ticks)))}); "
-                        "their runs cannot share a table")
-    doc = merged_sweeps(docs)
-    check_writable(args.out)
-    if args.report is not None:
-        check_writable(args.report.parent / "figures")
-    write_outputs(doc, args.out, args.report)
-    print(f"bench: redrew {len(doc['rows'])} runs from {', '.join(map(str, args.replot))} into {args.out}/"
-          + (f" and {args.report}" if args.report else ""), file=sys.stderr)
-    return 0
-
-
-def merged_sweeps(docs: list[dict]) -> dict:
-    """One runs.json document of several sweeps' (the same tick count): their rows in the order
-    given, each sweep's command on a line of its own, the settings' lists joined; the machine is
-    the first sweep's (its date and load, the others' commits named too)."""
-    if len(docs) == 1:
-        return docs[0]
-
-    def union(key):
-        out = []
-        for d in docs:
-            out += [v for v in d["settings"].get(key, []) if v not in out]
-        return out
-    first = docs[0]
-    settings = {**first["settings"], "modes": union("modes"), "executors": union("executors"),
-                "workers": union("workers"), "sizes": sorted(union("sizes")),
-                "trials": max(d["settings"].get("trials", 1) for d in docs),
-                "experiments": {k: v for d in docs for k, v in d["settings"].get("experiments", {}).items()}}
-    commits = [c for c in dict.fromkeys(d["machine"].get("commit") for d in docs) if c]
-    measured = [d["memory_estimate"] for d in docs if d.get("memory_estimate")
-                and not d["memory_estimate"].get("source", "").startswith("not measured")]
-    columns = [c for d in docs for c in d.get("columns", [])]
-    return {**first, "command": "\n".join(d.get("command", "composed-sim bench") for d in docs),
-            "machine": {**first["machine"], "commit": ", ".join(commits) or None},
-            "settings": settings, "elapsed_s": sum(d.get("elapsed_s", 0) for d in docs),
-            "interrupted": any(d.get("interrupted") for d in docs),
-            "memory_estimate": measured[-1] if measured else first.get("memory_estimate"),
-            "calibration_runs": [r for d in docs for r in d.get("calibration_runs", [])],
-            "columns": list(dict.fromkeys(columns)), "rows": [r for d in docs for r in d["rows"]]}

@@ -135,49 +135,21 @@ def measure_tree(cmd: list[str], *, env: dict, timeout_s: float, sample_s: float
     the truth, the first exact unless some descendant was never waited for by its parent."""
     import psutil
 
-    timed_out = interrupted = False
     with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err:
         busy0 = _machine_busy_s()
         t0 = time.perf_counter()
         proc = subprocess.Popen(cmd, stdout=out, stderr=err, stdin=subprocess.DEVNULL, env=env)
-        root = psutil.Process(proc.pid)
-        tree = _TreeSampler(root)
-        term_sent_at: Optional[float] = None
-        try:
-            while os.waitid(os.P_PID, proc.pid, os.WEXITED | os.WNOHANG | os.WNOWAIT) is None:
-                tree.sample(root_alive=True)
-                elapsed = time.perf_counter() - t0
-                if term_sent_at is None and elapsed > timeout_s:
-                    timed_out, term_sent_at = True, elapsed
-                    _signal(root, signal.SIGTERM)      # the run stops at the next tick and writes
-                elif term_sent_at is not None and elapsed > term_sent_at + TERM_GRACE_S:
-                    _kill_all(t.proc for t in tree.tracked.values())
-                time.sleep(sample_s)
-        except KeyboardInterrupt:
-            interrupted = True
-            _signal(root, signal.SIGTERM)
-            if not _wait_exit(proc.pid, TERM_GRACE_S / 3):
-                _kill_all(t.proc for t in tree.tracked.values())
+        tree = _TreeSampler(psutil.Process(proc.pid))
+        timed_out, interrupted = _watch(proc, tree, t0, timeout_s, sample_s)
         wall_s = time.perf_counter() - t0
         busy1 = _machine_busy_s()
-        # The root is a zombie now: its own times are final, and so are those of the descendants
-        # it reaped (children_*), which wait4's rusage covers too.
-        root_own = root_children = 0.0
-        try:
-            ct = root.cpu_times()
-            root_own, root_children = ct.user + ct.system, ct.children_user + ct.children_system
-        except psutil.Error:
-            pass
-        _, status, usage = os.wait4(proc.pid, 0)
-        proc.returncode = exit_code = os.waitstatus_to_exitcode(status)
-        tree.tracked[proc.pid].cpu_s = max(tree.tracked[proc.pid].cpu_s, root_own)
-        exact = max(usage.ru_utime + usage.ru_stime, root_own + root_children)
+        exit_code, root_own, exact, max_rss_kb = _reap_root(proc, tree)
         leftovers_killed, orphans_cpu = tree.end_leftovers(leftover_grace_s, sample_s)
         out.seek(0)
         err.seek(0)
         stdout = out.read().decode(errors="replace")
         stderr = err.read().decode(errors="replace")
-    peak_tree = max(tree.peak_tree, usage.ru_maxrss * 1024)   # a run shorter than a sample period
+    peak_tree = max(tree.peak_tree, max_rss_kb * 1024)   # a run shorter than a sample period
     cpu_core_s = max(exact + orphans_cpu, tree.sampled_cpu_s)
     other = None
     if busy0 is not None and busy1 is not None and wall_s > 0:
@@ -190,6 +162,51 @@ def measure_tree(cmd: list[str], *, env: dict, timeout_s: float, sample_s: float
         peak_tree_pss_kb=tree.peak_pss // 1024, peak_others_pss_kb=tree.peak_others_pss // 1024,
         stdout=stdout, stderr=stderr, timed_out=timed_out, interrupted=interrupted,
         leftovers_killed=leftovers_killed)
+
+
+def _watch(proc: subprocess.Popen, tree: _TreeSampler, t0: float, timeout_s: float,
+           sample_s: float) -> tuple[bool, bool]:
+    """Sample the tree until its root has exited (seen without reaping it). Past ``timeout_s`` the
+    root gets SIGTERM, and the whole tree SIGKILL TERM_GRACE_S later; Ctrl-C ends the run the same
+    way. (Timed out, interrupted.)"""
+    root = tree.root
+    timed_out = interrupted = False
+    term_sent_at: Optional[float] = None
+    try:
+        while os.waitid(os.P_PID, proc.pid, os.WEXITED | os.WNOHANG | os.WNOWAIT) is None:
+            tree.sample(root_alive=True)
+            elapsed = time.perf_counter() - t0
+            if term_sent_at is None and elapsed > timeout_s:
+                timed_out, term_sent_at = True, elapsed
+                _signal(root, signal.SIGTERM)      # the run stops at the next tick and writes
+            elif term_sent_at is not None and elapsed > term_sent_at + TERM_GRACE_S:
+                _kill_all(t.proc for t in tree.tracked.values())
+            time.sleep(sample_s)
+    except KeyboardInterrupt:
+        interrupted = True
+        _signal(root, signal.SIGTERM)
+        if not _wait_exit(proc.pid, TERM_GRACE_S / 3):
+            _kill_all(t.proc for t in tree.tracked.values())
+    return timed_out, interrupted
+
+
+def _reap_root(proc: subprocess.Popen, tree: _TreeSampler) -> tuple[int, float, float, int]:
+    """The exited root's final times read, then reaped with wait4: (exit code, its own CPU
+    seconds, the exact CPU seconds of it and the descendants it reaped, its peak RSS in kB)."""
+    import psutil
+    # The root is a zombie now: its own times are final, and so are those of the descendants
+    # it reaped (children_*), which wait4's rusage covers too.
+    root_own = root_children = 0.0
+    try:
+        ct = tree.root.cpu_times()
+        root_own, root_children = ct.user + ct.system, ct.children_user + ct.children_system
+    except psutil.Error:
+        pass
+    _, status, usage = os.wait4(proc.pid, 0)
+    proc.returncode = exit_code = os.waitstatus_to_exitcode(status)
+    tree.tracked[proc.pid].cpu_s = max(tree.tracked[proc.pid].cpu_s, root_own)
+    exact = max(usage.ru_utime + usage.ru_stime, root_own + root_children)
+    return exit_code, root_own, exact, usage.ru_maxrss
 
 
 def _wait_exit(pid: int, timeout_s: float) -> bool:

@@ -85,10 +85,6 @@ def _add_hosting_flags(parser: argparse.ArgumentParser, *, seed_help: str, domai
 
 
 def _add_run(sub) -> None:
-    from composed_sim.hosts.settings import AUTO_WORKERS, DEFAULT_MODE, MODES, HostSettings
-    from composed_sim.live import DEFAULT_FOXGLOVE_HOST, DEFAULT_FOXGLOVE_PORT
-    from composed_sim.world.schema import ROBOTS_PER_DOMAIN
-    outputs, live = OutputSettings(), LiveSettings()
     run = sub.add_parser("run", help="run a world file headless and write its results",
                          description="Run a world: the controller nodes hosted with simulator nodes in "
                                      "worker processes, in lockstep; writes summary.json, trajectories.npz, "
@@ -100,6 +96,16 @@ def _add_run(sub) -> None:
         "ROS domain of the run, refused if another simulator uses it (default: $ROS_DOMAIN_ID where set, else the "
         "first free domain from 0 up, printed first and recorded in summary.json; multi-process mode: the first of "
         "a block of free domains)"))
+    _add_run_hosting_options(run)
+    _add_run_output_options(run)
+    _add_run_machine_options(run)
+
+
+def _add_run_hosting_options(run: argparse.ArgumentParser) -> None:
+    """How a run hosts its controllers (mode, domains, participants, workers) and what it does
+    with a late one."""
+    from composed_sim.hosts.settings import AUTO_WORKERS, DEFAULT_MODE, MODES, HostSettings
+    from composed_sim.world.schema import ROBOTS_PER_DOMAIN
     run.add_argument("--mode", choices=MODES, default=DEFAULT_MODE,
                      help="composed: the controllers hosted together (see --workers); multi-process: one process per "
                           "controller over balanced ROS domains, as in the paper (default: %(default)s)")
@@ -116,6 +122,12 @@ def _add_run(sub) -> None:
     run.add_argument("--watchdog", type=_positive_float, metavar="SECONDS",
                      help="wall seconds to wait for a controller's answer before its fallback")
     run.add_argument("--fallback", choices=("zero", "previous"), help="command given to a late robot")
+
+
+def _add_run_output_options(run: argparse.ArgumentParser) -> None:
+    """What a run writes, records, shows live, and prints."""
+    from composed_sim.live import DEFAULT_FOXGLOVE_HOST, DEFAULT_FOXGLOVE_PORT
+    outputs, live = OutputSettings(), LiveSettings()
     run.add_argument("--out", type=Path, default=outputs.out, help="output directory (default: %(default)s)")
     run.add_argument("--record", type=Path, metavar="DIR",
                      help="record a rosbag2 (MCAP) directory: /clock, /swarm/state and --record-topics")
@@ -139,6 +151,11 @@ def _add_run(sub) -> None:
                           "(all go to OUT/logs/<robot>.log; default: %(default)s)")
     run.add_argument("--fail-fast", action="store_true",
                      help="stop the run at the first controller failure, exit code 1 (for CI)")
+
+
+def _add_run_machine_options(run: argparse.ArgumentParser) -> None:
+    """A run over several machines: the robots hosted elsewhere (--machines) or the controllers
+    hosted by ``composed-sim host`` shards (--external-controllers)."""
     run.add_argument("--machines", metavar="N|ADDR,ADDR",
                      help="host the robots on other machines, each with worker processes of its own: how many "
                           "machines, or their addresses or host names in robot order; the run prints the command "

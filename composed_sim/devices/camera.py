@@ -18,7 +18,7 @@ import numpy as np
 if TYPE_CHECKING:
     from scipy.spatial import cKDTree
 
-from composed_sim.devices.common import cdr
+from composed_sim.devices.common import cdr_clouds
 from composed_sim.devices.common.device import Device, DevicePublisher, csr_take, reads_cloud_into
 from composed_sim.devices.common.geometry import StaticScene
 from composed_sim.devices.common.noise import entry_noise
@@ -108,18 +108,8 @@ def blob_camera(positions, headings, radii, heights, camera_heights, half_window
     """
     positions, headings, radii, heights = _robots(positions, headings, radii, heights)
     n = len(positions)
-    camera_heights = np.asarray(camera_heights, dtype=np.float64)
-    half_windows = np.asarray(half_windows, dtype=np.float64)
-    led_colors = np.asarray(led_colors)
-    for name, a in (("camera_heights", camera_heights), ("half_windows", half_windows)):
-        if a.shape != (n,):
-            raise ValueError(f"{name} must have shape ({n},), got {a.shape}")
-    if led_colors.ndim != 3 or led_colors.shape[::2] != (n, 3):
-        raise ValueError(f"led_colors must have shape ({n}, L, 3), got {led_colors.shape}")
-    if not callable(led_world):
-        led_world = np.asarray(led_world, dtype=np.float64)
-        if led_world.shape != led_colors.shape:
-            raise ValueError(f"led_world must have the shape of led_colors {led_colors.shape}, got {led_world.shape}")
+    camera_heights, half_windows, led_colors, led_world = _camera_arrays(n, camera_heights, half_windows,
+                                                                         led_colors, led_world)
     _check_noise("noise_std", noise_std, rng)
 
     # Most LEDs are off: the work below follows the lit ones only.
@@ -144,23 +134,57 @@ def blob_camera(positions, headings, radii, heights, camera_heights, half_window
         return BlobReadings.empty(n_out)
     order = _pair_order(obs, owner, n)                # the output order: observer, owner, LED
     obs, owner = obs[order], owner[order]
-    # Chunks of about _BLOB_CHUNK (observer, LED) candidates: with every LED lit, 10^4 robots
-    # give ~10^7 candidates, and their temporaries would need gigabytes at once.
+    i, f, rx, ry = _visible_in_chunks(obs, owner, n_lit, first_lit, led, n_leds, lit, positions, radii, heights,
+                                      camera_heights, half_windows, scene, tree)
+    if noise_std > 0.0:
+        rx, ry = _with_position_noise(rx, ry, i, f, noise_std, rng)
+    return _blob_readings(i, f, rx, ry, headings, rgb, n_out, observers)
+
+
+def _camera_arrays(n: int, camera_heights, half_windows, led_colors, led_world):
+    """camera_heights [n], half_windows [n] (float64), led_colors [n, L, 3] and led_world (an array
+    of led_colors' shape, float64, or a function) as numpy arrays; ValueError naming a wrong shape."""
+    camera_heights = np.asarray(camera_heights, dtype=np.float64)
+    half_windows = np.asarray(half_windows, dtype=np.float64)
+    led_colors = np.asarray(led_colors)
+    for name, a in (("camera_heights", camera_heights), ("half_windows", half_windows)):
+        if a.shape != (n,):
+            raise ValueError(f"{name} must have shape ({n},), got {a.shape}")
+    if led_colors.ndim != 3 or led_colors.shape[::2] != (n, 3):
+        raise ValueError(f"led_colors must have shape ({n}, L, 3), got {led_colors.shape}")
+    if not callable(led_world):
+        led_world = np.asarray(led_world, dtype=np.float64)
+        if led_world.shape != led_colors.shape:
+            raise ValueError(f"led_world must have the shape of led_colors {led_colors.shape}, got {led_world.shape}")
+    return camera_heights, half_windows, led_colors, led_world
+
+
+def _visible_in_chunks(obs, owner, n_lit, *visible_leds_args):
+    """``_visible_leds`` of the (observer, owner) pairs obs [p], owner [p], in chunks of about
+    _BLOB_CHUNK (observer, LED) candidates: with every LED lit, 10^4 robots give ~10^7 candidates,
+    and their temporaries would need gigabytes at once."""
     ends = np.cumsum(n_lit[owner])                    # candidates up to each pair, inclusive
     parts, start, done = [], 0, 0
     while start < len(obs):
         stop = max(start + 1, int(np.searchsorted(ends, done + _BLOB_CHUNK, "right")))
-        parts.append(_visible_leds(obs[start:stop], owner[start:stop], n_lit, first_lit, led, n_leds, lit,
-                                   positions, radii, heights, camera_heights, half_windows, scene, tree))
+        parts.append(_visible_leds(obs[start:stop], owner[start:stop], n_lit, *visible_leds_args))
         start, done = stop, ends[stop - 1]
-    i, f, rx, ry = parts[0] if len(parts) == 1 else (np.concatenate(x) for x in zip(*parts))
+    return parts[0] if len(parts) == 1 else tuple(np.concatenate(x) for x in zip(*parts))
 
-    if noise_std > 0.0:
-        draws = entry_noise(rng, i, f)         # per observer and LED seen
-        length = np.sqrt(rx * rx + ry * ry) * draws.normal(0.0, noise_std, 0)
-        direction = draws.uniform(0.0, 2.0 * math.pi, 1)
-        rx, ry = rx + length * np.cos(direction), ry + length * np.sin(direction)
-    counts = np.bincount(i, minlength=n)
+
+def _with_position_noise(rx, ry, i, f, noise_std: float, rng):
+    """ARGoS's camera noise: each planar camera→LED vector (rx [m], ry [m]) plus |v| · N(0, noise_std)
+    in a uniform direction, drawn per observer i [m] and LED seen f [m]."""
+    draws = entry_noise(rng, i, f)
+    length = np.sqrt(rx * rx + ry * ry) * draws.normal(0.0, noise_std, 0)
+    direction = draws.uniform(0.0, 2.0 * math.pi, 1)
+    return rx + length * np.cos(direction), ry + length * np.sin(direction)
+
+
+def _blob_readings(i, f, rx, ry, headings, rgb, n_out: int, observers) -> BlobReadings:
+    """The blobs seen, observer i [m] (ordered), flat LED index f [m], camera→LED rx, ry [m], as
+    CSR over every robot (n_out of them) or over ``observers`` [n_out]."""
+    counts = np.bincount(i, minlength=len(headings))
     offsets = np.zeros(n_out + 1, dtype=np.int64)
     # Blobs are ordered by observer, so an observer subset's rows are already contiguous.
     np.cumsum(counts if observers is None else counts[observers], out=offsets[1:])
@@ -221,8 +245,8 @@ TOPIC = Topic("blobs", "sensor_msgs/msg/PointCloud2", "sensor",
 BLOB_DTYPE = np.dtype([("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("rgb", "<u4")])
 
 
-def encoder(robot: str) -> cdr.CloudEncoder:
-    return cdr.CloudEncoder(cdr.cloud_bytes(base_link(robot), BLOB_DTYPE))
+def encoder(robot: str) -> cdr_clouds.CloudEncoder:
+    return cdr_clouds.CloudEncoder(cdr_clouds.cloud_bytes(base_link(robot), BLOB_DTYPE))
 
 
 def points_of(angles: np.ndarray, distances: np.ndarray, colors: np.ndarray) -> np.ndarray:
@@ -298,9 +322,9 @@ class Blobs:
                      None if self.rgb is None else self.rgb[keep])
 
 
-def decode(data: bytes, decoder: Optional[cdr.CloudDecoder] = None) -> Blobs:
+def decode(data: bytes, decoder: Optional[cdr_clouds.CloudDecoder] = None) -> Blobs:
     """``decoder``: one per stream of clouds (a subscription), so their layout is parsed once."""
-    width, fields, point_step, points = (decoder or cdr.CloudDecoder()).decode(data)
+    width, fields, point_step, points = (decoder or cdr_clouds.CloudDecoder()).decode(data)
     return _blobs(np.frombuffer(points, dtype=_cloud_dtype(fields, point_step), count=width))
 
 
@@ -332,7 +356,7 @@ def _cloud_dtype(fields: tuple, point_step: int) -> np.dtype:
     dtype = _CLOUD_DTYPES.get(key)
     if dtype is None:
         found = {name: (offset, datatype) for name, offset, datatype in fields}
-        wanted = {"x": cdr.FLOAT32, "y": cdr.FLOAT32, "rgb": cdr.UINT32}
+        wanted = {"x": cdr_clouds.FLOAT32, "y": cdr_clouds.FLOAT32, "rgb": cdr_clouds.UINT32}
         if any(found.get(name, (0, None))[1] != datatype for name, datatype in wanted.items()):
             raise ValueError(f"not a blob cloud: fields {sorted(found)} (need x, y float32 and rgb uint32)")
         dtype = _CLOUD_DTYPES[key] = np.dtype({"names": list(wanted), "formats": ["<f4", "<f4", "<u4"],

@@ -12,7 +12,7 @@ from typing import Callable, Optional
 
 import numpy as np
 
-from composed_sim.devices.common import cdr
+from composed_sim.devices.common import cdr_clouds
 from composed_sim.devices.common.device import Device, DevicePublisher, reads_cloud_into
 from composed_sim.devices.common.floor import Floor, body_points
 from composed_sim.devices.common.sensing import SensedGroup, Sensing
@@ -58,11 +58,11 @@ TOPIC = Topic("ground", "sensor_msgs/msg/PointCloud2", "sensor",
               "intensity = the floor's grey level under it in [0, 1] (float32)")
 # One point per sensor. The positions are fixed; only the intensities change.
 GROUND_DTYPE = np.dtype([("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("intensity", "<f4")])
-_FIELDS = tuple((name, offset, datatype) for name, offset, datatype, _ in cdr.point_fields(GROUND_DTYPE))
+_FIELDS = tuple((name, offset, datatype) for name, offset, datatype, _ in cdr_clouds.point_fields(GROUND_DTYPE))
 
 
-def encoder(robot: str) -> cdr.CloudEncoder:
-    return cdr.CloudEncoder(cdr.cloud_bytes(base_link(robot), GROUND_DTYPE))
+def encoder(robot: str) -> cdr_clouds.CloudEncoder:
+    return cdr_clouds.CloudEncoder(cdr_clouds.cloud_bytes(base_link(robot), GROUND_DTYPE))
 
 
 def points_of(offsets_m: np.ndarray, readings: np.ndarray) -> np.ndarray:
@@ -75,10 +75,10 @@ def points_of(offsets_m: np.ndarray, readings: np.ndarray) -> np.ndarray:
     return points
 
 
-def decode(data: bytes, decoder: Optional[cdr.CloudDecoder] = None) -> np.ndarray:
+def decode(data: bytes, decoder: Optional[cdr_clouds.CloudDecoder] = None) -> np.ndarray:
     """A cloud's bytes → [s] grey levels in [0, 1], in the model's sensor order. ``decoder``: one
     per stream of clouds (a subscription), so their layout is parsed once."""
-    width, fields, point_step, points = (decoder or cdr.CloudDecoder()).decode(data)
+    width, fields, point_step, points = (decoder or cdr_clouds.CloudDecoder()).decode(data)
     if fields != _FIELDS or point_step != GROUND_DTYPE.itemsize:
         raise ValueError(f"not a ground-sensor cloud: fields {[name for name, _, _ in fields]} "
                          f"(need x, y, z, intensity float32)")

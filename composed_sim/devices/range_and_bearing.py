@@ -33,7 +33,7 @@ import numpy as np
 if TYPE_CHECKING:
     from scipy.spatial import cKDTree
 
-from composed_sim.devices.common import cdr
+from composed_sim.devices.common import cdr_clouds
 from composed_sim.devices.common.device import Device, DevicePublisher, csr_take, reads_cloud_into
 from composed_sim.devices.common.geometry import StaticScene
 from composed_sim.devices.common.noise import entry_noise
@@ -118,9 +118,7 @@ def range_and_bearing(positions: np.ndarray, headings: np.ndarray, radii: np.nda
         return RangeAndBearingReadings.empty(rows.stop - rows.start, payloads.shape[1])
     emitters = np.column_stack([positions, np.asarray(elevations, dtype=np.float64)])   # [n, 3]
     if mode == "global":
-        rx, tx = np.meshgrid(members, members, indexing="ij")     # receiver-major, sender order
-        keep = rx != tx
-        rx, tx = rx[keep], tx[keep]
+        rx, tx = _heard_globally(members)
     else:
         rx, tx = _heard_locally(positions, emitters, radii, heights, equipped, members, ranges, scene,
                                 check_occlusions, kd_tree(positions) if tree is None else tree, receivers, rows)
@@ -134,13 +132,26 @@ def range_and_bearing(positions: np.ndarray, headings: np.ndarray, radii: np.nda
         draws = entry_noise(rng, rx, tx) if noisy else None
     v = emitters[tx] - emitters[rx]                                   # [m, 3] world frame
     if noisy:
-        # ARGoS: CVector3 from spherical (Gaussian length, uniform inclination, uniform azimuth).
-        length = draws.normal(0.0, 1.0, 1) * noise_std_m[rx]
-        inclination = draws.uniform(0.0, math.pi, 2)
-        azimuth = draws.uniform(0.0, 2.0 * math.pi, 3)
-        v = v + (length * np.stack([np.sin(inclination) * np.cos(azimuth),
-                                    np.sin(inclination) * np.sin(azimuth),
-                                    np.cos(inclination)])).T
+        v = v + _receiver_noise(draws, noise_std_m[rx])
+    return _readings(rx, tx, v, headings, payloads, rows)
+
+
+def _receiver_noise(draws, sigma_m: np.ndarray) -> np.ndarray:
+    """[m, 3] world-frame noise vectors, one per message, from its draws and its receiver's σ [m]:
+    as ARGoS, a CVector3 from spherical coordinates (Gaussian length, uniform inclination, uniform
+    azimuth)."""
+    length = draws.normal(0.0, 1.0, 1) * sigma_m
+    inclination = draws.uniform(0.0, math.pi, 2)
+    azimuth = draws.uniform(0.0, 2.0 * math.pi, 3)
+    return (length * np.stack([np.sin(inclination) * np.cos(azimuth),
+                               np.sin(inclination) * np.sin(azimuth),
+                               np.cos(inclination)])).T
+
+
+def _readings(rx: np.ndarray, tx: np.ndarray, v: np.ndarray, headings, payloads: np.ndarray,
+              rows: slice) -> RangeAndBearingReadings:
+    """The messages heard, receivers rx [m] (sorted) from senders tx [m], each sender's emitter at
+    v [m, 3] (world frame) from its receiver's, as the readings of the receivers ``rows``."""
     planar = np.hypot(v[:, 0], v[:, 1])
     offsets = np.zeros(rows.stop - rows.start + 1, dtype=np.int64)
     np.cumsum(np.bincount(rx - rows.start, minlength=rows.stop - rows.start), out=offsets[1:])
@@ -162,6 +173,14 @@ def _check_inputs(n: int, payloads: np.ndarray, headings, radii, heights, equipp
             raise ValueError(f"{name} must have shape ({n},), got {np.shape(a)}")
     if mode not in ("local", "global"):
         raise ValueError(f"mode must be 'local' or 'global', got {mode!r}")
+
+
+def _heard_globally(members: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(receivers [m], senders [m]): every ordered pair of distinct ``members``, by receiver then
+    sender ("global" mode: no range, no occlusion)."""
+    rx, tx = np.meshgrid(members, members, indexing="ij")     # receiver-major, sender order
+    keep = rx != tx
+    return rx[keep], tx[keep]
 
 
 def _heard_locally(positions: np.ndarray, emitters: np.ndarray, radii, heights, equipped: np.ndarray,
@@ -215,8 +234,8 @@ def point_dtype(payload_bytes: int) -> np.dtype:
                      ("elevation", "<f4"), ("payload", "u1", (payload_bytes,))])
 
 
-def encoder(robot: str, payload_bytes: int) -> cdr.CloudEncoder:
-    return cdr.CloudEncoder(cdr.cloud_bytes(base_link(robot), point_dtype(payload_bytes)))
+def encoder(robot: str, payload_bytes: int) -> cdr_clouds.CloudEncoder:
+    return cdr_clouds.CloudEncoder(cdr_clouds.cloud_bytes(base_link(robot), point_dtype(payload_bytes)))
 
 
 def points_of(ranges: np.ndarray, bearings: np.ndarray, elevations: np.ndarray,
@@ -247,9 +266,9 @@ class RabMessages:
         return len(self.ranges)
 
 
-def decode(data: bytes, decoder: Optional[cdr.CloudDecoder] = None) -> RabMessages:
+def decode(data: bytes, decoder: Optional[cdr_clouds.CloudDecoder] = None) -> RabMessages:
     """``decoder``: one per stream of clouds (a subscription), so their layout is parsed once."""
-    width, fields, point_step, points = (decoder or cdr.CloudDecoder()).decode(data)
+    width, fields, point_step, points = (decoder or cdr_clouds.CloudDecoder()).decode(data)
     payload_bytes = point_step - _HEAD_BYTES
     if payload_bytes < 0 or fields != _cloud_fields(payload_bytes):
         raise ValueError(f"not a rab_rx cloud: fields {[name for name, _, _ in fields]} (need x, y, z, range, "
@@ -278,8 +297,9 @@ _HEAD_BYTES = point_dtype(0).itemsize      # a point's bytes before its payload
 
 @functools.lru_cache(maxsize=None)
 def _cloud_fields(payload_bytes: int) -> tuple:
-    """A rab_rx cloud's (name, offset, datatype) per field, as ``cdr.CloudDecoder`` gives them."""
-    return tuple((name, offset, datatype) for name, offset, datatype, _ in cdr.point_fields(point_dtype(payload_bytes)))
+    """A rab_rx cloud's (name, offset, datatype) per field, as ``cdr_clouds.CloudDecoder`` gives them."""
+    return tuple((name, offset, datatype)
+                 for name, offset, datatype, _ in cdr_clouds.point_fields(point_dtype(payload_bytes)))
 
 
 class Publisher(DevicePublisher):

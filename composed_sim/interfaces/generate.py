@@ -84,8 +84,8 @@ def generate_sources(pkg: InterfacePackage, idl_dir: Path, idls: list[str], shar
     import rosidl_typesupport_c
     import rosidl_typesupport_fastrtps_c
     import rosidl_typesupport_introspection_c
-    from rosidl_cli.command.helpers import (build_type_description_tuples, generate_visibility_control_file,
-                                            generator_arguments_file, legacy_generator_arguments)
+    from rosidl_cli.command.helpers import (generate_visibility_control_file, generator_arguments_file,
+                                            legacy_generator_arguments)
     from rosidl_generator_type_description import generate_type_hash
 
     templates = share_dirs[0]     # the toolchain's share: the generators' resource folders
@@ -109,7 +109,7 @@ def generate_sources(pkg: InterfacePackage, idl_dir: Path, idls: list[str], shar
                     package_name=name, output_path=out / subdir / name / kind / f"{generator}__visibility_control.h",
                     template_path=templates / generator / "resource" / f"{generator}__visibility_control.h.in")
         with arguments("rosidl_generator_c", out / "c" / name,
-                       type_description_tuples=build_type_description_tuples(interface_files, descriptions),
+                       type_description_tuples=_type_description_tuples(idls, descriptions),
                        ros_interface_files=[str(pkg.root / f) for f in pkg.files]) as a:
             rosidl_generator_c.generate_c(a)
         with arguments("rosidl_typesupport_c", out / "rosidl_typesupport_c" / name) as a:
@@ -120,6 +120,13 @@ def generate_sources(pkg: InterfacePackage, idl_dir: Path, idls: list[str], shar
             rosidl_typesupport_fastrtps_c.generate_typesupport_fastrtps_c(a)
         with arguments("rosidl_generator_py", out / "py" / name) as a:
             rosidl_generator_py.generate_py(a, ["rosidl_typesupport_c", *TYPESUPPORTS])
+
+
+def _type_description_tuples(idls: list[str], descriptions: list) -> list[str]:
+    """``msg/Empty.idl:<its .json>`` for each .idl, matched by kind and name: rosidl_cli's own helper
+    matches by name alone, and gives a package's ``srv/Empty`` the description of its ``msg/Empty``."""
+    by_path = {PurePosixPath(*Path(d).parts[-2:]).with_suffix(""): d for d in map(str, descriptions)}
+    return [f"{idl}:{by_path[PurePosixPath(idl).with_suffix('')]}" for idl in idls]
 
 
 @contextlib.contextmanager

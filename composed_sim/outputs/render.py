@@ -17,20 +17,20 @@ How it stays fast at 1280 robots × 600 ticks: matplotlib (Agg, headless) draws 
 and the axes once; per frame only the caption is redrawn (blitting), and the robots and trails
 are rasterised with numpy into a copy of that image (each disc is a precomputed pixel stencil
 placed at every robot at once; trails are alpha-blended points sampled along each tick's
-segment). Encoding through PyAV (FFmpeg; imageio's video plugin wraps the same library but
-exposes no encoder options): MP4 as H.264 (x264 preset veryfast, crf 23, yuv420p); GIF by the GIF
+segment). Encoding (``video_encoding.py``) through PyAV (FFmpeg; imageio's video plugin wraps
+the same library but exposes no encoder options): MP4 as H.264 (x264 preset veryfast, crf 23, yuv420p); GIF by the GIF
 encoder with one fixed 256-colour palette for the whole animation (taken from the first and the
 last frame), streamed, so memory does not grow with the number of frames.
 """
 from __future__ import annotations
 
 import math
-from fractions import Fraction
 from pathlib import Path
 from typing import Any, Callable, Optional
 
 import numpy as np
 
+from composed_sim.outputs.video_encoding import write_gif, write_mp4
 from composed_sim.world.schema import World
 
 SUFFIXES = (".png", ".gif", ".mp4")
@@ -59,22 +59,8 @@ def render(trajectories: Any, world: World, out: str | Path, *, led_colors: Opti
     suffix = out.suffix.lower()
     if suffix not in SUFFIXES:
         raise ValueError(f"output must end in {', '.join(SUFFIXES)} (got {str(out)!r})")
-    positions = np.asarray(trajectories.positions, dtype=float)
-    headings = np.asarray(trajectories.headings, dtype=float)
-    if positions.ndim != 3 or positions.shape[2] != 2 or len(positions) == 0:
-        raise ValueError(f"positions must be [T+1, n, 2] with T >= 0, got shape {positions.shape}")
-    if headings.shape != positions.shape[:2]:
-        raise ValueError(f"headings must be {list(positions.shape[:2])} like positions, "
-                         f"got shape {headings.shape}")
-    colors = _frame_colors(led_colors, positions.shape[:2])
-    if not (isinstance(size_px, int) and 64 <= size_px <= 8192):
-        raise ValueError(f"size_px must be a whole number of pixels in 64..8192 (got {size_px!r})")
-    if not (isinstance(fps, (int, float)) and 0 < fps <= 1000):
-        raise ValueError(f"fps must be in (0, 1000] (got {fps!r})")
-    if not (isinstance(trail_ticks, int) and trail_ticks >= 0):
-        raise ValueError(f"trail_ticks must be a whole number >= 0 (got {trail_ticks!r})")
-    if not (isinstance(every, int) and every >= 1):
-        raise ValueError(f"every must be a whole number >= 1 (got {every!r})")
+    positions, headings, colors = _checked_inputs(trajectories, led_colors, size_px, fps,
+                                                  trail_ticks, every)
     tick_s = world.tick_s if tick_s is None else float(tick_s)
     size_px += size_px % 2
 
@@ -102,14 +88,37 @@ def render(trajectories: Any, world: World, out: str | Path, *, led_colors: Opti
         import imageio.v3 as iio
         iio.imwrite(out, next(frames()), extension=".png")
     elif suffix == ".mp4":
-        _write_mp4(out, frames(), fps)
+        write_mp4(out, frames(), fps)
     else:
-        _write_gif(out, frames(), fps, palette_from=[canvas.frame(ticks[0], "tick 0"),
+        write_gif(out, frames(), fps, palette_from=[canvas.frame(ticks[0], "tick 0"),
                                                     canvas.frame(ticks[-1], "tick 0")])
     return len(ticks)
 
 
 # --- inputs --------------------------------------------------------------------------
+
+def _checked_inputs(trajectories: Any, led_colors: Optional[np.ndarray], size_px: int, fps: float,
+                    trail_ticks: int, every: int) -> tuple[np.ndarray, np.ndarray, Optional[np.ndarray]]:
+    """(positions, headings, display colours) of ``render``'s arguments, each checked with an
+    error that names it."""
+    positions = np.asarray(trajectories.positions, dtype=float)
+    headings = np.asarray(trajectories.headings, dtype=float)
+    if positions.ndim != 3 or positions.shape[2] != 2 or len(positions) == 0:
+        raise ValueError(f"positions must be [T+1, n, 2] with T >= 0, got shape {positions.shape}")
+    if headings.shape != positions.shape[:2]:
+        raise ValueError(f"headings must be {list(positions.shape[:2])} like positions, "
+                         f"got shape {headings.shape}")
+    colors = _frame_colors(led_colors, positions.shape[:2])
+    if not (isinstance(size_px, int) and 64 <= size_px <= 8192):
+        raise ValueError(f"size_px must be a whole number of pixels in 64..8192 (got {size_px!r})")
+    if not (isinstance(fps, (int, float)) and 0 < fps <= 1000):
+        raise ValueError(f"fps must be in (0, 1000] (got {fps!r})")
+    if not (isinstance(trail_ticks, int) and trail_ticks >= 0):
+        raise ValueError(f"trail_ticks must be a whole number >= 0 (got {trail_ticks!r})")
+    if not (isinstance(every, int) and every >= 1):
+        raise ValueError(f"every must be a whole number >= 1 (got {every!r})")
+    return positions, headings, colors
+
 
 def _frame_colors(led_colors: Optional[np.ndarray], shape: tuple[int, int]) -> Optional[np.ndarray]:
     """[T+1, n, 3] uint8 display colours, or None."""
@@ -371,64 +380,3 @@ def _box_corners(box) -> np.ndarray:
     """[4, 2] corners of a (yawed) box of the world file, in world coordinates."""
     from composed_sim.devices.common.geometry import box_corners
     return box_corners(box.position, box.size, box.yaw_rad)
-
-
-# --- encoding ------------------------------------------------------------------------
-
-def _write_mp4(out: Path, frames, fps: float) -> None:
-    """H.264 in MP4 through PyAV (the library under imageio's video plugin, used directly for
-    the encoder options): x264 preset "veryfast" encodes a frame faster than the default
-    "medium" at the same quality (crf 23), with a file no larger (docs/speed.md)."""
-    import av
-    with av.open(str(out), mode="w", format="mp4") as container:
-        stream = None
-        for frame in frames:
-            if stream is None:
-                stream = container.add_stream("libx264", rate=Fraction(fps).limit_denominator(1000))
-                stream.width, stream.height = frame.shape[1], frame.shape[0]
-                stream.pix_fmt = "yuv420p"
-                stream.codec_context.options = {"preset": "veryfast", "crf": "23"}
-            container.mux(stream.encode(av.VideoFrame.from_ndarray(frame, format="rgb24")))
-        if stream is not None:
-            container.mux(stream.encode(None))
-
-
-def _write_gif(out: Path, frames, fps: float, palette_from: list[np.ndarray]) -> None:
-    import av
-    palette, lut = _palette(np.concatenate(palette_from, axis=0))
-    argb = np.zeros((256, 4), dtype=np.uint8)                    # PyAV's pal8 palette: ARGB
-    argb[:len(palette), 0] = 255
-    argb[:len(palette), 1:] = palette
-    rate = Fraction(fps).limit_denominator(1000)
-    with av.open(str(out), mode="w", format="gif") as container:
-        stream = None
-        for frame in frames:
-            if stream is None:
-                stream = container.add_stream("gif", rate=rate)
-                stream.width, stream.height = frame.shape[1], frame.shape[0]
-                stream.pix_fmt = "pal8"
-            index = lut[frame[..., 0] >> 3, frame[..., 1] >> 3, frame[..., 2] >> 3]
-            vf = av.VideoFrame.from_ndarray((index, argb), format="pal8")
-            container.mux(stream.encode(vf))
-        if stream is not None:
-            container.mux(stream.encode(None))
-
-
-def _palette(sample: np.ndarray, colors: int = 256) -> tuple[np.ndarray, np.ndarray]:
-    """A palette for ``sample`` [h, w, 3] by median cut (Pillow) → (palette [m, 3] uint8,
-    lookup [32, 32, 32] uint8: index of the nearest palette colour for 5-bit RGB)."""
-    from PIL import Image
-    quantised = Image.fromarray(sample).quantize(colors=colors, method=Image.Quantize.MEDIANCUT,
-                                                 dither=Image.Dither.NONE)
-    flat = (quantised.getpalette() or [])[:3 * colors]
-    flat += [0] * (3 * colors - len(flat))             # unused entries: black, never the nearest twice
-    palette = np.array(flat, dtype=np.uint8).reshape(-1, 3)
-    grid = (np.arange(32, dtype=np.float32) * 8 + 4)
-    cube = np.stack(np.meshgrid(grid, grid, grid, indexing="ij"), axis=-1).reshape(-1, 3)
-    best = np.empty(len(cube), dtype=np.uint8)
-    pal = palette.astype(np.float32)
-    for start in range(0, len(cube), 4096):          # chunks keep the distance matrix small
-        block = cube[start:start + 4096]
-        d = ((block[:, None, :] - pal[None, :, :]) ** 2).sum(axis=2)
-        best[start:start + 4096] = np.argmin(d, axis=1)
-    return palette, best.reshape(32, 32, 32)

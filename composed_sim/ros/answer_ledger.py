@@ -44,7 +44,7 @@ class AnswerLedger:
         # answer, then as the world file says (``_as_said``).
         self._as_said = self.when_published.copy()
         self.later = np.zeros(n, dtype=bool)
-        self._firmware = np.zeros(n, dtype=bool) if answers_by_firmware is None \
+        self.by_firmware = np.zeros(n, dtype=bool) if answers_by_firmware is None \
             else np.asarray(answers_by_firmware, dtype=bool)
         self._later_until = np.full(n, math.inf)          # the tick at which ``later`` ends at the latest
         self.linear = np.zeros(n)       # [n] m/s
@@ -75,7 +75,7 @@ class AnswerLedger:
                 self.later[due], self.when_published[due] = False, self._as_said[due]
             # Robots answering every k-th tick are settled, keeping their last command, in between.
             self.answered[:] = False if self._every is None else tick % self._every != 0
-            self.answered |= self._firmware
+            self.answered |= self.by_firmware
             self.rejected[:] = False
             self._n_answered = 0
             self._n_expected = int(np.count_nonzero(~self.failed & ~self.answered))

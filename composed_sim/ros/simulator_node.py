@@ -6,8 +6,7 @@ hands it a SensorFrame to publish and reads back the commands as arrays.
 from __future__ import annotations
 
 import functools
-import time
-from typing import TYPE_CHECKING, Callable, Collection, Mapping, Optional, Sequence
+from typing import TYPE_CHECKING, Collection, Mapping, Optional, Sequence
 
 import numpy as np
 from rclpy.context import Context
@@ -20,14 +19,14 @@ from composed_sim.devices.common import cdr
 from composed_sim.devices.common.device import DevicePublisher, GroupPlan, NodeRobots, Outgoing
 from composed_sim.ros import contract as c, decoding
 from composed_sim.ros.answer_ledger import AnswerLedger
-from composed_sim.ros.answer_subscription import (NODE_NAME_UNKNOWN, AnswerSubscription, ControllerPublishers, graph_gid,
-                                                 publisher_gid, publisher_text)
-from composed_sim.ros.in_process import inbox_of
+from composed_sim.ros.answer_subscription import AnswerSubscription, ControllerPublishers, publisher_gid
+from composed_sim.ros.clock_watch import ClockWatch
+from composed_sim.ros.command_inbox import CommandInbox
 from composed_sim.ros.robot_settings import quiet_node_options
 from composed_sim.ros.robot_taps import RobotTaps
 from composed_sim.ros.taps import MessageTap
 from composed_sim.ros.topic import message_class
-from composed_sim.world.robot_models import RANGE_AND_BEARING, RobotModel
+from composed_sim.world.robot_models import RobotModel
 from composed_sim.world.schema import Lockstep
 if TYPE_CHECKING:   # only a type here: a controller process must not import the physics
     from composed_sim.core.simulation import SensorFrame
@@ -40,15 +39,6 @@ class AnswerTypeError(Exception):
 ACCEPTED_ANSWERS: dict[str, type] = {c.type_name(t): t for t in c.ANSWER_TYPES.values()}
 
 
-# How often a node that publishes /clock asks the ROS graph for another /clock publisher in its
-# domain (``another_simulator``): a count in its participant's graph cache, cheap but not free
-# (docs/speed.md).
-CLOCK_WATCH_S = 1.0
-
-LATE_LEDS = "leds answering an earlier tick arrived after that tick closed: applied one tick late"
-LATE_RAB = "rab_tx answering an earlier tick arrived after that tick closed: applied one tick late"
-
-
 class SimulatorNode(Node):
     """Sensor publishers and command subscriptions for a set of robots, in one node.
 
@@ -57,9 +47,7 @@ class SimulatorNode(Node):
     simulation's arrays). The answers to each tick are kept by its ``AnswerLedger``
     (ros/answer_ledger.py), whose arrays it shows (``answered``, ``failed`` …).
 
-    LED commands go to a separate inbox node that is never added to an executor and is drained by
-    the host at the act phase, so an LED change published before a tick's answer always lands on
-    the same tick, whatever the executor.
+    LED and rab_tx commands go to its inbox (ros/command_inbox.py), drained at the act phase.
     """
 
     def __init__(self, names: list[str], models: list[RobotModel], *, context: Context,
@@ -88,32 +76,24 @@ class SimulatorNode(Node):
             raise ValueError(f"{n} robots but {len(rows)} rows")
         self._names = names
         self._index = {name: i for i, name in enumerate(names)}
-        self._models = models
-        self._tick_ns = tick_ns
+        self._models, self._tick_ns = models, tick_ns
         self._ledger = AnswerLedger(names, rows, lockstep, answers_every_ticks, answers_when_published,
                                     answers_by_firmware)
-        self._firmware = np.zeros(n, dtype=bool) if answers_by_firmware is None \
-            else np.asarray(answers_by_firmware, dtype=bool)
         self.drones = None           # the drones' Crazyswarm2 endpoints beside this node (the host's)
         ledger = self._ledger           # its arrays, read (and filled) in place
         self.rows, self.when_published, self.violations, self.on_failed = \
             ledger.rows, ledger.when_published, ledger.violations, ledger.on_failed
         self.linear, self.angular, self.answered, self.rejected, self.failed = \
             ledger.linear, ledger.angular, ledger.answered, ledger.rejected, ledger.failed
-        self._inbox = Node(node_name + "_inbox", context=context, **quiet_node_options())
         self._clock_pub = self.create_publisher(Clock, c.CLOCK_TOPIC, 10, event_callbacks=c.PUBLISHER_EVENTS) if publish_clock else None
-        self._clock_msg = Clock()
-        self._clock_gid = publisher_gid(self._clock_pub) if publish_clock else None
-        self._next_clock_watch = 0.0
-        self._other_seen_at: dict[bytes, float] = {}     # another /clock publisher's GID → first seen, not named
-        self._driven_clock_handles = []
+        self._clock_msg, self._driven_clock_handles = Clock(), []
+        self._clock_watch = ClockWatch(self, publisher_gid(self._clock_pub)) if publish_clock else None
         self._taps = RobotTaps(names)
         self._run_wide_publishers: dict[str, object] = {}    # topic → its publisher (mirror_run_wide)
         self._devices = [frozenset(m.default_devices) for m in models] if devices is None \
             else [frozenset(d) for d in devices]
         if len(self._devices) != n:
             raise ValueError(f"{n} robots but devices for {len(self._devices)}")
-        self._rab_payload_bytes = rab_payload_bytes
         # One publisher set per device that any of these robots runs (devices/).
         robots = NodeRobots(names, models, self._devices, tick_ns, rab_payload_bytes, global_tf)
         self._device_publishers: list[DevicePublisher] = [d.publisher(self, robots) for d in DEVICES
@@ -126,23 +106,13 @@ class SimulatorNode(Node):
             else list(answer_types)
         self._controllers = ControllerPublishers(self, self._cmd_subs, self._answer_types)
         self._foreign_noted: set[tuple[int, bytes]] = set()   # (robot, GID) recorded this tick
-        self._led_subs, self._rab_subs = self._subscribe(names)
-
-    def _subscribe(self, names: list[str]) -> tuple[list, list]:
-        """Each robot's cmd_vel (where its answer type is known) and, on the inbox node, its LEDs
-        and rab_tx, taken as bytes (raw) and decoded with numpy (cdr.decode_uint8_array)."""
-        leds, rab = [], [None] * len(names)
-        for i, name in enumerate(names):
-            if self._answer_types[i] is not None:
-                self._subscribe_answers(i, self._answer_types[i])
-            leds.append(self._inbox.create_subscription(
-                c.msg_type(c.LEDS), c.topic_name(name, c.LEDS), lambda msg: None, c.QOS,
-                event_callbacks=c.SUBSCRIPTION_EVENTS, raw=True))
-            if RANGE_AND_BEARING in self._devices[i]:
-                rab[i] = self._inbox.create_subscription(
-                    c.msg_type(c.RAB_TX), c.topic_name(name, c.RAB_TX), lambda msg: None, c.QOS,
-                    event_callbacks=c.SUBSCRIPTION_EVENTS, raw=True)
-        return leds, rab
+        for i, msg_type in enumerate(self._answer_types):
+            if msg_type is not None:
+                self._subscribe_answers(i, msg_type)
+        self._inbox = CommandInbox(node_name, context, names, models, self._devices, rab_payload_bytes,
+                                   self.rows, ledger, self._taps)
+        # Drained by the host at the act phase (ros/command_inbox.py).
+        self.take_led_commands, self.take_rab_payloads = self._inbox.take_led_commands, self._inbox.take_rab_payloads
 
     def _subscribe_answers(self, i: int, msg_type: type) -> None:
         on_answer = self._on_cmd_vel if msg_type is c.msg_type(c.CMD_VEL) else self._on_unstamped_cmd_vel
@@ -177,26 +147,9 @@ class SimulatorNode(Node):
         self._subscribe_answers(i, ACCEPTED_ANSWERS[type_name])
 
     def another_simulator(self) -> Optional[str]:
-        """Another publisher of /clock in this node's domain, as ``node /x (publisher GID …)``, or
-        None: a simulator that joined the domain after the run claimed it, or that the claim's
-        probe missed (docs/faults.md). Its sensors reach this run's controllers, so the run is no
-        longer its own. Asks the ROS graph at most once per CLOCK_WATCH_S (and, for up to a second,
-        every 50 ms while the graph has not named the other's node yet); a node that does not
-        publish /clock (the others of its process and domain ignore one another) never finds one."""
-        now = time.monotonic()
-        if self._clock_gid is None or now < self._next_clock_watch:
-            return None
-        self._next_clock_watch = now + CLOCK_WATCH_S
-        if self.count_publishers(c.CLOCK_TOPIC) <= 1:
-            return None
-        other = next((info for info in self.get_publishers_info_by_topic(c.CLOCK_TOPIC)
-                      if graph_gid(info) != self._clock_gid), None)
-        if other is None:
-            return None
-        if other.node_name == NODE_NAME_UNKNOWN and now < self._other_seen_at.setdefault(graph_gid(other), now) + 1.0:
-            self._next_clock_watch = now + 0.05     # its node's name comes a moment after the endpoint
-            return None
-        return publisher_text(other)
+        """Another publisher of /clock in this node's domain (ros/clock_watch.py), or None; a node
+        that does not publish /clock (the others of its process and domain) never finds one."""
+        return None if self._clock_watch is None else self._clock_watch.another_simulator()
 
     def note_controllers(self, gids: Mapping[str, Collection[bytes]]) -> None:
         """The GIDs of each robot's controller's cmd_vel publishers (``cmd_vel_gids``), from the
@@ -210,7 +163,7 @@ class SimulatorNode(Node):
 
     def inbox_subscriptions(self) -> list:
         """The LED and rab_tx subscriptions, drained at the act phase (``take_led_commands``)."""
-        return [s for s in (*self._led_subs, *self._rab_subs) if s is not None]
+        return self._inbox.subscriptions
 
     def sensor_publishers(self) -> list:
         """Every robot's sensor publishers, robot by robot."""
@@ -227,7 +180,7 @@ class SimulatorNode(Node):
     def endpoints_by_topic(self) -> dict:
         """The simulator's side of each robot topic, by topic name: sensor publishers, cmd_vel
         subscriptions and the LED and rab_tx inbox's subscriptions (for matching checks)."""
-        found = [*self.publishers, *(s for s in self._cmd_subs if s is not None), *self._inbox.subscriptions]
+        found = [*self.publishers, *(s for s in self._cmd_subs if s is not None), *self._inbox.node.subscriptions]
         return {e.topic_name: e for e in found if e.topic_name != c.CLOCK_TOPIC}
 
     def _from_controller(self, i: int, gid: bytes) -> bool:
@@ -374,7 +327,7 @@ class SimulatorNode(Node):
         """Robots whose controller is not connected yet: no publisher matched on its cmd_vel, or no
         subscriber on any of its sensors. Matched counts are local to each endpoint (O(1))."""
         self.detect_answer_types()
-        return [name for i, name in enumerate(self._names) if not self._firmware[i] and (
+        return [name for i, name in enumerate(self._names) if not self._ledger.by_firmware[i] and (
                 self._cmd_subs[i] is None or self._cmd_subs[i].get_publisher_count() < 1
                 or not any(p.get_subscription_count() >= 1 for p in self._sensor_pubs[i]))]
 
@@ -439,62 +392,9 @@ class SimulatorNode(Node):
         """End the answer window; this node's robots' commands into ``commands`` (ros/answer_ledger.py)."""
         self._ledger.close_tick(fallback, previous, commands)
 
-    def take_led_commands(self) -> dict[int, np.ndarray]:
-        """Drain the LED inbox: the latest valid colours per simulation row that sent any.
-
-        A controller publishes ``leds`` before its ``cmd_vel``, but these are two DDS writers
-        and DDS orders samples per writer only. Inside one participant (composed mode) delivery
-        is synchronous, so the order holds. Across processes both samples go to the same locator
-        and are received in order by one transport thread (0 late LEDs in 34,000 robot-ticks
-        measured); only a lost LED sample, re-sent at the writer's next heartbeat (~3 s), could
-        land after its tick closed. The sample's source timestamp tells that for sure (same
-        host clock): an LED published before this tick's sensors went out answers an earlier
-        tick. It is still applied (it is the latest colour) and recorded as a violation, so
-        "same world and seed ⇒ same trajectories unless a violation is recorded" holds.
-        """
-        return self._drain(self._led_subs, c.LEDS, LATE_LEDS,
-                           lambda i, msg: decoding.decode_leds(msg, self._models[i].n_leds))
-
-    def take_rab_payloads(self) -> dict[int, np.ndarray]:
-        """Drain the rab_tx inbox like the LEDs': the latest valid payload per simulation row that
-        sent any, to be set before the next step (so it is heard one tick later, as in ARGoS)."""
-        return self._drain(self._rab_subs, c.RAB_TX, LATE_RAB,
-                           lambda i, msg: decoding.decode_payload(msg, self._rab_payload_bytes))
-
-    def _drain(self, subs: list, topic: c.Topic, late: str, decode: Callable) -> dict[int, np.ndarray]:
-        out = {}
-        for i, sub in enumerate(subs):
-            if sub is None:
-                continue
-            inbox = inbox_of(sub)      # what the robot's nodes handed over in process (ros/in_process.py)
-            if inbox is not None:
-                while inbox.queue:
-                    self._drained(i, topic, late, decode, *inbox.take(), out)
-                if not inbox.dds_may_hold():
-                    continue
-            while (taken := sub.handle.take_message(sub.msg_type, sub.raw)) is not None:
-                self._drained(i, topic, late, decode, taken[0], taken[1]["source_timestamp"], out)
-            if inbox is not None:
-                inbox.emptied()
-        return out
-
-    def _drained(self, i: int, topic: c.Topic, late: str, decode: Callable, msg, published_ns: int, out: dict) -> None:
-        """Robot i's message ``msg`` on an inbox topic, published at ``published_ns`` (wall)."""
-        ledger = self._ledger
-        if ledger.failed[i]:
-            return
-        self._taps.message(topic, i, msg, ledger.tick_key)
-        with ledger.lock:
-            if ledger.opened_ns is not None and published_ns < ledger.opened_ns:
-                ledger.record(ledger.current_tick, i, late)
-            try:
-                out[int(self.rows[i])] = decode(i, msg)
-            except ValueError as e:
-                ledger.record(ledger.current_tick, i, f"{topic.name}: {e}")
-
     def destroy_node(self) -> None:
         for sub in self._cmd_subs:
             if sub is not None:
                 sub.destroy(self)
-        self._inbox.destroy_node()
+        self._inbox.destroy()
         super().destroy_node()

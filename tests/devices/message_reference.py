@@ -1,5 +1,5 @@
 """The contract's sensor messages as rclpy message objects, filled and read field by field: the
-reference the devices' byte codecs (devices/common/cdr.py) are checked against in test_cdr.py."""
+reference the devices' byte codecs (devices/common/cdr.py, cdr_clouds.py) are checked against in test_cdr.py."""
 import array
 from types import SimpleNamespace
 
@@ -9,12 +9,12 @@ from nav_msgs.msg import Odometry
 from sensor_msgs.msg import JointState, LaserScan, PointCloud2, PointField
 
 from composed_sim.devices import camera, differential_steering, ground, range_and_bearing
-from composed_sim.devices.common import cdr
+from composed_sim.devices.common import cdr_clouds
 from composed_sim.devices.common.topic import WORLD_FRAME, base_link, base_scan, odom_frame, yaw_of
 
 
 def point_fields(dtype):
-    return [PointField(name=n, offset=o, datatype=d, count=k) for n, o, d, k in cdr.point_fields(dtype)]
+    return [PointField(name=n, offset=o, datatype=d, count=k) for n, o, d, k in cdr_clouds.point_fields(dtype)]
 
 
 def point_cloud(robot, dtype, width=0):

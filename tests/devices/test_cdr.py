@@ -8,7 +8,7 @@ from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import JointState, LaserScan, PointCloud2, PointField
 
 from composed_sim.world.robot_models import get_model
-from composed_sim.devices.common import cdr
+from composed_sim.devices.common import cdr, cdr_clouds
 from composed_sim.ros import contract as c, decoding
 from composed_sim.devices import (camera, differential_steering, ground, lidar, light, odometry, positioning,
                                   proximity, range_and_bearing)
@@ -165,7 +165,7 @@ def test_an_answer_is_read_whatever_its_frame_id_pads(frame_id):
 def test_one_decoder_follows_a_stream_whose_cloud_layout_changes():
     """A subscription's decoder parses the layout once and re-parses when the publisher changes it
     (another frame_id length, other field offsets): each cloud decodes as its message says."""
-    decoder = cdr.CloudDecoder()
+    decoder = cdr_clouds.CloudDecoder()
     reordered = [PointField(name=f.name, offset=o, datatype=f.datatype, count=1)
                  for f, o in zip(BLOB_FIELDS, (4, 8, 12, 0))]       # rgb first in each point
     for name, fields, m in (("b", BLOB_FIELDS, 3), ("b", BLOB_FIELDS, 0), ("a_long_robot_name_99", BLOB_FIELDS, 4),

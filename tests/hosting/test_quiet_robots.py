@@ -55,6 +55,7 @@ def groups_with(guard, exchange, on_take):
     groups.simulator_nodes = [SimulatorNode(on_take)]
     groups._quiet_robots, groups._settle = True, False
     groups._calls_at_open = {}
+    groups.answers_later = []                         # every robot has its cmd_vel publisher
     groups.calls = CallRelay([])                      # no call between places in flight
     return groups
 

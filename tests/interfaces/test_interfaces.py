@@ -69,9 +69,10 @@ def cache(xdg_cache) -> Path:
 
 @pytest.fixture(scope="session")
 def built(tmp_path_factory, cache):
-    """The test package, built once for the session (about 3 s)."""
+    """The test package, built once for the session (about 3 s); a message and a service share a
+    name, as in ROS 2's own test_msgs (msg/Empty beside srv/Empty)."""
     source = make_package(tmp_path_factory.mktemp("src") / PACKAGE,
-                          {"msg/Opinion.msg": OPINION, "srv/Ask.srv": ASK})
+                          {"msg/Opinion.msg": OPINION, "srv/Ask.srv": ASK, "msg/Ask.msg": "string question\n"})
     package = build_package(source, cache=cache)
     assert not package.cached
     return package
@@ -112,6 +113,8 @@ def test_its_messages_import_and_serialise_in_a_new_process(built):
         back = deserialize_message(serialize_message(m), Opinion)
         assert back == m, back
         assert deserialize_message(serialize_message(Ask.Response(agrees=True)), Ask.Response).agrees
+        from {PACKAGE}.msg import Ask as AskMessage
+        assert deserialize_message(serialize_message(AskMessage(question="why")), AskMessage).question == "why"
         print("ok")
     """)
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(built.python_path), os.environ.get("PYTHONPATH", "")]))

@@ -1,7 +1,7 @@
 """A run's results streamed to disk as it goes (outputs/stream.py): the same files as the results
 kept in memory, readable during the run and after a kill up to the last checkpoint, and memory
 that does not grow with the ticks. The tick loop runs over the fake exchange of
-tests/hosts/test_lockstep_loop.py (no ROS)."""
+tests/hosts/test_tick_loop.py (no ROS)."""
 import csv
 import tracemalloc
 import zipfile
@@ -16,7 +16,7 @@ from composed_sim.outputs.export import trajectory_table
 from composed_sim.outputs.results import load_trajectories, summarize, write_results
 from composed_sim.outputs.stream import GrowingArray, RowsFile, TrajectoryStream
 from composed_sim.world.loader import load_world
-from tests.hosts.test_lockstep_loop import WORLD, FakeExchange
+from tests.hosts.test_tick_loop import WORLD, FakeExchange
 
 
 def _run(ticks: int, robots: int = 4, out=None, checkpoint=None):

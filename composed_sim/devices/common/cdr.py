@@ -6,7 +6,8 @@ objects and C structs, which is most of what a message costs in rclpy (docs/spee
 bytes are the very CDR
 that rclpy itself would produce: subscribers see ordinary typed messages, and the tests check
 every codec against ``rclpy.serialization`` (tests/devices/test_cdr.py). ROS-free: each message's
-template is written here (``Writer``), field by field in its type's order.
+template is written here (``Writer``), field by field in its type's order; the point clouds'
+(templates, encoder, decoder) in cdr_clouds.py.
 
 CDR (XCDR1, little endian): a 4-byte encapsulation header, then each primitive aligned to its
 size counted from the end of that header; strings are a uint32 length (with the NUL) and the
@@ -15,7 +16,6 @@ bytes; sequences a uint32 count and the elements.
 from __future__ import annotations
 
 import struct
-from dataclasses import dataclass
 from typing import Optional
 
 import numpy as np
@@ -23,7 +23,6 @@ import numpy as np
 HEADER = 4                 # encapsulation header
 _STAMP = struct.Struct("<iI")
 _U32 = struct.Struct("<I")
-_TWO_U32 = struct.Struct("<II")
 _F64 = struct.Struct("<d")
 
 
@@ -84,21 +83,6 @@ class Writer:
         return self.raw(struct.pack(f"<{len(values)}{fmt}", *values))
 
 
-# sensor_msgs/PointField datatypes.
-INT8, UINT8, INT16, UINT16, INT32, UINT32, FLOAT32, FLOAT64 = range(1, 9)
-_POINT_FIELD_TYPES = {np.dtype("<f4"): FLOAT32, np.dtype("<u4"): UINT32, np.dtype("u1"): UINT8}
-
-
-def point_fields(dtype: np.dtype) -> tuple[tuple[str, int, int, int], ...]:
-    """A PointCloud2's fields (name, offset, datatype, count) for points laid out as ``dtype``
-    (an array field: its count)."""
-    fields = []
-    for name in dtype.names:
-        field_type, offset = dtype.fields[name][:2]
-        fields.append((name, offset, _POINT_FIELD_TYPES[field_type.base], int(np.prod(field_type.shape, dtype=int))))
-    return tuple(fields)
-
-
 def scan_bytes(frame_id: str, angle_min: float, angle_max: float, angle_increment: float, scan_time: float,
                range_min: float, range_max: float, n_ranges: int, n_intensities: int) -> bytes:
     """sensor_msgs/LaserScan with zero readings (time_increment 0: the rays are simultaneous)."""
@@ -112,17 +96,6 @@ def ring_scan_bytes(frame_id: str, angles, range_max: float, n_ranges: int, n_in
     increment = float(angles[1] - angles[0]) if len(angles) > 1 else 0.0
     return scan_bytes(frame_id, float(angles[0]), float(angles[-1]), increment, 0.0, 0.0, range_max,
                       n_ranges, n_intensities)
-
-
-def cloud_bytes(frame_id: str, dtype: np.dtype, width: int = 0) -> bytes:
-    """sensor_msgs/PointCloud2, one row of ``width`` zero points laid out as ``dtype``, dense."""
-    w = Writer().header(frame_id).put("II", 1, width)
-    fields = point_fields(dtype)
-    w.put("I", len(fields))
-    for name, offset, datatype, count in fields:
-        w.string(name).put("I", offset).put("B", datatype).put("I", count)
-    return bytes(w.put("?", False).put("II", dtype.itemsize, dtype.itemsize * width)
-                 .sequence("B", bytes(dtype.itemsize * width)).put("?", True).buffer)
 
 
 def _pose(w: Writer) -> Writer:
@@ -236,84 +209,6 @@ def decode_scan_intensities(data) -> np.ndarray:
 def _intensities(data, pos: int) -> np.ndarray:
     (m,) = _U32.unpack_from(data, pos)
     return np.frombuffer(data, dtype="<f4", count=m, offset=pos + 4).astype(float)
-
-
-class CloudEncoder:
-    """One robot's PointCloud2 of fixed fields (one row, ``width`` points): the template's bytes
-    up to its data, in pieces around the stamp, width and row_step, then the points."""
-
-    def __init__(self, data: bytes) -> None:
-        """``data``: the cloud's template bytes without points (``cloud_bytes``)."""
-        self._point_step = cloud_layout(data).point_step
-        head = data[:-5]                                      # up to the data's length field
-        width_at = align(after_header(head), 4) + 4           # after height
-        row_step_at = len(head) - 4
-        self._pieces = (head[:HEADER], head[HEADER + 8:width_at], head[width_at + 4:row_step_at],
-                        data[-1:])                            # is_dense, after the empty data
-
-    def encode_bytes(self, stamp: bytes, points: bytes, width: int) -> bytes:
-        """``stamp``: ``stamp_bytes``; ``points``: ``width`` points' bytes."""
-        head, height, layout, dense = self._pieces
-        return b"".join((head, stamp, height, _U32.pack(width), layout,
-                         _TWO_U32.pack(width * self._point_step, len(points)), points, dense))
-
-    def encode(self, sec: int, nanosec: int, points: bytes, width: int) -> bytes:
-        return self.encode_bytes(stamp_bytes(sec, nanosec), points, width)
-
-
-@dataclass(frozen=True)
-class CloudLayout:
-    """Where a PointCloud2's per-message fields are, and its point layout."""
-    width_at: int                                  # byte offset of width
-    row_step_at: int                               # … of row_step (then the data's length, the data)
-    fields: tuple[tuple[str, int, int], ...]       # (name, offset, datatype) per field
-    point_step: int
-
-
-def cloud_layout(data) -> CloudLayout:
-    pos = align(after_header(data), 4)
-    (n_fields,) = _U32.unpack_from(data, pos + 8)                # after height and width
-    width_at = pos + 4
-    pos += 12
-    fields = []
-    for _ in range(n_fields):
-        (length,) = _U32.unpack_from(data, pos)
-        name = bytes(data[pos + 4:pos + 3 + length]).decode()
-        pos = align(pos + 4 + length, 4)
-        offset, datatype = _U32.unpack_from(data, pos)[0], data[pos + 4]
-        pos = align(pos + 5, 4) + 4                              # count
-        fields.append((name, offset, datatype))
-    pos = align(pos + 1, 4)                                      # is_bigendian
-    (point_step,) = _U32.unpack_from(data, pos)
-    return CloudLayout(width_at, pos + 4, tuple(fields), point_step)
-
-
-class CloudDecoder:
-    """PointCloud2 bytes → (width, ((field name, offset, datatype), …), point_step, data), for one
-    stream of clouds: the layout is parsed from the first message and, on the next ones, only
-    checked byte for byte (frame_id and height before the width; the fields and point_step
-    between width and row_step), so parsing happens again only when the publisher changes it."""
-
-    def __init__(self) -> None:
-        self._layout: Optional[CloudLayout] = None
-        self._before_width = self._before_row_step = b""
-
-    def decode(self, data) -> tuple[int, tuple[tuple[str, int, int], ...], int, memoryview]:
-        layout = self._layout
-        if (layout is None or data[HEADER + 8:layout.width_at] != self._before_width
-                or data[layout.width_at + 4:layout.row_step_at] != self._before_row_step):
-            layout = self._layout = cloud_layout(data)
-            self._before_width = bytes(data[HEADER + 8:layout.width_at])
-            self._before_row_step = bytes(data[layout.width_at + 4:layout.row_step_at])
-        (width,) = _U32.unpack_from(data, layout.width_at)
-        _row_step, size = _TWO_U32.unpack_from(data, layout.row_step_at)
-        start = layout.row_step_at + 8
-        return width, layout.fields, layout.point_step, memoryview(data)[start:start + size]
-
-
-def decode_cloud(data) -> tuple[int, tuple[tuple[str, int, int], ...], int, memoryview]:
-    """PointCloud2 bytes → (width, ((field name, offset, datatype), …), point_step, data)."""
-    return CloudDecoder().decode(data)
 
 
 class TwistEncoder:

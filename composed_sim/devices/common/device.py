@@ -14,7 +14,7 @@ from typing import Any, Callable, ClassVar, Optional, Protocol, Sequence, Union
 
 import numpy as np
 
-from composed_sim.devices.common import cdr
+from composed_sim.devices.common import cdr_clouds
 from composed_sim.devices.common.handoff import Batch, hand_readings, take_reading
 from composed_sim.devices.common.settings import DeviceSwitch
 from composed_sim.devices.common.topic import Topic
@@ -188,7 +188,7 @@ class DevicePublisher:
 
     def send_clouds(self, places: list[int], rows: list[int], out: Outgoing, points: np.ndarray,
                     offsets: Sequence[int], hand: Optional[Callable[[np.ndarray, Sequence[int]], Batch]] = None) -> None:
-        """The PointCloud2s as bytes (each robot's encoder a ``cdr.CloudEncoder``) of the robots
+        """The PointCloud2s as bytes (each robot's encoder a ``cdr_clouds.CloudEncoder``) of the robots
         ``to_send`` chose: the plan's k-th robot's points are ``points[offsets[k]:offsets[k + 1]]``
         (a structured array laid out as the cloud's fields), turned into bytes once per tick and
         sliced per robot. ``hand(points, offsets)``: the batch of the readers' readings
@@ -235,9 +235,9 @@ def reads_into(fields: Union[str, tuple[str, ...]], decode: Callable) -> Callabl
 
 def reads_cloud_into(field: str, decode: Callable) -> Callable[[RobotModel], Reader]:
     """The reader of a PointCloud2 that ``decode(data, decoder)`` turns into the Tick's ``field``,
-    with a ``cdr.CloudDecoder`` per controller: its stream's layout is parsed once."""
+    with a ``cdr_clouds.CloudDecoder`` per controller: its stream's layout is parsed once."""
     def reader(model: RobotModel) -> Reader:
-        decoder = cdr.CloudDecoder()
+        decoder = cdr_clouds.CloudDecoder()
 
         def read(data, tick) -> None:
             value = take_reading(data)

@@ -33,24 +33,21 @@ from collections import deque
 from types import CoroutineType
 from typing import Callable, Optional
 
-from greenlet import GreenletExit, getcurrent
-from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
+from greenlet import getcurrent
 from rclpy.event_handler import EventHandler
 from rclpy.exceptions import InvalidHandle
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
-from rclpy.task import Future, Task
+from rclpy.task import Future
 
 from composed_sim.hosting.executors.scheduler import Scheduler
-from composed_sim.hosting.executors.tasks import CallbackWatcher, HostedTask, awaits_future
+from composed_sim.hosting.executors.task_running import TaskRunning
+from composed_sim.hosting.executors.tasks import CallbackWatcher, HostedTask
 from composed_sim.hosting.executors.idle import wait_for_work
 from composed_sim.hosting.executors.walk_entries import (BATCH, OWN_GROUP, POLLED, SERVICE, TIMER, WAITABLE, WalkEntry,
                                                          walk_entries)
 
-_UNSET = object()
-
-
-class LockstepExecutor(SingleThreadedExecutor):
+class LockstepExecutor(TaskRunning, SingleThreadedExecutor):
     def __init__(self, *, context=None, watcher: Optional[CallbackWatcher] = None) -> None:
         super().__init__(context=context)
         self.scheduler = Scheduler(self)
@@ -99,109 +96,6 @@ class LockstepExecutor(SingleThreadedExecutor):
         self._entities = self._service_entities = self._covers_all = None
         super().wake()
 
-    # --- tasks ----------------------------------------------------------------------------------
-
-    def create_task(self, callback, *args, **kwargs) -> Task:
-        """A task run by the walks, after the callback that made it, in the order made."""
-        task = HostedTask(callback, args, kwargs, executor=self, robot=self.watcher.owner(), node=self.running_node)
-        self.scheduler.tasks.append(task)
-        return task
-
-    def start_coroutine(self, coroutine, group, node: Optional[Node] = None) -> HostedTask:
-        """An ``async def`` callback's coroutine, run as a task of ``node``'s robot: its first step
-        now; its group, if mutually exclusive, held until it is done."""
-        robot = self.watcher.robot_of(node) if node is not None else self.watcher.owner()
-        task = HostedTask(coroutine, executor=self, robot=robot, node=node or self.running_node)
-        if isinstance(group, MutuallyExclusiveCallbackGroup):
-            self._held.add(group)
-            task.group = group
-        self._run_task(task)
-        return task
-
-    def _run_task(self, task: HostedTask, polled: bool = False) -> None:
-        watcher = self.watcher
-        self.running_node = task.node
-        if not watcher.task_started(task.robot):
-            task.cancel()
-            self._release(task.group)
-            return
-        try:
-            awaited = task()
-        except (GreenletExit, KeyboardInterrupt):
-            raise
-        except BaseException as e:               # noqa: BLE001 - a hung or exiting task (ControllerHung, SystemExit)
-            task.set_exception(e)
-            awaited = None
-        finally:
-            watcher.task_ended()
-        if not task.done():
-            if awaits_future(awaited):           # stepped again when that is done
-                awaited.add_done_callback(lambda _: self.scheduler.tasks.append(task))
-            else:
-                self._polled_tasks.append(task)
-                if polled:
-                    return                       # still waiting on the same unknown thing: no progress
-        self._ran += 1
-        if task.done():
-            self._release(task.group)
-            if task._exception is not None and not task._exception_fetched \
-                    and not watcher.task_failed(task.robot, task.exception()):
-                raise task.exception()
-
-    # --- callback groups ------------------------------------------------------------------------
-
-    def _release(self, group) -> None:
-        if group is None:
-            return
-        self._held.discard(group)
-        waiting = self._after_release.pop(group, None)
-        if waiting:
-            self.scheduler.tasks.extend(waiting)
-
-    def when_free(self, group, work: Callable[[], None]) -> None:
-        """Run ``work`` (a task) once ``group`` may run a callback: next, or once it is released."""
-        if group in self._held:
-            self._after_release.setdefault(group, deque()).append(work)
-        else:
-            self.scheduler.tasks.append(work)
-
-    def run_callback(self, callback: Callable[[], object], group) -> None:
-        """A callback the host hands over (a delivered run-wide message) runs as a task once its
-        callback group may run; an ``async def``'s coroutine holds the group until it is done."""
-        def run() -> None:
-            self.running_group = group
-            result = callback()
-            if result.__class__ is CoroutineType:
-                self.start_coroutine(result, group)
-        self.when_free(group, run)
-
-    def group_of_caller(self):
-        """The callback group of the callback that calls (None for a task)."""
-        group = getattr(getcurrent(), "callback_group", _UNSET)
-        return self.running_group if group is _UNSET else group
-
-    # --- waiting inside a callback --------------------------------------------------------------
-
-    def can_wait(self) -> bool:
-        """Is the caller a callback this executor's walk runs (so it can be set aside)?"""
-        return self.scheduler.in_walk()
-
-    def wait_for(self, future: Future, group=None) -> None:
-        """Set the calling callback aside until ``future`` is done; ``group``, the callback's
-        callback group, is held meanwhile if mutually exclusive."""
-        getcurrent().callback_group = group      # its stack is its own from now on
-        hold = isinstance(group, MutuallyExclusiveCallbackGroup) and group not in self._held
-        if hold:
-            self._held.add(group)
-        state, node = self.watcher.set_aside(), self.running_node
-        try:
-            self.scheduler.wait(future)
-        finally:
-            self.watcher.take_back(state)
-            self.running_node = node             # resumed: the callback's node again
-            if hold:
-                self._release(group)
-
     # --- spinning -------------------------------------------------------------------------------
 
     def spin_once(self, timeout_sec: Optional[float] = None) -> None:
@@ -216,6 +110,12 @@ class LockstepExecutor(SingleThreadedExecutor):
         # What the walk cannot take, through rclpy's wait set: in a walker too, so that a callback
         # run there may wait.
         self.scheduler.run(lambda: SingleThreadedExecutor.spin_once(self, timeout_sec))
+
+    def spin_once_until_future_complete(self, future: Future, timeout_sec=None) -> None:
+        """rclpy's ``spin_until_future_complete`` steps this: one ``spin_once`` (its walk), not
+        rclpy's wait set alone, which would never run the walk's tasks."""
+        future.add_done_callback(lambda _: self.wake())
+        self.spin_once(getattr(timeout_sec, "timeout", timeout_sec))
 
     @property
     def walk_covers_all(self) -> bool:
@@ -397,15 +297,6 @@ class LockstepExecutor(SingleThreadedExecutor):
         self._ran += count
         return result, count
 
-    def _step_polled(self, me) -> None:
-        """Step again the coroutines that await what does not say what it is (rclpy's futures)."""
-        polled, self._polled_tasks = self._polled_tasks, []
-        for task in polled:
-            self._run_task(task, polled=True)
-            if self.scheduler.walker is not me:
-                return
-        self._run_tasks()
-
     def _take_from_dds(self, entity, handle, msg_type, raw, message_only, once, inbox):
         """One message (``once``) or every message DDS holds for a subscription, until a
         callback returns a coroutine (started by the walk, which takes the rest later)."""
@@ -423,21 +314,3 @@ class LockstepExecutor(SingleThreadedExecutor):
             self._ran += 1
             if once or result.__class__ is CoroutineType:
                 return result
-
-    def _run_tasks(self) -> None:
-        """Run the ready tasks, first in, first out, and the ones they make ready. A task is a
-        ``HostedTask`` or a plain callable the host queued (a delivered message, a response);
-        one that returns a coroutine (an ``async def`` subscription callback) starts it."""
-        tasks, scheduler, me = self.scheduler.tasks, self.scheduler, getcurrent()
-        while tasks:
-            task = tasks.popleft()
-            self.running_group = self.running_node = None
-            if task.__class__ is HostedTask:
-                self._run_task(task)
-            else:
-                result = task()
-                self._ran += 1
-                if result.__class__ is CoroutineType:
-                    self.start_coroutine(result, None)
-            if scheduler.walker is not me:
-                break

@@ -172,8 +172,12 @@ class NodeLogs:
         """A callback's exception, which fails robot ``owner``: the traceback (frames of files
         whose path ends with ``skip`` left out: the host's wrapper) to its log and the console."""
         tick, ns = self.now()
-        text = format_traceback(error, skip)
         stamp = f"sim {ns / 1e9:.3f} s, tick {tick}" if tick >= 0 else "set-up"
+        if getattr(error, "an_end", False):        # the node ended its own process: no fault, no traceback
+            self._append(owner, f"[INFO] [{stamp}] [{name}]: {error}\n")
+            self._to_console(("end", str(error)), owner, f"composed-sim: {owner}: {error} (tick {tick})")
+            return
+        text = format_traceback(error, skip)
         self._append(owner, f"[ERROR] [{stamp}] [{name}]: callback raised {type(error).__name__}; "
                             f"{owner} is failed\n{text}")
         self.flush()

@@ -13,8 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tests.conftest import start
-from composed_sim.bench.netns import Netns
+from tests.conftest import network_namespaces, start
 from composed_sim.hosting import HostError
 from composed_sim.hosts.composed import ComposedHost
 from composed_sim.hosts.machines.remote_host import RemoteWorkerHost, block_state
@@ -130,19 +129,7 @@ def test_a_machine_started_with_another_runs_command_is_refused(tmp_path, proces
 
 @pytest.fixture
 def netns():
-    import shutil
-    if shutil.which("ip") is None:
-        pytest.skip("network namespaces: the `ip` command (iproute2) is not installed")
-    nets = Netns(["sim", "m0", "m1", "m2"])
-    try:
-        nets.create()
-    except OSError as e:
-        nets.destroy()
-        pytest.skip(f"network namespaces cannot be created here: {e}")
-    try:
-        yield nets
-    finally:
-        nets.destroy()
+    yield from network_namespaces(["sim", "m0", "m1", "m2"])
 
 
 def simulate(netns, tmp_path, machines: list[str], extra=(), robots=ROBOTS, ticks=TICKS, domain_id=0):

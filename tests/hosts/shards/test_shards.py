@@ -2,7 +2,6 @@
 with `--external-controllers`, on one machine and across network namespaces joined by a bridge
 (separate network stacks, as separate machines would be)."""
 import os
-import shutil
 import signal
 import sys
 import time
@@ -11,9 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tests.conftest import start
+from tests.conftest import network_namespaces, start
 from composed_sim import cli
-from composed_sim.bench.netns import Netns
 from composed_sim.hosts.composed import ComposedHost
 from composed_sim.hosting import HostError
 from composed_sim.hosts.discovery import DiscoveryError, configure
@@ -143,18 +141,7 @@ def test_a_shard_that_disappears_turns_into_violations_for_its_robots(tmp_path, 
 
 @pytest.fixture
 def netns():
-    if shutil.which("ip") is None:
-        pytest.skip("network namespaces: the `ip` command (iproute2) is not installed")
-    nets = Netns(["sim", "s0", "s1"])
-    try:
-        nets.create()
-    except OSError as e:
-        nets.destroy()
-        pytest.skip(f"network namespaces cannot be created here: {e}")
-    try:
-        yield nets
-    finally:
-        nets.destroy()
+    yield from network_namespaces(["sim", "s0", "s1"])
 
 
 def test_two_shards_in_other_network_namespaces_match_the_composed_run_bit_for_bit(tmp_path, netns, domain_id,

@@ -9,7 +9,7 @@ from composed_sim.core.simulation import Simulation
 from composed_sim.hosts.workers import shared_state
 from composed_sim.hosts.workers.shared_state import SharedState
 from composed_sim.world.loader import load_world
-from tests.hosts.test_lockstep_loop import WORLD
+from tests.hosts.test_tick_loop import WORLD
 
 
 def _readings(frame) -> dict:
