@@ -228,13 +228,7 @@ def run_lockstep(sim: Simulation, exchange: Exchange, wait_for_answers: Callable
     lockstep = sim.world.lockstep
     traj = (trajectories or Trajectories.allocate)(sim, ticks)
     previous = (np.zeros(sim.n), np.zeros(sim.n))
-    hooks = LoopHooks(sim)      # the world's loop functions (composed_sim/loop_functions.py)
-    hooks.rows_to = traj.metrics_sink
-    hooks.start(sim)
-    sim.sense()              # tick 0: the world as the loop functions' start left it
-    hooks.at_tick_0(sim)
-    for observer in observers:
-        observer.on_tick(sim)
+    hooks = _tick_0(sim, traj, observers)
     book = LoopBook(traj, exchange, hooks, ticks, checkpoint)
     refused = refusal_report(sim.names, logs)
     interrupted = False
@@ -275,6 +269,20 @@ def run_lockstep(sim: Simulation, exchange: Exchange, wait_for_answers: Callable
         e.partial_result = book.so_far()
         raise
     return book.result(sim, interrupted)
+
+
+
+def _tick_0(sim: Simulation, traj: Trajectories, observers: Sequence[TickObserver]) -> LoopHooks:
+    """The world's loop functions (composed_sim/loop_functions.py) started, and tick 0 sensed and
+    shown to the observers: the world as the loop functions' start left it."""
+    hooks = LoopHooks(sim)
+    hooks.rows_to = traj.metrics_sink
+    hooks.start(sim)
+    sim.sense()
+    hooks.at_tick_0(sim)
+    for observer in observers:
+        observer.on_tick(sim)
+    return hooks
 
 
 def exchange_tick(sim: Simulation, exchange: Exchange, wait_for_answers: Callable[[float], bool], lockstep,

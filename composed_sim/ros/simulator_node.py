@@ -58,17 +58,14 @@ class SimulatorNode(Node):
                  answers_every_ticks: Optional[Sequence[int]] = None, global_tf: Optional[Sequence[bool]] = None,
                  answers_when_published: Optional[Sequence[bool]] = None,
                  answers_by_firmware: Optional[Sequence[bool]] = None):
-        """``lockstep``, ``answers_every_ticks``, ``answers_when_published``: the ledger's
-        (ros/answer_ledger.py). ``devices``: per robot, the devices whose topics it has
-        (``Devices.published``; None: each model's defaults). ``rab_payload_bytes``: the world's
-        range_and_bearing.payload_bytes. ``publish_clock``: False where another node of this
-        process and domain publishes it. ``answer_types``: per robot, what its controller
-        publishes on cmd_vel (a type of ``contract.ANSWER_TYPES``), or None to read it from the
-        ROS graph once the controller's publisher is discovered (``detect_answer_types``); None:
-        TwistStamped for all. ``global_tf``: per robot running tf, whether its frames go to /tf
-        and /tf_static instead of its own /<robot>/tf (None: its own). ``answers_by_firmware``: per
-        robot, a drone's, never waited for (ros/answer_ledger.py); its Crazyswarm2 endpoints are
-        ``drones`` (ros/crazyflie/endpoints.py), which the host sets."""
+        """``lockstep``, ``answers_every_ticks``, ``answers_when_published``, ``answers_by_firmware``
+        (a drone's: never waited for): the ledger's (ros/answer_ledger.py). ``devices``: per robot,
+        the devices whose topics it has (None: its model's). ``rab_payload_bytes``: the world's
+        range_and_bearing.payload_bytes. ``publish_clock``: False where another node of this process
+        and domain publishes it. ``answer_types``: per robot, its controller's cmd_vel type (of
+        ``contract.ANSWER_TYPES``), or None to read it from the graph (``detect_answer_types``); None:
+        TwistStamped for all. ``global_tf``: per robot, its frames on /tf and /tf_static rather than
+        its own /<robot>/tf. A drone's Crazyswarm2 endpoints are ``drones`` (ros/crazyflie/), set by the host."""
         super().__init__(node_name, context=context, **quiet_node_options())
         n = len(names)
         rows = np.arange(n) if rows is None else np.asarray(rows)

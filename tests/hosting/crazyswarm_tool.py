@@ -134,7 +134,7 @@ def flight(s: Script) -> None:
     publisher = s.node.create_publisher(FullState, f"/{second}/cmd_full_state", 1)
     start, sent = s.report["initial"][second], []
     begin = s.now()
-    while (t := s.now() - begin) < 2.0:            # a circle of 0.3 m at 30 Hz, as cmd_full_state.py streams
+    while (t := s.now() - begin) < 2.0:            # a circle of 0.3 m at 30 Hz, as Crazyswarm2's cmd_full_state script streams
         msg = FullState()
         msg.pose.position.x, msg.pose.position.y, msg.pose.position.z = \
             start[0] + 0.3 * math.sin(t), start[1] + 0.3 * (1 - math.cos(t)), 0.5

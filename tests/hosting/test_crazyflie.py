@@ -121,7 +121,7 @@ def _tool_figure_eight():
 
 
 def test_a_script_finds_the_drones_and_flies_them_as_commanded(domain_id):
-    """As hello_world.py, figure8.py and cmd_full_state.py: each path follows what was commanded."""
+    """As Crazyswarm2's hello_world, figure8 and cmd_full_state scripts: each path follows what was commanded."""
     world = drone_world()
     result, report = fly("flight", world, domain_id)
     assert report["drones"] == ["cf231", "cf5"]
@@ -142,7 +142,7 @@ def test_a_script_flies_the_drones_in_every_host_mode(domain_id, mp_domain, mode
 
 
 def test_group_masks_set_as_parameters_pick_who_takes_off(domain_id, tmp_path):
-    """As group_mask.py: the masks set through the crazyflie_server's parameters; a take-off for a
+    """As Crazyswarm2's group_mask script: the masks set through the crazyflie_server's parameters; a take-off for a
     group no drone is in moves none and is a warning; all.params sets every drone's."""
     world = drone_world()
     logs = node_logs(tmp_path, world)

@@ -194,6 +194,10 @@ class MultiProcessHost(ControllersElsewhere):
                     raise HostError(f"controllers of {', '.join(missing)} were not matched with the simulator "
                                     f"within {STALL_TIMEOUT_S:.0f} s (each must publish {c.CMD_VEL.name} and "
                                     f"subscribe to a sensor; seen: {seen}); {len(waiting)} more not started")
+        self._started()
+
+    def _started(self) -> None:
+        """Every controller matched: what the simulator nodes and the run-wide nodes learn of them."""
         for node in self._nodes.values():
             node.note_controllers({p.robot: p.gids for p in self.processes})
         later = [p.robot for p in self.processes if p.answers_later]
