@@ -163,6 +163,7 @@ def masks(s: Script) -> None:
     s.sleep(0.1)
     s.mark("all up")
     s.call(Takeoff, "/all/takeoff", group_mask=1, height=0.5, duration=seconds(1.0))      # now both are in it
+    s.mark("all up answered")         # the run went on while the call crossed: taken by now
     s.sleep(1.5)
     s.call(Land, "/all/land", group_mask=0, height=0.0, duration=seconds(1.0))
     s.sleep(1.5)

@@ -149,10 +149,11 @@ def test_group_masks_set_as_parameters_pick_who_takes_off(domain_id, tmp_path):
     result, report = fly("masks", world, domain_id, logs=logs)
     assert report["set"] == [True, True, True]
     z = result.trajectories.altitudes
-    first_up, all_up = (round(t / TICK_S) for _, t in report["marks"])
+    first_up, all_up, answered = (round(t / TICK_S) for _, t in report["marks"])
     assert z[:first_up - 1].max() == 0.0                        # mask 4: nobody
     assert z[all_up - 1, 0] == pytest.approx(0.5) and z[all_up - 1, 1] == 0.0      # mask 1: cf231 only
-    assert z[all_up + 120:all_up + 150, 1].min() == pytest.approx(0.5)              # then both
+    # then both: up 1 s after the take-off was answered at the latest, landing 1.5 s after that
+    assert z[answered + 110:answered + 150, 1].min() == pytest.approx(0.5)
     assert z[-1].max() < 1e-9
     logs.flush()
     text = (tmp_path / "logs" / "crazyflie_server.log").read_text()
