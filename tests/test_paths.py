@@ -31,7 +31,7 @@ NOT_MODULES = {"controllers", "tick_s", "ticks", "robot_names", "executor"}
 BARE_FILE = re.compile(r"(?<![\w./<$\"'-])(\w+\.py)\b")
 # Files named that are not the repository's: a user's package's set-up, the script docs/contract.md
 # has a user write; a user's interface package's folders.
-NOT_OURS = {"setup.py", "watch.py", "msg/", "srv/", "action/"}
+NOT_OURS = {"setup.py", "watch.py", "swap.py", "msg/", "srv/", "action/"}   # other projects' files the docs name
 MD_LINK = re.compile(r"\]\(([^)\s]+)\)")
 # docs/contract.md#a-robots-nodes, faults.md#memory-over-a-long-run
 ANCHOR = re.compile(r"(?<![\w./-])([\w./-]*\w\.md)#([\w-]+)")

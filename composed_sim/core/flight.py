@@ -9,7 +9,8 @@ like every robot's, so the devices that read poses read them; their altitude is 
 
 For the layer that commands them (a ROS server, a test), ``Drones`` maps robot indices to drone
 indices (``of_robots``) and gives the fleet (``fleet``) whose commands take a drone index and
-the time the command arrives (``now``).
+the time the command arrives (``now``); the hosts hand it each tick's records of the drones'
+Crazyswarm2 services and setpoint topics (``apply``, core/drone_commands.py).
 """
 from __future__ import annotations
 
@@ -17,6 +18,7 @@ from typing import Sequence
 
 import numpy as np
 
+from composed_sim.core.drone_commands import DroneCommand, DroneCommander, Refusal
 from composed_sim.core.near_misses import NearMisses
 from composed_sim.devices.crazyflie import Crazyflies, Tracking
 from composed_sim.world.robot_models import RobotModel
@@ -40,6 +42,7 @@ class Drones:
         self.near_misses = NearMisses(self.robots, flight.near_miss_radius_m, flight.near_miss_height_ratio)
         self.tick_s = world.tick_s
         self.tick = 0
+        self.commander = DroneCommander(self.fleet, self._drone_of, _arena_test(world))
 
     @property
     def now(self) -> float:
@@ -53,6 +56,14 @@ class Drones:
         if (drones < 0).any():
             raise IndexError(f"robots {robots[drones < 0].tolist()} do not fly")
         return drones
+
+    def apply(self, commands: Sequence[DroneCommand]) -> list[Refusal]:
+        """A tick's commands (core/drone_commands.py), arriving now: what was refused."""
+        return self.commander.apply(commands, self.now) if commands else []
+
+    def supervisor_info(self) -> np.ndarray:
+        """[d] uint16: each drone's Status.supervisor_info bits."""
+        return self.fleet.supervisor_info()
 
     def advance(self, tick: int) -> None:
         """Step ``tick``: each drone's firmware at the step's end time, from the state before it,
@@ -68,3 +79,12 @@ class Drones:
         positions[self.robots] = state.pos[:, :2]
         headings[self.robots] = state.yaw
         altitudes[self.robots] = state.pos[:, 2]
+
+
+def _arena_test(world: World):
+    """``inside(xy [d, 2]) → [d] bool`` for the world's arena (everywhere, for one without a size)."""
+    arena = world.arena
+    if arena.size is None:
+        return lambda xy: np.ones(len(xy), dtype=bool)
+    center, half = np.asarray(arena.center, dtype=np.float64), np.asarray(arena.size, dtype=np.float64) / 2
+    return lambda xy: (np.abs(np.asarray(xy) - center) <= half).all(axis=1)

@@ -60,6 +60,8 @@ class SensorFrame:
     odometry_twist: np.ndarray         # [n, 2] linear (m/s), angular (rad/s) from the wheels
     # CSR over all robots; None when no robot runs the device.
     range_and_bearing: Optional[RangeAndBearingReadings] = None
+    # [n] uint16: each drone's supervisor bits (core/senses.SensingInputs); None: no robot flies.
+    supervisor_info: Optional[np.ndarray] = None
 
     # The device arrays over all robots, for worlds whose robots all share one group layout
     # (the hosts written for the foot-bot flocking experiments read these).

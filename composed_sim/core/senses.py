@@ -43,6 +43,9 @@ class SensingInputs:
     lights: Sequence
     route_messages: bool             # range and bearing: messages sent (false before the first step)
     altitudes: Optional[np.ndarray] = None   # [n] m above the floor (None: every robot on it)
+    # [n] uint16: each drone's Status.supervisor_info bits after the step, 0 for a robot on wheels
+    # (None: no robot flies); what a drone's ``status`` topic says (ros/crazyflie/endpoints.py).
+    supervisor_info: Optional[np.ndarray] = None
     # The neighbour index of ``positions`` (devices/common/sensors.kd_tree) when its reader got it
     # built (a worker gets the main process's, hosts/workers/shared_state.py); None: built here.
     tree: Optional[object] = None
@@ -158,7 +161,8 @@ class Senses:
                            yaw_noise_rad=self.pose_noise[1][block], rng=self.streams[POSITIONING].at(tick, ids),
                            altitudes=None if inputs.altitudes is None else inputs.altitudes[block])
         self.seconds += time.perf_counter() - t0
-        return SensorFrame(tick, groups, pose, rows.wheels, rows.odometry, rows.odometry_twist, rab)
+        info = None if inputs.supervisor_info is None else inputs.supervisor_info[block]
+        return SensorFrame(tick, groups, pose, rows.wheels, rows.odometry, rows.odometry_twist, rab, info)
 
     def _read(self, reader, sensing: Sensing, group: SensedGroup, out: GroupReadings) -> None:
         t0 = time.perf_counter()

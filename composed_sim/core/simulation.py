@@ -198,9 +198,13 @@ class Simulation:
         return positions, headings
 
     def _snapshot(self, *, route_messages: bool) -> SensingInputs:
+        info = None
+        if self.drones is not None:
+            info = np.zeros(self.n, dtype=np.uint16)
+            info[self.drones.robots] = self.drones.supervisor_info()
         return SensingInputs(self.tick, self.positions, self.headings, self.led_colors.copy(),
                              self.rab_payloads.copy(), self.current_scene(), self.floor, tuple(self.world.lights),
-                             route_messages, None if self.drones is None else self.altitudes.copy())
+                             route_messages, None if self.drones is None else self.altitudes.copy(), info)
 
     def sensing_inputs(self) -> SensingInputs:
         """What the sensors read after the last step (the world edits made since are not in it)."""

@@ -55,6 +55,8 @@ _EXPORTS = {
     # run-wide topics
     "run_wide.relay": ("RunWideRelay", "Message", "is_run_wide"),
     "run_wide_nodes": ("RunWideNodes", "create_run_wide_nodes"),
+    # the drones' Crazyswarm2 endpoints and the crazyflie_server
+    "drones": ("ProcessDrones", "has_run_wide_nodes", "flying_robots"),
     "run_wide.link": ("RunWideLink", "SimulatorLink"),
     "sim_time.timers": ("before_each_tick",),
     # the nodes' logs and failures

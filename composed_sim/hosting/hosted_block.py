@@ -15,9 +15,13 @@ executors, kept for comparison, get what the nodes have when they are adopted):
 - the node gets its parameter services, in process (hosting/calls/parameters.py);
 - requests that other processes send to its services are taken as each tick starts
   (hosting/calls/outside.py).
+
+The simulator's own services of the block (each drone's Crazyswarm2 services, hosting/drones.py)
+are served the same way (``serve``).
 """
 from __future__ import annotations
 
+import functools
 from typing import Callable, Collection, Optional
 
 from rclpy.node import Node
@@ -85,6 +89,28 @@ class HostedBlock:
         self._announce(node, place)
         if robot is not None:
             self._note_endpoints(node, robot, simulator)
+
+    def serve(self, node: Node, services: list) -> None:
+        """Services of the simulator's side, made by ``node`` (in the block's executor), each with
+        ``name``, ``srv_type``, ``callback``, ``on_graph`` and ``robot`` (its place): served in
+        process; on the ROS graph from the start where ``on_graph``, else once a client in another
+        process looks for it (a DDS endpoint each costs the participant's set-up); on the run's
+        graph of calls between places (a client elsewhere finds it ready)."""
+        directory = self.directory
+        for spec in services:
+            if spec.on_graph:
+                directory.host_service(node, node.create_service(spec.srv_type, spec.name, spec.callback))
+            else:
+                entry = directory.add_in_process(node, spec.name, spec.srv_type, spec.callback,
+                                                 node.default_callback_group)
+                entry.on_outside = functools.partial(self._expose, node, entry)
+        if self._calls is not None:
+            self._calls.announce([(spec.robot, spec.name, service_type_name(spec.srv_type)) for spec in services])
+
+    def _expose(self, node: Node, entry) -> None:
+        if entry.service is None:
+            self.directory.attach_dds(entry, Node.create_service(node, entry.srv_type, entry.name, entry.callback,
+                                                                 callback_group=entry.group))
 
     def _relayed(self, node: Node) -> list:
         return self._relay.subscriptions_of(node) if self._relay is not None else []

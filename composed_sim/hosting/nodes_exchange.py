@@ -30,6 +30,7 @@ class NodesExchange:
         self.nodes = list(nodes)
         self._check = check
         self._node_time = node_time
+        self.drone_commands: list = []     # the tick's (hosting/drones.py), set by its close
 
     @property
     def violations(self) -> list[Violation]:
@@ -103,6 +104,11 @@ class NodesExchange:
             out.update(node.take_rab_payloads())
         return out
 
+    def take_drone_commands(self) -> list:
+        """The commands the drones' endpoints took in the tick (core/drone_commands.py)."""
+        taken, self.drone_commands = self.drone_commands, []
+        return taken
+
 
 class RelayingExchange(NodesExchange):
     """The simulator nodes of every robot's participant groups (the composed host's), and their
@@ -125,4 +131,5 @@ class RelayingExchange(NodesExchange):
     def close_tick(self, fallback: str, previous: tuple[np.ndarray, np.ndarray],
                    commands: tuple[np.ndarray, np.ndarray]) -> None:
         super().close_tick(fallback, previous, commands)
+        self.drone_commands = self._groups.take_drone_commands()     # before the next tick's run-wide part
         self._batch = self._groups.close_run_wide(self._tick + 1)

@@ -32,6 +32,7 @@ from composed_sim.hosting import HostError
 from composed_sim.hosting.building.nodes import SetupWarnings, create_robot_nodes, load_classes
 from composed_sim.hosting.run_wide_nodes import create_run_wide_nodes
 from composed_sim.hosting.building.wiring import answer_type
+from composed_sim.hosting.drones import ProcessDrones, flying_robots, has_run_wide_nodes
 from composed_sim.hosting.hosted_block import HostedBlock
 from composed_sim.hosting.executors.tick_serving import TickServing
 from composed_sim.hosting.executors.running import (SETTLE_ROUNDS, Spinning, check_executor, make_executor,
@@ -114,6 +115,7 @@ class ParticipantGroups(TickServing):
         self.spinning: Optional[Spinning] = None
         self.guard: Optional[CallbackGuard] = None
         self.node_time = NodeTime()                         # CPU seconds in the nodes' own code
+        self.drones = ProcessDrones(world)                  # the drones' Crazyswarm2 endpoints (hosting/drones.py)
 
     def __enter__(self) -> "ParticipantGroups":
         try:
@@ -147,7 +149,7 @@ class ParticipantGroups(TickServing):
         self.spinning = Spinning(self.executor)
         # Simulator nodes last, so that the lockstep executor's one ordered pass runs every
         # controller on its sensors first and then collects the answers they just published.
-        for node in (*self.controllers, *self.simulator_nodes):
+        for node in (*self.controllers, *self.simulator_nodes, *self.drones.nodes):
             self.executor.add_node(node)
         self._host_entities()
         # A tick's answers may leave work behind (a later node of a chain, a run-wide message
@@ -155,14 +157,18 @@ class ParticipantGroups(TickServing):
         # sends on does not depend on the walk in which the last robot answered.
         names = world.robot_names()
         sensor_topics = {c.topic_name(r, t) for r in names[self.start:self.stop] for t in c.SENSOR_TOPICS}
+        # A drone's nodes are never waited for (its firmware answers): what they do runs within the tick.
+        flying = flying_robots(world)
         self._settle = self.relay.in_use or any(s.topic_name not in sensor_topics
-                                                for node in self.controllers for s in node.subscriptions)
+                                                for node in self.controllers for s in node.subscriptions) \
+            or any(flying[i] and nodes for i, nodes in zip(range(self.start, self.stop), self.robot_nodes))
         self._wait_for_discovery()
         gids = {names[i]: [gid for node in nodes for gid in cmd_vel_gids(node, names[i])]
                 for i, nodes in zip(range(self.start, self.stop), self.robot_nodes)}
         for sim_node in self.simulator_nodes:
             sim_node.note_controllers(gids)
         self._link_in_process(first_robots)
+        self.drones.refresh()          # the setpoint topics the robots' own nodes publish
 
     def _build_group(self, group: int, block: range, classes: dict, warnings: SetupWarnings) -> None:
         """Participant group ``group``: a context of its own, the robots ``block``'s nodes, their
@@ -173,7 +179,7 @@ class ParticipantGroups(TickServing):
         rclpy.init(context=context, domain_id=self.hosting.domain_id)
         refuse_shutdown_from_callbacks(context, self.guard)
         self.contexts.append(context)
-        if group == 0 and world.nodes:    # first: they are delivered to before the robots
+        if group == 0 and has_run_wide_nodes(world):    # first: they are delivered to before the robots
             self.run_wide = create_run_wide_nodes(world, context, classes=classes, relay=self.relay, logs=logs)
         # The nodes first: the simulator node subscribes to each robot's cmd_vel with the
         # type its nodes publish (one participant allows one type per topic).
@@ -199,6 +205,7 @@ class ParticipantGroups(TickServing):
                                     "answer_types": [answer_type(nodes, names[i], world.robots[groups[i]].cmd_vel)
                                                      for i, nodes in zip(block, block_nodes)]})
         sim_node.on_failed.append(self.guard.stop_worker)
+        sim_node.drones = self.drones.make_endpoints(context, block, simulator_node_name(group), self.start)
         later = set(self.answers_later)
         sim_node.answer_later([names[i] for i in block if names[i] in later])
         for i in block:
@@ -232,6 +239,8 @@ class ParticipantGroups(TickServing):
         if self.run_wide is not None:
             self.run_wide.host(self.relay, self.calls, names,
                                lambda: self._run_wide_graph is not None and self._run_wide_graph())
+        self.drones.host(self.block)
+        self.drones.attach_server(self.run_wide)
 
     def _link_in_process(self, first_robots: list[int]) -> None:
         """With the lockstep executor, which takes from inboxes: each group's sensor messages go
@@ -270,6 +279,8 @@ class ParticipantGroups(TickServing):
         self._outside_watches = [self.graph_changes.poll(k) for k in range(len(self.simulator_nodes))]
         if self.run_wide is not None:       # theirs is the first group's participant
             self._run_wide_graph = self.graph_changes.poll(0)
+        self.drones.watch([self.graph_changes.poll(k) for k, node in enumerate(self.simulator_nodes)
+                           if node.drones is not None])
         self.executor.wake()     # its walk picks the inboxes up
 
     # --- run-wide topics, at the tick's edges (hosting/run_wide/relay.py) --------------------------------
@@ -281,6 +292,7 @@ class ParticipantGroups(TickServing):
         now = time.monotonic()
         for watch in self._graph_watches:
             watch.start_tick(now)
+        self.drones.refresh()
         if self._quiet_robots:
             self._calls_at_open = dict(self.guard.calls_of)
         if self.logs is not None:
@@ -330,6 +342,11 @@ class ParticipantGroups(TickServing):
             self.run_wide.run_until_idle()
         return True
 
+    def take_drone_commands(self) -> list:
+        """At the tick's close, before the run-wide nodes' part of the next: what the drones'
+        endpoints and the crazyflie_server took in the tick (hosting/drones.py)."""
+        return self.drones.take()
+
     def close_run_wide(self, next_tick: int) -> list[Message]:
         """After a tick's answers: the run-wide nodes' part of ``next_tick`` (their timers due by
         then, and what they have to handle), then what this process published on run-wide topics."""
@@ -371,6 +388,7 @@ class ParticipantGroups(TickServing):
             self.block.close()
         if self.run_wide is not None:
             self.run_wide.destroy()
+        self.drones.destroy()
         for node in (*self.controllers, *self.simulator_nodes):
             node.destroy_node()
         self.controllers, self.simulator_nodes, self.robot_nodes, self.run_wide = [], [], [], None

@@ -22,6 +22,7 @@ from composed_sim.hosting.building.node_options import HostedNodeOptions
 from composed_sim.hosting.building.nodes import BuiltNodes, ServedByTick0, construct_node, hosted_logger, spec_parameters
 from composed_sim.hosting.guard.node_logs import NodeLogs
 from composed_sim.hosting.calls.between_places import RUN_WIDE_ORIGIN, CallRelay
+from composed_sim.hosting.drones import run_wide_specs, with_server_class
 from composed_sim.hosting.run_wide.relay import RunWideRelay
 from composed_sim.ros.controller import PARAM_RUN_SEED
 from composed_sim.world.schema import World
@@ -87,11 +88,13 @@ def create_run_wide_nodes(world: World, context: Context, *, classes: Mapping[st
                           relay: RunWideRelay, logs: Optional[NodeLogs] = None) -> RunWideNodes:
     """Build the world's run-wide nodes (``world.nodes``) outside every robot's namespace, their
     timers on sim time, moved to each tick's time by the host; their run-wide topics through ``relay``;
-    their log lines to ``logs`` (``<node>.log``)."""
+    their log lines to ``logs`` (``<node>.log``). A world with drones has the crazyflie_server too
+    (hosting/drones.py)."""
     built = BuiltNodes([], [])
     served = ServedByTick0(world, frozenset(world.robot_names()))
+    classes = with_server_class(world, classes)
     try:
-        for ni, spec in enumerate(world.nodes):
+        for ni, spec in enumerate(run_wide_specs(world)):
             timers = SimTimers(world.tick_ns)
             options = HostedNodeOptions(context, "/", [Parameter(PARAM_RUN_SEED, value=world.seed),
                                                        *spec_parameters(spec)], spec.params_file, spec.remappings,

@@ -133,4 +133,4 @@ class ControllersElsewhere(HostBase):
             should_stop = lambda: True     # noqa: E731
         return run_lockstep(self.sim, self.exchange, self.exchange.wait_for_answers, ticks,
                             progress=progress, should_stop=should_stop, observers=observers,
-                            checkpoint=checkpoint, trajectories=trajectories)
+                            checkpoint=checkpoint, trajectories=trajectories, logs=getattr(self, "logs", None))

@@ -59,7 +59,7 @@ class ComposedHost(HostBase):
         with interrupting_hangs:
             return run_lockstep(self.sim, RelayingExchange(self.groups), wait, ticks, progress=progress,
                                 should_stop=should_stop, observers=observers, checkpoint=checkpoint,
-                                trajectories=trajectories)
+                                trajectories=trajectories, logs=self.groups.logs)
 
     def end_before_exit(self) -> bool:
         return True          # nothing of it lives in another process

@@ -6,6 +6,7 @@ controllers' callbacks get run while the loop waits (``wait_for_answers``).
 """
 from __future__ import annotations
 
+import sys
 import time
 from dataclasses import dataclass, field
 from typing import Callable, Optional, Protocol, Sequence
@@ -133,6 +134,8 @@ class Exchange(Protocol):
                    commands: tuple[np.ndarray, np.ndarray]) -> None: ...
     def take_led_commands(self) -> dict[int, np.ndarray]: ...
     def take_rab_payloads(self) -> dict[int, np.ndarray]: ...
+    def take_drone_commands(self) -> list:
+        """The drones' commands of the tick, wherever they were taken (core/drone_commands.py)."""
     def another_simulator(self) -> Optional[str]:
         """Another simulator in one of the run's ROS domains (``SimulatorNode.another_simulator``)."""
     def gathering_s(self) -> float:
@@ -215,23 +218,19 @@ def run_lockstep(sim: Simulation, exchange: Exchange, wait_for_answers: Callable
                  should_stop: Callable[[], bool] = lambda: False,
                  observers: Sequence[TickObserver] = (),
                  checkpoint: Optional[Callable[[LoopResult], None]] = None,
-                 trajectories: Optional[Callable[[Simulation, int], Trajectories]] = None) -> LoopResult:
+                 trajectories: Optional[Callable[[Simulation, int], Trajectories]] = None, logs=None) -> LoopResult:
     """Run ``ticks`` lockstep ticks; ``wait_for_answers(timeout_s)`` runs or awaits the controllers
     until every robot answered the published tick or the watchdog time is over. ``checkpoint``
     gets the result so far at tick 0 and every CHECKPOINT_EVERY ticks (marked interrupted): what a
     run killed outright, or quit by a second Ctrl-C, leaves behind. ``trajectories(sim, ticks)``
-    makes what records each tick's poses, at tick 0 (default: ``Trajectories.allocate``, in memory)."""
+    makes what records each tick's poses, at tick 0 (default: ``Trajectories.allocate``, in memory).
+    ``logs``: the run's NodeLogs, where the drones' refused commands are told (else the console)."""
     lockstep = sim.world.lockstep
     traj = (trajectories or Trajectories.allocate)(sim, ticks)
     previous = (np.zeros(sim.n), np.zeros(sim.n))
-    hooks = LoopHooks(sim)      # the world's loop functions (composed_sim/loop_functions.py)
-    hooks.rows_to = traj.metrics_sink
-    hooks.start(sim)
-    sim.sense()              # tick 0: the world as the loop functions' start left it
-    hooks.at_tick_0(sim)
-    for observer in observers:
-        observer.on_tick(sim)
+    hooks = _tick_0(sim, traj, observers)
     book = LoopBook(traj, exchange, hooks, ticks, checkpoint)
+    refused = refusal_report(sim.names, logs)
     interrupted = False
     try:
         for _ in range(ticks):
@@ -239,7 +238,7 @@ def run_lockstep(sim: Simulation, exchange: Exchange, wait_for_answers: Callable
                 interrupted = True
                 break
             clock = PhaseClock(book.times.phases_s)
-            answers = exchange_tick(sim, exchange, wait_for_answers, lockstep, previous, clock)
+            answers = exchange_tick(sim, exchange, wait_for_answers, lockstep, previous, clock, refused)
             commands = acted_commands(sim.tick, answers)
             book.times.ros_exchange_s += time.perf_counter() - clock.started
             sim.set_velocity_commands(*commands)
@@ -272,10 +271,26 @@ def run_lockstep(sim: Simulation, exchange: Exchange, wait_for_answers: Callable
     return book.result(sim, interrupted)
 
 
+
+def _tick_0(sim: Simulation, traj: Trajectories, observers: Sequence[TickObserver]) -> LoopHooks:
+    """The world's loop functions (composed_sim/loop_functions.py) started, and tick 0 sensed and
+    shown to the observers: the world as the loop functions' start left it."""
+    hooks = LoopHooks(sim)
+    hooks.rows_to = traj.metrics_sink
+    hooks.start(sim)
+    sim.sense()
+    hooks.at_tick_0(sim)
+    for observer in observers:
+        observer.on_tick(sim)
+    return hooks
+
+
 def exchange_tick(sim: Simulation, exchange: Exchange, wait_for_answers: Callable[[float], bool], lockstep,
-                  previous: tuple[np.ndarray, np.ndarray], clock: PhaseClock) -> tuple[np.ndarray, np.ndarray]:
+                  previous: tuple[np.ndarray, np.ndarray], clock: PhaseClock,
+                  refused: Callable[[list], None] = lambda refusals: None) -> tuple[np.ndarray, np.ndarray]:
     """The tick's ROS part: the sensors out, the controllers' answers in (or the watchdog's
-    fallback under ``lockstep``), their LEDs and payloads set; the commands the answers give."""
+    fallback under ``lockstep``), their LEDs and payloads set, the drones' commands given to their
+    firmware (``refused``: told what it refused); the commands the answers give."""
     sensed = sim.times.sensing_s
     if exchange.senses_itself:
         exchange.publish_state(sim)
@@ -299,4 +314,27 @@ def exchange_tick(sim: Simulation, exchange: Exchange, wait_for_answers: Callabl
         sim.set_led_colors(robot, colors)
     for robot, payload in exchange.take_rab_payloads().items():
         sim.set_rab_payload(robot, payload)
+    drone_commands = exchange.take_drone_commands()
+    if drone_commands and sim.drones is not None:
+        refused(sim.drones.apply(drone_commands))
     return commands
+
+
+def refusal_report(names: Sequence[str], logs=None) -> Callable[[list], None]:
+    """The drones' refused commands (core/drone_commands.Refusal) told as Crazyswarm2's server tells
+    what it cannot do, a warning: in the drone's log and, once per kind, on the console (``logs``,
+    the run's NodeLogs); without logs, once per kind on stderr."""
+    from composed_sim.hosting import WARN
+    told: set[str] = set()
+
+    def report(refusals: list) -> None:
+        for refusal in refusals:
+            owner = names[refusal.robot] if refusal.robot >= 0 else "crazyflie_server"
+            kind = refusal.text.split(":")[0]
+            if logs is not None:
+                logs.emit(owner, "crazyflie_server", "crazyflie_server", WARN, f"[{owner}] {refusal.text}",
+                          ("drone commands", "", kind))
+            elif kind not in told:
+                told.add(kind)
+                print(f"composed-sim: warning: [{owner}] {refusal.text}", file=sys.stderr)
+    return report

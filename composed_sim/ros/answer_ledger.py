@@ -20,13 +20,16 @@ from composed_sim.world.schema import Lockstep
 
 class AnswerLedger:
     def __init__(self, names: list[str], rows: np.ndarray, lockstep: Optional[Lockstep],
-                 answers_every_ticks: Optional[Sequence[int]], answers_when_published: Optional[Sequence[bool]]):
+                 answers_every_ticks: Optional[Sequence[int]], answers_when_published: Optional[Sequence[bool]],
+                 answers_by_firmware: Optional[Sequence[bool]] = None):
         """``rows``: the robots' rows in the simulation's arrays. ``lockstep``: the world's fault
         policy; None: robots are never failed for being unresponsive or for their violations.
         ``answers_every_ticks``: per robot, k: it answers ticks 0, k, 2k … and keeps its last
         command in between (None: every tick). ``answers_when_published``: per robot, whether a
         tick its nodes leave without a cmd_vel keeps its last command, without a violation
-        (``settle_idle``; None: no robot)."""
+        (``settle_idle``; None: no robot). ``answers_by_firmware``: per robot, whether its firmware
+        answers its ticks (a drone: core/flight.py): settled as each tick opens, never waited for
+        (None: no robot)."""
         n = len(names)
         self._names = names
         self._index = {name: i for i, name in enumerate(names)}
@@ -41,6 +44,8 @@ class AnswerLedger:
         # answer, then as the world file says (``_as_said``).
         self._as_said = self.when_published.copy()
         self.later = np.zeros(n, dtype=bool)
+        self.by_firmware = np.zeros(n, dtype=bool) if answers_by_firmware is None \
+            else np.asarray(answers_by_firmware, dtype=bool)
         self._later_until = np.full(n, math.inf)          # the tick at which ``later`` ends at the latest
         self.linear = np.zeros(n)       # [n] m/s
         self.angular = np.zeros(n)      # [n] rad/s
@@ -70,6 +75,7 @@ class AnswerLedger:
                 self.later[due], self.when_published[due] = False, self._as_said[due]
             # Robots answering every k-th tick are settled, keeping their last command, in between.
             self.answered[:] = False if self._every is None else tick % self._every != 0
+            self.answered |= self.by_firmware
             self.rejected[:] = False
             self._n_answered = 0
             self._n_expected = int(np.count_nonzero(~self.failed & ~self.answered))

@@ -20,10 +20,12 @@ def robot_devices(world: World) -> list[tuple[str, ...]]:
 
 def robot_settings(world: World, rows: Sequence[int]) -> dict[str, list]:
     """The SimulatorNode keyword arguments that the world file gives per robot, for the robots
-    ``rows``: devices, declared answer types, answers_every_ticks, global_tf, answers_when_published."""
+    ``rows``: devices, declared answer types, answers_every_ticks, global_tf, answers_when_published,
+    answers_by_firmware."""
     per_robot = {"devices": robot_devices(world), "answer_types": declared_answer_types(world),
                  "answers_every_ticks": answers_every_ticks(world), "global_tf": global_tf(world),
-                 "answers_when_published": answers_when_published(world)}
+                 "answers_when_published": answers_when_published(world),
+                 "answers_by_firmware": answers_by_firmware(world)}
     return {key: [values[i] for i in rows] for key, values in per_robot.items()}
 
 
@@ -42,6 +44,12 @@ def global_tf(world: World) -> list[bool]:
 def answers_when_published(world: World) -> list[bool]:
     """Per robot: does its group answer only when its nodes publish (``answers: when_published``)?"""
     return [world.robots[g].answers == "when_published" for g in world.group_of_robot()]
+
+
+def answers_by_firmware(world: World) -> list[bool]:
+    """Per robot: does its firmware answer its ticks (a model that flies, core/flight.py)?"""
+    flies = [get_model(g.model).flies for g in world.robots]
+    return [flies[g] for g in world.group_of_robot()]
 
 
 def answers_every_ticks(world: World) -> list[int]:

@@ -47,8 +47,7 @@ class SimulatorNode(Node):
     simulation's arrays). The answers to each tick are kept by its ``AnswerLedger``
     (ros/answer_ledger.py), whose arrays it shows (``answered``, ``failed`` …).
 
-    LED and rab_tx commands go to its inbox (ros/command_inbox.py), a node no executor spins,
-    drained by the host at the act phase.
+    LED and rab_tx commands go to its inbox (ros/command_inbox.py), drained at the act phase.
     """
 
     def __init__(self, names: list[str], models: list[RobotModel], *, context: Context,
@@ -57,16 +56,16 @@ class SimulatorNode(Node):
                  rab_payload_bytes: int = 10, publish_clock: bool = True,
                  answer_types: Optional[Sequence[Optional[type]]] = None,
                  answers_every_ticks: Optional[Sequence[int]] = None, global_tf: Optional[Sequence[bool]] = None,
-                 answers_when_published: Optional[Sequence[bool]] = None):
-        """``lockstep``, ``answers_every_ticks``, ``answers_when_published``: the ledger's
-        (ros/answer_ledger.py). ``devices``: per robot, the devices whose topics it has
-        (``Devices.published``; None: each model's defaults). ``rab_payload_bytes``: the world's
-        range_and_bearing.payload_bytes. ``publish_clock``: False where another node of this
-        process and domain publishes it. ``answer_types``: per robot, what its controller
-        publishes on cmd_vel (a type of ``contract.ANSWER_TYPES``), or None to read it from the
-        ROS graph once the controller's publisher is discovered (``detect_answer_types``); None:
-        TwistStamped for all. ``global_tf``: per robot running tf, whether its frames go to /tf
-        and /tf_static instead of its own /<robot>/tf (None: its own)."""
+                 answers_when_published: Optional[Sequence[bool]] = None,
+                 answers_by_firmware: Optional[Sequence[bool]] = None):
+        """``lockstep``, ``answers_every_ticks``, ``answers_when_published``, ``answers_by_firmware``
+        (a drone's: never waited for): the ledger's (ros/answer_ledger.py). ``devices``: per robot,
+        the devices whose topics it has (None: its model's). ``rab_payload_bytes``: the world's
+        range_and_bearing.payload_bytes. ``publish_clock``: False where another node of this process
+        and domain publishes it. ``answer_types``: per robot, its controller's cmd_vel type (of
+        ``contract.ANSWER_TYPES``), or None to read it from the graph (``detect_answer_types``); None:
+        TwistStamped for all. ``global_tf``: per robot, its frames on /tf and /tf_static rather than
+        its own /<robot>/tf. A drone's Crazyswarm2 endpoints are ``drones`` (ros/crazyflie/), set by the host."""
         super().__init__(node_name, context=context, **quiet_node_options())
         n = len(names)
         rows = np.arange(n) if rows is None else np.asarray(rows)
@@ -74,18 +73,18 @@ class SimulatorNode(Node):
             raise ValueError(f"{n} robots but {len(rows)} rows")
         self._names = names
         self._index = {name: i for i, name in enumerate(names)}
-        self._models = models
-        self._tick_ns = tick_ns
-        self._ledger = AnswerLedger(names, rows, lockstep, answers_every_ticks, answers_when_published)
+        self._models, self._tick_ns = models, tick_ns
+        self._ledger = AnswerLedger(names, rows, lockstep, answers_every_ticks, answers_when_published,
+                                    answers_by_firmware)
+        self.drones = None           # the drones' Crazyswarm2 endpoints beside this node (the host's)
         ledger = self._ledger           # its arrays, read (and filled) in place
         self.rows, self.when_published, self.violations, self.on_failed = \
             ledger.rows, ledger.when_published, ledger.violations, ledger.on_failed
         self.linear, self.angular, self.answered, self.rejected, self.failed = \
             ledger.linear, ledger.angular, ledger.answered, ledger.rejected, ledger.failed
         self._clock_pub = self.create_publisher(Clock, c.CLOCK_TOPIC, 10, event_callbacks=c.PUBLISHER_EVENTS) if publish_clock else None
-        self._clock_msg = Clock()
+        self._clock_msg, self._driven_clock_handles = Clock(), []
         self._clock_watch = ClockWatch(self, publisher_gid(self._clock_pub)) if publish_clock else None
-        self._driven_clock_handles = []
         self._taps = RobotTaps(names)
         self._run_wide_publishers: dict[str, object] = {}    # topic → its publisher (mirror_run_wide)
         self._devices = [frozenset(m.default_devices) for m in models] if devices is None \
@@ -300,6 +299,8 @@ class SimulatorNode(Node):
                     publisher.publish(plan, frame, out)
         for publisher in self._device_publishers:
             publisher.finish_tick(out)
+        if self.drones is not None:
+            self.drones.publish_status(frame.tick, frame.supervisor_info)
 
     def publish_clock(self, tick: int) -> None:
         """/clock alone, for the state after the last tick: its sensors are never published (no
@@ -323,9 +324,9 @@ class SimulatorNode(Node):
         """Robots whose controller is not connected yet: no publisher matched on its cmd_vel, or no
         subscriber on any of its sensors. Matched counts are local to each endpoint (O(1))."""
         self.detect_answer_types()
-        return [name for i, name in enumerate(self._names)
-                if self._cmd_subs[i] is None or self._cmd_subs[i].get_publisher_count() < 1
-                or not any(p.get_subscription_count() >= 1 for p in self._sensor_pubs[i])]
+        return [name for i, name in enumerate(self._names) if not self._ledger.by_firmware[i] and (
+                self._cmd_subs[i] is None or self._cmd_subs[i].get_publisher_count() < 1
+                or not any(p.get_subscription_count() >= 1 for p in self._sensor_pubs[i]))]
 
     def connection_of(self, robot: str) -> str:
         """What this node sees of ``robot``'s controller: its cmd_vel publisher and which of its

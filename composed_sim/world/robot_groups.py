@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Annotated, Any, Literal, Optional, Union
 
-from pydantic import Field, create_model, field_validator, model_validator
+from pydantic import Field, StrictInt, create_model, field_validator, model_validator
 
 from composed_sim.devices import DEVICES, TOPIC_SWITCHED, WITH_LAYOUT
 from composed_sim.devices.common.settings import NonNegativeFloat, PositiveFloat, Strict
@@ -13,6 +13,7 @@ from composed_sim.world.robot_models import MODELS, RobotModel
 from composed_sim.world.validation import ROS_TOKEN, Vec2, finite, invalid
 
 WHEELED = ("differential_steering", "odometry")     # the devices a model that flies does not have
+POSE_DEVICE = "positioning"     # a drone publishes its pose unless its world file switches it off
 
 
 class Placement(Strict):
@@ -82,7 +83,8 @@ class _Devices(Strict):
         then the always-computed ones the world file switches on (TOPIC_SWITCHED order)."""
         return self.running(model) + tuple(
             name for name in TOPIC_SWITCHED
-            if getattr(self, name) is not None and getattr(self, name).enabled)
+            if (getattr(self, name).enabled if getattr(self, name) is not None
+                else model.flies and name == POSE_DEVICE))
 
     def config(self, name: str):
         """The device's settings: the world file's, else the defaults."""
@@ -154,6 +156,33 @@ class NodeSpec(Strict):
         return value
 
 
+FirmwareParams = dict[str, dict[str, Union[StrictInt, float]]]
+
+
+class CrazyflieSettings(Strict):
+    """A drone group as Crazyswarm2's crazyflies.yaml describes its robots: their type, their radio
+    ids (the last byte of each one's radio address: ``crazyfliesById`` of a script), and the
+    firmware parameters set at start (``<group>: {<name>: value}``), read and set at run time as
+    the ``crazyflie_server`` node's ``<cf>.params.<group>.<name>`` (docs/crazyflie.md)."""
+    type: Annotated[str, Field(min_length=1)] = "cf21"
+    # Each drone's id, 0-255; None: the number in its name (cf7: 7), modulo 256.
+    ids: Optional[list[Annotated[int, Field(ge=0, le=255)]]] = None
+    firmware_params: FirmwareParams = {}
+
+    @field_validator("firmware_params")
+    @classmethod
+    def _finite_values(cls, value: FirmwareParams) -> FirmwareParams:
+        problems = [((group, name), "must be finite", item) for group, names in value.items()
+                    for name, item in names.items() if not finite(item)]
+        problems += [((group,), "a firmware parameter group's name is a word (led, hlCommander)", group)
+                     for group in value if not ROS_TOKEN.fullmatch(group)]
+        problems += [((group, name), "a firmware parameter's name is a word (bitmask, groupmask)", name)
+                     for group, names in value.items() for name in names if not ROS_TOKEN.fullmatch(name)]
+        if problems:
+            raise invalid(problems)
+        return value
+
+
 class RobotGroup(Strict):
     model: str = "foot-bot"                          # a key of world.robot_models.MODELS
     count: Annotated[int, Field(ge=0)]
@@ -180,6 +209,8 @@ class RobotGroup(Strict):
     # closes for the robot once its nodes have nothing left to do, and its base keeps the last
     # command, as a real robot's does (docs/contract.md).
     answers: Literal["every_tick", "when_published"] = "every_tick"
+    # A model that flies: its robots as Crazyswarm2 names and configures them (docs/crazyflie.md).
+    crazyflie: Optional[CrazyflieSettings] = None
 
     @property
     def node_specs(self) -> list[NodeSpec]:
@@ -214,9 +245,12 @@ class RobotGroup(Strict):
 
     @model_validator(mode="after")
     def _one_way_to_name_the_nodes(self) -> RobotGroup:
-        if self.controller is None and not self.nodes:
+        # A drone needs no software of its own: its firmware flies it, commanded through its
+        # Crazyswarm2 services and topics (docs/crazyflie.md); its nodes, if any, are never waited for.
+        if self.controller is None and not self.nodes and not MODELS[self.model].flies:
             raise invalid([(("controller",), "is required: the robots' software, `controller: NAME` "
-                             "(one node) or `nodes: [{node: NAME}, …]`", ...)])
+                             "(one node) or `nodes: [{node: NAME}, …]` (only a model that flies may have none)",
+                             ...)])
         if self.controller is not None and self.nodes:
             raise invalid([(("nodes",), "give either `controller` (one node) or `nodes`, not both",
                              [spec.node for spec in self.nodes])])
@@ -242,6 +276,15 @@ class RobotGroup(Strict):
                     for name in WITH_LAYOUT
                     if getattr(self.devices, name) is not None and getattr(self.devices, name).enabled
                     and getattr(model, name) is None]
+        if self.crazyflie is not None and not model.flies:
+            problems.append((("crazyflie",), f"only a model that flies has Crazyswarm2 settings (this group's "
+                             f"model is {self.model})", self.crazyflie.model_dump()))
+        ids = self.crazyflie.ids if self.crazyflie is not None else None
+        if ids is not None and len(ids) != self.count:
+            problems.append((("crazyflie", "ids"), f"must list exactly count = {self.count} ids, lists {len(ids)}",
+                             ids))
+        elif ids is not None and len(set(ids)) != len(ids):
+            problems.append((("crazyflie", "ids"), "two drones of the group have one id", ids))
         if model.flies:      # its firmware moves it: no wheels to steer, count or turn into odometry
             problems += [(("devices", name), f"the {self.model} flies: it has no wheels, so no {name}",
                           getattr(self.devices, name).model_dump())

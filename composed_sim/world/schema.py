@@ -228,10 +228,14 @@ class World(Strict):
         return round(1e9 / self.ticks_per_second)
 
     def robot_names(self) -> list[str]:
-        """Names in group order; numbering per prefix runs on across groups (bot0 … botN-1)."""
+        """Names in group order; numbering per prefix runs on across groups (bot0 … botN-1); drones
+        whose group lists their radio ids are named by them, as Crazyswarm2 names them (cf231)."""
         counters: dict[str, int] = {}
         names = []
         for group in self.robots:
+            if group.crazyflie is not None and group.crazyflie.ids is not None:
+                names += [f"{group.name_prefix}{i}" for i in group.crazyflie.ids]
+                continue
             start = counters.get(group.name_prefix, 0)
             names += [f"{group.name_prefix}{start + i}" for i in range(group.count)]
             counters[group.name_prefix] = start + group.count

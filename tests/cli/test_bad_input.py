@@ -51,7 +51,7 @@ def test_unknown_plugin(tmp_path):
     w = world_with(tmp_path, robots__0__controller="nosuch")
     assert fails(w, "--out", tmp_path / "o") == (
         f"composed-sim: error: {w}:{line_of(w, 'controller')}: robots[0].controller: unknown controller plugin "
-        f"'nosuch' (installed: aggregation, avoidance-planner, diffusion, epuck-obstacle-avoidance, firefly, flocking, "
+        f"'nosuch' (installed: aggregation, avoidance-planner, diffusion, drone-flocking, epuck-obstacle-avoidance, firefly, flocking, "
         f"foraging, inline-planning, kheperaiv-diffusion, obstacle-avoidance, planning-behaviour, turtlebot-flocking); "
         f"a plugin is an "
         f"entry point in the group 'composed_sim.controllers', or name a class as module:Class")

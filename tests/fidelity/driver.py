@@ -152,6 +152,9 @@ class DirectExchange:
     def take_rab_payloads(self):
         return {}
 
+    def take_drone_commands(self):
+        return []
+
     def another_simulator(self):
         return None
 

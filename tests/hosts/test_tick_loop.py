@@ -61,6 +61,9 @@ class FakeExchange:
     def take_rab_payloads(self) -> dict:
         return {}
 
+    def take_drone_commands(self) -> list:
+        return []
+
 
 def world(ticks=6):
     return load_world(WORLD, robots=4, ticks=ticks, seed=2)

@@ -240,7 +240,8 @@ def test_several_errors_give_one_message_with_a_line_each(tmp_path):
         f"  {file}:2: seed: must be >= 0 (got -1)",
         f"  {file}:3: ticks_per_second: must be a whole number (got \"fast\")",
         f"  {file}:7: robots[0].colour: unknown field (allowed here: model, count, name_prefix, "
-        f"controller, params, nodes, placement, heading, camera, devices, cmd_vel, answers_every_ticks, answers) (got \"red\")"]
+        f"controller, params, nodes, placement, heading, camera, devices, cmd_vel, answers_every_ticks, answers, "
+            f"crazyflie) (got \"red\")"]
 
 
 def test_missing_required_fields(tmp_path):
@@ -250,7 +251,8 @@ def test_missing_required_fields(tmp_path):
           - count: 3
     """)
     assert error_of(file) == (f"{file}:4: robots[0].controller: is required: the robots' software, "
-                              f"`controller: NAME` (one node) or `nodes: [{{node: NAME}}, …]`")
+                              f"`controller: NAME` (one node) or `nodes: [{{node: NAME}}, …]` (only a model that "
+                              f"flies may have none)")
     file = write(tmp_path, "name: x\n")
     assert error_of(file) == f"{file}: robots: is required"
 

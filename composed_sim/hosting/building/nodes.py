@@ -160,7 +160,9 @@ class ServedByTick0:
     ``robots``: every robot's name."""
 
     def __init__(self, world: World, robots: Container[str]):
-        self._robots, self._run_wide = robots, bool(world.nodes)
+        # The run-wide nodes: the world's, and a world with drones has the crazyflie_server.
+        self._robots = robots
+        self._run_wide = bool(world.nodes) or any(get_model(g.model).flies for g in world.robots)
         self.building = True
 
     def __call__(self, name: str) -> bool:

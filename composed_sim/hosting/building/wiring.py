@@ -47,11 +47,14 @@ def answer_rule(world: World, group_index: int, name: str, nodes: Sequence[Node]
     cmd_vel (or reads its sensors) yet, but one may: a lifecycle node not active yet (its
     transitions make its entities), or a group whose robots answer when published (a node may
     make its publisher in a callback). Such a robot keeps its last command until its first
-    answer, as a robot's base does (ros/answer_ledger.py)."""
+    answer, as a robot's base does (ros/answer_ledger.py). A drone's firmware answers its ticks:
+    its nodes (if any) need neither cmd_vel nor a sensor, only the topics they read must be its."""
     group = world.robots[group_index]
     sensors = robot_sensor_topics(group, name)
     run_wide = {t for node in nodes for t in relay.topics_published_by(node)} if relay is not None else set()
     problem, silent = wiring_problem(nodes, name, sensors, run_wide)
+    if get_model(group.model).flies:
+        return (None if silent else problem), False
     problem = problem or answer_type_problem(nodes, name, group.cmd_vel)
     if problem is None:
         return None, False

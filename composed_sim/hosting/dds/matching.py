@@ -9,6 +9,7 @@ from typing import Callable, Optional, Sequence
 from rclpy.node import Node
 
 from composed_sim.ros import contract as c
+from composed_sim.ros.crazyflie.messages import SETPOINTS
 
 
 def matched(endpoint) -> bool:
@@ -22,9 +23,10 @@ def matched(endpoint) -> bool:
 
 
 def contract_endpoints(nodes: Sequence[Node], robot: str) -> list:
-    """The robot's nodes' publishers and subscriptions on contract topics (their own other topics
-    and the parameter/rosout plumbing are not the simulator's business)."""
-    topics = {c.topic_name(robot, t) for t in c.SENSOR_TOPICS + c.ACTUATOR_TOPICS} | {c.CLOCK_TOPIC}
+    """The robot's nodes' publishers and subscriptions on contract topics and a drone's setpoint
+    topics (their own other topics and the parameter/rosout plumbing are not the simulator's business)."""
+    topics = {c.topic_name(robot, t) for t in c.SENSOR_TOPICS + c.ACTUATOR_TOPICS} | {c.CLOCK_TOPIC} \
+        | {f"/{robot}/{name}" for name in SETPOINTS}
     return [e for node in nodes for e in list(node.publishers) + list(node.subscriptions) if e.topic_name in topics]
 
 

@@ -47,7 +47,9 @@ def pack(stamp_ns: int, messages: list[Message], answered: bool = False, logs: t
     part of the tick (else its reply to calls); ``notes``: what its nodes made since, for the
     simulator: ``answer``, (type name, answer's bytes or None) of its first cmd_vel publisher (the
     simulator subscribes then, and takes the answer it could not hear yet); ``reads``, {sensor
-    topic: how many of its subscriptions read it} (the simulator waits until they are matched)."""
+    topic: how many of its subscriptions read it} (the simulator waits until they are matched);
+    ``published``, {topic: messages published there since} (a drone's setpoints, counted: the
+    simulator takes that many from DDS before the tick closes)."""
     return UInt8MultiArray(data=array("B", pickle.dumps((stamp_ns, messages, answered, logs, calls, final, notes),
                                                         protocol=pickle.HIGHEST_PROTOCOL)))
 
@@ -83,6 +85,7 @@ class RunWideLink:
         self.answer_type: Optional[str] = None      # a first cmd_vel publisher's type, to tell the simulator
         self._carried: Optional[bytes] = None        # … and its first answer, which the simulator cannot hear yet
         self.reads: dict[str, int] = {}              # sensor topics read by subscriptions made since: how many
+        self._published: dict[str, int] = {}     # counted messages since the last part, by topic (``count``)
         # Where delivered messages' callbacks run: the lockstep executor's ``run_callback`` (as
         # tasks, their callback groups respected), else at once.
         self.run_callback: Optional[Callable[[Callable, object], None]] = None
@@ -154,7 +157,20 @@ class RunWideLink:
             self.answer_type = self._carried = None
         if self.reads:
             notes["reads"], self.reads = self.reads, {}
+        if self._published:
+            notes["published"], self._published = self._published, {}
         return notes or None
+
+    def count(self, publishers) -> None:
+        """Count what ``publishers`` publish (a drone's setpoints, which the simulator takes from DDS
+        at the tick's close): the robot's part says how many, and the simulator waits for them."""
+        for publisher in publishers:
+            publish = publisher.publish
+
+            def counting(msg, publish=publish, topic=publisher.topic_name):
+                self._published[topic] = self._published.get(topic, 0) + 1
+                return publish(msg)
+            publisher.publish = counting
 
     def send(self) -> None:
         """What the robot's nodes published in the tick of the last sensors, to the simulator."""

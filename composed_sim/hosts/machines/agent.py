@@ -186,6 +186,7 @@ class MachineAgent:
             merged.violations += a.violations
             merged.tapped += a.tapped
             merged.run_wide += a.run_wide
+            merged.drones += a.drones
             merged.calls += a.calls
             merged.calls_leave = merged.calls_leave or a.calls_leave
             merged.peak_rss_kb += a.peak_rss_kb

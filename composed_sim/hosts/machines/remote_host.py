@@ -54,9 +54,10 @@ def block_state(views: dict, block: slice, sent: dict) -> dict:
         value = views[key] if key in ALL_ROBOTS else views[key][block]
         if key not in sent or not np.array_equal(sent[key], value):
             state[key] = sent[key] = value.copy()
-    altitudes = views["altitudes"]       # drones' (core/flight.py): none sent while all are 0
-    if ("altitudes" in sent or altitudes.any()) and not np.array_equal(sent.get("altitudes"), altitudes):
-        state["altitudes"] = sent["altitudes"] = altitudes.copy()
+    for key in ("altitudes", "supervisor_info"):    # drones' (core/flight.py): none sent while all are 0
+        value = views[key]
+        if (key in sent or value.any()) and not np.array_equal(sent.get(key), value):
+            state[key] = sent[key] = value.copy()
     for key in BLOCK_ROWS:
         if key != "axis_lengths":
             state[key] = views[key][block]

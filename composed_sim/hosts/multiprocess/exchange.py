@@ -52,9 +52,14 @@ class LinkedExchange(NodesExchange):
     robot that publishes run-wide messages has sent its part."""
 
     def __init__(self, nodes: dict[int, SimulatorNode], domains: dict[str, int], names: list[str], tick_ns: int,
-                 run_wide: RunWideLinks, check: Callable[[], None], round_timeout_s: float = 1.0):
-        """``nodes``: the simulator's node in each domain; ``domains``: each robot's."""
+                 run_wide: RunWideLinks, check: Callable[[], None], round_timeout_s: float = 1.0, drones=None):
+        """``nodes``: the simulator's node in each domain; ``domains``: each robot's; ``drones``: the
+        drones' endpoints beside them (hosting/drones.py), served here."""
         super().__init__(list(nodes.values()), check)
+        self._drones = drones
+        self._here = drones.places if drones is not None else frozenset()     # places served here
+        self._served_here = False     # calls were handed to the drones' services here: a round serves them
+        self._published: dict[str, int] = {}     # setpoints the drones' processes sent in the tick, by topic
         self._by_domain, self._domains, self._names, self._tick_ns = nodes, domains, names, tick_ns
         self._run_wide = run_wide
         self._round_timeout_s = round_timeout_s     # how long robots sent calls have to reply
@@ -72,6 +77,9 @@ class LinkedExchange(NodesExchange):
             self.nodes[0].mirror_run_wide(self._batch, self._stamp)
         # With the batch, the run-wide nodes' calls of their part of the tick; what the robots
         # reply (and what that leads to) is handed over in rounds before the sensors.
+        if self._drones is not None:
+            self._drones.start_tick()         # other processes' calls to the drones' services
+        self._served_here = False
         calls = self._route(run_wide.calls.take_outbox())
         for domain, link in run_wide.links.items():
             link.publish(self._stamp, self._batch, calls.get(domain))
@@ -83,12 +91,13 @@ class LinkedExchange(NodesExchange):
         routed: dict[int, dict[Optional[int], list]] = {}
         for item in handover_order(items):
             place = item.destination
-            if place is None or place < 0:
+            if place is None or place < 0 or place in self._here:
                 self._run_wide.calls.deliver([item])
+                self._served_here = self._served_here or place in self._here
             if place is None:              # for every process: each domain's robots read it (key None)
                 for domain in self._run_wide.links:
                     routed.setdefault(domain, {}).setdefault(None, []).append(item)
-            elif place >= 0:
+            elif place >= 0 and place not in self._here:
                 routed.setdefault(self._domains[self._names[place]], {}).setdefault(place, []).append(item)
         return routed
 
@@ -114,7 +123,10 @@ class LinkedExchange(NodesExchange):
             self._route_run_wide(made)
             sent = self._route(self._run_wide.calls.take_outbox() + [i for i in made if not self._run_wide_bound(i)])
             if not sent:
-                return
+                if not self._served_here:
+                    return
+                self._served_here = False      # another round: they serve them, their callers hear
+                continue
             for domain, calls in sent.items():
                 links[domain].publish_calls(self._stamp, calls)
 
@@ -128,6 +140,8 @@ class LinkedExchange(NodesExchange):
             self._run_wide.calls.deliver(bound)
         if self._run_wide.nodes is not None:
             self._run_wide.nodes.run_until_idle()
+        if self._drones is not None:
+            self._drones.run_until_idle()
 
     def wait_for_answers(self, timeout_s: float) -> bool:
         """Every robot's answer, and the part of the tick that each robot using the link sent once
@@ -169,6 +183,9 @@ class LinkedExchange(NodesExchange):
 
     def close_tick(self, fallback, previous, commands) -> None:
         super().close_tick(fallback, previous, commands)
+        if self._drones is not None:        # before the run-wide nodes' part of the next tick
+            self.drone_commands = self._drones.take(self._published, self._round_timeout_s)
+            self._published = {}
         sent = {}
         for link in self._run_wide.links.values():
             # A robot failed in the tick may have sent its last part (its last log lines) as it ended.
@@ -188,6 +205,8 @@ class LinkedExchange(NodesExchange):
             name = self._names[index]
             node = self._by_domain[self._domains[name]]
             for part in parts:
+                for topic, count in part.get("published", {}).items():
+                    self._published[topic] = self._published.get(topic, 0) + count
                 if "answer" in part:
                     self._subscribe_later_answers(node, name, *part["answer"])
                 endpoints = node.endpoints_by_topic() if part.get("reads") else {}

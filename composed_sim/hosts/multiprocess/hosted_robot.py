@@ -21,6 +21,8 @@ from composed_sim.hosting import (before_each_tick, CallRelay, Console, contract
                                   RunWideRelay, shut_down, Spinning)
 from composed_sim.ros import contract as c
 from composed_sim.ros.answer_subscription import cmd_vel_gids
+from composed_sim.ros.crazyflie.messages import SETPOINTS
+from composed_sim.world.robot_models import get_model
 from composed_sim.world.schema import World
 
 READY_TIMEOUT_S = 120.0
@@ -80,7 +82,7 @@ class HostedRobot:
             self.logs.clock = lambda: clock.now().nanoseconds
         place = names.index(robot)
         self.calls = CallRelay(names)
-        self._link(built, relay, place, world.robots[group_index].answers == "when_published")
+        self._link(built, relay, place, world.robots[group_index])
         # Before the robot's first sensor callback of each tick: the tick's run-wide batch, and the
         # timers of its nodes that read no sensors moved to the tick's time.
         sensors = {c.topic_name(robot, t) for t in c.SENSOR_TOPICS}
@@ -108,14 +110,16 @@ class HostedRobot:
         self.block.watch_outside_calls(names, graph_of=self.nodes[0])
         return True
 
-    def _link(self, built, relay: RunWideRelay, place: int, when_published: bool) -> None:
+    def _link(self, built, relay: RunWideRelay, place: int, group) -> None:
         """Its run-wide link, where it needs one: it carries the run-wide topics, the calls between
         the robot and the run-wide nodes (hosting/calls/between_places.py) and the log lines, and
         tells the simulator when a robot whose nodes cannot answer yet is idle."""
         world, robot = self.world, self.robot
         # A robot whose nodes cannot answer yet (no cmd_vel publisher, wiring.answer_rule; timers
-        # not due) is quiet until they do: the link tells the simulator when its nodes are idle.
-        quiet = when_published or built.answers_later or built.first_timer_tick > 0
+        # not due) is quiet until they do: the link tells the simulator when its nodes are idle. So
+        # is a drone (its firmware answers): what its nodes sent in the tick is in when the tick closes.
+        quiet = group.answers == "when_published" or built.answers_later or built.first_timer_tick > 0 \
+            or get_model(group.model).flies
         calls_between = bool(world.nodes) or any(self.calls.leaves(place, client.service_name)
                                                  for n in self.nodes for client in n.clients)
         if not (relay.in_use or quiet or self.logs is not None or calls_between):
@@ -129,6 +133,8 @@ class HostedRobot:
                                 calls=self.calls, index=place)
         self.link.watch_answers([p for n in self.nodes for p in n.publishers
                                  if p.topic_name == c.topic_name(robot, c.CMD_VEL)])
+        setpoints = {f"/{robot}/{name}" for name in SETPOINTS}      # a drone's (ros/crazyflie/messages.py)
+        self.link.count([p for n in self.nodes for p in n.publishers if p.topic_name in setpoints])
 
     def _new_endpoints(self, robot: str, publishers: list, subscriptions: list) -> None:
         """Its nodes made publishers or subscriptions after start-up (a lifecycle node configured):

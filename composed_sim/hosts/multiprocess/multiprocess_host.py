@@ -22,7 +22,7 @@ import subprocess
 import sys
 import tempfile
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 from pathlib import Path
 from typing import Iterable, Optional
 
@@ -33,12 +33,11 @@ from rclpy.context import Context
 from composed_sim.core.simulation import Simulation
 from composed_sim.hosts.base import ControllersElsewhere, SetupInfo, say_answers_later
 from composed_sim.hosting import (check_executor, create_run_wide_nodes, DEFAULT_EXECUTOR, failure_from_output,
-                                  HostError, load_classes, LockstepExecutor, matched, NodesExchange, ProcessHosting,
-                                  Spinning)
+                                  flying_robots, has_run_wide_nodes, HostError, load_classes, LockstepExecutor, matched,
+                                  NodesExchange, ProcessDrones, ProcessHosting, Spinning)
 from composed_sim.hosts.multiprocess.domains import DomainError, assign_domains
-from composed_sim.hosts.multiprocess.hosted_robot import (FIRST_TIMER_PREFIX, GID_PREFIX, LATER, RUN_WIDE_PREFIX,
-                                                        SERVED_PREFIX, TYPE_PREFIX)
-from composed_sim.hosts.processes import InterruptWatch, exit_reason, last_words, reap, signal_group
+from composed_sim.hosts.multiprocess.children import ControllerProcess, died_reason
+from composed_sim.hosts.processes import InterruptWatch, exit_reason, reap, signal_group
 from composed_sim.ros import contract as c
 from composed_sim.ros.robot_settings import robot_settings
 from composed_sim.hosts.multiprocess.exchange import LinkedExchange, RunWideLinks
@@ -54,66 +53,6 @@ DETECT_PERIOD_S = 0.1      # how often start-up looks up the cmd_vel types not k
 POLL_S = NodesExchange.POLL_S   # look for dead children this often
 TERM_GRACE_S = 5.0         # SIGTERM → SIGKILL
 FAILED_GRACE_S = 2.0       # a failed robot's process: SIGTERM → SIGKILL
-
-
-@dataclass
-class ControllerProcess:
-    robot: str
-    domain: int
-    popen: subprocess.Popen
-    log: Path                          # its stdout and stderr
-    pipe: Optional[int]                # read end of its start-up pipe, until EOF
-    spawned: float = field(default_factory=time.perf_counter)
-    created: bool = False                # its node exists: the CPU-heavy part of start-up is done
-    answer_type: Optional[str] = None    # its cmd_vel publisher's type, as "created" reported it
-    stopping_since: Optional[float] = None   # monotonic s of the SIGTERM that ends a failed robot
-    run_wide_topics: list[str] = field(default_factory=list)   # its run-wide link's, as "created" reported them
-    linked: bool = False                 # the simulator's side of its link exists
-    topics: Optional[list[str]] = None   # its contract topics, once matched on its side
-    gids: list[bytes] = field(default_factory=list)    # its cmd_vel publishers' (cmd_vel_gids)
-    served: list[tuple] = field(default_factory=list)  # (name, type) of the services its nodes serve
-    answers_later: bool = False          # no cmd_vel publisher yet: quiet until its first answer
-    first_timer_tick: int = 0            # … or its timers' first tick
-    startup_s: Optional[float] = None    # spawn → matched on both sides
-    _buffer: bytes = b""
-
-    def read_pipe(self) -> bool:
-        """Read what the child reported ("created type:<type>", then "ready <topics> gid:<hex>…");
-        False at EOF."""
-        chunk = os.read(self.pipe, 65536)
-        self._buffer += chunk
-        *lines, self._buffer = self._buffer.split(b"\n")
-        for words in (line.decode().split() for line in lines):
-            self.created = True
-            if words and words[0] == "created":
-                self.answer_type = next((w[len(TYPE_PREFIX):] for w in words if w.startswith(TYPE_PREFIX)), None)
-                self.answers_later = LATER in words
-                self.first_timer_tick = next((int(w[len(FIRST_TIMER_PREFIX):]) for w in words
-                                              if w.startswith(FIRST_TIMER_PREFIX)), 0)
-                self.run_wide_topics = [w[len(RUN_WIDE_PREFIX):] for w in words if w.startswith(RUN_WIDE_PREFIX)]
-            if words and words[0] == "ready":
-                self.topics = [w for w in words[1:] if not w.startswith((GID_PREFIX, SERVED_PREFIX))]
-                self.gids = [bytes.fromhex(w[len(GID_PREFIX):]) for w in words[1:] if w.startswith(GID_PREFIX)]
-                self.served = [tuple(w[len(SERVED_PREFIX):].split("=", 1)) for w in words[1:]
-                               if w.startswith(SERVED_PREFIX)]
-        return chunk != b""
-
-    def close_pipe(self) -> None:
-        if self.pipe is not None:
-            os.close(self.pipe)
-            self.pipe = None
-
-    def tail(self, chars: int = 2000) -> str:
-        try:
-            text = self.log.read_text(errors="replace")
-        except OSError:
-            return ""
-        return text[-chars:].strip()
-
-
-def died_reason(p: ControllerProcess) -> str:
-    """How a child ended, with the last line it wrote (a plugin's exception, usually)."""
-    return exit_reason(p.popen.returncode) + last_words(p.tail(500))
 
 
 class MultiProcessHost(ControllersElsewhere):
@@ -151,7 +90,7 @@ class MultiProcessHost(ControllersElsewhere):
         self._tmp: Optional[Path] = None
         self._last_check = 0.0
         self._startup_interrupted = False
-        self.run_wide = RunWideLinks(world, logs)     # the run-wide topics between the processes
+        self.run_wide, self.drones = RunWideLinks(world, logs), ProcessDrones(world)   # run-wide topics, drones
 
     # --- start-up ---------------------------------------------------------------------------
 
@@ -176,12 +115,17 @@ class MultiProcessHost(ControllersElsewhere):
                                                rab_payload_bytes=self.world.range_and_bearing.payload_bytes,
                                                **robot_settings(self.world, rows))
                 self._nodes[d].on_failed.append(self._stop_failed)
-            if self.world.nodes:
+                self._nodes[d].drones = self.drones.make_endpoints(context, rows, f"composed_sim_d{d}")
+            self.drones.serve_alone(self.run_wide.calls, self.sim.names)
+            if has_run_wide_nodes(self.world):
                 self.run_wide.nodes = create_run_wide_nodes(self.world, self._contexts[0], classes=classes,
                                                             relay=self.run_wide.relay, logs=self.logs)
-                self.run_wide.nodes.host(self.run_wide.relay, self.run_wide.calls, self.sim.names)
+                self.run_wide.nodes.host(self.run_wide.relay, self.run_wide.calls, self.sim.names,
+                                         self.drones.graph_changed(self._contexts[0]))
+                self.drones.attach_server(self.run_wide.nodes)
             self.exchange = LinkedExchange(self._nodes, self.domains, self.sim.names, self.world.tick_ns, self.run_wide,
-                                           self._check_children, lockstep.watchdog_s + lockstep.unresponsive_s)
+                                           self._check_children, lockstep.watchdog_s + lockstep.unresponsive_s,
+                                           drones=self.drones)
             with InterruptWatch() as interrupts:
                 self._start_controllers(world_file, interrupts)
             self._startup_interrupted = interrupts.requested
@@ -205,7 +149,9 @@ class MultiProcessHost(ControllersElsewhere):
         host's) thread on purpose: PR_SET_PDEATHSIG fires when the thread that forked the child
         ends, not only when the process does. A Ctrl-C ends the start-up early (see run()).
         """
-        waiting = list(self.sim.names)
+        waiting = [name for name, g in zip(self.sim.names, self.world.group_of_robot())   # a drone with no
+                   if self.world.robots[g].node_specs]                                   # nodes has no process
+        flying = flying_robots(self.world)          # a drone's firmware answers: no cmd_vel to wait for
         unmatched: dict[str, ControllerProcess] = {}
         endpoints = {d: node.endpoints_by_topic() for d, node in self._nodes.items()}
         last_progress = next_detection = time.monotonic()
@@ -226,6 +172,9 @@ class MultiProcessHost(ControllersElsewhere):
                 if detect:
                     next_detection = time.monotonic() + DETECT_PERIOD_S
                 self._subscribe_answers(unmatched.values(), endpoints, detect)
+                for d, node in self._nodes.items():   # a drone's controller: its setpoints subscribed, matched
+                    if detect and node.drones is not None and node.drones.refresh():
+                        endpoints[d].update(node.drones.endpoints_by_topic())
                 for p in unmatched.values():
                     if p.created and p.run_wide_topics and not p.linked:
                         link = self.run_wide.link(p.domain, self._nodes[p.domain].context)
@@ -233,7 +182,8 @@ class MultiProcessHost(ControllersElsewhere):
                                                                   p.run_wide_topics))
                         p.linked = True
                 for robot, p in list(unmatched.items()):
-                    answers = p.answers_later or self._nodes[p.domain].answer_subscription(robot) is not None
+                    answers = p.answers_later or flying[self.sim.names.index(robot)] \
+                        or self._nodes[p.domain].answer_subscription(robot) is not None
                     if p.topics is not None and answers and all(matched(endpoints[p.domain].get(t)) for t in p.topics):
                         p.startup_s = time.perf_counter() - p.spawned
                         del unmatched[robot]
@@ -244,6 +194,10 @@ class MultiProcessHost(ControllersElsewhere):
                     raise HostError(f"controllers of {', '.join(missing)} were not matched with the simulator "
                                     f"within {STALL_TIMEOUT_S:.0f} s (each must publish {c.CMD_VEL.name} and "
                                     f"subscribe to a sensor; seen: {seen}); {len(waiting)} more not started")
+        self._started()
+
+    def _started(self) -> None:
+        """Every controller matched: what the simulator nodes and the run-wide nodes learn of them."""
         for node in self._nodes.values():
             node.note_controllers({p.robot: p.gids for p in self.processes})
         later = [p.robot for p in self.processes if p.answers_later]
@@ -308,8 +262,7 @@ class MultiProcessHost(ControllersElsewhere):
         return p
 
     @property
-    def startup_times_s(self) -> list[float]:
-        """Per child: spawn → its endpoints matched with the simulator's."""
+    def startup_times_s(self) -> list[float]:      # per child: spawn → its endpoints matched with the simulator's
         return [p.startup_s for p in self.processes if p.startup_s is not None]
 
     # --- the run ----------------------------------------------------------------------------
@@ -373,6 +326,7 @@ class MultiProcessHost(ControllersElsewhere):
             spinning.stop()
         self._spinning = []
         self.run_wide.destroy()
+        self.drones.destroy()
         for node in self._nodes.values():
             node.destroy_node()
         self._nodes = {}

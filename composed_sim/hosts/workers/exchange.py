@@ -149,3 +149,7 @@ class WorkersExchange:
     def take_rab_payloads(self) -> dict[int, np.ndarray]:
         return {w.start + row: payload for w in self.workers if w.answers is not None
                 for row, payload in w.answers.rab.items()}
+
+    def take_drone_commands(self) -> list:
+        """Every worker's drone commands of the tick (each carries its robot: one order for all)."""
+        return [command for w in self.workers if w.answers is not None for command in w.answers.drones]

@@ -29,6 +29,7 @@ class TickAnswers:
     violations: list = field(default_factory=list)     # new ones since the last tick: (tick, robot, reason)
     tapped: list = field(default_factory=list)         # (topic, type, bytes, stamp ns)
     run_wide: list = field(default_factory=list)       # (topic, type, bytes) for the next tick's batch
+    drones: list = field(default_factory=list)         # the drones' commands of the tick (core/drone_commands.py)
     calls: list = field(default_factory=list)          # calls between places for the next tick (hosting/calls/between_places.py)
     calls_leave: bool = False                          # may its nodes call another place (ParticipantGroups.calls_leave)?
     peak_rss_kb: int = 0                               # the worker's own peak resident memory so far

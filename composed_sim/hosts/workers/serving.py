@@ -133,6 +133,7 @@ class Block:
         self.seen = len(node.violations)
         if self.tap is not None:
             answers.tapped = self.tap.drain()
+        answers.drones = groups.take_drone_commands()    # before the run-wide nodes' part of the next tick
         answers.run_wide = groups.close_run_wide(frame.tick + 1)
         answers.calls = groups.calls.take_outbox()       # the run-wide nodes' part's calls, for the next tick
         answers.calls_leave = groups.calls_leave          # (a client made since may call another place)

@@ -40,6 +40,7 @@ def _layout(n: int, leds: int, payload_bytes: int) -> list[tuple[str, tuple, np.
             ("odometry", (n, 3), f8), ("odometry_twist", (n, 2), f8),
             ("linear", (n,), f8), ("angular", (n,), f8),           # the commands, written by the workers
             ("altitudes", (n,), f8),                               # [n] m: 0 on wheels (core/flight.py)
+            ("supervisor_info", (n,), np.dtype(np.uint16)),        # [n] a drone's status bits (core/senses.py)
             ("tree_bytes", (1,), np.dtype(np.int64)), ("tree", (TREE_BYTES_PER_ROBOT * n + 4096,), u1)]
 
 
@@ -75,6 +76,8 @@ class SharedState:
         v["odometry"][:], v["odometry_twist"][:] = rows.odometry, rows.odometry_twist
         if inputs.altitudes is not None:
             v["altitudes"][:] = inputs.altitudes
+        if inputs.supervisor_info is not None:
+            v["supervisor_info"][:] = inputs.supervisor_info
         tree = pickle.dumps(kd_tree(inputs.positions), protocol=pickle.HIGHEST_PROTOCOL) if self.share_tree else b""
         fits = len(tree) <= len(v["tree"])
         if fits:
@@ -88,7 +91,7 @@ class SharedState:
         size = int(v["tree_bytes"][0])
         tree = pickle.loads(memoryview(v["tree"][:size])) if size else None
         return SensingInputs(tick, v["positions"], v["headings"], v["led_colors"], v["rab_payloads"], scene,
-                             floor, lights, route_messages, v["altitudes"], tree)
+                             floor, lights, route_messages, v["altitudes"], v["supervisor_info"], tree)
 
     def rows(self, block: slice) -> RobotRows:
         """The block's wheels and odometry, copied: its frame may outlive the tick."""
