@@ -222,11 +222,10 @@ class ParticipantGroups(TickServing):
         if self.hosting.executor == "events":
             refuse_coroutines_for_events(self.controllers)
         if self.hosting.executor == "multi-threaded" and any(n.clients for n in self.controllers):
-            print("composed-sim: warning: rclpy's multi-threaded executor shares its threads (one per core) among "
-                  "all the robots of the process, where each robot's own process would have its own: a blocking "
-                  "call holds one until answered, and more robots waiting at once than threads wait for ever; and "
-                  "calls between robots and run-wide nodes are completed late, often a tick late (rclpy 7.1.6). "
-                  "The default executor runs both within the tick", file=sys.stderr)
+            print("composed-sim: warning: under rclpy's multi-threaded executor the ticks in which calls and "
+                  "feedback complete follow its threads' timing (a blocking call holds one of them until answered; "
+                  "in worker processes a call to a run-wide node made after the tick's rounds completes as the "
+                  "next tick opens). The default executor runs them within the tick, in one order", file=sys.stderr)
         names = self.world.robot_names()
         self.block = HostedBlock(self.executor, calls=self.calls, places=range(self.start, self.stop),
                                  relay=self.relay, guard=self.guard)

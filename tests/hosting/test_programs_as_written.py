@@ -36,6 +36,7 @@ PACKAGE = ROOT / "tests" / "user_pkg" / "programs_as_written"
 INTERFACES = ROOT / "tests" / "user_pkg" / "robot_programs_interfaces"
 MODES = ("workers 1", "workers 2", "multi-threaded", "multi-process")
 PER_PARTICIPANT = "workers 1, a participant per robot"      # what --workers 1 does past 80 robots
+THREADED_WORKERS = "workers 2, multi-threaded"              # rclpy's executor in each worker
 THREADS_TIMING = ("under rclpy's own multi-threaded executor (kept for comparison) the ticks in which calls and "
                   "feedback come depend on its threads' timing")
 
@@ -129,7 +130,8 @@ def run_in(programs, tmp_path, domain_id, mp_domain):
     settings = {"workers 1": HostSettings(workers=1), "workers 2": HostSettings(workers=2),
                 "multi-threaded": HostSettings(workers=1, executor="multi-threaded"),
                 "multi-process": HostSettings(mode="multi-process", robots_per_domain=2),
-                PER_PARTICIPANT: HostSettings(workers=1, robots_per_participant=1)}
+                PER_PARTICIPANT: HostSettings(workers=1, robots_per_participant=1),
+                THREADED_WORKERS: HostSettings(workers=2, executor="multi-threaded")}
 
     def run(world, mode: str) -> Run:
         folder = tmp_path / re.sub(r"\W+", "-", mode) / "logs"
@@ -208,9 +210,7 @@ def test_a_request_sent_from_a_constructor_is_delivered(run_in, mode):
 
 
 
-@pytest.mark.parametrize("mode", cells({
-    "multi-threaded": "rclpy's multi-threaded executor (7.1.6) looks at new tasks late: answers come a tick late"},
-    default=("workers 1", "workers 2")) + [PER_PARTICIPANT])
+@pytest.mark.parametrize("mode", cells({}, default=("workers 1", "workers 2")) + [PER_PARTICIPANT, THREADED_WORKERS])
 def test_robots_ask_a_run_wide_service_once_it_is_ready_and_are_answered_within_the_tick(run_in, mode):
     """Each robot asks the run-wide ``/fleet/orders`` on every scan with ``call_async`` and a done
     callback, once ``service_is_ready()``. In its own process the fleet's service is on the ROS
@@ -311,7 +311,7 @@ def test_an_action_between_a_robots_nodes_runs_to_its_result(run_in, mode):
 
 
 
-@pytest.mark.parametrize("mode", cells({}))
+@pytest.mark.parametrize("mode", cells({"multi-threaded": THREADS_TIMING}))
 def test_an_action_client_hears_its_goal_accepted_before_its_first_feedback(run_in, mode):
     """In its own process rclpy's server sends the goal response before it starts executing
     (``ActionServer._execute_goal_request``: ``send_goal_response``, then ``execute``), so the

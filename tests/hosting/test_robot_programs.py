@@ -395,7 +395,7 @@ def test_rclpys_own_executors_host_what_they_run_in_a_process_of_their_own(robot
                                                   run_wide=[("fleet:FleetPlanner", {})])}[program]()
     reference, _ = composed(world, domain_id)
     if executor == "multi-threaded" and program == "run-wide planner":
-        return multi_threaded_warns_of_late_calls(world, domain_id)
+        multi_threaded_warns(world, domain_id)
     if executor == "events" and program in ("awaited call", "one-tick goals"):
         from composed_sim.hosting import HostError
         with pytest.raises(HostError, match=r"/bot0/\w+ has an async def callback .*: rclpy's EventsExecutor never "
@@ -416,20 +416,20 @@ def test_a_client_made_after_construction_does_not_find_a_service_nobody_serves(
     assert [n.found for n in nodes["LateLookup"]] == [False, False]
 
 
-def multi_threaded_warns_of_late_calls(world, domain_id):
+def multi_threaded_warns(world, domain_id):
     import contextlib
     import io
     err = io.StringIO()
     with contextlib.redirect_stderr(err):
         with ComposedHost(world, executor="multi-threaded", domain_id=domain_id):
             pass
-    assert "calls between robots and run-wide nodes are completed late, often a tick late" in err.getvalue()
+    assert "in worker processes a call to a run-wide node made after the tick's rounds completes as the next " \
+           "tick opens" in err.getvalue()
 
 
 def test_a_blocking_call_runs_on_rclpys_multi_threaded_executor_and_is_refused_by_one_thread(robot_programs,
                                                                                              domain_id):
-    # One robot: rclpy's executor shares its threads among the robots of its process (the
-    # warning says so), so more robots blocked at once than it has threads would wait for ever.
+    # rclpy's executor blocks one of its threads on the call, as in the robot's own process.
     one = world_of("planning:BlockingBehaviour", "planning:Planner", robots=1, ticks=8)
     reference, _ = composed(one, domain_id)
     threaded, _ = composed(one, domain_id, "multi-threaded")

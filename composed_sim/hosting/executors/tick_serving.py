@@ -44,17 +44,29 @@ class TickServing:
             self._take_ready_answers()
             if self.guard.calls == calls:
                 self.exchange.settle_idle(ran)
-        # Calls between places are handed over once its threads are quiet (hosting/calls/between_places.py).
-        while self.calls.in_flight and not self.exchange.all_answered and time.monotonic() < deadline:
-            if self._threads_quiet() is not None:
-                self._hand_over()
-            self.exchange.wait_for_answers(QUIET_CHECK_S)
+        self._rounds_with_threads(deadline)
         answered = self.exchange.wait_for_answers(max(0.0, deadline - time.monotonic()))
         if answered and (self._settle or self.calls.in_flight):
             self._threads_quiet()
             while self._hand_over():
                 self._threads_quiet()
         return answered
+
+    def _rounds_with_threads(self, deadline: float) -> None:
+        """The rounds of calls between places (hosting/calls/between_places.py), each once the
+        executor's threads are quiet. In one process: while a call is in flight or may yet be made
+        (the threads may not have reached the robots' sensors at the first look), until every robot
+        answered. In a worker: the rounds the main process leads, until it says no call is in
+        flight anywhere (hosting/calls/rounds.py); a call made after that is handed over as the
+        next tick opens."""
+        local = self.remote is None
+        while time.monotonic() < deadline:
+            if local and (self.exchange.all_answered or not self.calls_leave):
+                return
+            if (self.calls.in_flight or not local) and self._threads_quiet() is not None:
+                if not self._hand_over() and not local:
+                    return
+            self.exchange.wait_for_answers(QUIET_CHECK_S)
 
     def _take_ready_answers(self) -> None:
         """Before robots are settled as idle: the callbacks are done and have published, but their

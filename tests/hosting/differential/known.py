@@ -89,11 +89,6 @@ KNOWN: list[dict] = [
             "through DDS, and do not go through the rounds of calls between places: what one place sends "
             "in tick k is taken by the other as tick k + 1 starts (rclpy: in tick k). Within a robot an "
             "action matches"},
-    {"construct": "calls between a robot's node and a run-wide node",
-     "modes": ("threads",), "uses": calls_between_places,
-     "why": "rclpy's multi-threaded executor (kept for comparison) looks at new tasks late (rclpy 7.1.6): a "
-            "call between places completes a tick or more late, and a robot waiting on it misses its tick "
-            "(docs/contract.md, what cannot be hosted)"},
     {"construct": "a run-wide node calls a robot's node (a service, its parameters, its lifecycle)",
      "modes": ("workers1", "workers2", "processes"), "uses": run_wide_calls_a_robot,
      "why": "the calls the run-wide nodes make as tick k starts are served before the tick's sensors "
