@@ -57,6 +57,7 @@ def groups_with(guard, exchange, on_take):
     groups._calls_at_open = {}
     groups.answers_later = []                         # every robot has its cmd_vel publisher
     groups.calls = CallRelay([])                      # no call between places in flight
+    groups.remote, groups.run_wide = None, None       # one process, no run-wide node
     return groups
 
 
