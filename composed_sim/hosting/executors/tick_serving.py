@@ -61,7 +61,7 @@ class TickServing:
         next tick opens."""
         local = self.remote is None
         while time.monotonic() < deadline:
-            if local and (self.exchange.all_answered or not self.calls_leave):
+            if local and (not self.calls_leave or self.exchange.all_answered):
                 return
             if (self.calls.in_flight or not local) and self._threads_quiet() is not None:
                 if not self._hand_over() and not local:
