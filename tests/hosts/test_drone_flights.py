@@ -67,3 +67,17 @@ def test_the_same_show_flies_the_same_in_every_mode(drone_show, domain_id, mp_do
     assert result.violations == reference.violations == []
     for field in ("positions", "headings", "altitudes"):
         np.testing.assert_array_equal(getattr(result.trajectories, field), getattr(reference.trajectories, field))
+
+
+def test_drones_without_crazyflie_interfaces_fly_nothing_and_say_why(tmp_path, domain_id):
+    """Where crazyflie_interfaces is not built the drones have no services: the run goes on, on the
+    floor, with the server's warning saying what to build (it once ended in a KeyError)."""
+    import os
+    import subprocess
+    import sys
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    run = subprocess.run([sys.executable, "-m", "composed_sim.cli", "run", str(ROOT / "worlds" / "crazyflie_grid.yaml"),
+                          "--robots", "4", "--ticks", "5", "--domain-id", str(domain_id), "--out", str(tmp_path / "o"),
+                          "--no-progress", "--no-picture"], capture_output=True, text=True, env=env, timeout=120)
+    assert run.returncode == 0, run.stderr[-2000:]
+    assert "the crazyflie_interfaces package is not built" in run.stdout + run.stderr

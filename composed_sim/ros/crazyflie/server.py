@@ -141,9 +141,10 @@ class CrazyflieServer(Node):
                 self._fanning_out = False
 
     def attach(self, outbox, robots: dict[str, int]) -> None:
-        """The host's outbox and each drone's robot index; the group masks the world file gives go
-        to the firmware with the first tick's commands."""
-        self.outbox, self.robots = outbox, {name: robots[name] for name in self.robots}
+        """The host's outbox and each drone's robot index (none where crazyflie_interfaces is not
+        built: the drones are not served); the group masks the world file gives go to the firmware
+        with the first tick's commands."""
+        self.outbox, self.robots = outbox, {name: robots[name] for name in self.robots if name in robots}
         for name, robot in self.robots.items():
             mask = self._mask_of(name)
             if mask:
