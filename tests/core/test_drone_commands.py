@@ -9,6 +9,7 @@ import pytest
 from composed_sim.core.drone_commands import ALL, DroneCommand, DroneCommander
 from composed_sim.devices.crazyflie import Crazyflies
 from composed_sim.devices.crazyflie import polynomials as poly
+from tests.hosting.figure_eight import figure_eight
 
 DT = 0.01
 
@@ -83,21 +84,9 @@ def test_a_group_mask_picks_the_drones_of_its_group():
     np.testing.assert_allclose(fleet.state.pos[:, 2], [0.5, 0.0, 0.5], atol=1e-9)
 
 
-def _figure_eight(pieces: int = 4, period: float = 8.0):
-    """A figure eight of our own as degree-7 pieces: x = sin(2πt/T), y = sin(4πt/T)/2, fitted."""
-    durations = np.full(pieces, period / pieces)
-    coefficients = np.zeros((pieces, 4, 8))
-    for i in range(pieces):
-        t = np.linspace(0, durations[i], 50)
-        tau = i * durations[i] + t
-        coefficients[i, 0] = np.polynomial.polynomial.polyfit(t, np.sin(2 * np.pi * tau / period), 7)
-        coefficients[i, 1] = np.polynomial.polynomial.polyfit(t, 0.5 * np.sin(4 * np.pi * tau / period), 7)
-    return coefficients, durations
-
-
 def test_an_uploaded_trajectory_is_flown_piece_by_piece():
     fleet, commander = _commander(1)
-    coefficients, durations = _figure_eight()
+    coefficients, durations = figure_eight()
     commander.apply([_command(0, "upload_trajectory", 3, 0, coefficients, durations),
                      _command(0, "takeoff", 1.0, 2.0, 0, stamp=1)], 0.0)
     _fly(fleet, 300)

@@ -16,7 +16,6 @@ import math
 import sys
 import time
 
-import numpy as np
 import rclpy
 from builtin_interfaces.msg import Duration
 from crazyflie_interfaces.msg import FullState, TrajectoryPolynomialPiece
@@ -30,19 +29,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter as RclpyParameter
 from std_srvs.srv import Empty
 
-PERIOD_S, PIECES = 8.0, 4
-
-
-def figure_eight() -> tuple[np.ndarray, np.ndarray]:
-    """Our own figure eight as degree-7 pieces (x = sin 2πt/T, y = sin 4πt/T / 2), fitted."""
-    durations = np.full(PIECES, PERIOD_S / PIECES)
-    coefficients = np.zeros((PIECES, 4, 8))
-    for i in range(PIECES):
-        t = np.linspace(0.0, durations[i], 50)
-        tau = i * durations[i] + t
-        coefficients[i, 0] = np.polynomial.polynomial.polyfit(t, np.sin(2 * np.pi * tau / PERIOD_S), 7)
-        coefficients[i, 1] = np.polynomial.polynomial.polyfit(t, 0.5 * np.sin(4 * np.pi * tau / PERIOD_S), 7)
-    return coefficients, durations
+from figure_eight import PERIOD_S, figure_eight      # beside this file (tests/hosting/figure_eight.py)
 
 
 def seconds(s: float) -> Duration:

@@ -17,6 +17,7 @@ import pytest
 from composed_sim.devices.crazyflie import polynomials as poly
 from composed_sim.hosts.composed import ComposedHost
 from composed_sim.world.schema import World
+from tests.hosting.figure_eight import figure_eight
 
 ROOT = Path(__file__).resolve().parents[2]
 INTERFACES = ROOT / "tests" / "user_pkg" / "crazyflie_interfaces"
@@ -93,7 +94,7 @@ def check_flight(result, report) -> None:
     # The figure eight, relative to where it starts: within 2 cm of its polynomial at every tick.
     hover = xy[start + 300, first]
     begin = first_tick(np.linalg.norm(xy[:, first] - hover, axis=1) > 1e-9)
-    coefficients, durations = _tool_figure_eight()
+    coefficients, durations = figure_eight()
     t = (np.arange(begin, begin + 800) - begin) * TICK_S
     piece = np.minimum((t // durations[0]).astype(int), len(durations) - 1)
     local = t - piece * durations[0]
@@ -110,14 +111,6 @@ def check_flight(result, report) -> None:
     assert matches == sorted(matches)
     # Landed at the end (a landing at 0.03 m, then motors off: on the floor).
     assert z[-1, first] < 0.05 and z[-1, second] < 0.05
-
-
-def _tool_figure_eight():
-    import importlib.util
-    spec = importlib.util.spec_from_file_location("crazyswarm_tool_module", TOOL)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module.figure_eight()
 
 
 def test_a_script_finds_the_drones_and_flies_them_as_commanded(domain_id):
