@@ -2,16 +2,12 @@
 clock gets there, as in its own process, and the next reading's callback runs then. (The wake-up
 timer was on the clock that moves once the tick's sensor callbacks have returned: the sleeping one
 had not, the next could not start, so it never woke and the robot stopped hearing its sensors.)"""
-import textwrap
-from pathlib import Path
-
 import pytest
 
 from composed_sim.hosts.composed import ComposedHost
-from composed_sim.world.loader import load_world
 from composed_sim.world.schema import NodeSpec
+from tests.hosting.probes import one_robot_world, probe_package
 
-ROOT = Path(__file__).resolve().parents[2]
 TICKS = 6
 
 PROBE = '''
@@ -41,19 +37,12 @@ class SleepyScan(Node):
 
 @pytest.fixture
 def sleepy_scan(tmp_path, monkeypatch):
-    package = tmp_path / "sleepy_scan_probe"
-    package.mkdir()
-    (package / "__init__.py").write_text(textwrap.dedent(PROBE))
-    monkeypatch.syspath_prepend(str(tmp_path))
-    yield "sleepy_scan_probe:SleepyScan"
+    yield from probe_package(tmp_path, monkeypatch, "sleepy_scan_probe", PROBE)
 
 
 def test_a_sleeping_sensor_callback_of_a_mutually_exclusive_group_wakes_a_tick_later(sleepy_scan, domain_id):
-    world = load_world(ROOT / "worlds" / "flocking.yaml", robots=1, ticks=TICKS, seed=3)
+    world = one_robot_world(NodeSpec(node=f"{sleepy_scan}:SleepyScan"), TICKS, answers="when_published")
     assert world.tick_ns == 100_000_000
-    group = world.robots[0].model_copy(update={"count": 1, "controller": None, "params": {}, "answers": "when_published",
-                                               "nodes": [NodeSpec(node=sleepy_scan)]})
-    world = world.model_copy(update={"robots": [group]})
     with ComposedHost(world, domain_id=domain_id) as host:
         host.run()
         log = host.controllers[0].log

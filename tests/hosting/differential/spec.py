@@ -71,23 +71,28 @@ def _resolve(entity: dict, index: int, from_robot: bool) -> None:
     entity["target"] = f"{node}_{to['name']}" if "name" in to else node
 
 
+def dicts_in(value):
+    """Every dict nested in ``value`` (dicts and lists), outermost first; a dict may be changed
+    before its own values are looked at."""
+    if isinstance(value, dict):
+        yield value
+        for v in value.values():
+            yield from dicts_in(v)
+    elif isinstance(value, list):
+        for v in value:
+            yield from dicts_in(v)
+
+
 def compile_node(node: dict, index: int, robot_node: bool) -> dict:
     """The spec a node of program ``index`` is built from: names resolved, its program's prefix
     and the tick length added."""
     compiled = copy.deepcopy(node)
     owner = node["name"] if robot_node else run_wide_name(index, node["name"])
 
-    def walk(value):
-        if isinstance(value, dict):
-            if "kind" in value:
-                value["owner"] = owner
-                _resolve(value, index, robot_node)
-            for v in value.values():
-                walk(v)
-        elif isinstance(value, list):
-            for v in value:
-                walk(v)
-    walk(compiled)
+    for entity in dicts_in(compiled):
+        if "kind" in entity:
+            entity["owner"] = owner
+            _resolve(entity, index, robot_node)
     compiled.update(prefix=f"p{index}", tick_ns=TICK_NS)
     return compiled
 

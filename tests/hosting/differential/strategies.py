@@ -31,6 +31,7 @@ from hypothesis import strategies as st
 
 from differential.bodies import free_body
 from differential.schedule import schedule_all
+from differential.spec import dicts_in
 
 CONSTRUCTS = ("block", "timeout", "done", "await", "async_service", "sleep_rate", "sleep_clock", "odd_periods",
               "pubsub", "run_wide", "two_robots", "nested", "ready", "init_call", "actions", "params", "apc",
@@ -105,18 +106,7 @@ class Builder:
 
     def finish(self) -> dict:
         for node in self.nodes.values():
-            used = set()
-
-            def walk(v):
-                if isinstance(v, dict):
-                    if "group" in v:
-                        used.add(v["group"])
-                    for x in v.values():
-                        walk(x)
-                elif isinstance(v, list):
-                    for x in v:
-                        walk(x)
-            walk(node)
+            used = {d["group"] for d in dicts_in(node) if "group" in d}
             node["groups"] = sorted(used - {"default"})
             for key in ("init", "transitions"):
                 if not node.get(key):
