@@ -47,6 +47,7 @@ _EXPORTS = {
     "building.wiring": ("published_answer_type",),
     # executors and how they are driven
     "executors.lockstep": ("LockstepExecutor",),
+    "executors.idle": ("readings_waiting",),
     "executors.running": ("Spinning", "make_executor", "check_executor", "driven_by_caller", "run_until_idle",
                           "shut_down"),
     # calls between places, and their rounds across processes
@@ -58,7 +59,7 @@ _EXPORTS = {
     # the drones' Crazyswarm2 endpoints and the crazyflie_server
     "drones": ("ProcessDrones", "has_run_wide_nodes", "flying_robots"),
     "run_wide.link": ("RunWideLink", "SimulatorLink"),
-    "sim_time.timers": ("before_each_tick",),
+    "sim_time.timers": ("before_each_tick", "clocks_to"),
     # the nodes' logs and failures
     "guard.node_logs": ("NodeLogs", "Console", "FAILURE_MARK", "failure_from_output",
                         "node_label", "raising_node"),

@@ -125,7 +125,7 @@ class ProcessDrones:
 
     def take(self, published: Optional[dict[str, int]] = None, timeout_s: float = 1.0) -> list[DroneCommand]:
         """At the tick's close: the commands taken in it (the setpoints received since are taken now;
-        ``published``: how many were sent on each topic by processes whose parts of the tick are in,
+        ``published``: how many were sent on each topic since the start, by processes whose parts are in,
         waited for up to ``timeout_s``)."""
         for endpoints in self.endpoints:
             endpoints.drain(published or {}, timeout_s)

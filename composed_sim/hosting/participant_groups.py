@@ -214,7 +214,7 @@ class ParticipantGroups(TickServing):
         self.simulator_nodes.append(sim_node)
         for nodes in block_nodes:
             for node in nodes:
-                sim_node.drive_clock_of(node)
+                sim_node.clocks.drive(node)
 
     def _host_entities(self) -> None:
         """Every node hosted (hosting/hosted_block.py): guarded callbacks, services and calls in
@@ -298,6 +298,8 @@ class ParticipantGroups(TickServing):
             self.logs.tick = tick
         for timers in self._tick_timers:
             timers.advance_to(now_ns)
+        for node in self.simulator_nodes:
+            node.clocks.move_to(tick)
         lockstep = isinstance(self.executor, LockstepExecutor)
         if batch:
             self.relay.deliver(batch, run=self.executor.run_callback if lockstep else None)

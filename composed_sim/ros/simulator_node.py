@@ -11,7 +11,6 @@ from typing import TYPE_CHECKING, Collection, Mapping, Optional, Sequence
 import numpy as np
 from rclpy.context import Context
 from rclpy.node import Node
-from rclpy.time import Time as RosTime
 from rosgraph_msgs.msg import Clock
 
 from composed_sim.devices import DEVICES
@@ -22,6 +21,7 @@ from composed_sim.ros.answer_ledger import AnswerLedger
 from composed_sim.ros.answer_subscription import AnswerSubscription, ControllerPublishers, publisher_gid
 from composed_sim.ros.clock_watch import ClockWatch
 from composed_sim.ros.command_inbox import CommandInbox
+from composed_sim.ros.driven_clocks import DrivenClocks
 from composed_sim.ros.robot_settings import quiet_node_options
 from composed_sim.ros.robot_taps import RobotTaps
 from composed_sim.ros.taps import MessageTap
@@ -83,7 +83,7 @@ class SimulatorNode(Node):
         self.linear, self.angular, self.answered, self.rejected, self.failed = \
             ledger.linear, ledger.angular, ledger.answered, ledger.rejected, ledger.failed
         self._clock_pub = self.create_publisher(Clock, c.CLOCK_TOPIC, 10, event_callbacks=c.PUBLISHER_EVENTS) if publish_clock else None
-        self._clock_msg, self._driven_clock_handles = Clock(), []
+        self._clock_msg, self.clocks = Clock(), DrivenClocks(tick_ns)     # the hosted nodes' clocks
         self._clock_watch = ClockWatch(self, publisher_gid(self._clock_pub)) if publish_clock else None
         self._taps = RobotTaps(names)
         self._run_wide_publishers: dict[str, object] = {}    # topic → its publisher (mirror_run_wide)
@@ -202,13 +202,6 @@ class SimulatorNode(Node):
         """A publisher of ``topic``'s type and QoS on ``name``, for a device (devices/)."""
         return self.create_publisher(c.msg_type(topic), name, c.qos(topic), event_callbacks=c.PUBLISHER_EVENTS)
 
-    def drive_clock_of(self, node: Node) -> None:
-        """Set a node's clock to sim time at each tick directly: a hosted node then sees sim time
-        without its own /clock subscription (N deliveries per tick); /clock is still published."""
-        clock = node.get_clock()
-        clock._set_ros_time_is_active(True)
-        self._driven_clock_handles.append(clock.handle)
-
     def set_message_tap(self, tap: MessageTap) -> None:
         """Hand every per-robot message the tap wants (sensors out, answers in) to it, e.g. a bag."""
         self._taps.set(tap)
@@ -272,24 +265,27 @@ class SimulatorNode(Node):
 
     # --- the tick exchange ----------------------------------------------------------------
 
+    def open_tick(self, tick: int) -> None:
+        """Open tick ``tick``'s answer window (once), before anything of the tick reaches the
+        robots' nodes: a node woken as its clock moves to the tick answers it."""
+        key = c.stamp_key(c.stamp_of(tick, self._tick_ns))
+        if self._ledger.current_key == key:
+            return
+        if not self._controllers.noted:
+            self._controllers.note()
+        with self._ledger.lock:
+            self._foreign_noted.clear()
+            self._ledger.open_tick(tick, key)
+
     def publish_tick(self, frame: SensorFrame) -> None:
         """Publish /clock and every robot's sensors for ``frame.tick``; open the answer window."""
         stamp = c.stamp_of(frame.tick, self._tick_ns)
-        if not self._controllers.noted:
-            self._controllers.note()
         key = c.stamp_key(stamp)
-        with self._ledger.lock:
-            self._foreign_noted.clear()
-            self._ledger.open_tick(frame.tick, key)
+        self.open_tick(frame.tick)
         if self._clock_pub is not None:
             self._clock_msg.clock = stamp
             self._clock_pub.publish(self._clock_msg)
-        # Through the clocks' handles: rclpy's ``set_ros_time_override`` checks the type and
-        # takes the handle's guard on each call, several times the cost (docs/speed.md);
-        # the driven nodes live as long as this node serves them, and this thread drives them.
-        now = RosTime.from_msg(stamp)._time_handle
-        for handle in self._driven_clock_handles:
-            handle.set_ros_time_override(now)
+        self.clocks.move_to(frame.tick)
         failed = self.failed.tolist()
         out = Outgoing(stamp.sec, stamp.nanosec, key, cdr.stamp_bytes(stamp.sec, stamp.nanosec),
                        failed, failed.count(True))

@@ -54,12 +54,7 @@ def test_the_flock_climbs_keeps_its_spacing_in_3d_and_reaches_its_goal(domain_id
     assert steps.max() <= 0.4 * 0.01 + 1e-6             # never faster than max_speed_mps (float32 setpoints)
 
 
-MULTI_PROCESS_OPEN = ("a drone's own nodes in processes of their own: each tick spends about 13 s gathering answers "
-                      "(6 drones, 2026-11-28), not found yet")
-
-
-@pytest.mark.parametrize("mode", ["workers", pytest.param("multi-process", marks=[
-    pytest.mark.slow, pytest.mark.xfail(run=False, strict=True, reason=MULTI_PROCESS_OPEN)])])
+@pytest.mark.parametrize("mode", ["workers", pytest.param("multi-process", marks=pytest.mark.slow)])
 def test_the_flock_flies_the_same_in_every_mode(domain_id, mp_domain, mode):
     world = flocking_world(robots=6, ticks=300)
     reference, _ = fly(world, domain_id)

@@ -230,12 +230,17 @@ def test_a_run_wide_node_finds_each_robots_parameter_services_ready(run_in, mode
     """A run-wide node checks ``service_is_ready()`` on each robot's ``/botN/tunable/set_parameters``
     client before it sets ``speed``. A node's parameter services exist from its construction; in
     its own process they are on the ROS graph before the first /clock: ready at the first check,
-    and each robot drives at its new speed from then on."""
+    and each robot drives at its new speed from then on. The set comes from the dispatcher's 1 s
+    timer, which fires once its process heard /clock at 1 s, as every process did: the robot's
+    node serves it with its clock at 1 s too (hosted, its clock moved with the tick's sensors,
+    after the run-wide nodes' calls were served: it read 0.9 s)."""
     run = run_in(world_of("parameters:Tunable", ticks=16, run_wide=["parameters:SpeedDispatcher"]), mode)
     assert run.violations == []
     dispatched = run.of("dispatcher")
     assert [line.text for line in dispatched if "not ready" in line.text] == []
     assert sorted(line.text for line in dispatched) == ["bot0: set True", "bot1: set True"]
+    for robot in ("bot0", "bot1"):
+        assert run.texts(robot, "tunable") == ["speed set to 0.05 at 1 s"]
     assert (run.moved() > 0.01).all()
 
 
@@ -247,8 +252,26 @@ def test_a_parameter_client_waits_for_a_hosted_nodes_parameter_services(run_in, 
     run = run_in(world_of("parameters:Tunable", "parameters:WaitingTuner", ticks=4), mode)
     assert run.violations == []
     for robot in ("bot0", "bot1"):
-        assert run.texts(robot, "tunable") == ["speed set to 0.05"]
+        assert run.texts(robot, "tunable") == ["speed set to 0.05 at 0 s"]     # before tick 0
         assert run.texts(robot, "tuner") == ["set: True"]
+    assert (run.moved() > 0.005).all()
+
+
+@pytest.mark.parametrize("mode", cells({"multi-threaded": (
+    "under rclpy's own multi-threaded executor (kept for comparison) its own sleep holds the tick until the "
+    "watchdog: the robot fails as hung")}, default=("workers 1", "multi-process")))
+def test_a_nodes_timer_steers_on_time_while_its_scan_callback_pauses(run_in, mode):
+    """A scan callback in a group of its own calls ``time.sleep(0.3)`` on the scan of 0.1 s; the
+    node's 0.1 s timer, in its default group, steers. In its own process the executor's other
+    threads fire the timer on time meanwhile (0.2, 0.3 and 0.4 s), and the callback resumes 0.3 s
+    on: the robot answers every tick. (Hosted, the timer fired only once the tick's sensor
+    callbacks had returned: it missed 0.2 and 0.3 s, and fired three times at 0.4 s.)"""
+    run = run_in(world_of("sleeping:PausingScanner", ticks=8, answers="when_published"), mode)
+    assert run.violations == []
+    for robot in ("bot0", "bot1"):
+        texts = run.texts(robot, "scanner")
+        assert [t for t in texts if t.startswith("steer")] == [f"steer at {k / 10:g} s" for k in range(1, 8)]
+        assert [t for t in texts if not t.startswith("steer")] == ["pausing at 0.1 s", "resumed at 0.4 s"]
     assert (run.moved() > 0.005).all()
 
 
@@ -270,6 +293,24 @@ def test_a_lifecycle_node_that_activates_itself_later_is_waited_for(run_in, mode
         assert run.ticks_of(robot, "configured") == run.ticks_of(robot, "activated") == [3]
     positions = run.result.trajectories.positions
     assert np.array_equal(positions[3], positions[0])            # standing until active
+    assert (run.moved() > 0.005).all()
+
+
+@pytest.mark.parametrize("mode", cells({"multi-threaded": (
+    "under rclpy's own multi-threaded executor (kept for comparison) the answers of a cmd_vel publisher made after "
+    "tick 0 are not taken: the robots stand")}, default=("workers 1", "multi-process")))
+def test_what_an_inactive_lifecycle_publisher_drops_is_no_answer(run_in, mode):
+    """A lifecycle node configured at 0.2 s and activated at 0.5 s publishes on its lifecycle
+    ``cmd_vel`` publisher every 0.1 s from the configure on. Until the activation rclpy's lifecycle
+    publisher drops those messages: nothing reaches the robot's base, which keeps its last command
+    (none: it stands), as it does before the configure. (In multi-process mode the dropped
+    messages counted as answers: every robot failed "no answer before the watchdog" from 0.3 s.)"""
+    run = run_in(world_of("lifecycle:EagerSteerer", ticks=10, answers="when_published"), mode)
+    assert run.violations == []
+    for robot in ("bot0", "bot1"):
+        assert run.ticks_of(robot, "configured") == [2] and run.ticks_of(robot, "activated") == [5]
+    positions = run.result.trajectories.positions
+    assert np.array_equal(positions[5], positions[0])            # standing until active
     assert (run.moved() > 0.005).all()
 
 

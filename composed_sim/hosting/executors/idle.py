@@ -63,3 +63,18 @@ def wait_for_work(executor, timeout_sec: Optional[float]) -> None:
         for waitable in waitables:
             waitable.add_to_wait_set(wait_set)
         wait_set.wait(timeout_ns)
+
+
+def readings_waiting(subscriptions, context) -> list[bool]:
+    """Which of ``subscriptions`` (of ``context``) have a message waiting, without taking it."""
+    with ExitStack() as held:
+        for sub in subscriptions:
+            held.enter_context(sub.handle)
+        held.enter_context(context.handle)
+        wait_set = _rclpy.WaitSet(len(subscriptions), 0, 0, 0, 0, 0, context.handle)
+        wait_set.clear_entities()
+        for sub in subscriptions:
+            wait_set.add_subscription(sub.handle)
+        wait_set.wait(0)
+        ready = set(wait_set.get_ready_entities("subscription"))
+    return [sub.handle.pointer in ready for sub in subscriptions]

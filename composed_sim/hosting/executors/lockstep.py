@@ -54,6 +54,7 @@ class LockstepExecutor(TaskRunning, SingleThreadedExecutor):
         self.watcher = watcher or CallbackWatcher()
         self.services = None                      # its ServiceDirectory (hosting/calls/directory.py), if hosted
         self.on_entities_changed: Optional[Callable[[Node], None]] = None   # the host hosts what is new
+        self.before_walk: Optional[Callable[[], None]] = None   # a controller process's wait for a tick's readings
         self.running_group = None                 # the callback group of the callback the walk runs
         self.running_node: Optional[Node] = None  # and its node (None: a task's)
         self._ordered_nodes: list[Node] = []
@@ -99,12 +100,16 @@ class LockstepExecutor(TaskRunning, SingleThreadedExecutor):
     # --- spinning -------------------------------------------------------------------------------
 
     def spin_once(self, timeout_sec: Optional[float] = None) -> None:
+        if self.before_walk is not None:
+            self.before_walk()
         if self.dispatch_ready() != 0:
             return
         if self.walk_covers_all:
             # Nothing ready: wait until something is (a message from another process, a timer),
             # then take it in the walk's order.
             wait_for_work(self, timeout_sec)
+            if self.before_walk is not None:
+                self.before_walk()
             self.dispatch_ready()
             return
         # What the walk cannot take, through rclpy's wait set: in a walker too, so that a callback

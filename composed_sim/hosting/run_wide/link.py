@@ -29,6 +29,7 @@ from std_msgs.msg import UInt8MultiArray
 
 from composed_sim.ros.robot_settings import quiet_node_options
 from composed_sim.hosting.run_wide.relay import Message, RunWideRelay
+from composed_sim.hosting.sim_time.timers import clocks_to
 
 BATCH_TOPIC = "/_composed_sim/run_wide"
 LINK_QOS = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE, history=HistoryPolicy.KEEP_LAST)
@@ -86,6 +87,7 @@ class RunWideLink:
         self._carried: Optional[bytes] = None        # … and its first answer, which the simulator cannot hear yet
         self.reads: dict[str, int] = {}              # sensor topics read by subscriptions made since: how many
         self._published: dict[str, int] = {}     # counted messages since the last part, by topic (``count``)
+        self.clocks: list = []      # the robot's nodes' clocks (sim_time/timers.clocks_to)
         # Where delivered messages' callbacks run: the lockstep executor's ``run_callback`` (as
         # tasks, their callback groups respected), else at once.
         self.run_callback: Optional[Callable[[Callable, object], None]] = None
@@ -107,10 +109,12 @@ class RunWideLink:
         for publisher in publishers:
             publish = publisher.publish
 
-            def noting(msg, publish=publish):
-                self.answered = self.tick
-                if self.answer_type is not None and self._carried is None:
-                    self._carried = serialize_message(msg)
+            def noting(msg, publish=publish, publisher=publisher):
+                # A lifecycle publisher not activated publishes nothing: no answer.
+                if getattr(publisher, "is_activated", True):
+                    self.answered = self.tick
+                    if self.answer_type is not None and self._carried is None:
+                        self._carried = serialize_message(msg)
                 return publish(msg)
             publisher.publish = noting
 
@@ -130,6 +134,7 @@ class RunWideLink:
         """A batch or a round message of the simulator: its run-wide messages (a batch's) and the
         calls for this robot delivered; True if it brought calls (to be replied to)."""
         stamp, batch, _, _, calls, final, _ = unpack(msg)
+        clocks_to(self.clocks, stamp)     # as the tick opens: its calls are served on its time
         if final:                    # a tick's batch (a round message carries calls only)
             self._relay.deliver(batch, run=self.run_callback)
             self.delivered = max(self.delivered, stamp)

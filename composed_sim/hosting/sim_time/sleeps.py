@@ -31,6 +31,17 @@ from rclpy.task import Future
 from rclpy.time import Time
 
 
+SLEEP_HOOK = "on_sleep"      # a callback's greenlet may name what to tell when it sleeps (timers.py)
+
+
+def _tell_sleeping() -> None:
+    """The calling callback is about to be set aside until a later time on its clock: tell whoever
+    asked (a sensor callback's node's timers, which then need not wait for it to return)."""
+    hook = getattr(getcurrent(), SLEEP_HOOK, None)
+    if hook is not None:
+        hook()
+
+
 def can_set_aside(executor) -> bool:
     """Is the caller a callback that ``executor`` can set aside while it waits (the lockstep
     executor's walk runs it)?"""
@@ -67,7 +78,10 @@ def host_rates(node: Node) -> None:
     create_rate = node.create_rate
 
     def hosted_create_rate(frequency: float, clock: Optional[Clock] = None):
-        rate = create_rate(frequency, clock)
+        # On the node's clock, which the host moves as each tick opens (as ``wait_on_clock``'s
+        # timer), not on a timers' clock of sim_time/timers.py, which waits for the tick's sensor
+        # callbacks: one of them may be the sleeper, or wait for the sleeper's group.
+        rate = create_rate(frequency, clock or node.get_clock())
         sleepers: list[Future] = []
         fired = rate._event.set
         plain_sleep = rate.sleep
@@ -84,6 +98,7 @@ def host_rates(node: Node) -> None:
             if not rate._event.is_set():          # its timer has not fired since the last sleep
                 future = Future()
                 sleepers.append(future)
+                _tell_sleeping()
                 executor.wait_for(future, executor.group_of_caller())
             rate._event.clear()
         rate._timer.callback = on_timer
@@ -105,6 +120,7 @@ def host_clock_sleeps(node: Node) -> None:
         left_ns = until.nanoseconds - clock.now().nanoseconds
         if left_ns > 0:
             future = Future()
+            _tell_sleeping()
             wait_on_clock(node, executor, future, executor.group_of_caller(), left_ns * 1e-9,
                           lambda: future.set_result(None))
         return True
@@ -142,4 +158,5 @@ def _sleep(seconds: float) -> None:
         (logger.host_note if hasattr(logger, "host_note") else lambda line: print(f"composed-sim: {line}",
                                                                                      file=sys.stderr))(text)
     future = Future()
+    _tell_sleeping()
     wait_on_clock(node, executor, future, executor.group_of_caller(), seconds, lambda: future.set_result(None))

@@ -2,10 +2,12 @@
 
 The order within tick k, for each robot, in every executor and both host modes:
 
-1. the simulator publishes tick k's sensors; from then on the node's clock reads tick k's time;
-2. the robot's sensor callbacks of tick k run;
+1. the node's clock reads tick k's time from the tick's open (the host sets it);
+2. the simulator publishes tick k's sensors; the robot's sensor callbacks of tick k run;
 3. then its timers due at or before tick k's time fire. A ``cmd_vel`` published from a timer
-   callback answers tick k, exactly as one published from a sensor callback.
+   callback answers tick k, exactly as one published from a sensor callback. A sensor callback
+   that sleeps on the node's clock counts as done, and the timers follow the node's clock until
+   it wakes (in its own process, other threads fire them meanwhile).
 
 A timer fires first one period after the time it was created at, as rclpy's does on sim time: one
 created while the controller is constructed (before tick 0, the clock at 0) first at its period, a
@@ -29,12 +31,15 @@ import math
 import threading
 from typing import Callable, Collection, Optional
 
-from rclpy.clock import ClockType, ROSClock
+from greenlet import getcurrent
+from rclpy.clock import ClockType, JumpThreshold, ROSClock
+from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.subscription import Subscription
 from rclpy.time import Time
 
 from composed_sim.devices.common import cdr
+from composed_sim.hosting.sim_time.sleeps import SLEEP_HOOK
 
 
 class SimTimers:
@@ -57,6 +62,9 @@ class SimTimers:
         self._stamp = -1                # the tick (stamp ns) whose callbacks are being counted
         self._seen = 0
         self._lock = threading.Lock()   # sensor callbacks of one node may run on several threads
+        self._advanced_ns = -1          # the time the timers' clocks were last moved to
+        self._sleepers = 0              # sensor callbacks set aside, asleep on the node's clock
+        self._follow = None             # meanwhile: the timers follow the node's clock (a jump callback)
 
     # --- set-up ------------------------------------------------------------------------------
 
@@ -122,10 +130,17 @@ class SimTimers:
             stamp = sensor_stamp(msg, raw)
             if self._follow_stamps and node_clock.now().nanoseconds < stamp:
                 node_clock.set_ros_time_override(Time(nanoseconds=stamp, clock_type=ClockType.ROS_TIME))
+            me = getcurrent()
+            told, asleep = getattr(me, SLEEP_HOOK, None), []
+            setattr(me, SLEEP_HOOK, lambda: asleep or self._fell_asleep(stamp, asleep))
             try:
                 return callback(msg, *info)
             finally:
-                self._handled(stamp)
+                setattr(me, SLEEP_HOOK, told)
+                if asleep:
+                    self._woke()
+                else:
+                    self._handled(stamp)
         if not inspect.iscoroutinefunction(callback):
             return with_signature_of(sub, run)
 
@@ -137,6 +152,28 @@ class SimTimers:
         return with_signature_of(sub, run_async)
 
     # --- per tick ------------------------------------------------------------------------------
+
+    def _fell_asleep(self, stamp: int, asleep: list) -> None:
+        """A sensor callback of tick ``stamp`` sleeps until a later time on the node's clock (it is
+        set aside: sim_time/sleeps.py). Its tick counts as handled, and until it wakes the timers
+        follow the node's clock, which the host moves as each tick opens: in its own process the
+        node's timers fire on time meanwhile, in the executor's other threads."""
+        asleep.append(True)
+        with self._lock:
+            self._sleepers += 1
+            if self._sleepers == 1:
+                clock = self._node.get_clock()
+                self._follow = clock.create_jump_callback(
+                    JumpThreshold(min_forward=Duration(nanoseconds=1), min_backward=None, on_clock_change=False),
+                    post_callback=lambda _: self._advance(clock.now().nanoseconds))
+        self._handled(stamp)
+
+    def _woke(self) -> None:
+        with self._lock:
+            self._sleepers -= 1
+            if self._sleepers == 0 and self._follow is not None:
+                self._follow.unregister()
+                self._follow = None
 
     def _handled(self, stamp: int) -> None:
         with self._lock:
@@ -151,6 +188,9 @@ class SimTimers:
 
     def _advance(self, now_ns: int) -> None:
         with self._lock:
+            if now_ns <= self._advanced_ns:     # a reading handled late (it waited for its group)
+                return
+            self._advanced_ns = now_ns
             clocks = list(self._clocks)
         now = Time(nanoseconds=now_ns, clock_type=ClockType.ROS_TIME)
         for clock in clocks:
@@ -180,19 +220,33 @@ def _whole(x: float) -> bool:
     return math.isclose(x, round(x), rel_tol=1e-9, abs_tol=1e-9)
 
 
-def before_each_tick(subscriptions, on_tick: Callable[[int], None]) -> None:
+def clocks_to(clocks, stamp: int) -> None:
+    """Move each of a robot's nodes' ``clocks`` that is behind to ``stamp`` (ns), in a process whose
+    node clocks follow /clock (multi-process mode): each node hears /clock on its own, maybe after
+    the tick's sensors or its run-wide batch reached another of them; in their own process every
+    node's clock has moved before what the tick brings is handled."""
+    for clock in clocks:
+        if clock.now().nanoseconds < stamp:
+            clock.set_ros_time_override(Time(nanoseconds=stamp, clock_type=ClockType.ROS_TIME))
+
+
+def before_each_tick(subscriptions, on_tick: Callable[[int], None],
+                     on_each: Optional[Callable[[int, object], None]] = None) -> None:
     """Call ``on_tick(stamp ns)`` before the first of these sensor subscriptions' callbacks of each
     tick (a process whose node clocks follow /clock: multi-process mode, shards), e.g. to move the
-    timers of a robot's nodes that read no sensors to the tick's time."""
+    timers of a robot's nodes that read no sensors to the tick's time; ``on_each(stamp ns,
+    subscription)`` before every one."""
     last = [-1]
     for sub in subscriptions:
         callback, raw = sub.callback, sub.raw
 
-        def run(msg, *info, callback=callback, raw=raw):
+        def run(msg, *info, callback=callback, raw=raw, sub=sub):
             stamp = sensor_stamp(msg, raw)
             if stamp > last[0]:
                 last[0] = stamp
                 on_tick(stamp)
+            if on_each is not None:
+                on_each(stamp, sub)
             return callback(msg, *info)
         sub.callback = with_signature_of(sub, run)
 

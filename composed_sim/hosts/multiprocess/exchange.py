@@ -59,7 +59,7 @@ class LinkedExchange(NodesExchange):
         self._drones = drones
         self._here = drones.places if drones is not None else frozenset()     # places served here
         self._served_here = False     # calls were handed to the drones' services here: a round serves them
-        self._published: dict[str, int] = {}     # setpoints the drones' processes sent in the tick, by topic
+        self._published: dict[str, int] = {}     # setpoints the drones' processes sent so far, by topic
         self._by_domain, self._domains, self._names, self._tick_ns = nodes, domains, names, tick_ns
         self._run_wide = run_wide
         self._round_timeout_s = round_timeout_s     # how long robots sent calls have to reply
@@ -69,6 +69,8 @@ class LinkedExchange(NodesExchange):
 
     def publish_tick(self, frame) -> None:
         run_wide = self._run_wide
+        for node in self.nodes:     # the robots' clocks move with the batch below (hosting/run_wide/link.py)
+            node.open_tick(frame.tick)
         if self._batch is None:               # tick 0: what the run-wide nodes publish at its start
             self._batch = run_wide.batch(frame.tick, {})
         self._tick, self._stamp = frame.tick, frame.tick * self._tick_ns
@@ -185,7 +187,6 @@ class LinkedExchange(NodesExchange):
         super().close_tick(fallback, previous, commands)
         if self._drones is not None:        # before the run-wide nodes' part of the next tick
             self.drone_commands = self._drones.take(self._published, self._round_timeout_s)
-            self._published = {}
         sent = {}
         for link in self._run_wide.links.values():
             # A robot failed in the tick may have sent its last part (its last log lines) as it ended.

@@ -14,11 +14,12 @@ from rclpy.context import Context
 from rclpy.time import Time as RosTime
 
 from composed_sim import plugins
-from composed_sim.hosting import (before_each_tick, CallRelay, Console, contract_endpoints, create_robot_nodes,
-                                  driven_by_caller, FAILURE_MARK, HostedBlock, HostError, load_classes,
-                                  LockstepExecutor, make_executor, matched, node_label, NodeLogs, poll_until,
-                                  ProcessHosting, published_answer_type, raising_node, run_until_idle, RunWideLink,
-                                  RunWideRelay, shut_down, Spinning)
+from composed_sim.hosting import (before_each_tick, CallRelay, clocks_to, Console, contract_endpoints,
+                                  create_robot_nodes, driven_by_caller, FAILURE_MARK, HostedBlock, HostError,
+                                  load_classes, LockstepExecutor, make_executor, matched, node_label, NodeLogs,
+                                  poll_until, ProcessHosting, published_answer_type, raising_node, run_until_idle,
+                                  RunWideLink, RunWideRelay, shut_down, Spinning)
+from composed_sim.hosts.multiprocess.tick_readings import TickReadings
 from composed_sim.ros import contract as c
 from composed_sim.ros.answer_subscription import cmd_vel_gids
 from composed_sim.ros.crazyflie.messages import SETPOINTS
@@ -53,6 +54,8 @@ class HostedRobot:
         self.first_timer_tick = 0           # before it, its timers have not fired (BuiltNodes)
         self._reads_sensors = False         # do its nodes read its sensors (which then mark a tick's start)?
         self._tick_timers: list = []
+        # Its part of a tick waits for the tick's readings, at most a third of the watchdog.
+        self.readings = TickReadings(self.context, world.lockstep.watchdog_s / 3)
         self.link: Optional[RunWideLink] = None
         self.spinning: Optional[Spinning] = None
         self.block: Optional[HostedBlock] = None
@@ -80,6 +83,7 @@ class HostedRobot:
         if self.logs is not None:
             clock = self.nodes[0].get_clock()
             self.logs.clock = lambda: clock.now().nanoseconds
+        self._clocks = [n.get_clock() for n in self.nodes]
         place = names.index(robot)
         self.calls = CallRelay(names)
         self._link(built, relay, place, world.robots[group_index])
@@ -88,7 +92,8 @@ class HostedRobot:
         sensors = {c.topic_name(robot, t) for t in c.SENSOR_TOPICS}
         read = [s for n in self.nodes for s in n.subscriptions if s.topic_name in sensors]
         self._tick_timers = built.tick_timers
-        before_each_tick(read, lambda stamp: self._starting_tick(stamp, built.tick_timers))
+        before_each_tick(read, lambda stamp: self._starting_tick(stamp, built.tick_timers), self.readings.taken)
+        self.readings.watch(read)
         self._reads_sensors = bool(read)
         if self.link is not None and (not read or built.answers_later):
             # While nothing it reads marks a tick's start (its sensor subscriptions may come
@@ -131,6 +136,7 @@ class HostedRobot:
                                 or any(relay.topics_published_by(n) for n in self.nodes),
                                 timeout_s=world.lockstep.watchdog_s, logs=self.logs,
                                 calls=self.calls, index=place)
+        self.link.clocks = self._clocks
         self.link.watch_answers([p for n in self.nodes for p in n.publishers
                                  if p.topic_name == c.topic_name(robot, c.CMD_VEL)])
         setpoints = {f"/{robot}/{name}" for name in SETPOINTS}      # a drone's (ros/crazyflie/messages.py)
@@ -149,12 +155,14 @@ class HostedRobot:
                 self.link.answer_type = c.type_name(answers[0].msg_type)
         sensors = {c.topic_name(robot, t) for t in c.SENSOR_TOPICS}
         reading = [s for s in subscriptions if s.topic_name in sensors]
-        before_each_tick(reading, lambda stamp: self._starting_tick(stamp, self._tick_timers))
+        before_each_tick(reading, lambda stamp: self._starting_tick(stamp, self._tick_timers), self.readings.taken)
+        self.readings.watch(reading)
         self._reads_sensors = self._reads_sensors or bool(reading)
         for topic in {s.topic_name for s in reading}:
             self.link.reads[topic] = sum(s.topic_name == topic for n in self.nodes for s in n.subscriptions)
 
     def _starting_tick(self, stamp: int, tick_timers) -> None:
+        clocks_to(self._clocks, stamp)
         for timers in tick_timers:
             timers.advance_to(stamp)
         if self.link is not None:
@@ -195,12 +203,14 @@ class HostedRobot:
         link, spinning = self.link, self.spinning
         sends = link is not None and link.sends
         if driven_by_caller(self.hosting.executor, guarded=False):
+            if isinstance(spinning.executor, LockstepExecutor):
+                spinning.executor.before_walk = self.readings.wait_for_the_rest
             while not stopped():
                 spinning.executor.spin_once(timeout_sec=IDLE_WAKE_S)
                 if link is not None and link.reply_due:     # calls from the simulator: handled, answered
                     run_until_idle(spinning.executor)
                     link.reply()
-                if sends and link.tick > link.sent:
+                if sends and link.tick > link.sent and self.readings.all_in(link.tick):
                     run_until_idle(spinning.executor)
                     link.send()
             return
@@ -213,7 +223,7 @@ class HostedRobot:
             time.sleep(0.002 if sends else 0.1)
             if link is not None and link.reply_due:
                 link.reply()
-            if sends and link.tick > link.sent:
+            if sends and link.tick > link.sent and self.readings.all_in(link.tick):
                 if ticks_seen == link.tick:
                     link.send()
                 ticks_seen = link.tick

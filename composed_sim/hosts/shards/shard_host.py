@@ -95,7 +95,7 @@ class ShardHost:
                                  lambda stamp, timers=built.tick_timers: [t.advance_to(stamp) for t in timers])
                 for node in nodes:
                     clock = node.get_clock()
-                    clock._set_ros_time_is_active(True)    # as SimulatorNode.drive_clock_of
+                    clock._set_ros_time_is_active(True)    # as ros/driven_clocks.py does
                     self._clocks.append(clock)
                     self.spinning.executor.add_node(node)
                     self.block.adopt(node, names[i], i)

@@ -64,6 +64,7 @@ class DroneEndpoints:
         self.inbox = Node(node_name + "_inbox", context=context, **quiet_node_options())
         self._subscribed: set[str] = set()
         self._setpoints: list[tuple[int, Callable, object]] = []    # (robot, convert, subscription)
+        self._taken: dict[str, int] = {}     # setpoints taken since the start, by topic (``drain``)
         self._status: list[tuple[int, object]] = []                  # (row, publisher)
         self._watched = {f"/{d.name}/{topic}": (row, topic) for row, d in enumerate(self.drones)
                          for topic in (*messages.SETPOINTS, messages.STATUS)}
@@ -119,12 +120,14 @@ class DroneEndpoints:
     def drain(self, sent: Optional[dict[str, int]] = None, timeout_s: float = 1.0) -> int:
         """The setpoints received since the last drain, to the outbox, each stamped with when it
         was published (its order among its drone's calls); how many. ``sent``: how many a topic's
-        publishers said they sent (a drone's controller in a process of its own): waited for, up
-        to ``timeout_s`` (what DDS still carries belongs to the tick)."""
+        publishers said they sent since the start (a drone's controller in a process of its own):
+        those not taken yet are waited for, up to ``timeout_s`` (what DDS still carries belongs to
+        the tick). Counted since the start, not per tick: a setpoint published after its
+        process's part of a tick went out is counted with its next part, and may be taken first."""
         taken, deadline = 0, time.monotonic() + timeout_s
         for robot, convert, subscription in self._setpoints:
-            handle, msg_type = subscription.handle, subscription.msg_type
-            owed = sent.get(subscription.topic_name, 0) if sent else 0
+            handle, msg_type, topic = subscription.handle, subscription.msg_type, subscription.topic_name
+            owed = (sent.get(topic, 0) if sent else 0) - self._taken.get(topic, 0)
             while True:
                 with handle:
                     got = handle.take_message(msg_type, False)
@@ -136,6 +139,7 @@ class DroneEndpoints:
                 kind, args = convert(got[0])
                 self._outbox.post(robot, kind, args, got[1]["source_timestamp"])
                 taken, owed = taken + 1, owed - 1
+                self._taken[topic] = self._taken.get(topic, 0) + 1
         return taken
 
     def publish_status(self, tick: int, supervisor_info: Optional[Sequence[int]]) -> None:

@@ -31,7 +31,9 @@ What rclpy defines and what it does not (and so how ``events.py`` compares):
   never lets a timeout expire); what a parameter read returns when no set of it is in flight;
 - not defined: the order of different callbacks within a tick (sensor callback before or after
   a timer of the same tick, two requests from two places, the scan before the timers: the hosts
-  fix one order, rclpy's executor takes whatever is ready): compared as sets per tick;
+  fix one order, rclpy's executor takes whatever is ready): compared as sets per tick; how many
+  of a goal's last feedbacks, sent right before its result, its client hears (rclpy's client
+  drops those it takes after the result; hosted, it hears them all: ``events.compare``);
 - not modelled (generated programs avoid them): a callback of a node's default group that waits
   across ticks (rclpy's /clock subscription is in that group: the node's clock would stop, its
   sleeps never end; the hosts set clocks directly), a blocking call from a mutually exclusive

@@ -27,22 +27,11 @@ def _entities(program: dict, nodes: str) -> Iterator[dict]:
         stack += [s["entity"] for s in e.get("body", ()) if s.get("do") == "make"]
 
 
-def run_wide_calls_a_robot(program: dict) -> bool:
-    """A run-wide node has a client (service, action, parameters, lifecycle) of a robot's node."""
-    return any("to" in e and not e["to"]["node"].startswith("w") for e in _entities(program, "run_wide"))
-
-
 def action_between_places(program: dict) -> bool:
     """An action client of one place (a robot, the run-wide nodes) and its server in another."""
     robot = [e for e in _entities(program, "robot") if e["kind"] == "action_client" and e["to"]["node"].startswith("w")]
     run_wide = [e for e in _entities(program, "run_wide") if e["kind"] == "action_client" and "robot" in e["to"]]
     return bool(robot or run_wide)
-
-
-def calls_between_places(program: dict) -> bool:
-    """A client of one place for a server of another (a robot's node and a run-wide node)."""
-    return run_wide_calls_a_robot(program) or \
-        any("to" in e and e["to"]["node"].startswith("w") for e in _entities(program, "robot"))
 
 
 def sleeps_on_sim_time(program: dict) -> bool:
@@ -51,15 +40,6 @@ def sleeps_on_sim_time(program: dict) -> bool:
     def sleeps(e):
         return e.get("execute") in ("rate", "clock") or any(s.get("do") == "sleep" for s in e.get("body", ()))
     return any(sleeps(e) for part in ("robot", "run_wide") for e in _entities(program, part))
-
-
-def sensor_callback_sleeps_beside_timers(program: dict) -> bool:
-    for node in (*program.get("nodes", ()), *program.get("run_wide", ())):
-        entities = list(_entities({"nodes": [node]}, "robot"))
-        sleeping = any(e["kind"] == "scan" and any(s.get("do") == "sleep" for s in e.get("body", ())) for e in entities)
-        if sleeping and any(e["kind"] == "timer" for e in entities):
-            return True
-    return False
 
 
 def cleanup_destroys(program: dict) -> bool:
@@ -89,28 +69,12 @@ KNOWN: list[dict] = [
             "through DDS, and do not go through the rounds of calls between places: what one place sends "
             "in tick k is taken by the other as tick k + 1 starts (rclpy: in tick k). Within a robot an "
             "action matches"},
-    {"construct": "a run-wide node calls a robot's node (a service, its parameters, its lifecycle)",
-     "modes": ("workers1", "workers2", "processes"), "uses": run_wide_calls_a_robot,
-     "why": "the calls the run-wide nodes make as tick k starts are served before the tick's sensors "
-            "(docs/contract.md, the order within a tick), and a robot's clock moves to tick k with its "
-            "sensors: the handler reads tick k - 1 on its clock (multi-process mode also stamps its log "
-            "lines so); rclpy: tick k"},
-    {"construct": "a sensor callback sleeps across ticks in a node with timers",
-     "modes": ("workers1", "workers2", "processes"), "uses": sensor_callback_sleeps_beside_timers,
-     "why": "a hosted node's timers fire once the tick's sensor callbacks have returned (the rule that orders "
-            "them after the sensors, the same in every run); one that sleeps holds its node's timers until "
-            "it wakes, where rclpy fires them on time"},
     {"construct": "a timer made in a callback",
      "modes": ("threads",), "uses": makes_a_timer,
      "why": "under rclpy's multi-threaded executor (kept for comparison) a timer made in a callback may miss "
             "a firing (a tick late, then on time) when the machine is loaded: its threads and the host's "
             "check that a tick is done race over a timer that just became ready. Not deterministic: the "
             "same programs run again matched"},
-    {"construct": "calls between a robot's node and a run-wide node, on a loaded machine",
-     "modes": ("processes",), "uses": calls_between_places,
-     "why": "twice in 200 programs (three test runs in parallel on two cores) such a call completed a tick "
-            "late in multi-process mode, and the same programs run again matched: a race in the rounds of "
-            "calls over the run-wide link (hosts/multiprocess), not examined yet"},
     {"construct": "a lifecycle node's on_cleanup destroys its timer and publishers",
      "modes": ("workers1", "workers2", "threads", "processes"), "uses": cleanup_destroys,
      "why": "in its own process rclpy's executor may raise InvalidHandle (a destroyed timer still in its wait "

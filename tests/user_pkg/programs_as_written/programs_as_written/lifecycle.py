@@ -38,6 +38,37 @@ class LateActivating(LifecycleNode):
             self.cmd.publish(twist(0.05 * (1.0 - closeness(scan))))
 
 
+class EagerSteerer(LifecycleNode):
+    """Configures itself at 0.2 s and activates at 0.5 s (a manager's sequence, from a timer of its
+    own); its 0.1 s control timer publishes on the lifecycle ``cmd_vel`` publisher from the
+    configure on, without asking whether it is active: until then rclpy's lifecycle publisher
+    drops what it is given."""
+
+    def __init__(self):
+        super().__init__("steerer")
+        self.cmd = None
+        self.ticks = 0
+        self.create_timer(0.1, self.on_timer)
+
+    def on_timer(self):
+        self.ticks += 1
+        if self.ticks == 2:
+            self.trigger_configure()
+        elif self.ticks == 5:
+            self.trigger_activate()
+        if self.cmd is not None:
+            self.cmd.publish(twist(0.05))
+
+    def on_configure(self, state) -> TransitionCallbackReturn:
+        self.cmd = self.create_lifecycle_publisher(Twist, "cmd_vel", 10)
+        self.get_logger().info("configured")
+        return TransitionCallbackReturn.SUCCESS
+
+    def on_activate(self, state) -> TransitionCallbackReturn:
+        self.get_logger().info("activated")
+        return super().on_activate(state)
+
+
 class CleanedUpTalker(LifecycleNode):
     """lifecycle_py's talker pattern: a timer and a publisher made in ``on_configure``, published
     on while active, destroyed in ``on_cleanup``. This one steps itself through configure (0.2 s),

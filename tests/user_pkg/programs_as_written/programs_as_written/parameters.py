@@ -27,7 +27,8 @@ class Tunable(Node):
         for p in parameters:
             if p.name == "speed":
                 self.speed = p.value
-                self.get_logger().info(f"speed set to {p.value}")
+                now_s = self.get_clock().now().nanoseconds * 1e-9
+                self.get_logger().info(f"speed set to {p.value} at {now_s:g} s")
         return SetParametersResult(successful=True)
 
     def on_scan(self, scan):
