@@ -65,8 +65,9 @@ def wait_for_work(executor, timeout_sec: Optional[float]) -> None:
         wait_set.wait(timeout_ns)
 
 
-def readings_waiting(subscriptions, context) -> list[bool]:
-    """Which of ``subscriptions`` (of ``context``) have a message waiting, without taking it."""
+def readings_waiting(subscriptions, context, timeout_s: float = 0.0) -> list[bool]:
+    """Which of ``subscriptions`` (of ``context``) have a message waiting, without taking it;
+    ``timeout_s``: first wait up to that long until one has."""
     with ExitStack() as held:
         for sub in subscriptions:
             held.enter_context(sub.handle)
@@ -75,6 +76,6 @@ def readings_waiting(subscriptions, context) -> list[bool]:
         wait_set.clear_entities()
         for sub in subscriptions:
             wait_set.add_subscription(sub.handle)
-        wait_set.wait(0)
+        wait_set.wait(int(timeout_s * 1e9))
         ready = set(wait_set.get_ready_entities("subscription"))
     return [sub.handle.pointer in ready for sub in subscriptions]

@@ -26,12 +26,14 @@ class TickReadings:
         self._context, self._patience_s = context, patience_s
         self._last: dict[int, int] = {}            # id(subscription) → stamp of its last reading taken
         self._subscriptions: list = []
+        self._served_at: tuple[int, list] = (-2, [])  # (newest stamp when looked up, the served ones)
         self._newest = -1                           # the newest reading's stamp (ns): the tick's
         self._since: tuple[int, float] = (-1, 0.0)  # (stamp, when ``all_in`` first waited for it)
 
     def watch(self, subscriptions) -> None:
         """More of the robot's sensor subscriptions (one made in a transition, say)."""
         self._subscriptions += subscriptions
+        self._served_at = (-2, [])
 
     def taken(self, stamp: int, subscription) -> None:
         """``subscription``'s callback of the tick at ``stamp`` (ns) begins."""
@@ -39,8 +41,11 @@ class TickReadings:
         self._newest = max(self._newest, stamp)
 
     def _served(self) -> list:
-        # Only the subscriptions a publisher serves get a reading each tick.
-        return [s for s in self._subscriptions if s.get_publisher_count() > 0]
+        # Only the subscriptions a publisher serves get a reading each tick (looked up once a tick:
+        # each look asks the ROS graph).
+        if self._served_at[0] != self._newest or self._newest < 0:      # before tick 0: still matching
+            self._served_at = (self._newest, [s for s in self._subscriptions if s.get_publisher_count() > 0])
+        return self._served_at[1]
 
     def all_in(self, stamp: int) -> bool:
         """Has every reading of the tick at ``stamp`` been taken (or waited for long enough)?"""
@@ -60,6 +65,8 @@ class TickReadings:
             return
         waiting = readings_waiting(pending, self._context)
         deadline = time.monotonic() + self._patience_s
-        while any(waiting) and not all(waiting) and time.monotonic() < deadline:
-            time.sleep(0.0001)
-            waiting = readings_waiting(pending, self._context)
+        while any(waiting) and not all(waiting) and (left := deadline - time.monotonic()) > 0:
+            # Asleep until one of those not come yet comes (a wait set of them alone).
+            late = [s for s, w in zip(pending, waiting) if not w]
+            if any(readings_waiting(late, self._context, left)):
+                waiting = readings_waiting(pending, self._context)
