@@ -128,8 +128,8 @@ class SimTimers:
 
         def run(msg, *info):
             stamp = sensor_stamp(msg, raw)
-            if self._follow_stamps and node_clock.now().nanoseconds < stamp:
-                node_clock.set_ros_time_override(Time(nanoseconds=stamp, clock_type=ClockType.ROS_TIME))
+            if self._follow_stamps:
+                clocks_to((node_clock,), stamp)
             me = getcurrent()
             told, asleep = getattr(me, SLEEP_HOOK, None), []
             setattr(me, SLEEP_HOOK, lambda: asleep or self._fell_asleep(stamp, asleep))

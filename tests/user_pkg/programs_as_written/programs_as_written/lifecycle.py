@@ -9,7 +9,21 @@ from std_msgs.msg import String
 from programs_as_written.driving import closeness, twist
 
 
-class LateActivating(LifecycleNode):
+class SteeringLifecycleNode(LifecycleNode):
+    """Makes its ``cmd_vel`` lifecycle publisher in ``on_configure``; says when it is configured
+    and activated."""
+
+    def on_configure(self, state) -> TransitionCallbackReturn:
+        self.cmd = self.create_lifecycle_publisher(Twist, "cmd_vel", 10)
+        self.get_logger().info("configured")
+        return TransitionCallbackReturn.SUCCESS
+
+    def on_activate(self, state) -> TransitionCallbackReturn:
+        self.get_logger().info("activated")
+        return super().on_activate(state)
+
+
+class LateActivating(SteeringLifecycleNode):
     """Makes its ``cmd_vel`` lifecycle publisher in ``on_configure``; configures and activates
     itself from a 0.3 s timer; steers from every scan once active."""
 
@@ -24,21 +38,12 @@ class LateActivating(LifecycleNode):
         self.trigger_configure()
         self.trigger_activate()
 
-    def on_configure(self, state) -> TransitionCallbackReturn:
-        self.cmd = self.create_lifecycle_publisher(Twist, "cmd_vel", 10)
-        self.get_logger().info("configured")
-        return TransitionCallbackReturn.SUCCESS
-
-    def on_activate(self, state) -> TransitionCallbackReturn:
-        self.get_logger().info("activated")
-        return super().on_activate(state)
-
     def on_scan(self, scan):
         if self.cmd is not None and self.cmd.is_activated:
             self.cmd.publish(twist(0.05 * (1.0 - closeness(scan))))
 
 
-class EagerSteerer(LifecycleNode):
+class EagerSteerer(SteeringLifecycleNode):
     """Configures itself at 0.2 s and activates at 0.5 s (a manager's sequence, from a timer of its
     own); its 0.1 s control timer publishes on the lifecycle ``cmd_vel`` publisher from the
     configure on, without asking whether it is active: until then rclpy's lifecycle publisher
@@ -58,15 +63,6 @@ class EagerSteerer(LifecycleNode):
             self.trigger_activate()
         if self.cmd is not None:
             self.cmd.publish(twist(0.05))
-
-    def on_configure(self, state) -> TransitionCallbackReturn:
-        self.cmd = self.create_lifecycle_publisher(Twist, "cmd_vel", 10)
-        self.get_logger().info("configured")
-        return TransitionCallbackReturn.SUCCESS
-
-    def on_activate(self, state) -> TransitionCallbackReturn:
-        self.get_logger().info("activated")
-        return super().on_activate(state)
 
 
 class CleanedUpTalker(LifecycleNode):
