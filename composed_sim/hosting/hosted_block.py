@@ -123,7 +123,7 @@ class HostedBlock:
             directory.host_client(node, client, place)
         for waitable in node.waitables:
             if directory.is_action(waitable):
-                directory.host_action(node, waitable)
+                directory.host_action(node, waitable, place)
 
     def _announce(self, node: Node, place: int) -> None:
         """The node's services, on the run's graph of calls between places: a client of another

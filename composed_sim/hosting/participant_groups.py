@@ -89,7 +89,8 @@ class ParticipantGroups(TickServing):
         self.controllers: list[Node] = []                   # every robot node, robot by robot
         self.relay = RunWideRelay(world.robot_names())
         self._robot_set = frozenset(world.robot_names())
-        self.calls = CallRelay(world.robot_names())          # service calls between places (robots, run-wide)
+        # Service calls between places (robots, run-wide).
+        self.calls = CallRelay(world.robot_names(), relays_actions=hosting.lockstep)
         self.block: Optional[HostedBlock] = None            # how their nodes are hosted
         # Robots whose nodes publish no cmd_vel yet (building/wiring.answer_rule): they keep their
         # last command until their first answer.

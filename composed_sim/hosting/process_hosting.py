@@ -40,6 +40,11 @@ class ProcessHosting:
     domain_id: int = 0
     logs: Optional[LogSettings] = None      # where the nodes' log lines go; None: rclpy's loggers
 
+    @property
+    def lockstep(self) -> bool:
+        """Is the nodes' executor the host's own, which it walks (not one of rclpy's, kept for comparison)?"""
+        return self.executor == "lockstep"
+
     def argv(self) -> list[str]:
         args = ["--domain", str(self.domain_id), "--executor", self.executor]
         if self.logs is not None and self.logs.log_dir:

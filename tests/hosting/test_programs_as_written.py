@@ -364,6 +364,42 @@ def test_an_action_client_hears_its_goal_accepted_before_its_first_feedback(run_
         assert client[:3] == ["Sending goal request...", "Goal accepted", "Received feedback: 2"]
 
 
+ACTION_BETWEEN_PLACES = ("an action between places is rclpy's under its own multi-threaded executor (kept for "
+                         "comparison): through DDS, a tick late")
+
+
+@pytest.mark.parametrize("mode", cells({"multi-threaded": ACTION_BETWEEN_PLACES}))
+def test_a_fleet_nodes_goals_to_its_robots_are_done_within_the_tick(run_in, mode):
+    """A run-wide fleet manager sends each robot's action server a goal at 0.1 s; the server
+    executes at once, without pausing. In processes of their own every step of it (acceptance,
+    three feedbacks, the result) happens before the next /clock tick: the same tick. (Through DDS
+    outside the rounds of calls between places it took a tick for each message: the goal's result
+    arrived at tick 5 instead of 1.)"""
+    run = run_in(world_of("driving:Drive", pacer("none"), run_wide=("actions:FleetDispatcher",), ticks=8), mode)
+    assert run.violations == []
+    for robot in ("bot0", "bot1"):
+        lines = [line for line in run.of("dispatcher") if line.text.startswith(f"{robot}:")]
+        assert [line.text for line in lines] == [f"{robot}: {t}" for t in (
+            "sending goal", "goal accepted", "feedback 2", "feedback 1", "feedback 0", "result 3, status 4")]
+        assert {line.tick for line in lines} == {1}
+        assert run.ticks_of(robot, "Returning result") == [1]
+
+
+@pytest.mark.parametrize("mode", cells({"multi-threaded": ACTION_BETWEEN_PLACES}))
+def test_robots_goals_to_a_run_wide_action_server_are_done_within_the_tick(run_in, mode):
+    """The other way: each robot's client sends its goal at 0.1 s to one run-wide server, which
+    executes at once: the client hears it accepted, its feedback and its result in that tick."""
+    run = run_in(world_of("driving:Drive", ("actions:PaceClient", {"action": "/pace"}),
+                          run_wide=(pacer("none"),), ticks=8), mode)
+    assert run.violations == []
+    for robot in ("bot0", "bot1"):
+        client = run.of(robot, "pace_client")
+        assert [line.text for line in client] == ["Sending goal request...", "Goal accepted", "Received feedback: 2",
+                                                  "Received feedback: 1", "Received feedback: 0", "Goal succeeded: 3"]
+        assert {line.tick for line in client} == {1}
+    assert run.texts("pacer").count("Returning result") == 2
+
+
 ACTION_PROGRAMS = {"feedback": ("Pacer", "PaceClient"), "cancel": ("Pacer", "CancellingClient"),
                    "queue": ("QueueingPacer", "TwoGoalsClient")}
 WALL_SLEEP_OFF_PACE = ("under rclpy's executor the sleep holds one of its threads in wall time, but the run does not "

@@ -13,6 +13,9 @@ such calls go through the host, in rounds, and are answered within the tick in e
 - a run-wide node's calls made in its part of the tick (at the tick's start) reach the robots
   with the tick's run-wide batch, before the tick's sensors.
 
+An action between places takes the same way: its requests and responses as calls, its feedback and
+status as ``ActionMessage`` (hosting/calls/actions_between_places.py).
+
 A place is a robot's index in the run or ``RUN_WIDE_ORIGIN``. The relay of each process keeps
 its places' services and clients; requests and responses travel as CDR bytes, so the host moves
 them between processes as it moves the run-wide batch.
@@ -22,7 +25,7 @@ from __future__ import annotations
 import itertools
 import threading
 from dataclasses import dataclass
-from typing import Collection, Optional
+from typing import Callable, Collection, Optional
 
 from rclpy.serialization import deserialize_message, serialize_message
 
@@ -67,6 +70,19 @@ class Response:
         return self.call[0]
 
 
+@dataclass(frozen=True)
+class ActionMessage:
+    """An action's feedback or status for the clients of place ``destination``
+    (hosting/calls/actions_between_places.py): after the responses, as a goal's acceptance comes
+    before its first feedback."""
+    call: tuple[int, int]        # (server's place, sequence): its order
+    destination: int
+    action: str
+    kind: str                    # "feedback" or "status"
+    data: bytes
+    rank = 1.5
+
+
 def service_type_name(srv_type: type) -> str:
     """``std_srvs/srv/Trigger`` for its class."""
     return f"{srv_type.__module__.split('.')[0]}/srv/{srv_type.__name__}"
@@ -82,13 +98,19 @@ def handover_order(items: list) -> list:
 class CallRelay:
     """One process's side of the calls between places."""
 
-    def __init__(self, robots: Collection[str]):
+    def __init__(self, robots: Collection[str], relays_actions: bool = True):
+        """``relays_actions``: the robots' executor is the host's (lockstep), which polls their
+        action servers for clients of other places (hosting/calls/actions_between_places.py); with
+        rclpy's stock executors, kept for comparison, actions between places stay DDS's."""
+        self.relays_actions = relays_actions
         self._place_of_robot = {name: i for i, name in enumerate(robots)}
         self._directories: dict[int, ServiceDirectory] = {}     # place → the directory serving it here
         self._outbox: list = []
         # Callbacks on an executor's threads (rclpy's multi-threaded) add to it while the host takes it.
         self._outbox_lock = threading.Lock()
         self._pending: dict[tuple[int, int], tuple[CallFuture, object, ServiceDirectory]] = {}
+        self._replies: dict[tuple[int, int], Callable[[bytes], None]] = {}    # an action's requests
+        self._listeners: dict[tuple[int, str], list[Callable[[str, bytes], None]]] = {}   # (place, action) →
         self._sequence = itertools.count()
         self._served: dict[str, str] = {}        # every service of the run's places known here → its type
         self.clients_leave = False               # has a client here been hosted whose calls leave its place?
@@ -139,6 +161,22 @@ class CallRelay:
                            serialize_message(request)))
         return future
 
+    def ask(self, origin: int, service: str, data: bytes, on_reply: Callable[[bytes], None]) -> None:
+        """An action client's request (CDR ``data``) of place ``origin`` to ``service`` of another
+        place; ``on_reply`` gets the response's CDR bytes once delivered."""
+        call = (origin, next(self._sequence))
+        self._replies[call] = on_reply
+        self._send(Request(call, self.place_of(service), service, data))
+
+    def listen(self, place: int, action: str, heard: Callable[[str, bytes], None]) -> None:
+        """``heard(kind, data)``: a client of ``place`` hears ``action``'s feedback and status from
+        another place."""
+        self._listeners.setdefault((place, action), []).append(heard)
+
+    def tell(self, origin: int, place: int, action: str, kind: str, data: bytes) -> None:
+        """``action``'s server, at ``origin``, sends its feedback or status to the clients of ``place``."""
+        self._send(ActionMessage((origin, next(self._sequence)), place, action, kind, data))
+
     def forget(self, future: CallFuture) -> None:
         """A call given up (its ``Client.call`` timed out): a response that still comes is dropped."""
         self._pending = {call: p for call, p in self._pending.items() if p[0] is not future}
@@ -167,6 +205,18 @@ class CallRelay:
             if isinstance(item, Served):
                 self._served.update((name, kind) for _, name, kind in item.services)
                 continue
+            if isinstance(item, ActionMessage):
+                listeners = self._listeners.get((item.destination, item.action))
+                if listeners is None:
+                    if item.destination not in self._directories:
+                        elsewhere.append(item)
+                    continue
+                for heard in listeners:
+                    heard(item.kind, item.data)
+                continue
+            if isinstance(item, Response) and item.call in self._replies:
+                self._replies.pop(item.call)(item.data)
+                continue
             if isinstance(item, Response):
                 pending = self._pending.pop(item.call, None)
                 if pending is None:
@@ -186,7 +236,10 @@ class CallRelay:
     def _queue(self, directory: ServiceDirectory, request: Request) -> None:
         entry = directory.lookup(request.service)
         if entry is None:
-            return            # nobody serves it: the caller waits, as for a service that never comes up
+            # An action's, or nobody serves it: the caller waits, as for a service that never comes up.
+            directory.relay_action_request(request.service, request.data, request.call[0],
+                                           lambda data, call=request.call: self._send(Response(call, data)))
+            return
         message = deserialize_message(request.data, entry.srv_type.Request)
         entry.submit(message, lambda response, call=request.call:
                      self._send(Response(call, serialize_message(response))))

@@ -15,7 +15,8 @@ through the host's call relay (hosting/calls/between_places.py).
 Actions (``rclpy.action``) keep rclpy's implementation, whose goal, cancel and result services and
 feedback and status topics stay inside the hosting participant, where DDS delivers at once: the
 walk polls each action server and client through a wait set of its own, and their blocking calls
-(``send_goal``, ``get_result``) set the callback aside like ``Client.call()``.
+(``send_goal``, ``get_result``) set the callback aside like ``Client.call()``. An action between
+places goes through the call relay (hosting/calls/actions_between_places.py).
 """
 from __future__ import annotations
 
@@ -31,6 +32,9 @@ from rclpy.node import Node
 from rclpy.service import Service
 from rclpy.task import Future
 
+from composed_sim.hosting.calls.actions_between_places import (ActionServerSide, RelayedActionClient,
+                                                              action_service, action_type_name,
+                                                              split_action_service)
 from composed_sim.hosting.calls.clients import host_client
 from composed_sim.hosting.calls.served import (HostedCallError, NodeServices, ServiceEntry, completing,
                                               hand_over)
@@ -56,7 +60,8 @@ class ServiceDirectory:
         self._polled: dict[int, object] = {}      # action servers and clients: their wait sets
         self._node_names: set[str] = set()        # the names of the nodes it serves (a run-wide node's is its own)
         self._entries_of: dict[int, list[ServiceEntry]] = {}     # id(node) → the services it serves
-        self._action_servers: set[str] = set()    # the resolved names of the action servers polled here
+        self._action_servers: dict[str, tuple[Node, ActionServer, Optional[int]]] = {}   # polled here, by resolved name
+        self._sides_of: dict[int, ActionServerSide] = {}   # id(server) → its side for clients of other places
         if self._walked:
             executor.services = self
 
@@ -165,21 +170,45 @@ class ServiceDirectory:
     def is_action(waitable) -> bool:
         return isinstance(waitable, (ActionServer, ActionClient))
 
-    def host_action(self, node: Node, waitable) -> None:
+    def host_action(self, node: Node, waitable, place: Optional[int] = None) -> None:
         """With the lockstep executor: poll an action server or client in the walk; its blocking
-        calls set the caller aside. A stock executor waits on it as rclpy does."""
+        calls set the caller aside; one between places (``place``: the node's) goes through the
+        relay (hosting/calls/actions_between_places.py). A stock executor waits on it as rclpy does."""
         if id(waitable) in self._polled or not self._walked:
             return
         self._polled[id(waitable)] = None
         if isinstance(waitable, ActionClient):
-            self._host_action_client(node, waitable)
+            self._host_action_client(node, waitable, place)
         elif getattr(waitable, "hosted_name", None) is not None:
-            self._action_servers.add(node.resolve_service_name(waitable.hosted_name))
+            name = node.resolve_service_name(waitable.hosted_name)
+            self._action_servers[name] = (node, waitable, place)
+            if self.relay is not None and self.relay.relays_actions and place is not None:
+                self.relay.announce([(place, action_service(name, "goal"), action_type_name(waitable._action_type))])
         self.executor.wake()
 
-    def _host_action_client(self, node: Node, client: ActionClient) -> None:
+    def relay_action_request(self, service: str, data: bytes, origin: int, reply) -> None:
+        """A request relayed from place ``origin`` to an action server's service here (else dropped:
+        nobody serves it); ``reply`` relays the response (between_places.py)."""
+        action = split_action_service(service)
+        server = self._action_servers.get(action[0]) if action is not None else None
+        if server is None:
+            return
+        node, waitable, place = server
+        side = self._sides_of.get(id(waitable))
+        if side is None:
+            side = self._sides_of[id(waitable)] = ActionServerSide(node, waitable, action[0], self.relay, place)
+        side.request(action[1], data, origin, reply)
+        self.executor.wake()
+
+    def _host_action_client(self, node: Node, client: ActionClient, place: Optional[int]) -> None:
         directory = self
         name = getattr(client, "_action_name", "an action")
+        resolved = node.resolve_service_name(name)
+        relay = self.relay
+        if relay is not None and relay.relays_actions and place is not None and relay.leaves(place, resolved):
+            relay.clients_leave = True
+            client._client_handle = RelayedActionClient(client._client_handle, client._action_type, resolved,
+                                                        relay, place, self.executor.wake)
 
         def blocking(method_async, original, what):
             def call(*args, **kwargs):
@@ -194,7 +223,6 @@ class ServiceDirectory:
         client._cancel_goal = blocking(client._cancel_goal_async, client._cancel_goal, "cancel_goal")
         # Ready as its own process would find it once discovered: at once for a server of this
         # executor's nodes (rclpy's wait_for_server asks this).
-        resolved = node.resolve_service_name(name)
         client.server_is_ready = lambda: resolved in directory._action_servers or ActionClient.server_is_ready(client)
 
     def poll(self, entity, node: Node, executor) -> int:
@@ -202,6 +230,9 @@ class ServiceDirectory:
         requests out through DDS) and start handling it; returns how many things it started."""
         if isinstance(entity, Client):
             return self._take_responses(entity, executor)
+        side = self._sides_of.get(id(entity))
+        if side is not None:            # what the server sent to other places since its last poll
+            side.poll(executor.context)
         wait_set = self._polled.get(id(entity))
         if wait_set is None:
             counts = entity.get_num_entities()

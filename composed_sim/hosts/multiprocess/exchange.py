@@ -15,9 +15,10 @@ class RunWideLinks:
     """The run-wide topics of a multi-process run: the world's run-wide nodes, here, and a link
     into each domain whose robots use run-wide topics."""
 
-    def __init__(self, world: World, logs=None):
+    def __init__(self, world: World, logs=None, relays_actions: bool = True):
         self.relay = RunWideRelay(world.robot_names())
-        self.calls = CallRelay(world.robot_names())     # the run-wide nodes' calls with the robots
+        # The run-wide nodes' calls with the robots; ``relays_actions``: see CallRelay.
+        self.calls = CallRelay(world.robot_names(), relays_actions=relays_actions)
         self.nodes: Optional[RunWideNodes] = None
         self.links: dict[int, SimulatorLink] = {}      # per domain, once a robot there uses run-wide topics
         self._logs = logs

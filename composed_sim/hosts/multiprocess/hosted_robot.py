@@ -80,12 +80,14 @@ class HostedRobot:
             print(e, file=sys.stderr)
             return False
         self.nodes, self.answers_later, self.first_timer_tick = built.nodes, built.answers_later, built.first_timer_tick
-        if self.logs is not None:
-            clock = self.nodes[0].get_clock()
-            self.logs.clock = lambda: clock.now().nanoseconds
         self._clocks = [n.get_clock() for n in self.nodes]
+        if self.logs is not None:
+            # A line is stamped with the tick the robot's process is in: its nodes hear /clock one by
+            # one, and a callback that the first of them to hear it wakes (a rate's sleep) logs then.
+            clocks = self._clocks
+            self.logs.clock = lambda: max(clock.now().nanoseconds for clock in clocks)
         place = names.index(robot)
-        self.calls = CallRelay(names)
+        self.calls = CallRelay(names, relays_actions=self.hosting.lockstep)
         self._link(built, relay, place, world.robots[group_index])
         # Before the robot's first sensor callback of each tick: the tick's run-wide batch, and the
         # timers of its nodes that read no sensors moved to the tick's time.

@@ -90,7 +90,8 @@ class MultiProcessHost(ControllersElsewhere):
         self._tmp: Optional[Path] = None
         self._last_check = 0.0
         self._startup_interrupted = False
-        self.run_wide, self.drones = RunWideLinks(world, logs), ProcessDrones(world)   # run-wide topics, drones
+        self.run_wide = RunWideLinks(world, logs, relays_actions=self.hosting.lockstep)
+        self.drones = ProcessDrones(world)
 
     # --- start-up ---------------------------------------------------------------------------
 

@@ -64,11 +64,11 @@ KNOWN: list[dict] = [
             "callbacks have returned, so the tick waits for the watchdog and the robot is failed as hung "
             "(the default executor sets the callback aside instead, and matches)"},
     {"construct": "an action between a robot's node and a run-wide node",
-     "modes": ("workers1", "workers2", "threads", "processes"), "uses": action_between_places,
-     "why": "an action's goal, cancel and result services and its feedback and status topics stay rclpy's, "
-            "through DDS, and do not go through the rounds of calls between places: what one place sends "
-            "in tick k is taken by the other as tick k + 1 starts (rclpy: in tick k). Within a robot an "
-            "action matches"},
+     "modes": ("threads",), "uses": action_between_places,
+     "why": "rclpy's multi-threaded executor (kept for comparison) is not walked by the host: an action between "
+            "places stays rclpy's, through DDS, outside the rounds of calls between places, and what one "
+            "place sends in tick k the other takes as tick k + 1 starts (rclpy: in tick k). The default "
+            "executor relays it in the rounds, and matches"},
     {"construct": "a timer made in a callback",
      "modes": ("threads",), "uses": makes_a_timer,
      "why": "under rclpy's multi-threaded executor (kept for comparison) a timer made in a callback may miss "

@@ -97,13 +97,13 @@ class QueueingPacer(Pacer):
 
 class PaceClient(Node):
     """Sends one 3-step goal from its first timer callback; logs acceptance, each feedback and
-    the result."""
+    the result. Parameter ``action``: the server's action name (``pace``, its robot's)."""
 
     steps = 3
 
     def __init__(self):
         super().__init__("pace_client")
-        self.client = ActionClient(self, Drive, "pace")
+        self.client = ActionClient(self, Drive, self.declare_parameter("action", "pace").value)
         self.timer = self.create_timer(0.1, self.send)
 
     def send(self):
@@ -175,3 +175,29 @@ class ShuttingDownClient(PaceClient):
     def on_result(self, future):
         super().on_result(future)
         rclpy.shutdown()
+
+
+class FleetDispatcher(Node):
+    """A fleet manager: sends each robot's ``pace`` server (parameter ``robots``) a 3-step goal from
+    its first timer callback, and logs what it hears of each, robot by robot."""
+
+    def __init__(self):
+        super().__init__("dispatcher")
+        robots = self.declare_parameter("robots", ["bot0", "bot1"]).value
+        self.action_clients = {robot: ActionClient(self, Drive, f"/{robot}/pace") for robot in robots}
+        self.timer = self.create_timer(0.1, self.send)
+
+    def send(self):
+        self.timer.cancel()
+        for robot, client in self.action_clients.items():
+            client.wait_for_server()
+            self.get_logger().info(f"{robot}: sending goal")
+            client.send_goal_async(Drive.Goal(ticks=3), feedback_callback=lambda feedback, robot=robot:
+                                   self.get_logger().info(f"{robot}: feedback {feedback.feedback.ticks_left}")) \
+                .add_done_callback(lambda future, robot=robot: self.on_response(robot, future))
+
+    def on_response(self, robot, future):
+        handle = future.result()
+        self.get_logger().info(f"{robot}: goal {'accepted' if handle.accepted else 'rejected'}")
+        handle.get_result_async().add_done_callback(lambda done: self.get_logger().info(
+            f"{robot}: result {done.result().result.ticks_driven}, status {done.result().status}"))
