@@ -293,7 +293,7 @@ class ParticipantGroups(TickServing):
         for watch in self._graph_watches:
             watch.start_tick(now)
         self.drones.refresh()
-        if self._quiet_robots:
+        if self._quiet_robots or self.remote is not None:
             self._calls_at_open = dict(self.guard.calls_of)
         if self.logs is not None:
             self.logs.tick = tick

@@ -60,12 +60,23 @@ class TickServing:
         flight anywhere (hosting/calls/rounds.py); a call made after that is handed over as the
         next tick opens."""
         local = self.remote is None
+        if not local:
+            self._until_threads_reach_every_robot(deadline)
         while time.monotonic() < deadline:
             if local and (not self.calls_leave or self.exchange.all_answered):
                 return
             if (self.calls.in_flight or not local) and self._threads_quiet() is not None:
                 if not self._hand_over() and not local:
                     return
+            self.exchange.wait_for_answers(QUIET_CHECK_S)
+
+    def _until_threads_reach_every_robot(self, deadline: float) -> None:
+        """In a worker the main process ends a phase's rounds once one finds no call anywhere, and
+        the executor's threads may not have reached this block's robots' sensors at the first
+        look (a call made after it waited for the next tick: no answer before the watchdog). So
+        the first round waits until every robot here ran a callback in this tick, or all answered."""
+        robots = set(self.world.robot_names()[self.start:self.stop])
+        while time.monotonic() < deadline and not self.exchange.all_answered and not robots <= self._ran_since_open():
             self.exchange.wait_for_answers(QUIET_CHECK_S)
 
     def _take_ready_answers(self) -> None:
