@@ -16,7 +16,7 @@ from pathlib import Path
 import psutil
 import pytest
 
-from composed_sim.hosting.dds.shared_memory import (CREATING_S, remove_own_shared_memory,
+from composed_sim.hosting.dds.shared_memory import (CREATING_S, SHM_PREFIXES, remove_own_shared_memory,
                                                remove_stale_shared_memory)
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -107,7 +107,10 @@ def test_a_process_removes_its_own_files_and_leaves_the_others(shm_dir):
 
 
 def _files_of(pids: set[int]) -> set[tuple[str, int]]:
-    """(name, inode) of the /dev/shm files that the processes ``pids`` map or hold a lock on."""
+    """(name, inode) of Fast DDS's /dev/shm files that the processes ``pids`` map or hold a lock on.
+    Not the others: LTTng's ``lttng-ust-wait-*`` (the tracing library loaded with rclpy maps them in every
+    process, and they stay, whoever made them), which made this test fail whenever no other
+    process on the machine happened to map them when it looked."""
     inodes = set()
     for pid in pids:
         try:
@@ -119,7 +122,8 @@ def _files_of(pids: set[int]) -> set[tuple[str, int]]:
         fields = line.split()
         if fields[1] != "->" and int(fields[4]) in pids:
             inodes.add(int(fields[5].split(":")[2]))
-    return {(p.name, p.stat().st_ino) for p in SHM.iterdir() if _ino(p) in inodes}
+    return {(p.name, p.stat().st_ino) for p in SHM.iterdir()
+            if p.name.removeprefix("sem.").startswith(SHM_PREFIXES) and _ino(p) in inodes}
 
 
 def _ino(path: Path):
@@ -157,8 +161,24 @@ def _run_until(tmp_path: Path, name: str, ticks: int, *extra: str) -> tuple[subp
 
 # Both runs in a domain of their own: a killed run's domain is free again at once, and another
 # test's run in a parallel test run would take it (the first free from 0 up) and with it the
-# domain's port files, live in that run's hands while the next run here sweeps.
+# domain's port files.
 OWN_DOMAIN = ("--domain-id", "87")
+
+
+def _holders(files: set[tuple[str, int]]) -> str:
+    """Which live processes map or lock each of ``files``: for a failure's message."""
+    out = []
+    for name, ino in sorted(files):
+        pids = [pid for pid in (int(p) for p in os.listdir("/proc") if p.isdigit()) if (name, ino) in _files_of({pid})]
+        out.append(f"{name}: " + (", ".join(f"{pid} {_cmdline(pid)}" for pid in pids) or "nobody"))
+    return "\n".join(out)
+
+
+def _cmdline(pid: int) -> str:
+    try:
+        return Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ").decode()[:120]
+    except OSError:
+        return "?"
 
 
 def test_a_killed_run_leaves_nothing_after_the_next_and_the_next_nothing_of_its_own(tmp_path):
@@ -175,7 +195,8 @@ def test_a_killed_run_leaves_nothing_after_the_next_and_the_next_nothing_of_its_
     swept = "shared-memory file" in err and "of dead processes from /dev/shm" in err
     # In a parallel test run another test's run may start first and sweep them itself (every run
     # sweeps the files of dead processes): then they are gone before this one looks.
-    assert swept or all(_ino(SHM / n) != i for n, i in left), err
+    still = {(n, i) for n, i in left if _ino(SHM / n) == i}
+    assert swept or not still, f"{err}\nleft, with their holders:\n{_holders(still)}"
     in_use = _in_use()            # by other processes on this machine: not only the runs'
     remaining = sorted(n for n, i in killed_files | after_files if _ino(SHM / n) == i and i not in in_use)
-    assert remaining == [], remaining
+    assert remaining == [], _holders({(n, i) for n, i in killed_files | after_files if n in remaining})
