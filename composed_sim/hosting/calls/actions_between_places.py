@@ -23,10 +23,10 @@ import itertools
 from collections import deque
 from typing import Callable, Optional
 
-from rclpy.waitable import NumberOfEntities
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.qos import QoSProfile, qos_profile_action_status_default, qos_profile_services_default
 from rclpy.serialization import deserialize_message, serialize_message
+from rclpy.waitable import NumberOfEntities
 
 # An action's services, by the kind of request (rclpy's names for their takes and sends).
 ACTION_SERVICES = {"goal": "send_goal", "cancel": "cancel_goal", "result": "get_result"}
@@ -56,6 +56,10 @@ def _service_types(action_type) -> dict[str, object]:
     return {"goal": impl.SendGoalService, "cancel": impl.CancelGoalService, "result": impl.GetResultService}
 
 
+def _topic_types(action_type) -> dict[str, object]:
+    return {"feedback": action_type.Impl.FeedbackMessage, "status": action_type.Impl.GoalStatusMessage}
+
+
 class RelayedActionClient:
     """Stands for an ``ActionClient``'s rcl handle, whose server is in another place of the run:
     requests go through ``relay`` (a CallRelay) as calls of place ``origin``; what the relay delivers
@@ -64,7 +68,7 @@ class RelayedActionClient:
     def __init__(self, handle, action_type, action: str, relay, origin: int, wake: Callable[[], None]):
         self._handle, self._action, self._relay, self._origin, self._wake = handle, action, relay, origin, wake
         self._services = _service_types(action_type)
-        self._messages = {"feedback": action_type.Impl.FeedbackMessage, "status": action_type.Impl.GoalStatusMessage}
+        self._messages = _topic_types(action_type)
         self._sequence = itertools.count(1)
         self._ready: dict[str, deque] = {kind: deque() for kind in READY_ORDER}
         relay.listen(origin, action, self._heard)
@@ -112,7 +116,7 @@ class RelayedActionClient:
     def is_ready(self, wait_set) -> tuple[bool, ...]:
         through_dds = self._handle.is_ready(wait_set)
         for kind, ready in zip(READY_ORDER[:2], through_dds):
-            if ready:           # the same feedback or status, heard a tick late: the relay's counts
+            if ready:           # a copy of what the relay brought: dropped
                 getattr(self._handle, f"take_{kind}")(self._messages[kind])
         return tuple(bool(self._ready[kind]) for kind in READY_ORDER)
 
@@ -144,8 +148,7 @@ class ActionServerSide:
     def __init__(self, node, server, action: str, relay, place: int):
         self._action, self._relay, self._place = action, relay, place
         self._services = _service_types(server._action_type)
-        self._messages = {"feedback": server._action_type.Impl.FeedbackMessage,
-                          "status": server._action_type.Impl.GoalStatusMessage}
+        self._messages = _topic_types(server._action_type)
         with node.handle:
             self._handle = _rclpy.ActionClient(
                 node.handle, server._action_type, action,
