@@ -374,7 +374,7 @@ def test_a_fleet_nodes_goals_to_its_robots_are_done_within_the_tick(run_in, mode
     executes at once, without pausing. In processes of their own every step of it (acceptance,
     three feedbacks, the result) happens before the next /clock tick: the same tick. (Through DDS
     outside the rounds of calls between places it took a tick for each message: the goal's result
-    arrived at tick 5 instead of 1.)"""
+    arrived at tick 3 instead of 1.)"""
     run = run_in(world_of("driving:Drive", pacer("none"), run_wide=("actions:FleetDispatcher",), ticks=8), mode)
     assert run.violations == []
     for robot in ("bot0", "bot1"):
