@@ -51,6 +51,12 @@ def action_type_name(action_type: type) -> str:
     return f"{action_type.__module__.split('.')[0]}/action/{action_type.__name__}"
 
 
+def action_wait_set(counts: NumberOfEntities, context):
+    """An empty wait set sized for an action endpoint of ``counts`` (its entities), in ``context``."""
+    return _rclpy.WaitSet(counts.num_subscriptions, counts.num_guard_conditions, counts.num_timers,
+                          counts.num_clients, counts.num_services, counts.num_events, context.handle)
+
+
 def _service_types(action_type) -> dict[str, object]:
     impl = action_type.Impl
     return {"goal": impl.SendGoalService, "cancel": impl.CancelGoalService, "result": impl.GetResultService}
@@ -176,9 +182,7 @@ class ActionServerSide:
         if not self._waiting and not self._goal_places:
             return
         if self._wait_set is None:
-            counts = NumberOfEntities(*self._handle.get_num_entities())
-            self._wait_set = _rclpy.WaitSet(counts.num_subscriptions, counts.num_guard_conditions, counts.num_timers,
-                                            counts.num_clients, counts.num_services, counts.num_events, context.handle)
+            self._wait_set = action_wait_set(NumberOfEntities(*self._handle.get_num_entities()), context)
         wait_set = self._wait_set
         with self._handle:
             wait_set.clear_entities()

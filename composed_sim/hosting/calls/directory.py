@@ -27,14 +27,13 @@ from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.client import Client
 from rclpy.exceptions import InvalidHandle
 from rclpy.executors import MultiThreadedExecutor
-from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.service import Service
 from rclpy.task import Future
 
 from composed_sim.hosting.calls.actions_between_places import (ActionServerSide, RelayedActionClient,
                                                               action_service, action_type_name,
-                                                              split_action_service)
+                                                              action_wait_set, split_action_service)
 from composed_sim.hosting.calls.clients import host_client
 from composed_sim.hosting.calls.served import (HostedCallError, NodeServices, ServiceEntry, completing,
                                               hand_over)
@@ -235,10 +234,7 @@ class ServiceDirectory:
             side.poll(executor.context)
         wait_set = self._polled.get(id(entity))
         if wait_set is None:
-            counts = entity.get_num_entities()
-            wait_set = self._polled[id(entity)] = _rclpy.WaitSet(
-                counts.num_subscriptions, counts.num_guard_conditions, counts.num_timers, counts.num_clients,
-                counts.num_services, counts.num_events, executor.context.handle)
+            wait_set = self._polled[id(entity)] = action_wait_set(entity.get_num_entities(), executor.context)
         try:
             wait_set.clear_entities()
             entity.add_to_wait_set(wait_set)

@@ -74,9 +74,10 @@ class TickServing:
         """In a worker the main process ends a phase's rounds once one finds no call anywhere, and
         the executor's threads may not have reached this block's robots' sensors at the first
         look (a call made after it waited for the next tick: no answer before the watchdog). So
-        the first round waits until every robot here ran a callback in this tick, or all answered."""
-        robots = set(self.world.robot_names()[self.start:self.stop])
-        while time.monotonic() < deadline and not self.exchange.all_answered and not robots <= self._ran_since_open():
+        the first round waits until every robot here ran a callback in this tick, or all answered
+        (``_ran_since_open`` names robots of this block only: counting them is enough)."""
+        robots = self.stop - self.start
+        while time.monotonic() < deadline and not self.exchange.all_answered and len(self._ran_since_open()) < robots:
             self.exchange.wait_for_answers(QUIET_CHECK_S)
 
     def _take_ready_answers(self) -> None:
