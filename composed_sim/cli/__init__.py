@@ -9,7 +9,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from composed_sim.cli.distributed import cmd_host, cmd_join
+from composed_sim.cli.distributed import cmd_credentials, cmd_host, cmd_join
 from composed_sim.cli.files import cmd_bag_repair, cmd_export, cmd_plugins, cmd_render, cmd_replay, cmd_worlds
 from composed_sim.cli.interfaces import cmd_interfaces
 from composed_sim.cli.report import JsonStdout
@@ -44,6 +44,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_run(sub)
     _add_host(sub)
     _add_join(sub)
+    _add_credentials(sub)
     _add_file_commands(sub)
     interfaces = sub.add_parser("interfaces", help="build ROS 2 interface packages (.msg, .srv) into Python messages",
                                 description="Build a user's interface packages with the pip-installed rosidl "
@@ -164,6 +165,12 @@ def _add_run_machine_options(run: argparse.ArgumentParser) -> None:
     run.add_argument("--listen", metavar="HOST:PORT",
                      help="with --machines: the address the machines reach this simulator at (default: every "
                           "interface, a free port)")
+    run.add_argument("--credentials", type=Path, metavar="FILE",
+                     help="with --machines: the run's TLS credentials, made beforehand with `composed-sim credentials "
+                          "make` (default: new ones for this run, in OUT/credentials.pem)")
+    run.add_argument("--insecure", action="store_true",
+                     help="with --machines: plain tcp://, no TLS: whoever reaches the port can run code in the "
+                          "simulator (only on a network of your own)")
     run.add_argument("--external-controllers", action="store_true",
                      help="run the simulator only; the controllers are hosted by `composed-sim host` shards "
                           "(on this or other machines), waited for before tick 0 (docs/distributed.md)")
@@ -175,13 +182,28 @@ def _add_join(sub) -> None:
                           description="Join the run of a simulator started with `run --machines`: this machine "
                                       "hosts the block of robots the simulator gives it, in worker processes of "
                                       "its own; ends when the run ends, or on Ctrl-C/SIGTERM (docs/distributed.md).")
-    join.add_argument("address", help="the simulator's address, as it printed it (tcp://HOST:PORT)")
+    join.add_argument("address", help="the simulator's address, as it printed it (tls://HOST:PORT)")
+    join.add_argument("--credentials", type=Path, metavar="FILE",
+                      help="the run's credentials file, as the simulator printed it (needed for tls://)")
+    join.add_argument("--insecure", action="store_true",
+                      help="join a simulator started with --insecure over plain tcp://")
     join.add_argument("--run", metavar="ID", help="the run's id, as the simulator printed it: a machine started "
                                                   "with another run's command is refused")
     join.add_argument("--workers", type=_workers, default="auto", metavar="K|auto",
                       help="worker processes on this machine (default: %(default)s, from its robots and cores)")
     join.add_argument("--timeout", type=_positive_float, default=120.0, metavar="SECONDS",
                       help="how long to look for the simulator (default: %(default)s)")
+
+
+def _add_credentials(sub) -> None:
+    credentials = sub.add_parser("credentials", help="make TLS credentials for runs over machines",
+                                 description="Make the credentials of a run over machines beforehand (a batch job: "
+                                             "the simulator and every machine read one file over the cluster's "
+                                             "file system): a CA of their own and a certificate it signed, in "
+                                             "DIR/credentials.pem, readable by you only (docs/distributed.md).")
+    action = credentials.add_subparsers(dest="credentials_command", required=True, metavar="ACTION")
+    make = action.add_parser("make", help="write DIR/credentials.pem")
+    make.add_argument("dir", type=Path, metavar="DIR", help="the folder to write it into (made if missing)")
 
 
 def _add_host(sub) -> None:
@@ -274,6 +296,7 @@ def _error_prefix(command: str) -> str:
 
 COMMANDS = {"plugins": lambda args: cmd_plugins(), "render": cmd_render, "replay": cmd_replay,
             "bag": cmd_bag_repair, "export": cmd_export, "worlds": lambda args: cmd_worlds(), "host": cmd_host, "join": cmd_join,
+            "credentials": cmd_credentials,
             "interfaces": cmd_interfaces}
 
 

@@ -10,7 +10,7 @@ from pathlib import Path
 from typing import Optional, Union
 
 from composed_sim.command_line import UserError
-from composed_sim.hosts.settings import DEFAULT_LISTEN, DiscoverySettings, HostSettings, environment_domain
+from composed_sim.hosts.settings import DEFAULT_LISTEN, DiscoverySettings, HostSettings, LinkSecurity, environment_domain
 
 
 @dataclass(frozen=True)
@@ -144,8 +144,11 @@ def run_settings(args: argparse.Namespace, *, exit_when_done: bool) -> RunSettin
     if machines is not None and (args.external_controllers or args.mode != "composed"):
         raise UserError("--machines: the robots' nodes are hosted on those machines' worker processes, so "
                         "--external-controllers and --mode multi-process do not apply")
-    if args.listen is not None and machines is None:
-        raise UserError("--listen: only for a run over machines (with --machines)")
+    for flag, value in (("--listen", args.listen), ("--credentials", args.credentials), ("--insecure", args.insecure)):
+        if value and machines is None:
+            raise UserError(f"{flag}: only for a run over machines (with --machines)")
+    if args.insecure and args.credentials is not None:
+        raise UserError("--credentials: not with --insecure (plain tcp:// uses none)")
     if not args.external_controllers:
         given_flags = [flag for flag, value in (("--discovery-range", discovery.range),
                                                 ("--static-peers", discovery.static_peers),
@@ -161,7 +164,9 @@ def run_settings(args: argparse.Namespace, *, exit_when_done: bool) -> RunSettin
                              domain_given=given, robots_per_participant=args.robots_per_participant,
                              robots_per_domain=args.robots_per_domain,
                              discovery=discovery if args.external_controllers else None, machines=machines,
-                             listen=args.listen or DEFAULT_LISTEN, join_timeout_s=discovery.timeout_s),
+                             listen=args.listen or DEFAULT_LISTEN, join_timeout_s=discovery.timeout_s,
+                             link=LinkSecurity(None if args.credentials is None else str(args.credentials),
+                                               str(args.out), args.insecure)),
         lockstep=LockstepOverrides(args.watchdog, args.fallback),
         outputs=OutputSettings(args.out, args.record, tuple(args.record_topics), not args.no_picture, args.json,
                                args.log_level),

@@ -27,7 +27,8 @@ def make_host(settings: HostSettings, world: World, logs: Optional[NodeLogs] = N
                                        discovery_timeout_s=settings.discovery.timeout_s, discovery=describe())
     if settings.machines is not None:
         from composed_sim.hosts.machines.remote_host import RemoteWorkerHost
-        return RemoteWorkerHost(world, machines=settings.machines, listen=settings.listen, executor=settings.executor,
+        return RemoteWorkerHost(world, machines=settings.machines, listen=settings.listen, link=settings.link,
+                                executor=settings.executor,
                                 domain_id=settings.domain_id, logs=logs, join_timeout_s=settings.join_timeout_s)
     if settings.mode == "multi-process":
         from composed_sim.hosts.multiprocess.multiprocess_host import MultiProcessHost

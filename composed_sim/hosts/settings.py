@@ -26,6 +26,19 @@ class DiscoverySettings:
 
 
 @dataclass(frozen=True)
+class LinkSecurity:
+    """How a run over machines guards its port (hosts/machines/credentials.py): mutual TLS with
+    credentials of its own (written to ``fresh_into``) or with a file made beforehand; plain
+    tcp:// only when ``insecure``."""
+    credentials: Optional[str] = None     # a file made beforehand (composed-sim credentials make)
+    fresh_into: Optional[str] = None      # else where the run writes its own: OUT/credentials.pem
+    insecure: bool = False                # --insecure: no TLS, anyone who reaches the port is in
+
+    def argv(self) -> list[str]:
+        return ["--insecure"] if self.insecure else ["--credentials", self.credentials] if self.credentials else []
+
+
+@dataclass(frozen=True)
 class HostSettings:
     """Which host runs the controllers and how (``hosts/make.py`` builds it)."""
     mode: str = DEFAULT_MODE
@@ -38,6 +51,7 @@ class HostSettings:
     discovery: Optional[DiscoverySettings] = None    # a distributed run: the controllers are in shards
     machines: Union[int, tuple[str, ...], None] = None  # remote workers: how many machines, or which
     listen: str = DEFAULT_LISTEN                # remote workers: the simulator's address for the machines
+    link: LinkSecurity = LinkSecurity()         # remote workers: mutual TLS, or --insecure
     join_timeout_s: float = DEFAULT_DISCOVERY_TIMEOUT_S
 
     def argv(self) -> list[str]:
@@ -47,7 +61,7 @@ class HostSettings:
             args += ["--domain-id", str(self.domain_id)]
         if self.machines is not None:
             machines = self.machines if isinstance(self.machines, int) else ",".join(self.machines)
-            args += ["--machines", str(machines), "--listen", self.listen]
+            args += ["--machines", str(machines), "--listen", self.listen, *self.link.argv()]
         elif self.mode == "composed":
             args += ["--workers", str(self.workers)]
             if self.robots_per_participant != ROBOTS_PER_PARTICIPANT:

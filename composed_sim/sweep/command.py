@@ -26,6 +26,7 @@ class SweepSettings:
     ticks: Optional[int]
     jobs: Optional[int]
     cluster: Optional[str]
+    cluster_security: Optional[str]
     out: Path
     no_plots: bool
 
@@ -41,9 +42,30 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--jobs", type=number_arg(int, minimum=1), default=None,
                         help="runs at once on this machine (default: the usable cores)")
     parser.add_argument("--cluster", metavar="ADDRESS",
-                        help="run on a Dask distributed cluster, e.g. tcp://scheduler:8786 (--out on a shared file system)")
+                        help="run on a Dask distributed cluster, e.g. tls://scheduler:8786 (--out on a shared file system)")
+    parser.add_argument("--cluster-security", metavar="CA,CERT,KEY|FILE",
+                        help="with --cluster: the cluster's TLS files (its CA, this client's certificate and key), "
+                             "or a `composed-sim credentials make` file (default: Dask's own configuration)")
     parser.add_argument("--out", type=Path, default=Path("out/sweep"), help="output directory (default: %(default)s)")
     parser.add_argument("--no-plots", action="store_true", help="skip the plots")
+
+
+def cluster_security(given: Optional[str]):
+    """Dask's ``Security`` for --cluster-security (CA,CERT,KEY files, or a credentials file); None
+    where not given, for Dask's own configuration."""
+    if not given:
+        return None
+    from composed_sim.hosting import HostError
+    from composed_sim.hosts.machines.credentials import load, tls_files_security
+    paths = [Path(p) for p in given.split(",")]
+    try:
+        if len(paths) == 1:
+            return load(paths[0]).security()
+        if len(paths) == 3:
+            return tls_files_security(*paths)
+    except HostError as e:
+        raise UserError(f"--cluster-security {e}") from None
+    raise UserError(f"--cluster-security {given}: expected CA,CERT,KEY (three files) or one credentials file")
 
 
 def grid_from(args) -> Grid:
@@ -97,9 +119,20 @@ def run(args: SweepSettings) -> int:
         raise UserError(str(e)) from None
     check_writable(args.out)
     swept = list(specs[0].values) if specs else []
+    if args.cluster_security and not args.cluster:
+        raise UserError("--cluster-security: only with --cluster")
     if args.cluster:
+        security = cluster_security(args.cluster_security)
+        if security is None and args.cluster.startswith("tls://"):
+            from distributed.security import Security
+            if Security().tls_ca_file is None:          # Dask's own configuration has none either
+                raise UserError(f"--cluster {args.cluster}: a TLS cluster needs its files: --cluster-security "
+                                f"CA,CERT,KEY, or Dask's configuration (distributed.comm.tls, docs/experiments.md)")
+        if args.cluster.startswith("tcp://"):
+            print(f"composed-sim sweep: {args.cluster}: plain tcp://, neither authenticated nor encrypted: the runs "
+                  f"go to whoever answers there (a TLS cluster is tls://, docs/experiments.md)", file=sys.stderr)
         try:
-            rows_as_done = dask_cluster(specs, str(args.out), args.cluster)
+            rows_as_done = dask_cluster(specs, str(args.out), args.cluster, security)
         except (ValueError, OSError) as e:      # a malformed or unreachable address
             raise UserError(f"--cluster {args.cluster}: {e}") from None
         where = f"Dask cluster {args.cluster}"

@@ -96,12 +96,15 @@ def _as_done(futures: Iterable[Future]) -> Iterator[dict]:
         yield future.result()
 
 
-def dask_cluster(specs: list[RunSpec], out_dir: str, address: str) -> Iterator[dict]:
-    """Rows as runs end on a Dask distributed cluster (``tcp://scheduler:8786``, or a Client's
+def dask_cluster(specs: list[RunSpec], out_dir: str, address: str, security=None) -> Iterator[dict]:
+    """Rows as runs end on a Dask distributed cluster (``tls://scheduler:8786``, or a Client's
     cluster object): every worker needs composed_sim installed and ``out_dir`` on a shared file
-    system. Each task is one run, retried by Dask if its worker dies."""
+    system. Each task is one run, retried by Dask if its worker dies. ``security``: Dask's
+    ``Security`` of the cluster's TLS; None takes Dask's own configuration (its config file's
+    ``distributed.comm.tls``), as any Dask client does."""
     from distributed import Client
-    client = Client(address)   # now, not at the first row: a bad address is an error before any run
+    # now, not at the first row: a bad address is an error before any run
+    client = Client(address) if security is None else Client(address, security=security)
     return _cluster_rows(client, specs, out_dir)
 
 

@@ -72,6 +72,45 @@ def test_a_dask_cluster_gives_the_local_pool_results(swept, tmp_path):
             assert row[column] == float(local[name][column])
 
 
+def test_a_sweep_on_a_tls_cluster_takes_its_files_and_a_client_without_them_is_refused(swept, tmp_path, capsys):
+    distributed = pytest.importorskip("distributed")
+    from composed_sim.hosts.machines import credentials
+    files = credentials.make(tmp_path / "tls" / credentials.FILE_NAME)
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None,
+                                  protocol="tls", security=files.security()) as cluster:
+        address = cluster.scheduler_address
+        assert address.startswith("tls://")
+        out = tmp_path / "on_tls"
+        assert main(["sweep", str(FLOCKING), *GRID, "--cluster", address, "--cluster-security", str(files.path),
+                     "--out", str(out)]) == 0
+        assert main(["sweep", str(FLOCKING), *GRID, "--cluster", address, "--out", str(tmp_path / "refused")]) == 2
+        assert "needs its files" in capsys.readouterr().err
+        other = credentials.make(tmp_path / "other" / credentials.FILE_NAME)
+        assert main(["sweep", str(FLOCKING), *GRID, "--cluster", address, "--cluster-security", str(other.path),
+                     "--out", str(tmp_path / "impostor")]) == 2
+    rows, local = _rows(out / "runs.csv"), _rows(swept / "runs.csv")
+    assert sorted(rows) == sorted(local)
+    for name, row in rows.items():
+        assert row["status"] == "ok"
+        for column in FINAL:
+            assert float(row[column]) == float(local[name][column])
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert err.startswith("composed-sim sweep: error: --cluster tls://"), err
+
+
+@pytest.mark.parametrize("security, message", [
+    ("a.pem,b.pem", "expected CA,CERT,KEY (three files) or one credentials file"),
+    ("ca.pem,c.pem,k.pem", "--cluster-security ca.pem: no such file (the CA)"),
+    ("missing.pem", "--cluster-security missing.pem: No such file"),
+])
+def test_bad_cluster_security_is_one_line(security, message, tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert main(["sweep", str(FLOCKING), *GRID, "--cluster", "tls://127.0.0.1:1", "--cluster-security", security,
+                 "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert message in err and "\n" not in err, err
+
+
 def test_a_failed_run_is_a_row_and_the_sweep_goes_on(tmp_path, monkeypatch):
     name = install_plugin(tmp_path, monkeypatch, "raising_loop", "RaisingLoopFunctions", ("raising",),
                           group="composed_sim.loop_functions")

@@ -9,12 +9,17 @@ result is the machine's next message back (``ActorConnection``). A machine that 
 process killed: its TCP connection closes; silent: no heartbeat for the watchdog) is reported by
 the scheduler at once, and its connection reads as closed, as a dead worker's socket does.
 
+Every link is mutual TLS with the run's credentials (credentials.py) unless the run was started
+with ``--insecure``: a peer without them is refused at the handshake, and said so in one line
+(``JoinLog``), as is every machine that joins.
+
 Dask is the optional ``cluster`` dependency: imported only here, when a run has machines.
 """
 from __future__ import annotations
 
 import asyncio
 import json
+import logging
 import os
 import socket
 import sys
@@ -24,6 +29,7 @@ from dataclasses import dataclass
 from typing import Callable, Optional
 
 from composed_sim.hosting import HostError
+from composed_sim.hosts.machines.credentials import Credentials
 
 RUN_KEY = "composed_sim_run"           # the scheduler's metadata: which run it serves
 # The messages that get no answer: their calls are waited for before the next one goes, so that
@@ -58,24 +64,31 @@ class Machine:
 class RunScheduler:
     """The run's Dask scheduler, in this process (a thread of Dask's own), and a client of it."""
 
-    def __init__(self, listen: str, run_id: str, silent_after_s: float):
+    def __init__(self, listen: str, run_id: str, silent_after_s: float, credentials: Optional[Credentials],
+                 say: Callable[[str], None]):
         """``silent_after_s``: a machine without heartbeats for this long (at least Dask's floor,
-        10 heartbeats: 5 s) is lost; checked every as many seconds."""
+        10 heartbeats: 5 s) is lost; checked every as many seconds. ``credentials``: None for plain
+        tcp:// (--insecure). ``say(line)``: where each join and each refused peer is told."""
         needs_dask()
         from distributed import Client, LocalCluster
         from distributed.diagnostics.plugin import SchedulerPlugin
 
         host, _, port = listen.rpartition(":") if ":" in listen else (listen, "", "0")
         self.run_id = run_id
-        self.cluster = LocalCluster(n_workers=0, processes=False, protocol="tcp", host=host or None,
-                                    scheduler_port=int(port or 0), dashboard_address=None,
-                                    scheduler_kwargs={"worker_ttl": silent_after_s})
-        self.client = Client(self.cluster)
+        security = credentials.security() if credentials is not None else None
+        self.join_log = JoinLog(say)
+        self.cluster = LocalCluster(n_workers=0, processes=False, protocol="tcp" if security is None else "tls",
+                                    host=host or None, scheduler_port=int(port or 0), dashboard_address=None,
+                                    security=security, scheduler_kwargs={"worker_ttl": silent_after_s})
+        self.client = Client(self.cluster, security=security)
         self.client.set_metadata(RUN_KEY, run_id)
         self.address = self.cluster.scheduler_address
         self.links: dict[str, ActorConnection] = {}      # Dask worker address → its agent's connection
 
         class Departures(SchedulerPlugin):
+            def add_worker(plugin, scheduler, worker):      # the scheduler's thread
+                self.join_log.joined(worker, scheduler.workers[worker].name)
+
             def remove_worker(plugin, scheduler, worker, *, stimulus_id="", **kwargs):   # the scheduler's thread
                 link = self.links.get(worker)
                 if link is not None:
@@ -131,6 +144,43 @@ class RunScheduler:
             link.lost("the run ended")
         self.client.close(timeout=5)
         self.cluster.close(timeout=5)
+        self.join_log.close()
+
+
+class JoinLog(logging.Filter):
+    """One line for each peer that joins the run and for each refused at the TLS handshake (its
+    address), instead of Dask's own warning, for as long as the run's scheduler is up."""
+    LOGGER = "distributed.comm.tcp"        # where Dask's listener says a handshake failed
+
+    def __init__(self, say: Callable[[str], None]):
+        super().__init__()
+        self.say = say
+        logging.getLogger(self.LOGGER).addFilter(self)
+
+    def joined(self, address: str, name) -> None:
+        try:
+            about = json.loads(name)
+        except (TypeError, ValueError):
+            about = None
+        if isinstance(about, dict):
+            self.say(f"composed-sim: machine joined from {address} (host {about.get('host', '?')}, "
+                     f"pid {about.get('pid', '?')})")
+        else:
+            self.say(f"composed-sim: a Dask worker not started by `composed-sim join` connected from {address} "
+                     f"(name {name!r}); it is given no robots")
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        if "TLS handshake failed" not in str(record.msg):
+            return True
+        # Dask's arguments: the listener's address, the peer's, the error.
+        args = record.args if isinstance(record.args, tuple) and len(record.args) == 3 else ("?", "?", "?")
+        remote, reason = args[1], args[2]
+        self.say(f"composed-sim: refused a connection from {remote}: no credentials of this run "
+                 f"(TLS handshake failed: {reason})")
+        return False
+
+    def close(self) -> None:
+        logging.getLogger(self.LOGGER).removeFilter(self)
 
 
 class ActorConnection:
@@ -208,21 +258,26 @@ class ActorConnection:
         self._ready_r = self._ready_w = -1
 
 
-def join(address: str, run_id: Optional[str], workers, timeout_s: float, should_stop: Callable[[], bool]) -> str:
+def join(address: str, run_id: Optional[str], workers, timeout_s: float, should_stop: Callable[[], bool],
+         credentials: Optional[Credentials]) -> str:
     """This machine serves the run whose scheduler is at ``address`` (and whose id is ``run_id``,
     where given): a Dask worker of one thread here, until the run ends ("run ended") or
-    ``should_stop()`` ("stopped"). A HostError when the scheduler is not found within ``timeout_s``
-    or serves another run."""
+    ``should_stop()`` ("stopped"). ``credentials``: the run's, for a tls:// address; None for a
+    tcp:// one (--insecure). A HostError when the scheduler is not found within ``timeout_s``,
+    does not hold the run's credentials, or serves another run."""
     needs_dask()
-    import logging
     from distributed import Client, Worker
     logging.getLogger("distributed").setLevel(logging.WARNING)     # its start and stop lines are not news
+    logging.getLogger(JoinLog.LOGGER).setLevel(logging.CRITICAL)    # a refused handshake is our error below
 
+    security = credentials.security() if credentials is not None else None
     try:
-        client = Client(address, timeout=timeout_s)
+        client = Client(address, timeout=timeout_s, security=security)
     except (OSError, TimeoutError) as e:
-        raise HostError(f"no simulator at {address} within {timeout_s:g} s ({type(e).__name__}): start "
-                        f"`composed-sim run … --machines …` first, or check the address and the network") from None
+        check = "the address, the credentials file (the run's own) and the network" if credentials is not None \
+            else "the address and the network"
+        raise HostError(f"no simulator of this run at {address} within {timeout_s:g} s ({type(e).__name__}): start "
+                        f"`composed-sim run … --machines …` first, or check {check}") from None
     serves = client.get_metadata(RUN_KEY, None)
     client.close()
     if serves is None or (run_id is not None and serves != run_id):
@@ -231,7 +286,7 @@ def join(address: str, run_id: Optional[str], workers, timeout_s: float, should_
     name = json.dumps({"run": serves, "host": socket.gethostname(), "pid": os.getpid(), "workers": workers})
 
     async def serve() -> str:
-        async with Worker(address, nthreads=1, name=name, dashboard=False) as worker:
+        async with Worker(address, nthreads=1, name=name, dashboard=False, security=security) as worker:
             while worker.status.name in ("init", "running", "paused"):
                 if should_stop():
                     return "stopped"

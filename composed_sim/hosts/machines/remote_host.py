@@ -16,9 +16,11 @@ silent. A machine that does not join within the timeout is named, with the comma
 """
 from __future__ import annotations
 
+import getpass
 import os
 import secrets
 import sys
+import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -32,7 +34,9 @@ from composed_sim.hosting import DEFAULT_EXECUTOR, HostError, run_prefix
 from composed_sim.hosts.base import SetupInfo, say_answers_later
 from composed_sim.hosts.processes import InterruptWatch
 from composed_sim.hosts.machines.agent import ALL_ROBOTS, BLOCK_ROWS, MachineAgent
+from composed_sim.hosts.machines import credentials as run_credentials
 from composed_sim.hosts.machines.cluster import ActorConnection, Machine, RunScheduler
+from composed_sim.hosts.settings import LinkSecurity
 from composed_sim.hosts.workers.exchange import ANSWER_GRACE_S
 from composed_sim.hosts.workers.worker_host import Worker, WorkerHost, plan_blocks
 from composed_sim.hosts.workers.messages import MachineSetup
@@ -110,23 +114,47 @@ class RemoteWorkerHost(WorkerHost):
     machines (a number, or their addresses or host names in block order)."""
 
     def __init__(self, world: World, *, machines: Union[int, list[str]], listen: str = "0.0.0.0:0",
-                 executor: str = DEFAULT_EXECUTOR, domain_id: int = 0, logs=None,
-                 join_timeout_s: float = DEFAULT_JOIN_TIMEOUT_S, announce: Optional[Callable[[str], None]] = None):
-        """``announce(line)``: where the command for the other machines is said (the console)."""
+                 link: LinkSecurity = LinkSecurity(), executor: str = DEFAULT_EXECUTOR, domain_id: int = 0,
+                 logs=None, join_timeout_s: float = DEFAULT_JOIN_TIMEOUT_S,
+                 announce: Optional[Callable[[str], None]] = None):
+        """``link``: mutual TLS (the default: credentials of the run's own, written into
+        ``link.fresh_into`` or a temporary folder) or plain tcp://. ``announce(line)``: where the
+        command for the other machines, each join and each refused peer are said (the console)."""
         count = machines if isinstance(machines, int) else len(machines)
         if count > len(world.robot_names()):
             raise HostError(f"--machines {count}: a machine hosts at least one of the {len(world.robot_names())} "
                             f"robots")
         super().__init__(world, workers=count, executor=executor, domain_id=domain_id, logs=logs)
         self.machines = machines
-        self.listen, self.join_timeout_s = listen, join_timeout_s
+        self.listen, self.link, self.join_timeout_s = listen, link, join_timeout_s
         self.announce = announce or (lambda line: print(line, file=sys.stderr, flush=True))
         self.run_id = secrets.token_hex(4)
         self.scheduler: Optional[RunScheduler] = None
+        self.credentials: Optional[run_credentials.Credentials] = None
+        self._credentials_dir: Optional[tempfile.TemporaryDirectory] = None
 
     @property
     def join_command(self) -> str:
-        return f"composed-sim join {self.scheduler.address} --run {self.run_id}"
+        guard = "--insecure" if self.credentials is None else f"--credentials {self.credentials.path}"
+        return f"composed-sim join {self.scheduler.address} --run {self.run_id} {guard}"
+
+    def _run_credentials(self) -> Optional[run_credentials.Credentials]:
+        """The run's credentials: the file given, or new ones; None over plain tcp://."""
+        if self.link.insecure:
+            self.announce(f"composed-sim: --insecure: the run listens on plain tcp:// at {self.listen}, neither "
+                          f"authenticated nor encrypted: whoever reaches that port can run code in this process "
+                          f"as {getpass.getuser()}, and read or change the run")
+            return None
+        if self.link.credentials is not None:
+            try:
+                return run_credentials.load(Path(self.link.credentials))
+            except HostError as e:
+                raise HostError(f"--credentials {e}") from None
+        folder = self.link.fresh_into
+        if folder is None:      # a host built by a program, not the command line: gone with the run
+            self._credentials_dir = tempfile.TemporaryDirectory(prefix="composed_sim-credentials-")
+            folder = self._credentials_dir.name
+        return run_credentials.make(Path(folder) / run_credentials.FILE_NAME)
 
     def __enter__(self) -> "RemoteWorkerHost":
         t0 = time.perf_counter()
@@ -135,7 +163,9 @@ class RemoteWorkerHost(WorkerHost):
                                       share_tree=False)       # the machines get the state without it
             self.sim = Simulation(self.world)
             # Half the watchdog, checked every half: a silent machine is lost within one watchdog.
-            self.scheduler = RunScheduler(self.listen, self.run_id, self.world.lockstep.watchdog_s / 2)
+            self.credentials = self._run_credentials()
+            self.scheduler = RunScheduler(self.listen, self.run_id, self.world.lockstep.watchdog_s / 2,
+                                          self.credentials, self.announce)
             self.announce(f"composed-sim: waiting for {len(self.blocks)} machines; on each: {self.join_command}")
             with InterruptWatch() as interrupts:
                 joined = self.scheduler.wait_for(self.machines, self.join_timeout_s, lambda: interrupts.requested,
@@ -180,3 +210,6 @@ class RemoteWorkerHost(WorkerHost):
         if self.scheduler is not None:
             self.scheduler.close()
             self.scheduler = None
+        if self._credentials_dir is not None:
+            self._credentials_dir.cleanup()
+            self._credentials_dir = None

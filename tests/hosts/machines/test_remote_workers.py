@@ -103,8 +103,8 @@ def test_run_wide_services_and_topics_across_machines_match_one_process(tmp_path
 def test_a_machine_that_never_joins_is_named_with_the_command_to_run(tmp_path, processes, domain_id):
     world = load_world(FLOCKING, robots=4, ticks=5, seed=1)
     with pytest.raises(HostError, match=r"machine 10\.9\.9\.9 did not join the run within 3 s \(joined: 127\.0\.0\.1 "
-                                        r"\([^)]+\)\); on each one: composed-sim join tcp://127\.0\.0\.1:\d+ --run "
-                                        r"[0-9a-f]{8}"):
+                                        r"\([^)]+\)\); on each one: composed-sim join tls://127\.0\.0\.1:\d+ --run "
+                                        r"[0-9a-f]{8} --credentials \S+credentials\.pem"):
         with RemoteWorkerHost(world, machines=["127.0.0.1", "10.9.9.9"], listen="127.0.0.1:0", domain_id=domain_id,
                               join_timeout_s=3, announce=joining(processes, tmp_path, ["1"])):
             pass
@@ -117,11 +117,12 @@ def test_a_machine_started_with_another_runs_command_is_refused(tmp_path, proces
     with pytest.raises(HostError, match="did not join"):
         with RemoteWorkerHost(world, machines=1, listen="127.0.0.1:0", domain_id=domain_id, join_timeout_s=3,
                               announce=lines.append):
-            address = lines[0].split("join ", 1)[1].split()[0]
-            done = subprocess.run([*JOIN, address, "--run", "0badc0de", "--timeout", "10"], capture_output=True,
-                                  text=True, timeout=60)
+            command = lines[0].split("join ", 1)[1].split()
+            address, credentials = command[0], command[command.index("--credentials") + 1]
+            done = subprocess.run([*JOIN, address, "--run", "0badc0de", "--credentials", credentials, "--timeout",
+                                   "10"], capture_output=True, text=True, timeout=60)
             assert done.returncode == 2
-            assert re.search(r"the simulator at tcp://127\.0\.0\.1:\d+ runs '[0-9a-f]{8}', not run '0badc0de'",
+            assert re.search(r"the simulator at tls://127\.0\.0\.1:\d+ runs '[0-9a-f]{8}', not run '0badc0de'",
                              done.stderr), done.stderr
 
 
