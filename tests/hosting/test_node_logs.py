@@ -182,3 +182,20 @@ def test_chatty_nodes_on_the_multi_threaded_executors_threads_keep_every_line(tm
         # each tick: its scan line and its planner child's line, 15 ticks, none lost or torn
         assert [len(re.findall(rf"scan {k} of bot{robot}$", text, re.M)) for k in range(15)] == [1] * 15
         assert [len(re.findall(rf"planned {k}$", text, re.M)) for k in range(15)] == [1] * 15
+
+
+def test_a_host_note_said_by_many_robots_closes_with_one_count_line(capsys):
+    """The host's own notes (a node's rclpy.shutdown(), say) repeat by the robot; the closing
+    report counts them instead of failing on their two-part key (it raised IndexError after the
+    results were written, and the finished run exited 1)."""
+    from composed_sim.hosting.guard.node_logs import Console
+    logs = NodeLogs(LogSettings(None, INFO), tick_ns=100_000_000, console=Console())
+    for robot in ("tb0", "tb1", "tb2"):
+        logs.note(robot, "a node called rclpy.shutdown(): its robot stops")
+    worker = NodeLogs(LogSettings(None, INFO), tick_ns=100_000_000, forward=True)
+    for robot in ("tb3", "tb4"):
+        worker.note(robot, "a node called rclpy.shutdown(): its robot stops")
+    logs.merge(worker.drain())
+    assert capsys.readouterr().err.count("rclpy.shutdown()") == 1
+    assert logs.console.closing_lines() == [
+        "composed-sim: a node called rclpy.shutdown(): its robot stops (4 more times from 5 robots)"]

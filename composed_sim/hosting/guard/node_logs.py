@@ -90,11 +90,14 @@ class Console:
                     named = ", ".join(others[:3]) + (", …" if len(others) > 3 else "")
                     lines.append(f"composed-sim: {key[2]} in {key[1]}: {len(others)} more robot"
                                  f"{'s' * (len(others) > 1)} ({named}), see {self.logs_hint}/<robot>.log")
-            elif seen.more:                    # ("log", node class, level, call site)
+            elif seen.more:
                 owners = len(seen.robots)
-                lines.append(f"composed-sim: [{key[2]}] {key[1]} at {Path(key[3]).name or '?'}: {seen.more} more "
-                             f"time{'s' * (seen.more > 1)} from {owners} robot{'s' * (owners > 1)} after "
-                             f"{seen.first!r}, see {self.logs_hint}/{seen.example}.log")
+                times = (f"{seen.more} more time{'s' * (seen.more > 1)} from {owners} robot{'s' * (owners > 1)}")
+                if key[0] == "log":            # ("log", node class, level, call site)
+                    lines.append(f"composed-sim: [{key[2]}] {key[1]} at {Path(key[3]).name or '?'}: {times} after "
+                                 f"{seen.first!r}, see {self.logs_hint}/{seen.example}.log")
+                else:                          # ("note", text): a host's line, said once
+                    lines.append(f"composed-sim: {key[1]} ({times})")
         return lines
 
     @property
