@@ -77,7 +77,7 @@ class ControllerTranslator(AttributeReader):
                 actuators = tuple(child.children)
             elif child.tag != "params":
                 self.warn(child, f"{definition.tag}/{child.tag}", "not supported, ignored")
-        for kind, group in (("sensor", sensors), ("actuator", actuators)):
+        for group in (sensors, actuators):
             for device in group:
                 if device.tag in ("lua_controller", "buzz_controller"):
                     self.warn(device, device.tag, "Lua and Buzz controllers are not run")

@@ -53,7 +53,8 @@ def fleet_in(situation: str, drones: int) -> tuple[Crazyflies, float, callable]:
             t += TICK_S
             fleet.advance(t, TICK_S)
 
-    nothing = (lambda t: None)
+    def nothing(t):
+        return None
     if situation == "on the floor":
         return fleet, t, nothing
     fleet.takeoff(None, t, 1.0, 2.0)

@@ -104,8 +104,8 @@ def run_distributed(world: Path, sizes, ticks: int, count: int, workers: str, tr
     for robots in sizes:
         for trial in range(trials):
             with tempfile.TemporaryDirectory() as tmp:
-                runs = [lambda k=k: one_machine(world, robots, ticks, k, env, Path(tmp) / k) for k in baselines]
-                runs.append(lambda: machines(world, robots, ticks, count, workers, env, Path(tmp) / "machines"))
+                runs = [lambda k=k: one_machine(world, robots, ticks, k, env, Path(tmp) / k) for k in baselines]    # noqa: B023 - run within this iteration
+                runs.append(lambda: machines(world, robots, ticks, count, workers, env, Path(tmp) / "machines"))    # noqa: B023 - run within this iteration
                 for measured in runs:
                     rows.append({**measured(), "trial": trial})
                     print(json.dumps(rows[-1]), flush=True)

@@ -80,7 +80,8 @@ def _budget_section(agg: list[dict], rows: list[dict]) -> list[str]:
             "within budget" if ticks_ok else "set-up and memory within budget")
         if not ticks_ok:
             verdict += "; ticks not judged (not 600 ticks)"
-        lim = lambda k, d, sc=1.0: "–" if limits[k] is None else f"≤ {limits[k] * sc:,.{d}f}"
+        def lim(k, d, sc=1.0, limits=limits):
+            return "–" if limits[k] is None else f"≤ {limits[k] * sc:,.{d}f}"
         lines.append(f"| {a['Robots']} | {host_label(a)} | {a['executor']} | {number(a['ticks_wall_s'], 1)} "
                      f"| {lim('ticks_wall_s', 0)} | {number(a['setup_s'], 1)} | {lim('setup_s', 0)} "
                      f"| {number(a['MaxPss(kB)'] or a['MaxMem(kB)'], 0, 1 / 1024)} "

@@ -224,7 +224,7 @@ def _machine_busy_s() -> Optional[float]:
     import psutil
     try:
         t = psutil.cpu_times()
-    except Exception:
+    except Exception:    # noqa: BLE001 - psutil's errors differ by platform; no figure is the answer
         return None
     return sum(getattr(t, k, 0.0) for k in ("user", "nice", "system", "irq", "softirq"))
 
@@ -232,7 +232,7 @@ def _machine_busy_s() -> Optional[float]:
 def _same_process(a, b) -> bool:
     try:
         return a.create_time() == b.create_time()
-    except Exception:
+    except Exception:    # noqa: BLE001 - a process gone or hidden meanwhile is not the same one
         return False
 
 

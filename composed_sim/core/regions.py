@@ -130,7 +130,7 @@ def _worker(sock: socket.socket, build, states: np.ndarray, wheels: np.ndarray) 
         ctypes.CDLL(None).prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
     try:
         group = build()
-    except Exception:
+    except Exception:    # noqa: BLE001 - any failure goes back to the main process as its traceback
         sock.sendall(_FAILED + traceback.format_exc().encode())
         return
     sock.sendall(_DONE)
@@ -141,7 +141,7 @@ def _worker(sock: socket.socket, build, states: np.ndarray, wheels: np.ndarray) 
         current = command[1]
         try:
             group.step(states[current], wheels[:, 0], wheels[:, 1], states[1 - current])
-        except Exception:
+        except Exception:    # noqa: BLE001 - any failure goes back to the main process as its traceback
             sock.sendall(_FAILED + traceback.format_exc().encode())
             return
         sock.sendall(_DONE)

@@ -130,7 +130,7 @@ class ControllersElsewhere(HostBase):
             checkpoint: Optional[Callable[[LoopResult], None]] = None, trajectories=None) -> LoopResult:
         ticks = self.world.length_ticks if ticks is None else ticks
         if self._startup_interrupted:      # stopped before tick 0: an interrupted run of 0 ticks
-            should_stop = lambda: True     # noqa: E731
+            should_stop = lambda: True     # noqa: E731 - a stand-in for the caller's callable, one expression
         return run_lockstep(self.sim, self.exchange, self.exchange.wait_for_answers, ticks,
                             progress=progress, should_stop=should_stop, observers=observers,
                             checkpoint=checkpoint, trajectories=trajectories, logs=getattr(self, "logs", None))

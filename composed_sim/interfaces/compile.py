@@ -77,6 +77,6 @@ def compile_package(name: str, generated: Path, out: Path, deps: list[str], dep_
 def _run(command: list[str], name: str, what: str) -> None:
     r = subprocess.run(command, capture_output=True, text=True)
     if r.returncode != 0:
-        said = [l for l in (r.stderr or r.stdout).splitlines() if l.strip()]
+        said = [line for line in (r.stderr or r.stdout).splitlines() if line.strip()]
         raise InterfaceError(f"package {name}: compiling its {what} failed ({Path(command[0]).name} exit "
                              f"{r.returncode}):\n  " + "\n  ".join(said[:8]))

@@ -44,7 +44,7 @@ def translate(pkg: InterfacePackage, idl_dir: Path) -> list[str]:
                 convert[kind](pkg.root, pkg.name, PurePosixPath(rel), idl_dir / kind)
         except Exception as e:    # noqa: BLE001 - the adapter raises many kinds; each is the user's file
             bad = _ADAPTER_ERROR.search(said.getvalue())
-            line = _line_of(pkg.root / rel, lambda text: text.strip() == bad.group(1).strip()) if bad else None
+            line = _line_of(pkg.root / rel, lambda text: text.strip() == bad.group(1).strip()) if bad else None    # noqa: B023 - called here
             raise InterfaceError(_located(pkg.root / rel, line, f"{bad.group(1).strip()!r}: " if bad else "",
                                           _first_lines(str(e) or type(e).__name__))) from None
         out.append(str(PurePosixPath(rel).with_suffix(".idl")))
@@ -163,5 +163,5 @@ def _located(path: Path, line: int | None, what: str, message: str) -> str:
 
 
 def _first_lines(text: str, count: int = 3) -> str:
-    lines = [l for l in text.strip().splitlines() if l.strip()]
+    lines = [line for line in text.strip().splitlines() if line.strip()]
     return "\n  ".join(lines[:count]) + (" …" if len(lines) > count else "")

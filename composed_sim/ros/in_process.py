@@ -255,5 +255,5 @@ class GraphWatch:
 def link_answers(publishers: Iterable[Publisher], answers, gid_of: Callable[[Publisher], bytes]) -> list[Link]:
     """Link a robot's cmd_vel ``publishers`` to the simulator node's answer subscription
     (ros/answer_subscription.py), which takes (bytes, publisher GID) from its inbox first."""
-    return [Link(p, [answers.inbox], lambda data, gid=gid_of(p): (data, gid)) for p in publishers
+    return [Link(p, [answers.inbox], lambda data, gid=gid_of(p): (data, gid)) for p in publishers    # noqa: B008 - each publisher's GID, bound once
             if receives_all(answers.msg_type, answers.qos, p)]

@@ -32,7 +32,7 @@ def crazyflies(world: World) -> list[Crazyflie]:
     out = []
     names, groups = world.robot_names(), world.group_of_robot()
     first = 0
-    for gi, group in enumerate(world.robots):
+    for group in world.robots:
         if get_model(group.model).flies:
             settings = group.crazyflie
             for k in range(group.count):

@@ -144,9 +144,9 @@ def ref_blobs(pos, hd, radii, heights, cam_h, half_w, led_xyz, led_rgb, world):
             if j == i:
                 continue
             bodies = static_bodies(world) + robot_bodies(pos, radii, heights, {i})   # owner's body hides too
-            for l in range(led_xyz.shape[1]):
-                rgb = tuple(int(c) for c in led_rgb[j, l])
-                p = led_xyz[j, l]
+            for led in range(led_xyz.shape[1]):
+                rgb = tuple(int(c) for c in led_rgb[j, led])
+                p = led_xyz[j, led]
                 dx, dy = p[0] - pos[i][0], p[1] - pos[i][1]
                 if (rgb != BLACK and abs(dx) < half_w[i] and abs(dy) < half_w[i] and p[2] < cam_h[i]
                         and not blocked(cam, tuple(p), bodies)):

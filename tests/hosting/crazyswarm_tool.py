@@ -14,7 +14,6 @@ from __future__ import annotations
 import json
 import math
 import sys
-import time
 
 import rclpy
 from builtin_interfaces.msg import Duration

@@ -20,7 +20,7 @@ from composed_sim.world.schema import Lockstep
 ROOT = Path(__file__).resolve().parents[2]
 FLOCKING = ROOT / "worlds" / "flocking.yaml"
 sys.path.insert(0, str(ROOT / "tests"))
-from conftest import install_plugin  # noqa: E402
+from conftest import install_plugin  # noqa: E402 - after tests/ is put on sys.path
 
 STYLES = {"twist-on-scan": "TwistOnScan", "stamped-timer": "StampedTimer", "twist-timer": "TwistTimer",
           "no-options": "NoOptions", "string-commands": "StringCommands", "wrong-sensor": "WrongSensor",

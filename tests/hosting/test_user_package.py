@@ -148,6 +148,6 @@ def test_a_viewer_gets_run_wide_topics_with_their_own_types(swarm_vote, tmp_path
         if run.poll() is None:
             run.kill()
     by_tick = {}
-    for log_time, payload in got[1]:
+    for log_time, _payload in got[1]:
         by_tick[log_time] = by_tick.get(log_time, 0) + 1
     assert len(by_tick) >= 5 and set(list(by_tick.values())[1:]) == {9}    # all nine, every tick watched

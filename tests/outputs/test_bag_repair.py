@@ -83,7 +83,7 @@ def test_each_flush_leaves_a_file_the_mcap_reader_reads_to_its_last_byte(tmp_pat
     with open(rec.mcap_path, "rb") as f:      # a plain MCAP reader reads every flushed message at once
         got = []
         with contextlib.suppress(EndOfFile):
-            for _, channel, message in NonSeekingReader(f).iter_messages(log_time_order=False):
+            for _, channel, _message in NonSeekingReader(f).iter_messages(log_time_order=False):
                 got.append(channel.topic)
     assert got.count(CLOCK_TOPIC) == 102 and got.count(SWARM_STATE_TOPIC) == 101
     rec.close()

@@ -33,8 +33,8 @@ HERE = Path(__file__).resolve().parent
 ROOT = HERE.parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(HERE))
-from stubs import DOUBLE_PRELUDE, HEADERS  # noqa: E402
-from tests.devices.crazyflie.transcript import FIXTURES, follow  # noqa: E402
+from stubs import DOUBLE_PRELUDE, HEADERS  # noqa: E402 - after the checkout is put on sys.path
+from tests.devices.crazyflie.transcript import FIXTURES, follow  # noqa: E402 - after the checkout is put on sys.path
 
 SOURCES = ("commander.c",)     # its own translation unit; the others are included by the harness
 INCLUDES = ("src/modules/src", "src/modules/interface", "src/hal/interface", "src/utils/interface/lighthouse",

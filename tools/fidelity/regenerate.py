@@ -30,7 +30,7 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parents[1]
 sys.path.insert(0, str(ROOT))
-from tests.fidelity.reference import EXPERIMENTS, pack, seeds_of  # noqa: E402
+from tests.fidelity.reference import EXPERIMENTS, pack, seeds_of  # noqa: E402 - after the checkout is put on sys.path
 
 
 def compile_logger(args, out_dir: Path) -> Path:

@@ -19,10 +19,10 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
-from composed_sim.hosts import tick_loop  # noqa: E402
-from composed_sim.world import robot_models  # noqa: E402
-from tests.fidelity import reference  # noqa: E402
-from tests.fidelity.compare import compare  # noqa: E402
+from composed_sim.hosts import tick_loop  # noqa: E402 - after the checkout is put on sys.path
+from composed_sim.world import robot_models  # noqa: E402 - after the checkout is put on sys.path
+from tests.fidelity import reference  # noqa: E402 - after the checkout is put on sys.path
+from tests.fidelity.compare import compare  # noqa: E402 - after the checkout is put on sys.path
 
 
 def as_before() -> None:
@@ -59,7 +59,7 @@ def main() -> int:
     p.add_argument("--regions", type=int, default=1)
     p.add_argument("--border-contacts", choices=("ghosts", "ignore"), default="ghosts")
     args = p.parse_args()
-    edit = lambda world: world  # noqa: E731
+    edit = lambda world: world  # noqa: E731 - the identity edit, one expression
     if args.before:
         as_before()
         edit = own_calibration

@@ -215,9 +215,9 @@ class StaticScene:
         """Yield chunks of (path, body) index pairs whose bounds overlap; lo/hi [m, 2] bound the paths."""
         step = max(1, _CHUNK_PAIRS // max(1, self.n_bodies))
         for s in range(0, len(lo), step):
-            l, h = lo[s:s + step, None, :], hi[s:s + step, None, :]   # [chunk, 1, 2] vs [bodies, 2]
-            p, b = np.nonzero((l[..., 0] <= self._hi[:, 0]) & (h[..., 0] >= self._lo[:, 0])
-                              & (l[..., 1] <= self._hi[:, 1]) & (h[..., 1] >= self._lo[:, 1]))
+            low, h = lo[s:s + step, None, :], hi[s:s + step, None, :]   # [chunk, 1, 2] vs [bodies, 2]
+            p, b = np.nonzero((low[..., 0] <= self._hi[:, 0]) & (h[..., 0] >= self._lo[:, 0])
+                              & (low[..., 1] <= self._hi[:, 1]) & (h[..., 1] >= self._lo[:, 1]))
             yield p + s, b
 
     def ray_distance(self, origins: np.ndarray, dirs: np.ndarray, max_range: float, *,

@@ -50,7 +50,7 @@ class CallRounds:
                 for w in self._workers_of(item):
                     if w.dead is None:
                         routed[w.index].append(item)
-            self._send(live, lambda w: ("calls", routed[w.index]))
+            self._send(live, lambda w: ("calls", routed[w.index]))    # noqa: B023 - sent within this round
             calls = []
 
     def _collect_idle(self) -> list:

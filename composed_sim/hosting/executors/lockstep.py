@@ -260,7 +260,7 @@ class LockstepExecutor(TaskRunning, SingleThreadedExecutor):
         elif (inbox is not None and inbox.queue) or inbox is None or inbox.dds_may_hold():
             if not group.can_execute(entity) or not group.beginning_execution(entity):
                 return None
-            take = lambda: self._take(entity, handle, kind, raw, message_only, True, inbox)     # noqa: E731
+            take = lambda: self._take(entity, handle, kind, raw, message_only, True, inbox)     # noqa: E731 - a closure over the entity, built in the walk's hot loop
         else:
             return None
         self.running_group, self.running_node = group, entry.node

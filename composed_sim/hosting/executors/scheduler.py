@@ -106,7 +106,7 @@ class Scheduler:
             return
         me = getcurrent()
         self._set_aside.append(me)
-        wake = lambda: self.tasks.append(lambda: self._resume(me))     # noqa: E731
+        wake = lambda: self.tasks.append(lambda: self._resume(me))     # noqa: E731 - a closure over the task, one expression
         waiters = getattr(future, "waiters", None)
         if waiters is not None:            # a future of ours wakes its waiters itself, without a task
             waiters.append(wake)

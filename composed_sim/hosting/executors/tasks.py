@@ -89,7 +89,7 @@ class HostedTask(Task):
                 return handler.send(None)
             except StopIteration as done:
                 self.set_result(done.value)
-            except Exception as e:               # noqa: BLE001
+            except Exception as e:               # noqa: BLE001 - a task's failure is its result
                 self.set_exception(e)
             self._complete_task()
             return None

@@ -152,7 +152,7 @@ class CallbackGuard(CallbackWatcher):
                         self._running = None
                     else:
                         self._leave_thread(robot)
-            except (ControllerHung, Exception, SystemExit) as e:    # sys.exit() fails its robot, not the host
+            except (ControllerHung, Exception, SystemExit) as e:    # sys.exit() fails its robot, not the host    # noqa: BLE001 - a user's callback may raise anything: it fails its robot
                 self._callback_failed(robot, node, sim_node, e, started)
                 return None
             # A callback set aside while it waited (hosting/executors/scheduler.py) is timed without
@@ -213,7 +213,7 @@ class CallbackGuard(CallbackWatcher):
             except ControllerHung as e:
                 self._fail(robot, node, e, f"hung: callback still running after {self._unresponsive_s:.1f} s, "
                                            f"interrupted")
-            except (Exception, SystemExit) as e:
+            except (Exception, SystemExit) as e:    # noqa: BLE001 - a user's callback may raise anything: it fails its robot
                 self._fail(robot, node, e, _failure(e))
             return None
         if with_info:

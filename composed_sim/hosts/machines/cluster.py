@@ -40,7 +40,7 @@ ONE_WAY_TIMEOUT_S = 60.0
 
 def needs_dask() -> None:
     try:
-        import distributed  # noqa: F401
+        import distributed  # noqa: F401 - imported only to see that it is installed
     except ImportError:
         raise HostError("a run over machines needs Dask distributed on every machine: "
                         "pip install 'composed_sim[cluster]'") from None
@@ -205,7 +205,7 @@ class ActorConnection:
         if message[0] in ONE_WAY:
             try:
                 call.result(timeout=ONE_WAY_TIMEOUT_S)
-            except Exception as e:
+            except Exception as e:    # noqa: BLE001 - Dask's and the agent's errors alike end the link
                 raise OSError(f"{message[0]}: {e}") from None
             return
         self._calls.append(call)
@@ -213,7 +213,7 @@ class ActorConnection:
         async def ready():
             try:
                 await call
-            except Exception:           # its error is raised by recv
+            except Exception:           # noqa: BLE001 - its error, whatever it is, is raised by recv
                 pass
             finally:
                 self._signal()
@@ -226,7 +226,7 @@ class ActorConnection:
         call = self._calls.popleft()
         try:
             return call.result()
-        except Exception as e:
+        except Exception as e:    # noqa: BLE001 - Dask's and the agent's errors alike end the link
             self.gone = f"its agent failed: {type(e).__name__}: {e}"
             raise EOFError(self.gone) from None
 

@@ -121,7 +121,7 @@ class ShardHost:
         names = self.world.robot_names()
         endpoints = [(i, e) for i, nodes in zip(self.robots, self.robot_nodes)
                      for e in contract_endpoints(nodes, names[i])]
-        unmatched = lambda: sorted({i for i, e in endpoints if not matched(e)})     # noqa: E731
+        unmatched = lambda: sorted({i for i, e in endpoints if not matched(e)})     # noqa: E731 - re-read at each look, one expression
         found = poll_until(lambda: not unmatched() and self._clock_sub.get_publisher_count() >= 1, timeout_s,
                            self.should_stop)
         if found is None:

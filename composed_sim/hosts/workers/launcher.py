@@ -75,7 +75,7 @@ def main(argv: list[str] | None = None) -> int:
                 code = serve(fd, lambda: die_with_parent(args.parent_pid, signal.SIGKILL))
             except SystemExit as e:     # die_with_parent: the main process was gone already
                 code = e.code if isinstance(e.code, int) else 1
-            except BaseException:
+            except BaseException:    # noqa: BLE001 - a worker's last word: its traceback to the main process
                 import traceback
                 traceback.print_exc()
             finally:

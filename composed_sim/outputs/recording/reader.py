@@ -101,7 +101,7 @@ def _custom_data(path: Path) -> dict[str, str]:
         hint = f"; its run was killed before closing it: composed-sim bag repair {path}" \
             if (path / UNFINISHED).exists() else "; not a rosbag2 directory"
         raise RecordingError(f"{path}: no metadata.yaml{hint}") from None
-    except Exception as e:    # noqa: BLE001
+    except Exception as e:    # noqa: BLE001 - rosbags' reader errors and file-system errors alike
         raise RecordingError(f"{meta}: unreadable rosbag2 metadata: {e}") from None
 
 

@@ -78,7 +78,7 @@ class BagRecorder:
             self._custom[CUSTOM_PREFIX + "world"] = dump_world(world)
         try:
             self._writer.open()
-        except Exception as e:
+        except Exception as e:    # noqa: BLE001 - rosbags raises its own and the file system's errors
             raise RecordingError(f"{self.path}: cannot create the recording: {e}") from None
         _check_flushable(self._writer.storage)
         self.mcap_path: Path = self._writer.storage.path

@@ -122,7 +122,7 @@ class Rig:
         for p in self.processes.values():
             if p.poll() is None:
                 p.terminate()
-        for name, p in self.processes.items():
+        for p in self.processes.values():
             try:
                 p.wait(timeout=10)
             except subprocess.TimeoutExpired:
@@ -167,7 +167,7 @@ class Rig:
                 for run_wide in (False, True):
                     node.publish_clock(tick * TICK_NS, run_wide)
                     if tick:
-                        self.wait(lambda: self.clocks_at(tick, run_wide), CLOCK_TIMEOUT_S, "the nodes' clocks")
+                        self.wait(lambda: self.clocks_at(tick, run_wide), CLOCK_TIMEOUT_S, "the nodes' clocks")  # noqa: B023 - waited for here
                 node.publish_scans(tick * TICK_NS)
                 self.quiet(time.monotonic())
         self.stop()

@@ -139,7 +139,7 @@ def main(argv: list[str]) -> None:
     threading.Thread(target=announce_ready, daemon=True).start()
     try:
         executor.spin()
-    except Exception as e:                 # a callback raised: the process's main ends with it
+    except Exception as e:                 # a callback raised: the process's main ends with it    # noqa: BLE001 - as rclpy's own process would end
         say(f"@@FAILED {type(e).__name__}")
         say(traceback.format_exc())
         os._exit(1)

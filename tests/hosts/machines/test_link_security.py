@@ -3,7 +3,6 @@ a throwaway CA per run. The intruders are real Dask clients and a raw TCP peer, 
 run: over tcp://, over tls:// with a certificate of their own, and garbage bytes. None may run code
 in the simulator; the run goes on, and says who was refused."""
 import os
-import socket
 import stat
 import subprocess
 import sys
