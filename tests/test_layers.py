@@ -53,7 +53,7 @@ def test_ruff_finds_nothing_and_every_noqa_says_why():
     assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-2000:]
     bare = [f"{path.relative_to(ROOT)}:{n}" for folder in ("composed_sim", "controller_plugins",
                                                             "loop_function_plugins", "tests", "tools")
-            for path in (ROOT / folder).rglob("*.py")
+            for path in (ROOT / folder).rglob("*.py") if path != Path(__file__)     # its patterns are no noqa
             for n, line in enumerate(path.read_text().splitlines(), 1)
             if re.search(r"#\s*noqa(:|\s*$)", line) and not re.search(r"# noqa: [A-Z]+[0-9]+(, ?[A-Z]+[0-9]+)* [-(]", line)]
     assert bare == []
