@@ -40,8 +40,9 @@ def check_plugins(world_path, world) -> None:
     """Every node class the world names loads: one error naming the world file's line and field,
     before any node or process is started."""
     from composed_sim import plugins
-    from composed_sim.hosting import node_field
+    from composed_sim.hosting import before_node_imports, node_field
     from composed_sim.interfaces import InterfaceError, activate
+    before_node_imports()
     try:
         activate(world.interfaces)      # the nodes may import their messages
     except InterfaceError as e:

@@ -219,15 +219,19 @@ def construct_node(cls: type[Node], spec: NodeSpec, field: tuple, owner: str, op
     return node
 
 
-def load_classes(world: World) -> dict[str, type[Node]]:
-    """Every node class the world names (robots' and run-wide), imported once, after the world's
-    interface packages are built (or found built) and importable (composed_sim/interfaces/)."""
-    # Before the nodes' modules are imported (one may bind ``from time import sleep``): the calls
-    # that would act on their whole process act on their robot (hosting/sim_time/sleeps.py,
-    # hosting/guard/callback_guard.py).
+def before_node_imports() -> None:
+    """What must be in place before any node's module is imported, by whoever imports it (one may
+    bind ``from time import sleep``): the calls that would act on their whole process act on their
+    robot (hosting/sim_time/sleeps.py, hosting/guard/callback_guard.py). Idempotent."""
     host_wall_sleeps()
     stop_robots_that_shut_down()
     remember_action_server_names()
+
+
+def load_classes(world: World) -> dict[str, type[Node]]:
+    """Every node class the world names (robots' and run-wide), imported once, after the world's
+    interface packages are built (or found built) and importable (composed_sim/interfaces/)."""
+    before_node_imports()
     try:
         activate(world.interfaces)
     except InterfaceError as e:
