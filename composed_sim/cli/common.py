@@ -42,9 +42,10 @@ def check_plugins(world_path, world) -> None:
     from composed_sim import plugins
     from composed_sim.hosting import before_node_imports, node_field
     from composed_sim.interfaces import InterfaceError, activate
+    from composed_sim.world.crazyflies import interfaces_needed
     before_node_imports()
     try:
-        activate(world.interfaces)      # the nodes may import their messages
+        activate(world.interfaces, interfaces_needed(world))      # the nodes may import their messages
     except InterfaceError as e:
         raise UserError(str(e)) from None
     places = [(node_field(group, gi, ni), spec) for gi, group in enumerate(world.robots)

@@ -4,7 +4,10 @@ They live in one participant of the process that publishes /clock, outside every
 namespace, and the host drives them itself at the start of each tick, with a lockstep executor
 of their own whatever the robots' executor: their timers due by the tick's time fire, and what
 they have to handle runs, before the tick's run-wide batch goes out (hosting/run_wide/relay.py). So a start
-command that a run-wide node publishes at tick 0 reaches every robot before its tick-0 sensors.
+command that a run-wide node publishes at tick 0 reaches every robot before its tick-0 sensors. One
+it publishes from a timer goes out at the timer's first period (as in rclpy, not at tick 0): until
+then (``first_timer_tick``) the robots, which may be waiting for it, keep their last command
+without a violation, as they do before their own nodes' first timer (ros/answer_ledger.py).
 """
 from __future__ import annotations
 
@@ -26,7 +29,7 @@ from composed_sim.hosting.drones import run_wide_specs, with_server_class
 from composed_sim.hosting.run_wide.relay import RunWideRelay
 from composed_sim.ros.controller import PARAM_RUN_SEED
 from composed_sim.world.schema import World
-from composed_sim.hosting.sim_time.timers import SimTimers
+from composed_sim.hosting.sim_time.timers import SimTimers, first_timer_tick
 
 
 
@@ -62,6 +65,11 @@ class RunWideNodes:
     @property
     def nodes(self) -> list[Node]:
         return self._nodes
+
+    @property
+    def first_timer_tick(self) -> int:
+        """The tick at which the first of their timers made before tick 0 first fires (0: none)."""
+        return first_timer_tick(self._tick_timers, self._tick_ns)
 
     def start_tick(self, tick: int) -> None:
         """Their part of tick ``tick``: the clock moves to the tick's time, their timers due by then

@@ -106,15 +106,16 @@ class AnswerLedger:
 
     def answer_later(self, robots: Collection[str], until_tick: Optional[int] = None) -> None:
         """``robots``' nodes cannot answer yet: no active cmd_vel publisher (a lifecycle node not
-        yet active, a publisher made in a callback), or (``until_tick``) their timers' first
-        period has not passed. Each keeps its last command, without a violation, until its first
-        answer (or that tick), as a robot's base does; from then on it answers as its world file
-        says."""
+        yet active, a publisher made in a callback), or (``until_tick``) the first period of their
+        timers, or of the run-wide nodes' timers, has not passed. Each keeps its last command,
+        without a violation, until its first answer (or that tick), as a robot's base does; from
+        then on it answers as its world file says. A robot said so twice waits for the later."""
+        until = math.inf if until_tick is None else until_tick
         with self.lock:
             for robot in robots:
                 i = self._index[robot]
+                self._later_until[i] = max(self._later_until[i], until) if self.later[i] else until
                 self.later[i] = self.when_published[i] = True
-                self._later_until[i] = math.inf if until_tick is None else until_tick
 
     def take(self, i: int, linear: float, angular: float) -> None:
         """Called with the lock held, for an answer ``accepts`` took: a finite command is robot

@@ -11,6 +11,16 @@ from composed_sim.world.schema import World
 
 # The firmware parameters every drone has here, with the firmware's defaults (its hlCommander
 # module's group mask and take-off and landing speeds); a world file may set them and name others.
+# The drones' messages and services: Crazyswarm2's package, or the one that ships with composed_sim
+# (composed_sim/interfaces/activate.py, SHIPPED), built on first use.
+MESSAGE_PACKAGE = "crazyflie_interfaces"
+
+
+def interfaces_needed(world: World) -> tuple[str, ...]:
+    """The shipped interface packages ``world``'s robots need: the drones' messages if any flies."""
+    return (MESSAGE_PACKAGE,) if any(get_model(g.model).flies for g in world.robots) else ()
+
+
 FIRMWARE_DEFAULTS: dict[str, dict[str, float | int]] = {"hlCommander": {"groupmask": 0, "vtoff": 0.5, "vland": 0.5}}
 GROUP_MASK = ("hlCommander", "groupmask")
 

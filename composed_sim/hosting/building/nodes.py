@@ -3,7 +3,6 @@ contract: shared by the composed host, the worker processes, each controller pro
 multi-process host and the shards (which therefore import no physics)."""
 from __future__ import annotations
 
-import math
 import sys
 from dataclasses import dataclass
 from typing import Container, Mapping, Optional
@@ -25,11 +24,12 @@ from composed_sim.hosting.building.lifecycle import AUTOSTART, LifecycleError, a
 from composed_sim.hosting.building.node_options import HostedNodeOptions, construct
 from composed_sim.hosting.building.wiring import answer_rule, answer_type, guard_publishers, robot_sensor_topics
 from composed_sim.hosting.run_wide.relay import RunWideRelay
-from composed_sim.hosting.sim_time.timers import SimTimers
+from composed_sim.hosting.sim_time.timers import SimTimers, first_timer_tick
 from composed_sim.hosting.calls.clients import wait_during_construction
 from composed_sim.hosting.calls.directory import remember_action_server_names
 from composed_sim.hosting.guard.callback_guard import stop_robots_that_shut_down
 from composed_sim.hosting.sim_time.sleeps import host_clock_sleeps, host_rates, host_wall_sleeps
+from composed_sim.world.crazyflies import interfaces_needed
 from composed_sim.world.problems import format_path
 from composed_sim.world.schema import NodeSpec, RobotGroup, World
 
@@ -114,8 +114,7 @@ def create_robot_nodes(world: World, group_index: int, name: str, context: Conte
     answers = answer_type(built.nodes, name, group.cmd_vel)
     # A robot that answers when published has no tick to miss: its timers' periods are its own.
     every = group.answers_every_ticks if group.answers == "every_tick" else None
-    due = min((t.first_due_ns for t in timers_of), default=math.inf)
-    built.first_timer_tick = 0 if due == math.inf else math.ceil(due / world.tick_ns - 1e-9)
+    built.first_timer_tick = first_timer_tick(timers_of, world.tick_ns)
     for node, timers, spec in zip(built.nodes, timers_of, group.node_specs):
         guard_publishers(node, name, robots, answers, built.nodes)
         timers.started(sensors)
@@ -233,7 +232,7 @@ def load_classes(world: World) -> dict[str, type[Node]]:
     interface packages are built (or found built) and importable (composed_sim/interfaces/)."""
     before_node_imports()
     try:
-        activate(world.interfaces)
+        activate(world.interfaces, interfaces_needed(world))
     except InterfaceError as e:
         raise HostError(str(e)) from None
     names = [spec.node for g in world.robots for spec in g.node_specs] + [spec.node for spec in world.nodes]

@@ -12,8 +12,9 @@ The order within tick k, for each robot, in every executor and both host modes:
 A timer fires first one period after the time it was created at, as rclpy's does on sim time: one
 created while the controller is constructed (before tick 0, the clock at 0) first at its period, a
 0.1 s timer on a 10 Hz world at tick 1, then every tick. Until then its robot has had no chance to
-answer from it, and is not late (``first_due_ns``: ros/answer_ledger.py keeps its last command
-until then). A timer slower than the tick fires every k-th tick (the world file says so with
+answer from it, and is not late (``first_due_ns``, ``first_timer_tick``: ros/answer_ledger.py
+keeps its last command until then); nor is any robot before the run-wide nodes' first timer
+fired, since what they publish or call from it (a start command) may be what its nodes wait for. A timer slower than the tick fires every k-th tick (the world file says so with
 ``answers_every_ticks``); one faster than the tick fires once per tick, at the tick's time (rcl
 skips the periods a time jump passed over).
 
@@ -214,6 +215,13 @@ class SimTimers:
                            f"answers from that timer, set answers_every_ticks: {round(ratio)} in its robot group, "
                            f"or each tick in between is a violation")
         return out
+
+
+def first_timer_tick(timers: Collection[SimTimers], tick_ns: int) -> int:
+    """The tick at which the first of the timers that ``timers``' nodes made before tick 0 first
+    fires (0: none has one)."""
+    due = min((t.first_due_ns for t in timers), default=math.inf)
+    return 0 if due == math.inf else math.ceil(due / tick_ns - 1e-9)
 
 
 def _whole(x: float) -> bool:

@@ -70,7 +70,7 @@ class MachineAgent:
         if self.host is None:
             return None
         if kind == "served":            # what every machine's places serve; then tick 0's start
-            run_wide, made = self.host._start_tick_0(message[1])
+            run_wide, made = self.host._start_tick_0(message[1], message[2])
             return ("run_wide", [m for part in run_wide for m in part], made)
         if kind == "stop":
             return self._stop()
@@ -89,6 +89,7 @@ class MachineAgent:
     def _setup(self, setup: MachineSetup):
         from composed_sim import plugins
         from composed_sim.interfaces import InterfaceError, activate
+        from composed_sim.world.crazyflies import interfaces_needed
         # Its workers claim the run's GUID prefix (the simulator's host id): over UDP only, so that
         # no listener looks for their shared-memory segments on its own machine; and they discover
         # only what is on this machine (unless told otherwise), so two runs here with one domain
@@ -97,13 +98,13 @@ class MachineAgent:
         os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
         self.block = slice(setup.start, setup.stop)
         try:
-            activate(setup.world.interfaces)
+            activate(setup.world.interfaces, interfaces_needed(setup.world))
             self.host = MachineWorkers(setup)
             nodes, run_wide, rounds, calls = self.host.start(setup.run_prefix)
         except (plugins.PluginError, HostError, InterfaceError) as e:
             self._stop()
             return ("error", type(e).__name__, str(e), getattr(e, "field", ()))
-        return ("ready", nodes, rounds, calls, self.host.answers_later)
+        return ("ready", nodes, rounds, calls, self.host.answers_later, self.host.run_wide_timers)
 
     def _stop(self) -> None:
         """Its workers stopped and reaped: the run is over for this machine."""

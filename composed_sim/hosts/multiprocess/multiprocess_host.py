@@ -205,6 +205,12 @@ class MultiProcessHost(ControllersElsewhere):
         for p in self.processes:
             if p.answers_later or p.first_timer_tick:
                 self._nodes[p.domain].answer_later([p.robot], None if p.answers_later else p.first_timer_tick)
+        # Until the run-wide nodes' first timer fires, the robots may wait for it (a start command):
+        # each process's run-wide link says when its nodes are idle (hosting/run_wide/link.py).
+        run_wide_timers = self.run_wide.nodes.first_timer_tick if self.run_wide.nodes is not None else 0
+        if run_wide_timers:
+            for node in self._nodes.values():
+                node.answer_later(node.robots, until_tick=run_wide_timers)
         say_answers_later(sorted(later, key=self.sim.names.index))
         # What each robot's process serves: to the run-wide nodes here, and with tick 0's first
         # handover to every robot (their clients find it ready, hosting/calls/between_places.py).

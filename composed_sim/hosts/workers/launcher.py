@@ -11,6 +11,8 @@ A worker talks to the main process over its socket (pickled messages,
 ``multiprocessing.connection``), once per tick each way:
 
     main → worker   ("setup", WorkerSetup)         once, first
+                    ("served", calls, tick)        before tick 0: what every place serves, and the
+                                                   tick of the run-wide nodes' first timer
                     ("tap", [glob, …])             record these topics' messages (--record-topics)
                     ("tick", tick, routed, changed, batch)  a tick: the world's state is in the
                                                    shared state (shared_state.py); what changed of

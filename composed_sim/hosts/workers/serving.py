@@ -51,15 +51,20 @@ def serve(fd: int, adopted: Callable[[], None]) -> int:
             logs.flush()
         conn.send(("error", type(e).__name__, str(e), getattr(e, "field", ())))
         return EXIT_SETUP
-    conn.send(("ready", groups.nodes, groups.calls_leave, groups.calls.take_outbox(), groups.answers_later))
-    # What every place of the run serves, before the run-wide nodes' part of tick 0 (which may ask).
+    run_wide_timers = groups.run_wide.first_timer_tick if groups.run_wide is not None else 0
+    conn.send(("ready", groups.nodes, groups.calls_leave, groups.calls.take_outbox(), groups.answers_later,
+               run_wide_timers))
+    # What every place of the run serves, before the run-wide nodes' part of tick 0 (which may ask),
+    # and when the run-wide nodes' first timer fires (they are worker 0's).
     try:
-        kind, served = conn.recv()
+        message = conn.recv()
     except EOFError:
         return 0
-    if kind != "served":        # stopped during the start-up
+    if message[0] != "served":        # stopped during the start-up
         return 0
+    _, served, run_wide_timers = message
     groups.calls.deliver(served)
+    groups.wait_for_run_wide_timers(run_wide_timers)
     conn.send(("run_wide", groups.close_run_wide(0), groups.calls.take_outbox()))
     wait, interrupting_hangs = groups.start_serving()
     block = Block(setup, groups, logs, wait, conn)

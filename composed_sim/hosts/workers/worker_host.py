@@ -122,6 +122,7 @@ class WorkerHost(ControllersElsewhere):
         self.setup: Optional[SetupInfo] = None
         self.workers: list[Worker] = []
         self.answers_later: list[str] = []      # robots with no active cmd_vel publisher yet (say_answers_later)
+        self.run_wide_timers = 0     # the tick of the run-wide nodes' first timer (RunWideNodes.first_timer_tick)
         self.exchange: Optional[WorkersExchange] = None
         self._tmp: Optional[Path] = None
         self.shared: Optional[SharedState] = None
@@ -243,22 +244,25 @@ class WorkerHost(ControllersElsewhere):
                     if kind == "PluginError":
                         raise plugins.PluginError(text, field)
                     raise HostError(text)
-                _, ready[w.index], calls_leave, made, later = message
+                _, ready[w.index], calls_leave, made, later, run_wide_timers = message
                 rounds, calls = rounds or calls_leave, calls + made
                 self.answers_later += later
+                self.run_wide_timers = max(self.run_wide_timers, run_wide_timers)
         run_wide: list[list] = [[] for _ in self.workers]
         if tick_0 and not interrupted():
-            run_wide, made = self._start_tick_0(calls)
+            run_wide, made = self._start_tick_0(calls, self.run_wide_timers)
             calls += made
         return sum(ready.values()), run_wide, rounds, calls
 
-    def _start_tick_0(self, calls: list) -> tuple[list[list], list]:
+    def _start_tick_0(self, calls: list, run_wide_timers: int) -> tuple[list[list], list]:
         """What every worker's places serve goes to every worker (a client elsewhere then finds it
-        ready, hosting/calls/between_places.py); then the run-wide nodes' part of tick 0 runs. Per
-        worker what its nodes published on run-wide topics by then, and the calls made meanwhile."""
+        ready, hosting/calls/between_places.py), with the tick of the run-wide nodes' first timer
+        (until then the robots may wait for them: ParticipantGroups.wait_for_run_wide_timers); then
+        the run-wide nodes' part of tick 0 runs. Per worker what its nodes published on run-wide
+        topics by then, and the calls made meanwhile."""
         served = [item for item in calls if item.destination is None]
         for w in self.workers:
-            w.conn.send(("served", served))
+            w.conn.send(("served", served, run_wide_timers))
         run_wide: dict[int, list] = {}
         made: list = []
 

@@ -28,7 +28,8 @@ from typing import Callable, Optional
 
 import numpy as np
 
-PACKAGE = "crazyflie_interfaces"
+from composed_sim.world.crazyflies import MESSAGE_PACKAGE as PACKAGE
+
 LEGACY_MAX_THRUST = 60000           # the C++ server's clamp of cmd_vel_legacy's thrust
 
 
