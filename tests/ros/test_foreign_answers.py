@@ -176,5 +176,10 @@ def test_a_multi_process_run_takes_each_answer_type_from_its_controller_not_from
         stray.wait()
     with MultiProcessHost(world, domain_id=mp_domain) as h:
         alone = h.run()
-    assert beside_the_stray.violations == [] and beside_the_stray.trajectories.ticks_done == 30
-    np.testing.assert_array_equal(beside_the_stray.trajectories.positions, alone.trajectories.positions)
+    # Both runs' violations: once under a loaded suite the two differed with none reported in the
+    # first (issue 54): a violation of the second would say which tick went wrong.
+    assert beside_the_stray.violations == [] and alone.violations == [], (beside_the_stray.violations[:5],
+                                                                          alone.violations[:5])
+    assert beside_the_stray.trajectories.ticks_done == alone.trajectories.ticks_done == 30
+    differ = np.argwhere(np.any(beside_the_stray.trajectories.positions != alone.trajectories.positions, axis=-1))
+    assert not len(differ), f"{len(differ)} robot-ticks differ, first (tick, robot) {differ[0].tolist()}"

@@ -1,9 +1,9 @@
 """Crazyswarm2's services and setpoint topics of a drone, and what each request or message asks of
 its firmware: a command's kind and arguments (core/drone_commands.py), in SI units and radians.
 
-Their types are ``crazyflie_interfaces``'s, a package not on PyPI: the user builds it from
-Crazyswarm2's source with ``composed-sim interfaces build`` and names it in the world file's
-``interfaces`` or on ``PYTHONPATH`` (docs/crazyflie.md). ``load()`` finds it, or says it is not there.
+Their types are ``crazyflie_interfaces``'s, a package not on PyPI: composed_sim ships its own
+definitions (the same names and fields, so the type hashes), built on first use, and a user's own
+build of Crazyswarm2's comes first (docs/crazyflie.md). ``load()`` finds it, or says it is not there.
 
 What each carries, as Crazyswarm2's C++ server hands it to the firmware:
 
