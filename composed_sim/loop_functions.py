@@ -21,7 +21,7 @@ controllers never see the loop functions: they are ROS nodes and only get their 
 """
 from __future__ import annotations
 
-from typing import Callable, Optional
+from typing import Any, Callable, Optional
 
 from composed_sim import entry_points
 
@@ -72,10 +72,37 @@ def make(world: World):
     if ref is None:
         return None
     cls = load_class(ref.name)
+    params = checked_params(cls, ref.name, ref.params)
     try:
-        return cls(**ref.params)
+        return cls(**params)
     except (TypeError, ValueError) as e:      # an unknown or missing keyword, a value the class refuses
         raise LoopFunctionsError(f"loop functions {ref.name!r}: {e}", ("loop_functions", "params")) from e
+
+
+def checked_params(cls: type, name: str, params: dict) -> dict:
+    """``params`` checked against the constructor's signature, as the world's own fields are
+    (pydantic): each annotated parameter's type, every number finite, no keyword the constructor
+    lacks; the values as pydantic made them. A LoopFunctionsError names the first bad field."""
+    import inspect
+
+    import pydantic
+    fields = {}
+    for p in list(inspect.signature(cls.__init__, eval_str=True).parameters.values())[1:]:
+        if p.kind in (p.VAR_POSITIONAL, p.VAR_KEYWORD):
+            return params                     # **kwargs: the class takes what it is given
+        annotation = Any if p.annotation is p.empty else p.annotation
+        fields[p.name] = (annotation, ... if p.default is p.empty else p.default)
+    model = pydantic.create_model(f"{cls.__name__}Params", __config__=pydantic.ConfigDict(
+        extra="forbid", allow_inf_nan=False, arbitrary_types_allowed=True), **fields)
+    try:
+        made = model(**params)
+    except pydantic.ValidationError as e:
+        error = e.errors()[0]
+        where = tuple(str(part) for part in error["loc"])
+        value = f" (got {error['input']!r})" if error["type"] != "missing" else ""
+        raise LoopFunctionsError(f"loop functions {name!r}: {'.'.join(where)}: {error['msg']}{value}",
+                                 ("loop_functions", "params", *where[:1])) from None
+    return {key: getattr(made, key) for key in params}
 
 
 def describe(world: World, initial: dict, final: dict) -> list[str]:

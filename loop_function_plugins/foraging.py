@@ -23,7 +23,8 @@ class ForagingLoopFunctions(LoopFunctions):
     ([x_min, x_max, y_min, y_max]); the thresholds are the controllers' (their params of the same
     names); ``target_score``: end the run once this many items were delivered (None: never)."""
 
-    def __init__(self, items: int = 15, radius_m: float = 0.05, food_area=(-1.0, 2.0, -2.0, 2.0),
+    def __init__(self, items: int = 15, radius_m: float = 0.05,
+                 food_area: tuple[float, float, float, float] = (-1.0, 2.0, -2.0, 2.0),
                  food_below: float = 0.25, nest_below: float = 0.75, target_score: int | None = None):
         if items < 1 or radius_m <= 0:
             raise ValueError(f"items must be >= 1 and radius_m > 0 (got {items}, {radius_m})")

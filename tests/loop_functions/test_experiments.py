@@ -128,3 +128,26 @@ def test_a_loop_function_that_raises_ends_its_run_with_the_traceback(tmp_path, m
     bad = _cli("run", world, "--robots", 3, "--ticks", 2, "--out", tmp_path / "o2")
     assert bad.returncode == 2 and "loop_functions.params: loop functions 'raising': " in bad.stderr
     assert "unexpected keyword argument 'raise_at'" in bad.stderr
+
+
+SHIPPED_LOOP_WORLDS = sorted(p for p in (Path(__file__).resolve().parents[2] / "worlds").glob("*.yaml")
+                             if "loop_functions" in yaml.safe_load(p.read_text()))
+
+
+@pytest.mark.parametrize("bad", [float("inf"), float("nan"), "many", [1, 2], {"a": 1}])
+@pytest.mark.parametrize("path", SHIPPED_LOOP_WORLDS, ids=lambda p: p.name)
+def test_a_bad_loop_function_parameter_is_one_line_naming_the_file_and_field(path, bad):
+    """Each shipped world's loop-function parameters, one at a time set to a value of the wrong
+    kind or not finite, and an unknown key: one error line naming the file, the line and the
+    field, before any run starts (was: a Python traceback from deep in the run for food_area inf)."""
+    from composed_sim.cli.common import check_plugins
+    from composed_sim.command_line import UserError
+    world = yaml.safe_load(path.read_text())
+    for key in [*world["loop_functions"].get("params", {}), "no_such_parameter"]:
+        edited = yaml.safe_load(path.read_text())
+        edited["loop_functions"].setdefault("params", {})[key] = bad
+        loaded = world_from_dict(edited, source=path)
+        with pytest.raises(UserError) as refused:
+            check_plugins(path, loaded)
+        line = str(refused.value)
+        assert line.startswith(f"{path}:") and f"loop_functions.params.{key}" in line and "\n" not in line, line
