@@ -100,7 +100,9 @@ def checked_params(cls: type, name: str, params: dict) -> dict:
         error = e.errors()[0]
         where = tuple(str(part) for part in error["loc"])
         value = f" (got {error['input']!r})" if error["type"] != "missing" else ""
-        raise LoopFunctionsError(f"loop functions {name!r}: {'.'.join(where)}: {error['msg']}{value}",
+        said = f"not a parameter of theirs (they take: {', '.join(fields) or 'none'})" \
+            if error["type"] == "extra_forbidden" else f"{error['msg']}{value}"
+        raise LoopFunctionsError(f"loop functions {name!r}: {'.'.join(where)}: {said}",
                                  ("loop_functions", "params", *where[:1])) from None
     return {key: getattr(made, key) for key in params}
 

@@ -126,8 +126,8 @@ def test_a_loop_function_that_raises_ends_its_run_with_the_traceback(tmp_path, m
     data["loop_functions"]["params"] = {"raise_at": 4}
     world.write_text(yaml.safe_dump(data))
     bad = _cli("run", world, "--robots", 3, "--ticks", 2, "--out", tmp_path / "o2")
-    assert bad.returncode == 2 and "loop_functions.params: loop functions 'raising': " in bad.stderr
-    assert "unexpected keyword argument 'raise_at'" in bad.stderr
+    assert bad.returncode == 2 and "loop_functions.params.raise_at: loop functions 'raising': " in bad.stderr
+    assert "raise_at: not a parameter of theirs (they take: raise_at_tick)" in bad.stderr
 
 
 SHIPPED_LOOP_WORLDS = sorted(p for p in (Path(__file__).resolve().parents[2] / "worlds").glob("*.yaml")
