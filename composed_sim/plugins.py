@@ -17,11 +17,14 @@ GROUP = "composed_sim.controllers"
 
 class PluginError(Exception):
     """A plugin cannot be found, imported or used; the message says which and why. ``field``:
-    the world file's field it concerns, e.g. ("robots", 0, "controller"), when known."""
+    the world file's field it concerns, e.g. ("robots", 0, "controller"), when known.
+    ``user_traceback``: where the user's own code raised (a constructor's), to show once above the
+    error's line."""
 
-    def __init__(self, message: str, field: tuple = ()):
+    def __init__(self, message: str, field: tuple = (), user_traceback: str = ""):
         super().__init__(message)
         self.field = field
+        self.user_traceback = user_traceback
 
 
 def installed() -> dict[str, EntryPoint]:

@@ -119,6 +119,8 @@ class Run:
                 with self.host:
                     return self._ticks(interrupts, outputs)
             except (plugins.PluginError, PlacementError) as e:
+                if getattr(e, "user_traceback", ""):       # once, above the error's line
+                    print(f"composed-sim: where it raised:\n{e.user_traceback}", file=sys.stderr)
                 raise UserError(located(self.settings.world.path, e)) from None
             except (HostError, AnotherSimulator) as e:
                 raise UserError(str(e)) from None

@@ -68,6 +68,12 @@ def test_plugins_that_cannot_be_used(tmp_path, monkeypatch, module, entry, messa
     name = install_plugin(tmp_path, monkeypatch, module, entry, names=("bad",))
     w = plain_world(tmp_path, name)
     error = fails(w, "--out", tmp_path / "o")
+    if entry == "ExplodesOnConstruct":      # the node's own code that raised, once, above the line
+        where, error = error.rsplit("\n", 1)
+        raising = (ROOT / "tests" / "plugin_pkg" / "broken.py").read_text().splitlines().index(
+            '        raise ValueError("calibration file robot.cfg not found")') + 1
+        assert where.splitlines()[0] == "composed-sim: where it raised:", where
+        assert where.count(f'broken.py", line {raising}, in __init__') == 1 and "composed_sim/" not in where, where
     assert error.startswith(f"composed-sim: error: {w}:{line_of(w, 'controller')}: robots[0].controller: ")
     assert message in error and len(error.splitlines()) == 1, error
 

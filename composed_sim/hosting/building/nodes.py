@@ -28,6 +28,7 @@ from composed_sim.hosting.sim_time.timers import SimTimers, first_timer_tick
 from composed_sim.hosting.calls.clients import wait_during_construction
 from composed_sim.hosting.calls.directory import remember_action_server_names
 from composed_sim.hosting.guard.callback_guard import stop_robots_that_shut_down
+from composed_sim.hosting.guard.node_logs import format_traceback
 from composed_sim.hosting.sim_time.sleeps import host_clock_sleeps, host_rates, host_wall_sleeps
 from composed_sim.world.crazyflies import interfaces_needed
 from composed_sim.world.problems import format_path
@@ -179,6 +180,14 @@ def spec_parameters(spec: NodeSpec) -> list[Parameter]:
     return [Parameter(k, value=v) for k, v in spec.parameters.items()]
 
 
+def _own_frames(error: BaseException) -> str:
+    """The frames of the traceback from the node's own code on (Python's own lines for them,
+    indented), without the host's and rclpy's that led there nor the exception's line, which the
+    error's own line says."""
+    frames = format_traceback(error, skip="/composed_sim/,/rclpy/").splitlines()
+    return "\n".join(line for line in frames if line.startswith("  "))
+
+
 def construct_node(cls: type[Node], spec: NodeSpec, field: tuple, owner: str, options: HostedNodeOptions,
                timers: SimTimers, relay: Optional[RunWideRelay], origin: int, served: ServedByTick0) -> Node:
     """One node built by ``node_options.construct``; an error names the world file's field.
@@ -194,7 +203,8 @@ def construct_node(cls: type[Node], spec: NodeSpec, field: tuple, owner: str, op
         host_clock_sleeps(node)
     except Exception as e:
         raise plugins.PluginError(f"{_describe(field, spec)} failed to construct for {owner}: "
-                                  f"{type(e).__name__}: {e}", field) from e
+                                  f"{type(e).__name__}: {e}", field,
+                                  _own_frames(e)) from e
     if node.executor is not None:
         # Its constructor gave it an executor of its own (spun in a thread, say): hosted, the host
         # spins it, and adding it to the host's executor would take it from that one, which would

@@ -103,7 +103,7 @@ class MachineAgent:
             nodes, run_wide, rounds, calls = self.host.start(setup.run_prefix)
         except (plugins.PluginError, HostError, InterfaceError) as e:
             self._stop()
-            return ("error", type(e).__name__, str(e), getattr(e, "field", ()))
+            return ("error", type(e).__name__, str(e), getattr(e, "field", ()), getattr(e, "user_traceback", ""))
         return ("ready", nodes, rounds, calls, self.host.answers_later, self.host.run_wide_timers)
 
     def _stop(self) -> None:

@@ -22,7 +22,7 @@ A worker talks to the main process over its socket (pickled messages,
                     ("stop",)                      end now
     worker → main   ("ready", nodes, messages)     discovery done: tick 0 can start; what its nodes
                                                    published on run-wide topics while being built
-                    ("error", kind, message, field) the block could not be built
+                    ("error", kind, message, field, user_traceback) the block could not be built
                     ("answers", TickAnswers)       the tick's LEDs, payloads, violations (its
                                                    commands: in the shared state),
                                                    and its nodes' console lines (hosting/guard/node_logs.py)

@@ -49,7 +49,7 @@ def serve(fd: int, adopted: Callable[[], None]) -> int:
     except (plugins.PluginError, HostError) as e:
         if logs is not None:
             logs.flush()
-        conn.send(("error", type(e).__name__, str(e), getattr(e, "field", ())))
+        conn.send(("error", type(e).__name__, str(e), getattr(e, "field", ()), getattr(e, "user_traceback", "")))
         return EXIT_SETUP
     run_wide_timers = groups.run_wide.first_timer_tick if groups.run_wide is not None else 0
     conn.send(("ready", groups.nodes, groups.calls_leave, groups.calls.take_outbox(), groups.answers_later,

@@ -240,9 +240,9 @@ class WorkerHost(ControllersElsewhere):
                 except (EOFError, OSError):
                     raise HostError(w.startup_failure()) from None
                 if message[0] == "error":
-                    _, kind, text, field = message
+                    _, kind, text, field, user_traceback = message
                     if kind == "PluginError":
-                        raise plugins.PluginError(text, field)
+                        raise plugins.PluginError(text, field, user_traceback)
                     raise HostError(text)
                 _, ready[w.index], calls_leave, made, later, run_wide_timers = message
                 rounds, calls = rounds or calls_leave, calls + made
