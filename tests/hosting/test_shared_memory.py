@@ -165,6 +165,19 @@ def _run_until(tmp_path: Path, name: str, ticks: int, *extra: str) -> tuple[subp
 OWN_DOMAIN = ("--domain-id", "87")
 
 
+def _of_domain(name: str, domain: int) -> bool:
+    """A participant's segment, or a port of ``domain``'s range (7400 + 250 d, 250 ports): files no
+    process outside the domain opens. Fast DDS's shared-memory ports below 7400 (7000, 7001, ...)
+    belong to no domain: any participant on the machine takes the first whose lock is free, a dead
+    run's file as it is, so another test's run may take one of these runs' files and be killed
+    with it (a run of the default suite, 2026-12-07: fastrtps_port7001_el left by nobody)."""
+    stem = name.removeprefix("sem.").removesuffix("_mutex").removesuffix("_el").removesuffix("_sl")
+    port = stem.split("_", 1)[1].removeprefix("port")
+    if not port.isdigit():
+        return True
+    return 7400 + 250 * domain <= int(port) < 7400 + 250 * (domain + 1)
+
+
 def _holders(files: set[tuple[str, int]]) -> str:
     """Which live processes map or lock each of ``files``: for a failure's message."""
     out = []
@@ -198,5 +211,6 @@ def test_a_killed_run_leaves_nothing_after_the_next_and_the_next_nothing_of_its_
     still = {(n, i) for n, i in left if _ino(SHM / n) == i}
     assert swept or not still, f"{err}\nleft, with their holders:\n{_holders(still)}"
     in_use = _in_use()            # by other processes on this machine: not only the runs'
-    remaining = sorted(n for n, i in killed_files | after_files if _ino(SHM / n) == i and i not in in_use)
+    remaining = sorted(n for n, i in killed_files | after_files
+                       if _ino(SHM / n) == i and i not in in_use and _of_domain(n, int(OWN_DOMAIN[1])))
     assert remaining == [], _holders({(n, i) for n, i in killed_files | after_files if n in remaining})

@@ -84,6 +84,12 @@ def shard_cmd(robots: str, *, n=ROBOTS, seed=SEED, extra=()) -> list[str]:
 
 def test_a_missing_shard_is_a_clear_error_naming_the_robots(tmp_path, processes):
     processes.append(start(shard_cmd("0-1", n=4), tmp_path / "shard.log"))
+    # The simulator's discovery window starts once the shard announces itself (its line says so):
+    # on a loaded machine the shard's own start-up took longer than the 4 s window.
+    deadline = time.monotonic() + 120
+    while "waiting for the simulator" not in (tmp_path / "shard.log").read_text():
+        assert processes[0].poll() is None and time.monotonic() < deadline, (tmp_path / "shard.log").read_text()
+        time.sleep(0.1)
     with pytest.raises(HostError, match=r"no controller shard hosts robots 2-3 \(bot2, bot3\) after 4 s "
                                         r"\(shards found: [^ ]+:\d+ hosts 0-1\)"):
         with ExternalControllersHost(world(robots=4), domain_id=int(os.environ["ROS_DOMAIN_ID"]),
