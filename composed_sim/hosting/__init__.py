@@ -63,6 +63,7 @@ _EXPORTS = {
     # the nodes' logs and failures
     "guard.node_logs": ("NodeLogs", "Console", "FAILURE_MARK", "failure_from_output",
                         "node_label", "raising_node"),
+    "guard.callback_guard": ("end_process_on_thread_shutdown",),
     # DDS: participants, shared memory, matched endpoints
     "dds.participants": ("ignore_participants_of_this_process", "run_prefix", "use_worker_prefix"),
     "dds.shared_memory": ("remove_stale_shared_memory", "remove_own_shared_memory"),

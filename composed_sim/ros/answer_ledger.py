@@ -93,8 +93,10 @@ class AnswerLedger:
     def accepts(self, i: int, key: int, tick_ns: int) -> bool:
         """Called with the lock held: does robot i's answer stamped ``key`` settle its part of the
         open tick? An answer to an earlier tick comes from a robot whose miss of that tick is
-        recorded already; any other stamp is a contract violation of its own. A second answer to
-        the same tick, or one to a tick already rejected, does not count: the first does."""
+        recorded already; any other stamp is a contract violation of its own. A later answer to
+        the open tick replaces the one before (a robot's base acts on the last command it got: a
+        callback that publishes a stop, then the next command, answers with the next); one to a
+        tick already rejected does not count."""
         if self.failed[i]:
             return False
         if key != self.current_key:
@@ -102,7 +104,7 @@ class AnswerLedger:
                 self.record(self.current_tick, i, f"answer stamped {key} ns answers no tick "
                             f"published so far (the last is {self.tick_key} ns)")
             return False
-        return not self.answered[i]
+        return not self.rejected[i]
 
     def answer_later(self, robots: Collection[str], until_tick: Optional[int] = None) -> None:
         """``robots``' nodes cannot answer yet: no active cmd_vel publisher (a lifecycle node not

@@ -154,17 +154,20 @@ class AnswerSubscription(Waitable):
         return ctypes.string_at(message.buffer, message.buffer_length), ctypes.string_at(self._gid_at, _GID_BYTES)
 
     def dispatch_ready(self) -> int:
-        """Take one message, if any, and run the callback on it (the lockstep executor's walk):
-        one handed over in process first, then, while DDS may hold one too, one from DDS.
+        """Take the messages handed over in process, every one (the last answers the tick, as
+        through DDS, where they all arrive before the tick closes), and run the callback on each
+        (the lockstep executor's walk); then, while DDS may hold one too, one from DDS.
 
         A message from DDS is taken and handled under the lock: a thread that finds nothing to
         take (the simulator's, before it settles quiet robots) knows that no other thread holds
         an answer taken but not yet handled (a multi-threaded executor's, descheduled between
         the two)."""
         inbox, handled = self.inbox, 0
-        if inbox.queue:
-            self._callback(*inbox.queue.popleft())
-            handled = 1
+        queue = inbox.queue
+        if queue:
+            while queue:
+                self._callback(*queue.popleft())
+                handled += 1
             if inbox.links and not inbox.dds_may_hold():
                 return handled
         with self._lock:
@@ -174,6 +177,13 @@ class AnswerSubscription(Waitable):
                 return handled + 1
         inbox.emptied()
         return handled
+
+    def take_handed_over(self) -> None:
+        """What was handed over in process since the last take: before the tick closes, so that
+        an answer published after the walk's last look answers this tick, not the next."""
+        queue = self.inbox.queue
+        while queue:
+            self._callback(*queue.popleft())
 
     def destroy(self, node: Node) -> None:
         node.remove_waitable(self)

@@ -383,6 +383,9 @@ class SimulatorNode(Node):
     def close_tick(self, fallback: str, previous: tuple[np.ndarray, np.ndarray],
                    commands: tuple[np.ndarray, np.ndarray]) -> None:
         """End the answer window; this node's robots' commands into ``commands`` (ros/answer_ledger.py)."""
+        for sub in self._cmd_subs:
+            if sub is not None and sub.inbox.queue:
+                sub.take_handed_over()
         self._ledger.close_tick(fallback, previous, commands)
 
     def destroy_node(self) -> None:

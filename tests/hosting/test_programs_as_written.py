@@ -465,6 +465,40 @@ def test_rclpy_shutdown_in_a_done_callback_ends_the_robots_nodes_visibly(run_in,
         assert later and later[0].tick >= done[0] and "shutdown" in later[0].reason, later
 
 
+def heading_changes(run: Run) -> np.ndarray:
+    """Per robot, how far it turned over the run (rad, unwrapped, counter-clockwise positive)."""
+    theta = np.unwrap(run.result.trajectories.headings, axis=0)
+    return theta[-1] - theta[0]
+
+
+@pytest.mark.parametrize("mode", cells({"multi-threaded": (
+    "under rclpy's own multi-threaded executor (kept for comparison) a callback's rclpy.spin_once(node) builds rclpy's "
+    "global executor, which has no context in a host: the execute callback raises and the goal is aborted")},
+    default=("workers 1", "multi-process")))
+def test_a_server_that_spins_its_node_to_turn_drives_its_square(run_in, mode):
+    """A vendor's patrol pattern (programs_as_written/turning.py): the execute callback drives a
+    side paced by ``time.sleep``, then turns with ``rclpy.spin_once(self, timeout_sec=0.1)``
+    between commands, reading the odometry that the spin lets in. In its own process that spin
+    runs the node's odometry callback from inside the execute callback (rclpy's global executor
+    is the one spinning the node), so the heading it reads moves on and every turn ends at 90°:
+    four sides, four feedbacks, the result, about one full turn. Then the client's
+    ``threading.Timer(0.1, rclpy.shutdown)`` ends its process, and with it the robot's nodes."""
+    devices = load_world(FLOCKING).robots[0].devices
+    with_odometry = devices.model_validate({**devices.model_dump(exclude_unset=True), "odometry": {}})
+    world = world_of("turning:SquareServer", "turning:SquareClient", ticks=300, watchdog_s=2.0,
+                     answers="when_published", devices=with_odometry)
+    run = run_in(world, mode)
+    turned = heading_changes(run)
+    for i, robot in enumerate(("bot0", "bot1")):
+        client = run.texts(robot, "square_client")
+        assert client == ["sides left: 3", "sides left: 2", "sides left: 1", "sides left: 0", "Result: 4"], client
+        assert abs(turned[i] - 2 * np.pi) < 0.15, turned
+        ended = [v for v in run.violations if v.robot == robot]
+        assert len(ended) == 1 and "rclpy.shutdown()" in ended[0].reason, ended
+        assert ended[0].tick >= run.ticks_of(robot, "Result")[0]
+    assert (run.moved() < 0.1).all()          # back near its start: a closed square of 0.1 m sides
+
+
 # --- callback groups -----------------------------------------------------------------------------
 
 @pytest.mark.parametrize("mode", cells({}))

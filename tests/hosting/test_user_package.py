@@ -128,13 +128,15 @@ def test_a_chain_with_a_timer_in_the_middle_runs_alike_in_every_mode(swarm_vote,
 
 def test_a_viewer_gets_run_wide_topics_with_their_own_types(swarm_vote, tmp_path):
     # --foxglove-topics '/opinions': the channel is advertised once a robot first publishes on it,
-    # with the package's own message definition; the viewer then gets every robot's opinions.
+    # with the package's own message definition; the viewer then gets every robot's opinions. 80
+    # ticks at twice real time (4 s): the world's own 30 (1.5 s) were over on a loaded machine before
+    # the viewer had subscribed.
     sys.path.insert(0, str(ROOT / "tests"))
     from foxglove_client import channels, free_port, open_connection, receive_until_closed, subscribe
     port = free_port()
     run = subprocess.Popen([sys.executable, "-m", "composed_sim.cli", "run", str(WORLD), "--out", str(tmp_path / "out"),
-                            "--no-progress", "--no-picture", "--rate", "2", "--foxglove", f"127.0.0.1:{port}",
-                            "--foxglove-topics", "/opinions"], cwd=ROOT, stdout=subprocess.PIPE,
+                            "--no-progress", "--no-picture", "--rate", "2", "--ticks", "80", "--foxglove",
+                            f"127.0.0.1:{port}", "--foxglove-topics", "/opinions"], cwd=ROOT, stdout=subprocess.PIPE,
                            stderr=subprocess.PIPE, text=True)
     try:
         with open_connection(port) as ws:

@@ -30,6 +30,7 @@ from composed_sim.hosting.calls.directory import remember_action_server_names
 from composed_sim.hosting.guard.callback_guard import stop_robots_that_shut_down
 from composed_sim.hosting.guard.node_logs import format_traceback
 from composed_sim.hosting.sim_time.sleeps import host_clock_sleeps, host_rates, host_wall_sleeps
+from composed_sim.hosting.sim_time.spins import host_global_spins
 from composed_sim.world.crazyflies import interfaces_needed
 from composed_sim.world.problems import format_path
 from composed_sim.world.schema import NodeSpec, RobotGroup, World
@@ -233,6 +234,7 @@ def before_node_imports() -> None:
     bind ``from time import sleep``): the calls that would act on their whole process act on their
     robot (hosting/sim_time/sleeps.py, hosting/guard/callback_guard.py). Idempotent."""
     host_wall_sleeps()
+    host_global_spins()
     stop_robots_that_shut_down()
     remember_action_server_names()
 

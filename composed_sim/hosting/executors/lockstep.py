@@ -69,6 +69,9 @@ class LockstepExecutor(TaskRunning, SingleThreadedExecutor):
         # there (every walker of one ``dispatch_ready`` shares it), not from the start.
         self._cursor = None
         self._ran = 0                             # callbacks and tasks run (what a walk reports)
+        # Callbacks in rclpy.spin_once(node) (hosting/sim_time/spins.py): per node, what to complete
+        # once another callback of it has run.
+        self._spinners: dict[Node, list[Future]] = {}
 
     # --- nodes ----------------------------------------------------------------------------------
 
@@ -156,6 +159,16 @@ class LockstepExecutor(TaskRunning, SingleThreadedExecutor):
         self.scheduler.run(lambda: self._walk(services_only=True))
         return self._ran - before
 
+    def notify_after_callback_of(self, node: Node, future: Future) -> None:
+        """Complete ``future`` once the walk has run a callback of ``node`` (a subscription's,
+        a timer's, a service's): what ``rclpy.spin_once(node)`` inside a callback waits for."""
+        self._spinners.setdefault(node, []).append(future)
+
+    def _callback_of_ran(self, node: Node) -> None:
+        for future in self._spinners.pop(node, ()):
+            if not future.done():
+                future.set_result(None)
+
     def shutdown(self, timeout_sec: Optional[float] = None) -> bool:
         self.scheduler.close()
         return super().shutdown(timeout_sec)
@@ -190,6 +203,8 @@ class LockstepExecutor(TaskRunning, SingleThreadedExecutor):
         tasks, held = scheduler.tasks, self._held
         coroutine = CoroutineType
         me = getcurrent()       # the walk stops once another greenlet walks (set aside in a callback)
+        spinners = self._spinners
+        ran = -1
         skip = 0
         self._run_tasks()
         if scheduler.walker is not me:
@@ -200,6 +215,8 @@ class LockstepExecutor(TaskRunning, SingleThreadedExecutor):
                 continue
             if held and group in held:             # a callback of its group waits: later
                 continue
+            if spinners:
+                ran = self._ran
             result = None
             if kind is BATCH:
                 result, skip = self._run_batch(entity, inbox, once, group)
@@ -232,6 +249,8 @@ class LockstepExecutor(TaskRunning, SingleThreadedExecutor):
                 self.start_coroutine(result, group, node)
             if scheduler.walker is not me:         # set aside in a callback, resumed later: stop
                 return
+            if spinners and self._ran != ran and node in spinners:
+                self._callback_of_ran(node)
             if tasks:
                 self._run_tasks()
                 if scheduler.walker is not me:

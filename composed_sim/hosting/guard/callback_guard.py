@@ -35,6 +35,7 @@ import inspect
 import signal
 import threading
 import time
+import weakref
 from typing import Callable, Optional, Protocol, Sequence, runtime_checkable
 
 import numpy as np
@@ -90,6 +91,7 @@ class CallbackGuard(CallbackWatcher):
         self._robots: dict[str, tuple[ServedRobots, Node]] = {}   # robot → who serves it, its first node
         self._robot_of: dict[int, str] = {}            # id(node) → its robot
         self._wrapped: set[int] = set()                # ids of the entities whose callbacks are wrapped
+        _GUARDS.add(self)
 
     def guard(self, node: Node, robot: str, sim_node: ServedRobots, relayed: Sequence = ()) -> None:
         """Wrap the callbacks of every subscription, timer and service ``node`` has (a controller
@@ -283,6 +285,23 @@ class CallbackGuard(CallbackWatcher):
         self._running, self._started = running, started + (time.monotonic() - set_aside_at)
         self._cpu_started = cpu_started + (time.thread_time() - cpu_at)
 
+    def caller_robot(self) -> Optional[str]:
+        """The robot whose guarded callback (or task) runs in this thread now, if any."""
+        if threading.get_ident() == self._main.ident:
+            return self._running
+        if not getattr(self._depth, "inside", False):
+            return None
+        ident = threading.get_ident()
+        with self._workers_lock:
+            return next((robot for robot, thread in self._workers.items() if thread == ident), None)
+
+    def end_robot(self, robot: str, ending: BaseException) -> None:
+        """A thread of ``robot``'s ended its process (``rclpy.shutdown()``): the robot is stopped,
+        with the call as the reason, as a callback's would."""
+        served = self._robots.get(robot)
+        if served is not None:
+            self._fail(robot, served[1], ending, str(ending))
+
     def in_callback(self) -> bool:
         """Is this thread running a guarded callback now?"""
         if threading.get_ident() == self._main.ident:
@@ -330,11 +349,21 @@ class RobotShutdown(SystemExit):
     an_end = True       # not a fault: its log says so in a line, with no traceback
 
 
+_GUARDS: "weakref.WeakSet[CallbackGuard]" = weakref.WeakSet()     # this process's, for the threads' robots
+# A process that hosts one robot's nodes unguarded (multi-process mode's controller process): how it
+# ends when a thread of theirs calls rclpy.shutdown(), as their own process would.
+process_shutdown: Optional[Callable[[BaseException], None]] = None
+_THREADS_ROBOT = "composed_sim_robot"      # a thread's (guard, robot), where a robot's callback made it
+
+
 def stop_robots_that_shut_down() -> None:
     """``rclpy.shutdown()`` and ``rclpy.try_shutdown()`` of the default context, which a host never
     initialises (each hosted node has its process's context), stop the calling robot: raised from
     the call, the robot's guard (or its controller process) takes it as the end its own process
-    would have had. The host's own calls name their context and are untouched."""
+    would have had. Called from a thread that one of a robot's callbacks made (a
+    ``threading.Timer(0.1, rclpy.shutdown)``), it stops that robot in the same way, from that
+    thread, as its own process would end. The host's own calls name their context and are
+    untouched."""
     if getattr(rclpy.shutdown, "stops_robot", False):
         return
     for name in ("shutdown", "try_shutdown"):
@@ -342,12 +371,47 @@ def stop_robots_that_shut_down() -> None:
 
         def call(*, context=None, uninstall_handlers=None, original=original, name=name):
             if context is None:
-                raise RobotShutdown(f"stopped: a node called rclpy.{name}(), which ends its own process: "
-                                    f"its robot's nodes end here")
+                ending = RobotShutdown(f"stopped: a node called rclpy.{name}(), which ends its own process: "
+                                       f"its robot's nodes end here")
+                thread = threading.current_thread()
+                made_by = getattr(thread, _THREADS_ROBOT, None)
+                if made_by is not None and not any(guard.in_callback() for guard in _GUARDS):
+                    guard, robot = made_by
+                    guard.end_robot(robot, ending)
+                    return None
+                if process_shutdown is not None and thread is not threading.main_thread():
+                    process_shutdown(ending)        # a process of one robot's nodes ends with it
+                    return None
+                raise ending
             kwargs = {} if uninstall_handlers is None else {"uninstall_handlers": uninstall_handlers}
             return original(context=context, **kwargs)
         call.stops_robot = True
         setattr(rclpy, name, call)
+    _note_threads_robot()
+
+
+def end_process_on_thread_shutdown(end: Callable[[BaseException], None]) -> None:
+    """In a process of one robot's nodes, unguarded: ``end(reason)`` when a thread of theirs calls
+    ``rclpy.shutdown()`` (the process then ends as it would for a callback's call)."""
+    global process_shutdown
+    process_shutdown = end
+
+
+def _note_threads_robot() -> None:
+    """Each thread made inside a guarded callback remembers the robot whose callback made it."""
+    init = threading.Thread.__init__
+
+    def noting_init(self, *args, **kwargs):
+        init(self, *args, **kwargs)
+        for guard in _GUARDS:
+            robot = guard.caller_robot()
+            if robot is not None:
+                setattr(self, _THREADS_ROBOT, (guard, robot))
+                return
+        made_by = getattr(threading.current_thread(), _THREADS_ROBOT, None)    # a thread of a robot's thread
+        if made_by is not None:
+            setattr(self, _THREADS_ROBOT, made_by)
+    threading.Thread.__init__ = noting_init
 
 
 def refuse_shutdown_from_callbacks(context, guard: CallbackGuard) -> None:

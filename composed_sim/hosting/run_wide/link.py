@@ -85,6 +85,7 @@ class RunWideLink:
         self.answered = -1          # stamp of the last tick the robot's nodes published cmd_vel in
         self.answer_type: Optional[str] = None      # a first cmd_vel publisher's type, to tell the simulator
         self._carried: Optional[bytes] = None        # … and its first answer, which the simulator cannot hear yet
+        self._held: Optional[tuple] = None           # (publish, message): the tick's last cmd_vel so far
         self.reads: dict[str, int] = {}              # sensor topics read by subscriptions made since: how many
         self._published: dict[str, int] = {}     # counted messages since the last part, by topic (``count``)
         self.clocks: list = []      # the robot's nodes' clocks (sim_time/timers.clocks_to)
@@ -105,18 +106,36 @@ class RunWideLink:
 
     def watch_answers(self, publishers) -> None:
         """Note the ticks in which the robot's cmd_vel ``publishers`` publish (the simulator then
-        waits for the answer itself, not only for the sign that the robot is idle)."""
+        waits for the answer itself, not only for the sign that the robot is idle). Where the
+        robot's part of each tick is sent, what its nodes publish on cmd_vel in one pass of the
+        executor goes out once, the last, after the pass (``send_held_answer``): in one process
+        the simulator takes every copy before the tick closes and keeps the last
+        (ros/answer_ledger.py), and over DDS a second copy published a moment after the first
+        could arrive after the tick closed on the first."""
         for publisher in publishers:
             publish = publisher.publish
 
             def noting(msg, publish=publish, publisher=publisher):
                 # A lifecycle publisher not activated publishes nothing: no answer.
-                if getattr(publisher, "is_activated", True):
-                    self.answered = self.tick
-                    if self.answer_type is not None and self._carried is None:
-                        self._carried = serialize_message(msg)
-                return publish(msg)
+                if not getattr(publisher, "is_activated", True):
+                    return publish(msg)
+                self.answered = self.tick
+                if self.answer_type is not None:
+                    self._carried = serialize_message(msg)
+                if not self.sends:
+                    return publish(msg)
+                self._held = (publish, msg)
+                return None
             publisher.publish = noting
+
+    def send_held_answer(self) -> None:
+        """The last cmd_vel the nodes published since the last call, if any, now; one published
+        before tick 0's sensors came (a goal sent from a constructor, executed at once) waits for
+        them and answers tick 0, as a message handed over in one process does."""
+        if self._held is not None and self.tick >= 0:
+            (publish, msg), self._held = self._held, None
+            self.answered = self.tick
+            publish(msg)
 
     def _deliver_through(self, stamp: int) -> None:
         deadline = time.monotonic() + self._timeout_s
@@ -179,6 +198,7 @@ class RunWideLink:
 
     def send(self) -> None:
         """What the robot's nodes published in the tick of the last sensors, to the simulator."""
+        self.send_held_answer()
         logs = self._logs.drain() if self._logs is not None else ()
         calls = self._calls.take_outbox() if self._calls is not None else []
         self._outbox.publish(pack(self.tick, self._relay.take_outbox(), self.answered == self.tick, logs, calls,

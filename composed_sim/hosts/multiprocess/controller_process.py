@@ -22,6 +22,7 @@ from __future__ import annotations
 import argparse
 import signal
 import sys
+from typing import Optional
 
 from composed_sim.hosting import ProcessHosting
 from composed_sim.hosts.processes import die_with_parent
@@ -62,6 +63,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.robot not in world.robot_names():
         print(f"robot {args.robot!r} is not in {args.world}", file=sys.stderr)
         return EXIT_SETUP
+    from composed_sim.hosting import end_process_on_thread_shutdown
+    end_process_on_thread_shutdown(stop.end_with)     # rclpy.shutdown() from a thread of the nodes'
     robot = HostedRobot(world, args.robot, ProcessHosting.from_args(args))
     try:
         if not robot.build():
@@ -69,6 +72,8 @@ def main(argv: list[str] | None = None) -> int:
         if args.report_fd is not None and (code := robot.report(args.report_fd, stop.is_set)) is not None:
             return code
         robot.serve(stop.is_set)
+        if stop.ending is not None:
+            raise stop.ending       # as when a callback calls it: this process ends with its reason
         return 0
     except Exception as e:
         # A callback raised (the executor passes it on): this process ends with it, as a plain
@@ -88,8 +93,13 @@ class StopRequest:
 
     def __init__(self) -> None:
         self._requested = False
+        self.ending: Optional[BaseException] = None     # what ended the nodes from a thread of theirs
 
     def request(self, signum=None, frame=None) -> None:
+        self._requested = True
+
+    def end_with(self, ending: BaseException) -> None:
+        self.ending = ending
         self._requested = True
 
     def is_set(self) -> bool:

@@ -209,6 +209,8 @@ class HostedRobot:
                 spinning.executor.before_walk = self.readings.wait_for_the_rest
             while not stopped():
                 spinning.executor.spin_once(timeout_sec=IDLE_WAKE_S)
+                if sends:
+                    link.send_held_answer()     # one cmd_vel per pass, the last (RunWideLink.watch_answers)
                 if link is not None and link.reply_due:     # calls from the simulator: handled, answered
                     run_until_idle(spinning.executor)
                     link.reply()
@@ -223,6 +225,8 @@ class HostedRobot:
             # go out once the robot's nodes are past the tick's sensors for one look (a threaded
             # executor tells no one when it is idle).
             time.sleep(0.002 if sends else 0.1)
+            if sends:
+                link.send_held_answer()
             if link is not None and link.reply_due:
                 link.reply()
             if sends and link.tick > link.sent and self.readings.all_in(link.tick):
