@@ -11,6 +11,7 @@ from typing import Optional
 
 from composed_sim.hosts.multiprocess.hosted_robot import (FIRST_TIMER_PREFIX, GID_PREFIX, LATER, RUN_WIDE_PREFIX,
                                                         SERVED_PREFIX, TYPE_PREFIX)
+from composed_sim.hosting import failure_from_output
 from composed_sim.hosts.processes import exit_reason, last_words
 
 
@@ -70,5 +71,13 @@ class ControllerProcess:
 
 
 def died_reason(p: ControllerProcess) -> str:
-    """How a child ended, with the last line it wrote (a plugin's exception, usually)."""
-    return exit_reason(p.popen.returncode) + last_words(p.tail(500))
+    """How a child ended, with the last line it wrote (a plugin's exception, usually). A child
+    whose callback raised says so in a marked line and then ends; one that was stopped in its
+    clean-up after that (its time bound, SIGALRM) ended because of the exception, which is named,
+    not the line the mark is on."""
+    code, tail = p.popen.returncode, p.tail(2000)
+    failure = failure_from_output(tail)
+    if failure is not None and code != 1:
+        error = failure[3].strip().splitlines()[-1:] or [failure[1]]
+        return f"{exit_reason(code)} after a callback raised: {error[0]}"
+    return exit_reason(code) + last_words(tail[-500:])
