@@ -16,7 +16,6 @@ from typing import Callable, Collection, Mapping, Optional
 from rclpy.context import Context
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.time import Time
 
 from composed_sim.hosting.hosted_block import HostedBlock
 from composed_sim.hosting.executors.lockstep import LockstepExecutor
@@ -28,6 +27,7 @@ from composed_sim.hosting.calls.between_places import RUN_WIDE_ORIGIN, CallRelay
 from composed_sim.hosting.drones import run_wide_specs, with_server_class
 from composed_sim.hosting.run_wide.relay import RunWideRelay
 from composed_sim.ros.controller import PARAM_RUN_SEED
+from composed_sim.ros.driven_clocks import follow_sim_time, set_sim_time
 from composed_sim.world.schema import World
 from composed_sim.hosting.sim_time.timers import SimTimers, first_timer_tick
 
@@ -42,7 +42,7 @@ class RunWideNodes:
         self._executor = LockstepExecutor(context=context)
         self._block: Optional[HostedBlock] = None
         for node in nodes:
-            node.get_clock()._set_ros_time_is_active(True)
+            follow_sim_time(node.get_clock())
             self._executor.add_node(node)
 
     def host(self, relay: RunWideRelay, calls: CallRelay, robots: Collection[str],
@@ -75,9 +75,7 @@ class RunWideNodes:
         """Their part of tick ``tick``: the clock moves to the tick's time, their timers due by then
         fire, and whatever is ready runs until nothing is."""
         now_ns = tick * self._tick_ns
-        now = Time(nanoseconds=now_ns)
-        for node in self._nodes:
-            node.get_clock().set_ros_time_override(now)
+        set_sim_time([node.get_clock() for node in self._nodes], now_ns)
         for timers in self._tick_timers:
             timers.advance_to(now_ns)
         if self._block is not None:

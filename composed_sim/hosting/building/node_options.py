@@ -19,6 +19,7 @@ from rclpy.context import Context
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
+from composed_sim.ros.driven_clocks import follow_sim_time
 from composed_sim.ros.robot_settings import quiet_node_options
 
 
@@ -77,7 +78,7 @@ def construct(cls: type[Node], options: HostedNodeOptions,
             # Its clock is on sim time from the start, as ``use_sim_time`` puts a process's node:
             # until the host sets the first tick's time it reads 0 (in a constructor, in an
             # autostart's transitions), never the wall clock.
-            self.get_clock()._set_ros_time_is_active(True)
+            follow_sim_time(self.get_clock())
         if ours and options.logger is not None:
             self._logger = options.logger(self)      # what Node.get_logger() returns
 

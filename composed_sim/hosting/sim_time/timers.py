@@ -33,14 +33,14 @@ import threading
 from typing import Callable, Collection, Optional
 
 from greenlet import getcurrent
-from rclpy.clock import ClockType, JumpThreshold, ROSClock
+from rclpy.clock import JumpThreshold, ROSClock
 from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.subscription import Subscription
-from rclpy.time import Time
 
 from composed_sim.devices.common import cdr
 from composed_sim.hosting.sim_time.sleeps import SLEEP_HOOK
+from composed_sim.ros.driven_clocks import follow_sim_time, set_sim_time
 
 
 class SimTimers:
@@ -89,10 +89,10 @@ class SimTimers:
         if clock is not None:       # the controller chose its clock (a steady one, say): its own
             return create(timer_period_sec, callback, callback_group, clock, autostart)
         timer_clock = ROSClock()
-        timer_clock._set_ros_time_is_active(True)
+        follow_sim_time(timer_clock)
         # First due one period after now, as in rclpy: before tick 0 the node's clock reads 0.
         start = self._node.get_clock().now().nanoseconds if self._constructed else 0
-        timer_clock.set_ros_time_override(Time(nanoseconds=start, clock_type=ClockType.ROS_TIME))
+        set_sim_time((timer_clock,), start)
         timer = create(timer_period_sec, callback, callback_group, timer_clock, autostart)
         with self._lock:
             self._clocks.append(timer_clock)
@@ -193,9 +193,7 @@ class SimTimers:
                 return
             self._advanced_ns = now_ns
             clocks = list(self._clocks)
-        now = Time(nanoseconds=now_ns, clock_type=ClockType.ROS_TIME)
-        for clock in clocks:
-            clock.set_ros_time_override(now)
+        set_sim_time(clocks, now_ns)
 
     def period_warnings(self, controller: str, answers_every_ticks: Optional[int]) -> list[str]:
         """Timers that will not answer the ticks as the world file expects. The messages name the
@@ -233,9 +231,7 @@ def clocks_to(clocks, stamp: int) -> None:
     node clocks follow /clock (multi-process mode): each node hears /clock on its own, maybe after
     the tick's sensors or its run-wide batch reached another of them; in their own process every
     node's clock has moved before what the tick brings is handled."""
-    for clock in clocks:
-        if clock.now().nanoseconds < stamp:
-            clock.set_ros_time_override(Time(nanoseconds=stamp, clock_type=ClockType.ROS_TIME))
+    set_sim_time(clocks, stamp, forward_only=True)
 
 
 def before_each_tick(subscriptions, on_tick: Callable[[int], None],

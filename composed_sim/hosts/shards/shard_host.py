@@ -34,6 +34,7 @@ from composed_sim.hosts.shards.robot_ranges import format_ranges
 from composed_sim.hosts.shards.announce import ShardAnnouncer, ShardInfo, world_fingerprint
 from composed_sim.ros import contract as c
 from composed_sim.ros.answer_subscription import cmd_vel_gids
+from composed_sim.ros.driven_clocks import follow_sim_time, set_sim_time
 from composed_sim.world.schema import World
 
 LIVENESS_PERIOD_S = 0.2      # how often a serving shard looks whether its simulator is still there
@@ -95,7 +96,7 @@ class ShardHost:
                                  lambda stamp, timers=built.tick_timers: [t.advance_to(stamp) for t in timers])
                 for node in nodes:
                     clock = node.get_clock()
-                    clock._set_ros_time_is_active(True)    # as ros/driven_clocks.py does
+                    follow_sim_time(clock)
                     self._clocks.append(clock)
                     self.spinning.executor.add_node(node)
                     self.block.adopt(node, names[i], i)
@@ -106,9 +107,7 @@ class ShardHost:
         return self
 
     def _on_clock(self, msg) -> None:
-        now = RosTime.from_msg(msg.clock)
-        for clock in self._clocks:
-            clock.set_ros_time_override(now)
+        set_sim_time(self._clocks, RosTime.from_msg(msg.clock).nanoseconds)
         if self.block is not None:
             self.block.take_outside_calls()
 
