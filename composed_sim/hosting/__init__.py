@@ -51,7 +51,7 @@ _EXPORTS = {
     "executors.running": ("Spinning", "make_executor", "check_executor", "driven_by_caller", "run_until_idle",
                           "shut_down"),
     # calls between places, and their rounds across processes
-    "calls.between_places": ("CallRelay", "Request", "handover_order", "RUN_WIDE_ORIGIN"),
+    "calls.between_places": ("CallRelay", "Request", "handover_order", "blocks_reached", "RUN_WIDE_ORIGIN"),
     "calls.rounds": ("CallRounds", "replies"),
     # run-wide topics
     "run_wide.relay": ("RunWideRelay", "Message", "is_run_wide"),

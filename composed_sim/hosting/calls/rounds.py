@@ -16,7 +16,7 @@ import time
 from multiprocessing.connection import wait as wait_for_connections
 from typing import Callable, Optional
 
-from composed_sim.hosting.calls.between_places import RUN_WIDE_ORIGIN, handover_order
+from composed_sim.hosting.calls.between_places import blocks_reached, handover_order
 
 
 class CallRounds:
@@ -28,13 +28,8 @@ class CallRounds:
         self.pending: list = []      # calls of the run-wide nodes' part of the next tick, for its first round
 
     def _workers_of(self, item) -> list:
-        """The workers an item goes to: its place's, or every one (``destination`` None)."""
-        place = item.destination
-        if place is None:
-            return self._workers
-        if place == RUN_WIDE_ORIGIN:
-            return self._workers[:1]         # the run-wide nodes live with robot 0 (participant group 0)
-        return [next(w for w in self._workers if w.start <= place < w.stop)]
+        """The workers an item goes to (``blocks_reached``)."""
+        return [self._workers[k] for k in blocks_reached(item.destination, [(w.start, w.stop) for w in self._workers])]
 
     def run(self) -> None:
         """One phase's rounds, until no call is in flight anywhere."""

@@ -23,7 +23,7 @@ from typing import Optional
 
 from composed_sim.core.senses import Senses
 from composed_sim.core.violations import FAILED
-from composed_sim.hosting import HostError, RUN_WIDE_ORIGIN
+from composed_sim.hosting import HostError, blocks_reached
 from composed_sim.hosts.processes import last_words
 from composed_sim.hosts.workers.exchange import ANSWER_GRACE_S
 from composed_sim.hosts.workers.worker_host import WorkerHost, auto_workers, plan_blocks
@@ -134,13 +134,12 @@ class MachineAgent:
 
     def _route_calls(self, calls: list) -> None:
         """A round's calls for this machine, to the workers of their places, in the order given."""
-        routed: dict[int, list] = {w.index: [] for w in self.host.workers}
+        workers = self.host.workers
+        routed: dict[int, list] = {w.index: [] for w in workers}
+        blocks = [(w.start, w.stop) for w in workers]
         for item in calls:
-            place = item.destination
-            place = self.block.start if place == RUN_WIDE_ORIGIN else place
-            for w in self.host.workers:
-                if place is None or w.start <= place < w.stop:
-                    routed[w.index].append(item)
+            for k in blocks_reached(item.destination, blocks):
+                routed[workers[k].index].append(item)
         self._forward(lambda w: ("calls", routed[w.index]))
 
     def _collect(self):
