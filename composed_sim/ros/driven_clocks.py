@@ -1,7 +1,7 @@
 """Sim time on the nodes' clocks: the one place that puts a clock on sim time and moves it.
 
-A process's node with ``use_sim_time`` has its clock put on ROS time by rclpy's ``TimeSource``
-(time_source.py), which then sets the time of each /clock message it hears. The host does the
+A process's node with ``use_sim_time`` has its clock put on ROS time by rclpy's ``TimeSource``,
+which then sets the time of each /clock message it hears. The host does the
 same for the nodes it hosts, without a /clock subscription per node (N deliveries per tick): each
 place that hosts nodes (a worker's participant groups, the run-wide nodes, a controller process,
 a shard, the timers' clocks of hosting/sim_time/timers.py) calls ``follow_sim_time`` on a clock
