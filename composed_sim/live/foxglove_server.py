@@ -122,6 +122,7 @@ class FoxgloveServer:
         self._clock_channel = self._channel(CLOCK_TOPIC, CLOCK_TYPE)
         self._robot_channels = {topic: self._channel(topic, msgtype) for topic, msgtype in topics.items()
                                 if self._globs.wants(topic)}
+        self._advertising = threading.Lock()
         self._known = frozenset(topics)      # a topic outside them is a run-wide one (hosting/run_wide/relay.py)
 
     def _channel(self, topic: str, msgtype: str) -> foxglove.Channel:
@@ -152,7 +153,10 @@ class FoxgloveServer:
     def write_serialized(self, topic: str, msgtype: str, data: bytes, stamp_ns: int) -> bool:
         channel = self._robot_channels.get(topic)
         if channel is None and self.wants(topic):      # a run-wide topic's first message: advertised now
-            channel = self._robot_channels[topic] = self._channel(topic, msgtype)
+            with self._advertising:     # once: taps of several threads (a viewer subscribes to the first)
+                channel = self._robot_channels.get(topic)
+                if channel is None:
+                    channel = self._robot_channels[topic] = self._channel(topic, msgtype)
         if channel is None or not self._subscriptions.watched(channel.id()):
             return False
         channel.log(bytes(data), log_time=int(stamp_ns))

@@ -149,6 +149,8 @@ def test_a_viewer_gets_run_wide_topics_with_their_own_types(swarm_vote, tmp_path
     finally:
         if run.poll() is None:
             run.kill()
+    assert 1 in got, f"no /opinions message reached the viewer ({ {k: len(v) for k, v in got.items()} }); the run said:\n" \
+                     f"{run.stderr.read()[-2000:]}"
     by_tick = {}
     for log_time, _payload in got[1]:
         by_tick[log_time] = by_tick.get(log_time, 0) + 1

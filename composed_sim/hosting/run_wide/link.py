@@ -85,7 +85,10 @@ class RunWideLink:
         self.answered = -1          # stamp of the last tick the robot's nodes published cmd_vel in
         self.answer_type: Optional[str] = None      # a first cmd_vel publisher's type, to tell the simulator
         self._carried: Optional[bytes] = None        # … and its first answer, which the simulator cannot hear yet
-        self._held: Optional[tuple] = None           # (publish, message): the tick's last cmd_vel so far
+        self._held: Optional[tuple] = None           # (publish, message): the pass's last cmd_vel so far
+        # Whether cmd_vel is held for ``send_held_answer``: only where the caller drives the executor
+        # (the lockstep one), whose passes it sees; a threaded executor's callbacks publish at once.
+        self.holds_answers = False
         self.reads: dict[str, int] = {}              # sensor topics read by subscriptions made since: how many
         self._published: dict[str, int] = {}     # counted messages since the last part, by topic (``count``)
         self.clocks: list = []      # the robot's nodes' clocks (sim_time/timers.clocks_to)
@@ -107,8 +110,9 @@ class RunWideLink:
     def watch_answers(self, publishers) -> None:
         """Note the ticks in which the robot's cmd_vel ``publishers`` publish (the simulator then
         waits for the answer itself, not only for the sign that the robot is idle). Where the
-        robot's part of each tick is sent, what its nodes publish on cmd_vel in one pass of the
-        executor goes out once, the last, after the pass (``send_held_answer``): in one process
+        robot's part of each tick is sent and its executor is driven pass by pass (the lockstep
+        one: ``holds_answers``), what its nodes publish on cmd_vel in one pass goes out once, the
+        last, after the pass (``send_held_answer``): in one process
         the simulator takes every copy before the tick closes and keeps the last
         (ros/answer_ledger.py), and over DDS a second copy published a moment after the first
         could arrive after the tick closed on the first."""
@@ -122,7 +126,7 @@ class RunWideLink:
                 self.answered = self.tick
                 if self.answer_type is not None:
                     self._carried = serialize_message(msg)
-                if not self.sends:
+                if not (self.sends and self.holds_answers):
                     return publish(msg)
                 self._held = (publish, msg)
                 return None

@@ -139,6 +139,7 @@ class HostedRobot:
                                 timeout_s=world.lockstep.watchdog_s, logs=self.logs,
                                 calls=self.calls, index=place)
         self.link.clocks = self._clocks
+        self.link.holds_answers = driven_by_caller(self.hosting.executor, guarded=False)
         self.link.watch_answers([p for n in self.nodes for p in n.publishers
                                  if p.topic_name == c.topic_name(robot, c.CMD_VEL)])
         setpoints = {f"/{robot}/{name}" for name in SETPOINTS}      # a drone's (ros/crazyflie/messages.py)
@@ -225,8 +226,6 @@ class HostedRobot:
             # go out once the robot's nodes are past the tick's sensors for one look (a threaded
             # executor tells no one when it is idle).
             time.sleep(0.002 if sends else 0.1)
-            if sends:
-                link.send_held_answer()
             if link is not None and link.reply_due:
                 link.reply()
             if sends and link.tick > link.sent and self.readings.all_in(link.tick):
