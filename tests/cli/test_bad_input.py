@@ -78,11 +78,18 @@ def test_plugins_that_cannot_be_used(tmp_path, monkeypatch, module, entry, messa
     assert message in error and len(error.splitlines()) == 1, error
 
 
-def test_a_plugin_that_cannot_construct_in_multi_process_mode(tmp_path, monkeypatch):
+def test_a_plugin_that_cannot_construct_in_multi_process_mode_says_so_as_in_one_process(tmp_path, monkeypatch):
+    # Its controller process's PluginError comes back whole: the user's frames once, then the
+    # world file's line (it said only "the controller process of bot0 ended during start-up").
     name = install_plugin(tmp_path, monkeypatch, "broken", "ExplodesOnConstruct", names=("bad",))
     w = plain_world(tmp_path, name)
-    error = fails(w, "--mode", "multi-process", "--out", tmp_path / "o")
-    assert re.search(r"the controller process of bot[01] ", error) and "calibration file robot.cfg not found" in error
+    where, error = fails(w, "--mode", "multi-process", "--out", tmp_path / "o").rsplit("\n", 1)
+    raising = (ROOT / "tests" / "plugin_pkg" / "broken.py").read_text().splitlines().index(
+        '        raise ValueError("calibration file robot.cfg not found")') + 1
+    assert where.splitlines()[0] == "composed-sim: where it raised:", where
+    assert where.count(f'broken.py", line {raising}, in __init__') == 1 and "composed_sim/" not in where, where
+    assert re.fullmatch(rf"composed-sim: error: {re.escape(str(w))}:{line_of(w, 'controller')}: robots\[0\]\.controller: "
+                        r".*failed to construct for bot[01]: ValueError: calibration file robot.cfg not found", error), error
 
 
 def test_two_installed_plugins_with_one_name(tmp_path, monkeypatch):

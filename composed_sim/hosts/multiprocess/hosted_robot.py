@@ -34,6 +34,28 @@ RUN_WIDE_PREFIX = "run_wide:"   # of "created": a topic its run-wide link uses (
 LATER = "later"                 # of "created": no cmd_vel publisher yet, one may come (wiring.answer_rule)
 FIRST_TIMER_PREFIX = "timers_from:"   # of "created": the tick its first timer first fires (BuiltNodes)
 SERVED_PREFIX = "served:"       # of "ready": a service its nodes serve, name=type (hosting/calls/between_places.py)
+# On stderr, one line: why its nodes could not be built, as JSON (message, field, user_traceback),
+# which the host raises as the same PluginError a worker's would be (plugin_error_from_output).
+PLUGIN_ERROR_MARK = "composed-sim-plugin-error"
+
+
+def plugin_error_line(error: plugins.PluginError) -> str:
+    import json
+    return f"{PLUGIN_ERROR_MARK} " + json.dumps({"message": str(error), "field": list(error.field),
+                                                  "user_traceback": error.user_traceback})
+
+
+def plugin_error_from_output(output: str) -> Optional[plugins.PluginError]:
+    """The PluginError a controller process wrote (``plugin_error_line``), or None."""
+    import json
+    at = output.rfind(PLUGIN_ERROR_MARK + " ")
+    if at < 0:
+        return None
+    try:
+        said = json.loads(output[at + len(PLUGIN_ERROR_MARK) + 1:].partition("\n")[0])
+    except ValueError:
+        return None
+    return plugins.PluginError(said["message"], tuple(said["field"]), said["user_traceback"])
 CLEANUP_LIMIT_S = 5         # s from the end of the work to a forced exit (SIGALRM)
 # How often an idle controller process wakes (a message or a due timer ends the wait at once):
 # only to see a stop request. Every wake-up walks the executor and builds a wait set; many a
@@ -76,7 +98,10 @@ class HostedRobot:
         try:
             built = create_robot_nodes(world, group_index, robot, self.context, classes=load_classes(world),
                                        relay=relay, origin=names.index(robot), use_sim_time=True, logs=self.logs)
-        except (plugins.PluginError, HostError) as e:
+        except plugins.PluginError as e:
+            print(plugin_error_line(e), file=sys.stderr, flush=True)
+            return False
+        except HostError as e:
             print(e, file=sys.stderr)
             return False
         self.nodes, self.answers_later, self.first_timer_tick = built.nodes, built.answers_later, built.first_timer_tick

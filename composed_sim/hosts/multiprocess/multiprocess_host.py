@@ -37,6 +37,7 @@ from composed_sim.hosting import (check_executor, create_run_wide_nodes, DEFAULT
                                   NodesExchange, ProcessDrones, ProcessHosting, Spinning)
 from composed_sim.hosts.multiprocess.domains import DomainError, assign_domains
 from composed_sim.hosts.multiprocess.children import ControllerProcess, died_reason
+from composed_sim.hosts.multiprocess.hosted_robot import plugin_error_from_output
 from composed_sim.hosts.processes import InterruptWatch, exit_reason, reap, signal_group
 from composed_sim.ros import contract as c
 from composed_sim.ros.robot_settings import robot_settings
@@ -241,6 +242,9 @@ class MultiProcessHost(ControllersElsewhere):
         except subprocess.TimeoutExpired:
             raise HostError(f"the controller process of {p.robot} closed its start-up pipe without "
                             f"reporting:\n{p.tail() or '(no output)'}") from None
+        error = plugin_error_from_output(p.tail(20000))
+        if error is not None:       # its nodes could not be built: as a worker's would say it
+            raise error
         raise HostError(f"the controller process of {p.robot} (domain {p.domain}) ended during "
                         f"start-up ({exit_reason(code)}):\n{p.tail() or '(no output)'}")
 
