@@ -11,7 +11,6 @@ import pytest
 from composed_sim import plugins
 from composed_sim.hosting.process_hosting import EXECUTORS
 from composed_sim.hosts.composed import ComposedHost
-from composed_sim.hosting import HostError
 from composed_sim.hosts.multiprocess.multiprocess_host import MultiProcessHost
 from composed_sim.hosts.workers.worker_host import WorkerHost
 from composed_sim.world.loader import load_world
@@ -172,8 +171,8 @@ def test_wrong_cmd_vel_types_are_one_error_naming_robot_topic_and_types(styles, 
 
 
 def test_wrong_cmd_vel_type_in_multi_process_mode_is_the_same_one_error(styles, mp_domain):
-    # Both robots' processes fail alike; whichever is first is reported.
-    with pytest.raises(HostError, match=r"(bot\d): /\1/cmd_vel carries geometry_msgs/msg/TwistStamped or "
+    # Both robots' processes fail alike; whichever is first is reported, as the one process's error.
+    with pytest.raises(plugins.PluginError, match=r"(bot\d): /\1/cmd_vel carries geometry_msgs/msg/TwistStamped or "
                                         r"geometry_msgs/msg/Twist \(the topic contract\), not std_msgs/msg/String"):
         with MultiProcessHost(one_group("string-commands"), domain_id=mp_domain) as host:
             host.run()
