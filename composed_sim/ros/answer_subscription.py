@@ -162,14 +162,10 @@ class AnswerSubscription(Waitable):
         take (the simulator's, before it settles quiet robots) knows that no other thread holds
         an answer taken but not yet handled (a multi-threaded executor's, descheduled between
         the two)."""
-        inbox, handled = self.inbox, 0
-        queue = inbox.queue
-        if queue:
-            while queue:
-                self._callback(*queue.popleft())
-                handled += 1
-            if inbox.links and not inbox.dds_may_hold():
-                return handled
+        inbox = self.inbox
+        handled = self.take_handed_over()
+        if handled and inbox.links and not inbox.dds_may_hold():
+            return handled
         with self._lock:
             taken = self._take()
             if taken is not None:
@@ -178,12 +174,15 @@ class AnswerSubscription(Waitable):
         inbox.emptied()
         return handled
 
-    def take_handed_over(self) -> None:
-        """What was handed over in process since the last take: before the tick closes, so that
-        an answer published after the walk's last look answers this tick, not the next."""
-        queue = self.inbox.queue
+    def take_handed_over(self) -> int:
+        """What was handed over in process since the last take, every message (in the walk, and
+        before the tick closes, so that an answer published after the walk's last look answers
+        this tick, not the next); how many."""
+        queue, handled = self.inbox.queue, 0
         while queue:
             self._callback(*queue.popleft())
+            handled += 1
+        return handled
 
     def destroy(self, node: Node) -> None:
         node.remove_waitable(self)

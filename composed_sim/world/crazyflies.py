@@ -9,8 +9,6 @@ from dataclasses import dataclass
 from composed_sim.world.robot_models import get_model
 from composed_sim.world.schema import World
 
-# The firmware parameters every drone has here, with the firmware's defaults (its hlCommander
-# module's group mask and take-off and landing speeds); a world file may set them and name others.
 # The drones' messages and services: Crazyswarm2's package, or the one that ships with composed_sim
 # (composed_sim/interfaces/activate.py, SHIPPED), built on first use.
 MESSAGE_PACKAGE = "crazyflie_interfaces"
@@ -21,6 +19,8 @@ def interfaces_needed(world: World) -> tuple[str, ...]:
     return (MESSAGE_PACKAGE,) if any(get_model(g.model).flies for g in world.robots) else ()
 
 
+# The firmware parameters every drone has here, with the firmware's defaults (its hlCommander
+# module's group mask and take-off and landing speeds); a world file may set them and name others.
 FIRMWARE_DEFAULTS: dict[str, dict[str, float | int]] = {"hlCommander": {"groupmask": 0, "vtoff": 0.5, "vland": 0.5}}
 GROUP_MASK = ("hlCommander", "groupmask")
 

@@ -24,12 +24,13 @@ class CallRounds:
         """``workers``: hosts/workers/worker_host.Worker, in robot order; ``lost(worker, reason)``: a worker
         that died or stopped answering."""
         self._workers, self._patience_s, self._lost = workers, patience_s, lost
+        self._blocks = [(w.start, w.stop) for w in workers]
         self.needed = False
         self.pending: list = []      # calls of the run-wide nodes' part of the next tick, for its first round
 
     def _workers_of(self, item) -> list:
         """The workers an item goes to (``blocks_reached``)."""
-        return [self._workers[k] for k in blocks_reached(item.destination, [(w.start, w.stop) for w in self._workers])]
+        return [self._workers[k] for k in blocks_reached(item.destination, self._blocks)]
 
     def run(self) -> None:
         """One phase's rounds, until no call is in flight anywhere."""

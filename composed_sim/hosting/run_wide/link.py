@@ -123,13 +123,13 @@ class RunWideLink:
                 # A lifecycle publisher not activated publishes nothing: no answer.
                 if not getattr(publisher, "is_activated", True):
                     return publish(msg)
-                self.answered = self.tick
                 if self.answer_type is not None:
                     self._carried = serialize_message(msg)
-                if not (self.sends and self.holds_answers):
-                    return publish(msg)
-                self._held = (publish, msg)
-                return None
+                if self.sends and self.holds_answers:
+                    self._held = (publish, msg)         # noted as the tick's answer when sent
+                    return None
+                self.answered = self.tick
+                return publish(msg)
             publisher.publish = noting
 
     def send_held_answer(self) -> None:

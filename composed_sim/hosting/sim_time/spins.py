@@ -51,12 +51,6 @@ class CallerExecutor:
     def remove_node(self, node) -> None:
         pass
 
-    def get_nodes(self) -> list:
-        return [self._node] if self._node is not None else []
-
-    def wake(self) -> None:
-        pass
-
     def create_task(self, callback, *args, **kwargs):
         return self._executor.create_task(callback, *args, **kwargs)
 
@@ -79,9 +73,6 @@ class CallerExecutor:
     def spin(self) -> None:
         while self.context.ok():
             self.spin_once()
-
-    def shutdown(self, timeout_sec: Optional[float] = None) -> bool:
-        return True
 
 
 def _timeout(timeout_sec: Optional[float]) -> Optional[float]:

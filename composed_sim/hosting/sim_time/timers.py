@@ -14,7 +14,8 @@ created while the controller is constructed (before tick 0, the clock at 0) firs
 0.1 s timer on a 10 Hz world at tick 1, then every tick. Until then its robot has had no chance to
 answer from it, and is not late (``first_due_ns``, ``first_timer_tick``: ros/answer_ledger.py
 keeps its last command until then); nor is any robot before the run-wide nodes' first timer
-fired, since what they publish or call from it (a start command) may be what its nodes wait for. A timer slower than the tick fires every k-th tick (the world file says so with
+fired, since what they publish or call from it (a start command) may be what its nodes wait
+for. A timer slower than the tick fires every k-th tick (the world file says so with
 ``answers_every_ticks``); one faster than the tick fires once per tick, at the tick's time (rcl
 skips the periods a time jump passed over).
 

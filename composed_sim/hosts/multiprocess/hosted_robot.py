@@ -3,6 +3,7 @@ composed host builds them, on sim time from /clock; linked to the simulator for 
 topics and the log lines; their start-up reported to the host; then served until a stop."""
 from __future__ import annotations
 
+import json
 import os
 import signal
 import sys
@@ -34,20 +35,26 @@ RUN_WIDE_PREFIX = "run_wide:"   # of "created": a topic its run-wide link uses (
 LATER = "later"                 # of "created": no cmd_vel publisher yet, one may come (wiring.answer_rule)
 FIRST_TIMER_PREFIX = "timers_from:"   # of "created": the tick its first timer first fires (BuiltNodes)
 SERVED_PREFIX = "served:"       # of "ready": a service its nodes serve, name=type (hosting/calls/between_places.py)
+CLEANUP_LIMIT_S = 5         # s from the end of the work to a forced exit (SIGALRM)
+# How often an idle controller process wakes (a message or a due timer ends the wait at once):
+# only to see a stop request. Every wake-up walks the executor and builds a wait set; many a
+# second, hundreds of processes waiting for the others to start took whole cores
+# (docs/speed.md, "Multi-process start-up").
+IDLE_WAKE_S = 0.5
+
+
 # On stderr, one line: why its nodes could not be built, as JSON (message, field, user_traceback),
 # which the host raises as the same PluginError a worker's would be (plugin_error_from_output).
 PLUGIN_ERROR_MARK = "composed-sim-plugin-error"
 
 
 def plugin_error_line(error: plugins.PluginError) -> str:
-    import json
     return f"{PLUGIN_ERROR_MARK} " + json.dumps({"message": str(error), "field": list(error.field),
                                                   "user_traceback": error.user_traceback})
 
 
 def plugin_error_from_output(output: str) -> Optional[plugins.PluginError]:
     """The PluginError a controller process wrote (``plugin_error_line``), or None."""
-    import json
     at = output.rfind(PLUGIN_ERROR_MARK + " ")
     if at < 0:
         return None
@@ -56,12 +63,6 @@ def plugin_error_from_output(output: str) -> Optional[plugins.PluginError]:
     except ValueError:
         return None
     return plugins.PluginError(said["message"], tuple(said["field"]), said["user_traceback"])
-CLEANUP_LIMIT_S = 5         # s from the end of the work to a forced exit (SIGALRM)
-# How often an idle controller process wakes (a message or a due timer ends the wait at once):
-# only to see a stop request. Every wake-up walks the executor and builds a wait set; many a
-# second, hundreds of processes waiting for the others to start took whole cores
-# (docs/speed.md, "Multi-process start-up").
-IDLE_WAKE_S = 0.5
 
 
 class HostedRobot:
