@@ -300,3 +300,44 @@ def test_an_interface_package_that_does_not_build(tmp_path):
     error = fails(w, "--out", tmp_path / "o")
     assert error.startswith(f"composed-sim: error: {package / 'msg' / 'Opinion.msg'}:2: 'flaot32 x'"), error
     assert len(error.splitlines()) == 1, error
+
+
+def _controller_parameters() -> list:
+    """(world, group, parameter) of every controller parameter the shipped worlds write."""
+    found = []
+    for path in sorted((ROOT / "worlds").glob("*.yaml")):
+        for g, group in enumerate(yaml.safe_load(path.read_text()).get("robots", [])):
+            found += [pytest.param(path, g, key, id=f"{path.stem}-{g}-{key}",
+                                   marks=() if k == 0 and path.stem in ("flocking", "diffusion") else pytest.mark.slow)
+                      for k, key in enumerate(group.get("params") or {})]
+    return found
+
+
+@pytest.mark.parametrize("path, group, key", _controller_parameters())
+def test_a_controller_parameter_of_the_wrong_type_is_one_line_naming_its_field(tmp_path, path, group, key,
+                                                                                 domain_id):
+    # rclpy refuses a value of another type than the parameter's declared one (a string for a
+    # double, a list for a bool); the world file's field says so in one line, with no traceback of
+    # the controller's constructor: the value is the file's mistake, not the code's.
+    from composed_sim.hosts.composed import ComposedHost
+    from composed_sim.plugins import PluginError
+    from composed_sim.world.loader import load_world
+    data = yaml.safe_load(path.read_text())
+    params = data["robots"][group]["params"]
+    params[key] = {"many": 1} if isinstance(params[key], str) else "many"
+    edited = tmp_path / path.name
+    edited.write_text(yaml.safe_dump(data, sort_keys=False))
+    world = load_world(edited, robots=2, ticks=1)
+    with pytest.raises(PluginError) as refused:
+        with ComposedHost(world, domain_id=domain_id):
+            pass
+    assert refused.value.field == ("robots", group, "params", key), str(refused.value)
+    assert str(refused.value).startswith(f"robots[{group}].params.{key}: controller ") and "refuses" in str(refused.value)
+    assert refused.value.user_traceback == ""
+
+
+def test_an_integer_for_a_double_parameter_is_refused_at_its_line_saying_how_to_write_it(tmp_path):
+    w = world_with(tmp_path, robots__0__params__gain=1000)
+    assert fails(w, "--out", tmp_path / "o") == (
+        f"composed-sim: error: {w}:{line_of(w, 'gain')}: robots[0].params.gain: controller 'flocking' refuses 1000: "
+        f"Trying to set parameter 'gain' to '1000' of type 'INTEGER', expecting type 'DOUBLE' (write 1000.0)")

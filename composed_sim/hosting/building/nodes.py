@@ -8,6 +8,7 @@ from dataclasses import dataclass
 from typing import Container, Mapping, Optional
 
 from rclpy.context import Context
+from rclpy.exceptions import ParameterException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.type_description_service import START_TYPE_DESCRIPTION_SERVICE_PARAM
@@ -189,11 +190,30 @@ def _own_frames(error: BaseException) -> str:
     return "\n".join(line for line in frames if line.startswith("  "))
 
 
+def _parameters_field(field: tuple) -> tuple:
+    """The world file's field of a node's parameters: a controller's ``params``, a node's ``parameters``."""
+    return field[:-1] + ("params",) if field[-1] == "controller" else field + ("parameters",)
+
+
+def _what(field: tuple, spec: NodeSpec) -> str:
+    return f"controller {spec.node!r}" if field[-1] == "controller" else f"node {spec.node!r}"
+
+
+def _rejected_parameter(error: ParameterException, spec: NodeSpec) -> Optional[str]:
+    """The parameter of the world file's that rclpy refused (a declared type or range it does not
+    fit), if the refusal is of one: rclpy's message ends with the parameter's name."""
+    name = str(error).rsplit(": ", 1)[-1]
+    return name if name in spec.parameters else None
+
+
 def construct_node(cls: type[Node], spec: NodeSpec, field: tuple, owner: str, options: HostedNodeOptions,
                timers: SimTimers, relay: Optional[RunWideRelay], origin: int, served: ServedByTick0) -> Node:
     """One node built by ``node_options.construct``; an error names the world file's field.
     ``served(name)``: will the host serve that service by tick 0?"""
+    made = []                       # the node, once rclpy's constructor made it
+
     def prepare(node: Node) -> None:
+        made.append(node)
         timers.prepare(node)
         host_rates(node)
         wait_during_construction(node, served)
@@ -203,9 +223,20 @@ def construct_node(cls: type[Node], spec: NodeSpec, field: tuple, owner: str, op
         node = construct(cls, options, prepare)
         host_clock_sleeps(node)
     except Exception as e:
+        # The half-built node's endpoints go now, not when the exception's frames are collected:
+        # until then other processes of the domain would see it.
+        for half_built in made:
+            if hasattr(half_built, "_Node__handle"):    # its Node.__init__ ran
+                half_built.destroy_node()
+        if isinstance(e, ParameterException) and (name := _rejected_parameter(e, spec)) is not None:
+            # The world file's value, not the node's code: the field's line, no traceback. As in
+            # ROS 2, a parameter keeps its declared type: 5 is no double.
+            where, value = _parameters_field(field) + (name,), spec.parameters[name]
+            hint = f" (write {float(value)})" if type(value) is int and "'DOUBLE'" in str(e) else ""
+            raise plugins.PluginError(f"{format_path(where)}: {_what(field, spec)} refuses {value!r}: "
+                                      f"{str(e).rsplit(': ', 1)[0]}{hint}", where) from None
         raise plugins.PluginError(f"{_describe(field, spec)} failed to construct for {owner}: "
-                                  f"{type(e).__name__}: {e}", field,
-                                  _own_frames(e)) from e
+                                  f"{type(e).__name__}: {e}", field, _own_frames(e)) from e
     if node.executor is not None:
         # Its constructor gave it an executor of its own (spun in a thread, say): hosted, the host
         # spins it, and adding it to the host's executor would take it from that one, which would
@@ -222,9 +253,8 @@ def construct_node(cls: type[Node], spec: NodeSpec, field: tuple, owner: str, op
                     PARAM_RAB_PAYLOAD_BYTES, START_TYPE_DESCRIPTION_SERVICE_PARAM)
         declared = sorted(p for p in node._parameters if p not in plumbing)
         node.destroy_node()
-        where = field[:-1] + ("params",) if field[-1] == "controller" else field + ("parameters",)
-        what = f"controller {spec.node!r}" if field[-1] == "controller" else f"node {spec.node!r}"
-        raise plugins.PluginError(f"{format_path(where)}: {what} has no parameter {', '.join(map(repr, unknown))} "
+        where = _parameters_field(field)
+        raise plugins.PluginError(f"{format_path(where)}: {_what(field, spec)} has no parameter {', '.join(map(repr, unknown))} "
                                   f"(it declares: {', '.join(declared) or 'none'})", where)
     return node
 
