@@ -1,7 +1,7 @@
 """The ``composed-sim`` command: its arguments, and the dispatch to each subcommand's module
 (``run.py``: a run and its outputs, from its typed ``settings.py``, with the observers its settings
-ask for, ``observers.py``; ``report.py``: what a run prints; ``distributed.py``: ``host`` and
-``join``; ``files.py``: worlds, plugins, results and recordings; ``interfaces.py``: interface
+ask for, ``observers.py``; ``report.py``: what a run prints; ``distributed.py``: ``join`` and
+``credentials``; ``files.py``: worlds, plugins, results and recordings; ``interfaces.py``: interface
 packages; ``common.py``: what they share). ``bench`` and ``sweep`` are packages of their own."""
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from composed_sim.cli.distributed import cmd_credentials, cmd_host, cmd_join
+from composed_sim.cli.distributed import cmd_credentials, cmd_join
 from composed_sim.cli.files import cmd_bag_repair, cmd_export, cmd_plugins, cmd_render, cmd_replay, cmd_worlds
 from composed_sim.cli.interfaces import cmd_interfaces
 from composed_sim.cli.report import JsonStdout
@@ -42,7 +42,6 @@ def build_parser() -> argparse.ArgumentParser:
         "Swarm simulator whose robot controllers are ROS 2 nodes, hosted with the simulator in a few processes."))
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     _add_run(sub)
-    _add_host(sub)
     _add_join(sub)
     _add_credentials(sub)
     _add_file_commands(sub)
@@ -74,8 +73,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _add_hosting_flags(parser: argparse.ArgumentParser, *, seed_help: str, domain_help: str) -> None:
-    """What the run and host subcommands both take: the seed, an ARGoS file's controller, the
-    executor, the ROS domain."""
+    """The seed, an ARGoS file's controller, the executor, the ROS domain."""
     from composed_sim.hosting import DEFAULT_EXECUTOR, EXECUTORS
     parser.add_argument("--seed", type=_non_negative_int, help=seed_help)
     parser.add_argument("--controller", metavar="NAME",
@@ -156,7 +154,7 @@ def _add_run_output_options(run: argparse.ArgumentParser) -> None:
 
 def _add_run_machine_options(run: argparse.ArgumentParser) -> None:
     """A run over several machines: the robots hosted elsewhere (--machines) or the controllers
-    hosted by ``composed-sim host`` shards (--external-controllers)."""
+    driven by processes outside the run (--external-controllers)."""
     run.add_argument("--machines", metavar="N|ADDR,ADDR",
                      help="host the robots on other machines, each with worker processes of its own: how many "
                           "machines, or their addresses or host names in robot order; the run prints the command "
@@ -172,8 +170,9 @@ def _add_run_machine_options(run: argparse.ArgumentParser) -> None:
                      help="with --machines: plain tcp://, no TLS: whoever reaches the port can run code in the "
                           "simulator (only on a network of your own)")
     run.add_argument("--external-controllers", action="store_true",
-                     help="run the simulator only; the controllers are hosted by `composed-sim host` shards "
-                          "(on this or other machines), waited for before tick 0 (docs/distributed.md)")
+                     help="run the simulator only: each robot is driven by whatever process of the run's ROS "
+                          "domain publishes its cmd_vel (your own programs, on this or other machines), waited for "
+                          "before tick 0; the world's controllers and nodes are not started (docs/distributed.md)")
     _add_distributed_options(run, "with --external-controllers: ")
 
 
@@ -204,22 +203,6 @@ def _add_credentials(sub) -> None:
     action = credentials.add_subparsers(dest="credentials_command", required=True, metavar="ACTION")
     make = action.add_parser("make", help="write DIR/credentials.pem")
     make.add_argument("dir", type=Path, metavar="DIR", help="the folder to write it into (made if missing)")
-
-
-def _add_host(sub) -> None:
-    host = sub.add_parser("host", help="host a range of robots' controllers for a simulator elsewhere",
-                          description="Host some robots' controller nodes in this process (one context, one "
-                                      "executor) for a simulator started with `run --external-controllers`, on "
-                                      "this or another machine; ends when that simulator is gone, or on "
-                                      "Ctrl-C/SIGTERM (docs/distributed.md).")
-    host.add_argument("world", type=Path, help="the simulator's world file (YAML or ARGoS)")
-    host.add_argument("--robots", required=True, metavar="RANGES",
-                      help="robot indices to host: 0-639, 5 or 0-9,20-29")
-    host.add_argument("--world-robots", type=_positive_int, metavar="N",
-                      help="total number of robots, when the simulator was given --robots N")
-    _add_hosting_flags(host, seed_help="random seed, when the simulator was given --seed",
-                       domain_help="ROS domain (default: $ROS_DOMAIN_ID or 0)")
-    _add_distributed_options(host, "")
 
 
 def _add_file_commands(sub) -> None:
@@ -295,7 +278,7 @@ def _error_prefix(command: str) -> str:
 
 
 COMMANDS = {"plugins": lambda args: cmd_plugins(), "render": cmd_render, "replay": cmd_replay,
-            "bag": cmd_bag_repair, "export": cmd_export, "worlds": lambda args: cmd_worlds(), "host": cmd_host, "join": cmd_join,
+            "bag": cmd_bag_repair, "export": cmd_export, "worlds": lambda args: cmd_worlds(), "join": cmd_join,
             "credentials": cmd_credentials,
             "interfaces": cmd_interfaces}
 

@@ -1,45 +1,11 @@
-"""``composed-sim host``: a controller shard for a simulator on another machine; ``composed-sim
-join``: a machine's block of robots for a simulator started with ``run --machines``."""
+"""``composed-sim join``: a machine's block of robots for a simulator started with ``run --machines``;
+``composed-sim credentials make``: the TLS credentials of such runs, made beforehand."""
 from __future__ import annotations
 
 import sys
 
-from composed_sim.cli.common import Interrupts, configure_discovery, load_any_world
-from composed_sim.cli.settings import discovery_settings, run_domain, world_source
+from composed_sim.cli.common import Interrupts
 from composed_sim.command_line import EXIT_INTERRUPTED, UserError
-
-
-def cmd_host(args) -> int:
-    """A controller shard: serves until the simulator is gone (0) or Ctrl-C/SIGTERM (130)."""
-    from composed_sim import plugins
-    from composed_sim.hosting import HostError
-    from composed_sim.hosts.shards.robot_ranges import RangeError, parse_ranges
-    from composed_sim.hosts.shards.shard_host import ShardHost
-
-    world = load_any_world(world_source(args, args.world_robots))
-    try:
-        robots = parse_ranges(args.robots, len(world.robot_names()))
-    except RangeError as e:
-        raise UserError(f"--robots: {e}") from None
-    domain_id, _ = run_domain(args.domain_id)
-    discovery = discovery_settings(args)
-    description = configure_discovery(discovery)
-    with Interrupts("stopping the shard") as interrupts:
-        try:
-            with ShardHost(world, robots, executor=args.executor, domain_id=domain_id,
-                           should_stop=lambda: interrupts.requested) as shard:
-                print(f"composed-sim host: {len(robots)} controllers ({args.robots}) in ROS domain {domain_id}, "
-                      f"discovery {description}; waiting for the simulator", file=sys.stderr)
-                if shard.wait_for_simulator(discovery.timeout_s):
-                    print("composed-sim host: matched with the simulator; serving", file=sys.stderr)
-                    ended = shard.serve()
-                else:
-                    ended = "stopped"
-        except (plugins.PluginError, HostError) as e:
-            raise UserError(str(e)) from None
-    print(f"composed-sim host: {'the simulator is gone' if ended == 'simulator gone' else 'stopped'}; done",
-          file=sys.stderr)
-    return EXIT_INTERRUPTED if ended == "stopped" else 0
 
 
 def join_credentials(args):

@@ -26,9 +26,10 @@ def cmd_run(settings: RunSettings, json_stdout: JsonStdout) -> int:
     removed = remove_stale_shared_memory()    # what dead processes left in /dev/shm (hosting/dds/shared_memory.py)
     out = settings.outputs.out
     check_writable(out)
-    if settings.hosting.discovery is not None:
+    if settings.hosting.discovery is not None:      # --external-controllers: the world's are not started
         configure_discovery(settings.hosting.discovery)
-    check_plugins(settings.world.path, world)
+    else:
+        check_plugins(settings.world.path, world)
     # The nodes' log lines and tracebacks: OUT/logs/<robot>.log, the console's share once (hosting/guard/node_logs.py).
     logs_dir = out / "logs"
     for old in logs_dir.glob("*.log"):          # a run before into the same --out

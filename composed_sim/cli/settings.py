@@ -156,7 +156,7 @@ def run_settings(args: argparse.Namespace, *, exit_when_done: bool) -> RunSettin
         if given_flags:
             raise UserError(f"{given_flags[0]}: only for a distributed run (with --external-controllers)")
     elif args.mode != "composed":
-        raise UserError("--external-controllers: the controllers are in `composed-sim host` shards, "
+        raise UserError("--external-controllers: the controllers are processes outside the run, "
                         "so --mode multi-process does not apply")
     return RunSettings(
         world=world_source(args, args.robots),

@@ -43,7 +43,7 @@ _EXPORTS = {
     "participant_groups": ("ParticipantGroups",),
     "nodes_exchange": ("NodesExchange", "RelayingExchange"),
     # building a robot's nodes
-    "building.nodes": ("create_robot_nodes", "load_classes", "before_node_imports", "SetupWarnings", "node_field"),
+    "building.nodes": ("create_robot_nodes", "load_classes", "before_node_imports", "node_field"),
     "building.wiring": ("published_answer_type",),
     # executors and how they are driven
     "executors.lockstep": ("LockstepExecutor",),

@@ -5,8 +5,9 @@ A host runs one world's controllers and its simulator in lockstep. The hosts:
 - ``ComposedHost`` (hosts/composed.py): every controller node in this process;
 - ``WorkerHost`` (hosts/workers/worker_host.py): the controller nodes in K worker processes, the physics here;
 - ``MultiProcessHost`` (hosts/multiprocess/multiprocess_host.py): one process per controller, as in the paper;
-- ``ExternalControllersHost`` (hosts/shards/external_controllers.py): controllers in ``composed-sim host`` shards,
-  possibly on other machines.
+- ``RemoteWorkerHost`` (hosts/machines/remote_host.py): worker processes on other machines (``--machines``);
+- ``OutsideControllersHost`` (hosts/outside_controllers.py): the simulator alone, driven by processes outside
+  the run (``--external-controllers``).
 
 Writing one: make it a context manager that builds everything in ``__enter__`` (a ``Simulation``
 as ``sim``, a ``SetupInfo`` as ``setup``) and destroys it in ``__exit__``, also after an
@@ -118,7 +119,7 @@ class HostBase:
 
 class ControllersElsewhere(HostBase):
     """``Host.run`` for the hosts whose controllers run in other processes (workers, one process
-    per controller, distributed shards): the tick loop waits on the host's ``exchange``. A host
+    per controller, controllers outside the run): the tick loop waits on the host's ``exchange``. A host
     whose start-up was interrupted (``_startup_interrupted``) runs no tick and says so."""
     world: World
     sim: Simulation

@@ -5,8 +5,8 @@ set here, in this process's environment, before ``rclpy.init``:
 
 ROS_AUTOMATIC_DISCOVERY_RANGE  SUBNET (multicast on the local network; our default for distributed
                                runs), LOCALHOST (this machine only: what the tests and benchmarks use
-                               for single-machine runs, and why a shard on another machine would
-                               never be found), OFF, SYSTEM_DEFAULT
+                               for single-machine runs, and why a controller on another machine
+                               would never be found), OFF, SYSTEM_DEFAULT
 ROS_STATIC_PEERS               addresses to discover by unicast, ``;``-separated: for networks without
                                multicast (clouds, some Wi-Fi), reached even with LOCALHOST
 ROS_DISCOVERY_SERVER           a Fast DDS discovery server (``fastdds discovery -i 0``): for many
@@ -57,7 +57,7 @@ def configure(*, discovery_range: Optional[str] = None, static_peers: Optional[s
     server = environ.get("ROS_DISCOVERY_SERVER", "").strip()
     warning = None
     if range_ in ("LOCALHOST", "OFF") and not peers and not server:
-        reach = "only shards on this machine" if range_ == "LOCALHOST" else "no shard"
+        reach = "only controllers on this machine" if range_ == "LOCALHOST" else "no controller"
         warning = (f"discovery range is {range_}: {reach} can be found; use --discovery-range subnet, "
                    f"--static-peers or --discovery-server across machines")
     return describe(environ), warning

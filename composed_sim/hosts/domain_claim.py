@@ -10,8 +10,8 @@ tick 0 a run claims its domain twice over:
   process left over from a killed run): a short probe looks for another ``/clock`` publisher, a
   simulator's sensor publishers on robot topics, and a controller's publishers on robot actuator
   topics (``/bot0/cmd_vel``). The simulator would take such a controller for its robot's own when
-  the first tick opens. In distributed mode the shards may start before their simulator, so there
-  only simulators count. Watchers (``ros2 topic echo``, a recorder) only subscribe and are fine.
+  the first tick opens. With --external-controllers the controllers may start before their
+  simulator, so there only simulators count. Watchers (``ros2 topic echo``, a recorder) only subscribe and are fine.
 
 With a domain given (``--domain-id`` or ``ROS_DOMAIN_ID``) a taken domain is an error; without,
 the run takes the first free domain from 0 up.
@@ -127,7 +127,7 @@ def foreign_nodes(domain: int, probe_s: float = PROBE_S, *, controllers_expected
 def claim_domains(domains: list[int], about: dict, *, given: bool, probe: bool = True,
                   controllers_expected: bool = False) -> DomainClaim:
     """Claim ``domains`` (a run's, given by the user when ``given``), or raise DomainTaken.
-    ``controllers_expected``: the run's controllers may be in the graph already (distributed mode)."""
+    ``controllers_expected``: the run's controllers may be in the graph already (--external-controllers)."""
     claim = DomainClaim()
     for d in domains:
         holder = claim.take(d, about)

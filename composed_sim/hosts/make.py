@@ -22,9 +22,9 @@ def make_host(settings: HostSettings, world: World, logs: Optional[NodeLogs] = N
     """The host, not entered yet. ``logs``: where the nodes' log lines go (hosting/guard/node_logs.py)."""
     if settings.discovery is not None:
         from composed_sim.hosts.discovery import describe
-        from composed_sim.hosts.shards.external_controllers import ExternalControllersHost
-        return ExternalControllersHost(world, domain_id=settings.domain_id,
-                                       discovery_timeout_s=settings.discovery.timeout_s, discovery=describe())
+        from composed_sim.hosts.outside_controllers import OutsideControllersHost
+        return OutsideControllersHost(world, domain_id=settings.domain_id,
+                                      discovery_timeout_s=settings.discovery.timeout_s, discovery=describe())
     if settings.machines is not None:
         from composed_sim.hosts.machines.remote_host import RemoteWorkerHost
         return RemoteWorkerHost(world, machines=settings.machines, listen=settings.listen, link=settings.link,
@@ -53,8 +53,8 @@ def host_in_own_domains(settings: HostSettings, world: World,
     # A world's multi_process.first_domain is given too.
     given = settings.domain_given or used[0] != settings.domain_id
     about = run_identity(world.name)
-    shards_first = settings.discovery is not None     # distributed: its shards may be up already
+    controllers_first = settings.discovery is not None     # outside controllers may be up already
     if given:
-        return host, claim_domains(used, about, given=True, controllers_expected=shards_first), False
-    claim, first = claim_free_domain(len(used), about, controllers_expected=shards_first)
+        return host, claim_domains(used, about, given=True, controllers_expected=controllers_first), False
+    claim, first = claim_free_domain(len(used), about, controllers_expected=controllers_first)
     return make_host(replace(settings, domain_id=first), world, logs), claim, True

@@ -11,7 +11,7 @@ from composed_sim.hosting import DEFAULT_EXECUTOR, ROBOTS_PER_PARTICIPANT
 MODES = ("composed", "multi-process")
 DEFAULT_MODE = MODES[0]
 AUTO_WORKERS = "auto"        # --workers auto: from the swarm size and the usable cores (workers/host.py)
-DEFAULT_DISCOVERY_TIMEOUT_S = 120.0   # simulator waiting for shards or machines, and they for it
+DEFAULT_DISCOVERY_TIMEOUT_S = 120.0   # simulator waiting for outside controllers or machines
 DEFAULT_LISTEN = "0.0.0.0:0"           # remote workers: every interface, a free port (printed)
 
 
@@ -48,7 +48,7 @@ class HostSettings:
     domain_given: bool = False                  # by the user: taken, it is an error, not a reason to pick another
     robots_per_participant: int = ROBOTS_PER_PARTICIPANT    # composed mode in one process
     robots_per_domain: Optional[int] = None     # multi-process mode; None: the world's
-    discovery: Optional[DiscoverySettings] = None    # a distributed run: the controllers are in shards
+    discovery: Optional[DiscoverySettings] = None    # --external-controllers: DDS discovery
     machines: Union[int, tuple[str, ...], None] = None  # remote workers: how many machines, or which
     listen: str = DEFAULT_LISTEN                # remote workers: the simulator's address for the machines
     link: LinkSecurity = LinkSecurity()         # remote workers: mutual TLS, or --insecure

@@ -45,6 +45,10 @@ class CommandInbox:
     def subscriptions(self) -> list:
         return [s for s in (*self._led_subs, *self._rab_subs) if s is not None]
 
+    def robot_subscriptions(self, i: int) -> tuple:
+        """Robot i's LED and rab_tx subscriptions (None: it has no range-and-bearing)."""
+        return self._led_subs[i], self._rab_subs[i]
+
     def take_led_commands(self) -> dict[int, np.ndarray]:
         """The latest valid colours per simulation row that sent any.
 

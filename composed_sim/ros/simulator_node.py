@@ -78,8 +78,8 @@ class SimulatorNode(Node):
                                     answers_by_firmware)
         self.drones = None           # the drones' Crazyswarm2 endpoints beside this node (the host's)
         ledger = self._ledger           # its arrays, read (and filled) in place
-        self.rows, self.when_published, self.violations, self.on_failed = \
-            ledger.rows, ledger.when_published, ledger.violations, ledger.on_failed
+        self.rows, self.when_published, self.by_firmware, self.violations, self.on_failed = \
+            ledger.rows, ledger.when_published, ledger.by_firmware, ledger.violations, ledger.on_failed
         self.linear, self.angular, self.answered, self.rejected, self.failed = \
             ledger.linear, ledger.angular, ledger.answered, ledger.rejected, ledger.failed
         self._clock_pub = self.create_publisher(Clock, c.CLOCK_TOPIC, 10, event_callbacks=c.PUBLISHER_EVENTS) if publish_clock else None
@@ -179,6 +179,13 @@ class SimulatorNode(Node):
         subscriptions and the LED and rab_tx inbox's subscriptions (for matching checks)."""
         found = [*self.publishers, *(s for s in self._cmd_subs if s is not None), *self._inbox.node.subscriptions]
         return {e.topic_name: e for e in found if e.topic_name != c.CLOCK_TOPIC}
+
+    def robot_endpoints(self, robot: str) -> list:
+        """``endpoints_by_topic``'s endpoints of one robot: its sensor publishers, its cmd_vel
+        subscription (once its answer type is known), its LED and rab_tx subscriptions."""
+        i = self._index[robot]
+        return [*self._sensor_pubs[i], *(e for e in (self._cmd_subs[i], *self._inbox.robot_subscriptions(i))
+                                         if e is not None)]
 
     def _from_controller(self, i: int, gid: bytes) -> bool:
         """Is this answer from robot i's controller? One from any other publisher is rejected and

@@ -198,7 +198,7 @@ def test_a_sweep_file_that_is_not_yaml_names_its_line(tmp_path, capsys):
     (("sweep", FLOCKING, "--ticks", "0"), "argument --ticks: must be >= 1 (got 0)"),
     (("sweep", FLOCKING, "--jobs", "x"), "argument --jobs: expected a whole number, got 'x'"),
     (("sweep", FLOCKING, "--seeds", "1", "--bogus", "x"), "unrecognized arguments: --bogus x"),
-    (("host", FLOCKING), "the following arguments are required: --robots"),
+    (("join",), "the following arguments are required: address"),
     (("render", ROOT), "the following arguments are required: --out"),
     (("replay",), "the following arguments are required: recording"),
     (("export", ROOT, "--format", "xls"), "argument --format: invalid choice: 'xls' (choose from 'csv', 'parquet')"),

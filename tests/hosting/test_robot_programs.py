@@ -355,26 +355,31 @@ def test_another_process_sets_a_hosted_nodes_parameter_through_its_parameter_ser
         assert (steps[-1] > 1e-6).all()
 
 
-def test_a_robots_programs_in_a_controller_shard_run_as_hosted(robot_programs, domain_id, tmp_path):
-    """Distributed mode's DDS shard hosts a robot's services and calls as the composed host does."""
+@pytest.mark.parametrize("behaviour", ["BlockingBehaviour", "AsyncBehaviour"])
+def test_a_robots_programs_in_processes_of_their_own_drive_the_run_as_hosted(robot_programs, domain_id, tmp_path,
+                                                                            processes, behaviour):
+    """The ground truth of hosting: each robot's behaviour and planner started by rclpy alone in a
+    process per robot (its own executor: multi-threaded for the blocking call, as its authors
+    must), driving ``run --external-controllers``; the hosted run's trajectories are theirs."""
     import os
-    import subprocess
-    from composed_sim.hosts.shards.external_controllers import ExternalControllersHost
+    from tests.conftest import start
+    from composed_sim.hosts.outside_controllers import OutsideControllersHost
     from composed_sim.world.loader import dump_world
-    world = world_of("planning:BlockingBehaviour", "planning:Planner", robots=3, ticks=15)
+    world = world_of(f"planning:{behaviour}", "planning:Planner", robots=3, ticks=15)
     reference, _ = composed(world, domain_id)
     path = tmp_path / "world.yaml"
     path.write_text(dump_world(world))
-    shard = subprocess.Popen([sys.executable, "-m", "composed_sim.cli", "host", str(path), "--robots", "0-2",
-                              "--discovery-timeout", "60"], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                             text=True, env={**os.environ, "ROS_DOMAIN_ID": str(domain_id)})
-    try:
-        with ExternalControllersHost(world, domain_id=domain_id, discovery_timeout_s=60.0) as host:
-            result = host.run()
-    finally:
-        _, err = shard.communicate(timeout=60)
-    assert result.violations == [], err[-2000:]
+    own = ROOT / "tests" / "hosts" / "outside" / "controllers_of_their_own.py"
+    env = {**os.environ, "ROS_DOMAIN_ID": str(domain_id)}
+    for i in range(3):
+        processes.append(start([sys.executable, str(own), str(path), "3", str(world.seed), str(i), "multi-threaded"],
+                               tmp_path / f"bot{i}.log", env))
+    with OutsideControllersHost(world.model_copy(update={"nodes": []}), domain_id=domain_id,
+                                discovery_timeout_s=60.0) as host:
+        result = host.run()
+    assert result.violations == [], (tmp_path / "bot0.log").read_text()[-2000:]
     np.testing.assert_array_equal(result.trajectories.positions, reference.trajectories.positions)
+    assert (moved(reference) > 0.01).all()
 
 
 STOCK = ("single-threaded", "events", "multi-threaded")
