@@ -37,6 +37,17 @@ SETTLED_S = 0.5         # every robot connected and the graph unchanged this lon
 POLL_S = 0.05
 
 
+class OutsideExchange(NodesExchange):
+    """The exchange with processes outside the run. Whether such a process has anything left to
+    do in a tick is its own business, so a robot that answers when published (``answers:
+    when_published``) is never waited for: what it published by the tick's close is its answer,
+    else it keeps its last command."""
+
+    def wait_for_answers(self, timeout_s: float) -> bool:
+        self.settle_idle()
+        return super().wait_for_answers(timeout_s)
+
+
 class OutsideControllersHost(ControllersElsewhere):
     """Context manager: the simulation, its node and its executor thread; same interface as
     ComposedHost. ``discovery`` only words the errors (the settings are in the environment)."""
@@ -72,7 +83,7 @@ class OutsideControllersHost(ControllersElsewhere):
             with InterruptWatch() as interrupts:
                 self._wait_for_controllers(lambda: interrupts.requested)
             self._startup_interrupted = interrupts.requested
-            self.exchange = NodesExchange([self.sim_node], self._check_controllers)
+            self.exchange = OutsideExchange([self.sim_node], self._check_controllers)
             self._spinning = Spinning(LockstepExecutor(context=self._context))
             self._spinning.executor.add_node(self.sim_node)
             self._spinning.start_thread()

@@ -119,6 +119,15 @@ class AnswerLedger:
                 self._later_until[i] = max(self._later_until[i], until) if self.later[i] else until
                 self.later[i] = self.when_published[i] = True
 
+    def hold(self, i: int, linear: float, angular: float) -> None:
+        """Called with the lock held, for an answer to no open tick (it came after its tick
+        closed): a robot that answers when published keeps it as its command from the next tick
+        on, as a robot's base keeps the last command it got; any other robot's is dropped (its
+        miss of that tick is recorded). Processes outside the run publish when they please
+        (hosts/outside_controllers.py)."""
+        if self.when_published[i] and not self.failed[i] and math.isfinite(linear) and math.isfinite(angular):
+            self.linear[i], self.angular[i] = linear, angular
+
     def take(self, i: int, linear: float, angular: float) -> None:
         """Called with the lock held, for an answer ``accepts`` took: a finite command is robot
         i's, else the answer is a violation."""

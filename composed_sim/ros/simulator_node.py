@@ -363,13 +363,15 @@ class SimulatorNode(Node):
 
     def _on_unstamped_cmd_vel(self, i: int, data: bytes, gid: bytes) -> None:
         """A Twist answers the tick whose sensors it follows: the open one. One that arrives while
-        no tick is open answers a tick already closed (whose miss is recorded): it is dropped."""
+        no tick is open answers a tick already closed (whose miss is recorded): it is dropped,
+        unless its robot answers when published (``AnswerLedger.hold``)."""
         if not self._from_controller(i, gid):
             return
         linear, angular = decoding.decode_unstamped_answer_cdr(data)
         with self._ledger.lock:
             key = self._ledger.current_key
             if key < 0:
+                self._ledger.hold(i, linear, angular)
                 return
             self._answer(i, key, linear, angular, data)
 
@@ -383,6 +385,8 @@ class SimulatorNode(Node):
     def _answer(self, i: int, key: int, linear: float, angular: float, data: bytes) -> None:
         """Called with the ledger's lock held."""
         if not self._ledger.accepts(i, key, self._tick_ns):
+            if key != self._ledger.current_key:     # a closed tick's
+                self._ledger.hold(i, linear, angular)
             return
         self._taps.message(c.CMD_VEL, i, data, key, self._answer_types[i])
         self._ledger.take(i, linear, angular)
