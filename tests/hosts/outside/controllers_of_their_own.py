@@ -1,6 +1,6 @@
 """A robot's nodes started as their authors start them, outside any run: one process per robot,
 ``rclpy.init`` given the robot's namespace, parameters and remappings as ``--ros-args`` (as
-``ros2 run pkg node --ros-args -r __ns:=/bot3 -p …`` gives them), each node built by its own
+``ros2 run pkg node --ros-args -r __ns:=/bot3 -p use_sim_time:=true -p …`` gives them), each node built by its own
 constructor, one executor of rclpy's, ``spin`` until stopped. No host of composed_sim's: it is
 what drives ``run --external-controllers`` in test_outside_controllers.py. The world file only
 says which nodes and parameters (and which interface packages to build, as colcon would).
@@ -20,7 +20,8 @@ from composed_sim.world.loader import load_world
 
 
 def ros_args(namespace: str, parameters: dict, remappings: dict) -> list[str]:
-    args = ["--ros-args", "-r", f"__ns:=/{namespace}"]
+    # On the simulator's clock, as a simulated robot's software is started (use_sim_time).
+    args = ["--ros-args", "-r", f"__ns:=/{namespace}", "-p", "use_sim_time:=true"]
     for name, value in parameters.items():
         args += ["-p", f"{name}:={json.dumps(value)}"]       # a YAML value, as on the command line
     for source, target in remappings.items():
