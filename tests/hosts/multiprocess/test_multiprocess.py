@@ -59,6 +59,27 @@ def test_five_robots_over_three_domains_match_composed_mode(domain_id, mp_domain
     assert np.array_equal(result.trajectories.headings, reference.trajectories.headings)
 
 
+BUSY = "while True: pass"
+
+
+@pytest.mark.slow          # its busy processes would slow the default run's other tests
+def test_the_same_seed_gives_the_same_run_with_busy_processes_beside_it(domain_id, mp_domain, processes):
+    # Same world and seed => the same run, whatever the load (issue 54): the processes' timing
+    # changes with 2 busy processes per core, the trajectories must not (a reading or an answer
+    # taken from the wrong tick would show here, with or without a violation). A 10 s watchdog:
+    # the claim is the run's, not its latency.
+    world = load_world(FLOCKING, robots=4, ticks=40, seed=3)
+    world = world.model_copy(update={"lockstep": world.lockstep.model_copy(update={"watchdog_s": 10.0})})
+    reference = composed(world, domain_id)
+    processes += [subprocess.Popen([sys.executable, "-c", BUSY]) for _ in range(2 * (os.cpu_count() or 2))]
+    for _ in range(2):
+        with MultiProcessHost(world, domain_id=mp_domain, robots_per_domain=2) as host:
+            loaded = host.run()
+        assert loaded.violations == []
+        assert np.array_equal(loaded.trajectories.positions, reference.trajectories.positions)
+        assert np.array_equal(loaded.trajectories.headings, reference.trajectories.headings)
+
+
 def test_plain_node_plugin_runs_in_its_own_process_too(third_party_plugin, domain_id, mp_domain):
     world = with_controller(load_world(FLOCKING, robots=2, ticks=30, seed=1), third_party_plugin, {"speed": 0.08})
     reference = composed(world, domain_id)
