@@ -52,7 +52,7 @@ _EXPORTS = {
                           "shut_down"),
     # calls between places, and their rounds across processes
     "calls.between_places": ("CallRelay", "Request", "handover_order", "blocks_reached", "RUN_WIDE_ORIGIN"),
-    "calls.rounds": ("CallRounds", "replies"),
+    "calls.rounds": ("CallRounds", "replies", "routed"),
     # run-wide topics
     "run_wide.relay": ("RunWideRelay", "Message", "is_run_wide"),
     "run_wide_nodes": ("RunWideNodes", "create_run_wide_nodes"),

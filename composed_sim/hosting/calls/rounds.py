@@ -24,13 +24,8 @@ class CallRounds:
         """``workers``: hosts/workers/worker_host.Worker, in robot order; ``lost(worker, reason)``: a worker
         that died or stopped answering."""
         self._workers, self._patience_s, self._lost = workers, patience_s, lost
-        self._blocks = [(w.start, w.stop) for w in workers]
         self.needed = False
         self.pending: list = []      # calls of the run-wide nodes' part of the next tick, for its first round
-
-    def _workers_of(self, item) -> list:
-        """The workers an item goes to (``blocks_reached``)."""
-        return [self._workers[k] for k in blocks_reached(item.destination, self._blocks)]
 
     def run(self) -> None:
         """One phase's rounds, until no call is in flight anywhere."""
@@ -41,12 +36,8 @@ class CallRounds:
             if not calls:
                 self._send(live, lambda w: ("go",))
                 return
-            routed: dict[int, list] = {w.index: [] for w in live}
-            for item in handover_order(calls):
-                for w in self._workers_of(item):
-                    if w.dead is None:
-                        routed[w.index].append(item)
-            self._send(live, lambda w: ("calls", routed[w.index]))    # noqa: B023 - sent within this round
+            shares = routed(handover_order(calls), self._workers)
+            self._send(live, lambda w: ("calls", shares[w.index]))    # noqa: B023 - sent within this round
             calls = []
 
     def _collect_idle(self) -> list:
@@ -64,6 +55,18 @@ class CallRounds:
                 w.conn.send(message(w))
             except OSError:
                 self._lost(w, None)
+
+
+def routed(items: list, workers: list) -> dict[int, list]:
+    """Each live worker's share of ``items`` (by its index), in their order: what the one routing
+    rule (``blocks_reached``) sends to its block of robots."""
+    blocks = [(w.start, w.stop) for w in workers]
+    shares: dict[int, list] = {w.index: [] for w in workers if w.dead is None}
+    for item in items:
+        for k in blocks_reached(item.destination, blocks):
+            if workers[k].dead is None:
+                shares[workers[k].index].append(item)
+    return shares
 
 
 def replies(waiting: dict, patience_s: float, lost: Callable[[object, Optional[str]], None], what: str):

@@ -17,13 +17,12 @@ from __future__ import annotations
 
 import os
 import tempfile
-import time
 from pathlib import Path
 from typing import Optional
 
 from composed_sim.core.senses import Senses
 from composed_sim.core.violations import FAILED
-from composed_sim.hosting import HostError, blocks_reached
+from composed_sim.hosting import HostError, replies, routed
 from composed_sim.hosts.processes import last_words
 from composed_sim.hosts.workers.exchange import ANSWER_GRACE_S
 from composed_sim.hosts.workers.worker_host import WorkerHost, auto_workers, plan_blocks
@@ -134,39 +133,22 @@ class MachineAgent:
 
     def _route_calls(self, calls: list) -> None:
         """A round's calls for this machine, to the workers of their places, in the order given."""
-        workers = self.host.workers
-        routed: dict[int, list] = {w.index: [] for w in workers}
-        blocks = [(w.start, w.stop) for w in workers]
-        for item in calls:
-            for k in blocks_reached(item.destination, blocks):
-                routed[workers[k].index].append(item)
-        self._forward(lambda w: ("calls", routed[w.index]))
+        shares = routed(calls, self.host.workers)
+        self._forward(lambda w: ("calls", shares[w.index]))
 
     def _collect(self):
         """One message from each live worker: all idle (a round's calls) or all answers (the tick's)."""
         lockstep = self.host.world.lockstep
         patience_s = lockstep.watchdog_s + lockstep.unresponsive_s + ANSWER_GRACE_S
-        from multiprocessing.connection import wait as wait_for_connections
-        replies: dict[int, tuple] = {}
-        deadline = time.monotonic() + patience_s
-        while waiting := {w.conn: w for w in self._live() if w.index not in replies}:
-            left = deadline - time.monotonic()
-            if left <= 0:
-                for w in waiting.values():
-                    self._lose(w, f"worker process stopped answering ({patience_s:.0f} s), killed")
-                break
-            for conn in wait_for_connections(list(waiting), timeout=left):
-                w = waiting[conn]
-                try:
-                    replies[w.index] = conn.recv()
-                except (EOFError, OSError):
-                    self._lose(w, None)
-        if not replies:          # the simulator fails the machine's robots that are not yet
+        waiting = {w.conn: w for w in self._live()}
+        got = dict((w.index, message) for w, message in replies(waiting, patience_s, self._lose,
+                                                                 "its answers or a round's calls"))
+        if not got:              # the simulator fails the machine's robots that are not yet
             raise HostError("every worker process of this machine is gone: " + "; ".join(
                 w.dead for w in self.host.workers))
-        if {reply[0] for reply in replies.values()} == {"idle"}:
-            return ("idle", [c for w in self.host.workers if w.index in replies for c in replies[w.index][1]])
-        return ("answers", self._merged({i: reply[1] for i, reply in replies.items() if reply[0] == "answers"}))
+        if {reply[0] for reply in got.values()} == {"idle"}:
+            return ("idle", [c for w in self.host.workers if w.index in got for c in got[w.index][1]])
+        return ("answers", self._merged({i: reply[1] for i, reply in got.items() if reply[0] == "answers"}))
 
     def _merged(self, answers: dict[int, TickAnswers]) -> TickAnswers:
         """The workers' answers as one machine's: rows of the machine's block, in robot order."""

@@ -32,6 +32,9 @@ from composed_sim.hosting import HostError
 from composed_sim.hosts.machines.credentials import Credentials
 
 RUN_KEY = "composed_sim_run"           # the scheduler's metadata: which run it serves
+# Dask's HTTP servers (a scheduler's and a worker's: metrics and state, plain HTTP, no credentials)
+# start whatever the dashboard setting: on the loopback only, a port no other machine reaches.
+LOOPBACK_HTTP = "127.0.0.1:0"
 # The messages that get no answer: their calls are waited for before the next one goes, so that
 # a machine sees them in the order sent (Dask may carry concurrent calls on separate connections).
 ONE_WAY = ("clock", "tap", "stop")
@@ -78,7 +81,7 @@ class RunScheduler:
         security = credentials.security() if credentials is not None else None
         self.join_log = JoinLog(say)
         self.cluster = LocalCluster(n_workers=0, processes=False, protocol="tcp" if security is None else "tls",
-                                    host=host or None, scheduler_port=int(port or 0), dashboard_address=None,
+                                    host=host or None, scheduler_port=int(port or 0), dashboard_address=LOOPBACK_HTTP,
                                     security=security, scheduler_kwargs={"worker_ttl": silent_after_s})
         self.client = Client(self.cluster, security=security)
         self.client.set_metadata(RUN_KEY, run_id)
@@ -286,7 +289,8 @@ def join(address: str, run_id: Optional[str], workers, timeout_s: float, should_
     name = json.dumps({"run": serves, "host": socket.gethostname(), "pid": os.getpid(), "workers": workers})
 
     async def serve() -> str:
-        async with Worker(address, nthreads=1, name=name, dashboard=False, security=security) as worker:
+        async with Worker(address, nthreads=1, name=name, dashboard=False, dashboard_address=LOOPBACK_HTTP,
+                          security=security) as worker:
             while worker.status.name in ("init", "running", "paused"):
                 if should_stop():
                     return "stopped"

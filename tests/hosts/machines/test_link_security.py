@@ -104,6 +104,44 @@ def test_no_intruder_runs_code_in_the_simulator_and_the_invited_machine_still_ru
     assert sum("machine joined from tls://127.0.0.1:" in line for line in lines) == 1, lines
 
 
+def reachable_ports(pid: int, children: bool) -> set[int]:
+    """The ports process ``pid`` (and its children) listen on beyond the loopback."""
+    import psutil
+    found = set()
+    for process in (psutil.Process(pid), *(psutil.Process(pid).children(recursive=True) if children else ())):
+        for conn in process.net_connections(kind="inet"):
+            if conn.status == psutil.CONN_LISTEN and not conn.laddr.ip.startswith(("127.", "::1")):
+                found.add(conn.laddr.port)
+    return found
+
+
+def test_every_port_other_machines_reach_is_the_runs_tls_one(tmp_path, processes, domain_id):
+    # Listening on every interface, as by default: the simulator's only port beyond the loopback is
+    # its scheduler's, a machine's only one its worker's, both TLS (Dask's HTTP servers, plain
+    # HTTP with the run's state, listened on every interface: the scheduler's on 8787).
+    world = load_world(FLOCKING, robots=2, ticks=10, seed=1)
+    seen = {}
+
+    def announce(line: str) -> None:
+        if "on each: " in line:
+            command = line.split("on each: ", 1)[1].split()
+            seen["address"] = command[2]
+            processes.append(start([*JOIN, *command[2:], "--workers", "1"], tmp_path / "join.log"))
+
+    def progress(tick: int) -> None:
+        if tick == 1:
+            seen["simulator"] = reachable_ports(os.getpid(), children=False)    # the machine is a child here
+            seen["machine"] = reachable_ports(processes[0].pid, children=True)
+
+    with RemoteWorkerHost(world, machines=1, listen="0.0.0.0:0", domain_id=domain_id, join_timeout_s=60,
+                          link=LinkSecurity(fresh_into=str(tmp_path)), announce=announce) as host:
+        result = host.run(progress=progress)
+    assert result.trajectories.ticks_done == 10 and not result.violations
+    assert seen["address"].startswith("tls://")
+    assert seen["simulator"] == {int(seen["address"].rsplit(":", 1)[1])}, seen
+    assert len(seen["machine"]) == 1, seen      # its worker's tls:// listener, which the simulator calls
+
+
 def test_a_machine_refuses_a_simulator_that_holds_other_credentials(tmp_path, processes, domain_id):
     world = load_world(FLOCKING, robots=2, ticks=5, seed=1)
     ours = credentials.make(tmp_path / "ours" / credentials.FILE_NAME)
