@@ -147,7 +147,10 @@ def run_in(programs, tmp_path, domain_id, mp_domain):
 # --- services ------------------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("mode", cells({}))
+@pytest.mark.parametrize("mode", cells({"multi-threaded": (
+    "rclpy's own MultiThreadedExecutor stalls when two robots' blocking calls share it, as they do hosted: "
+    "with rclpy alone, 2 robots' nodes in one executor of 4 threads and each tick published once both "
+    "answered, 124 of 166 calls timed out at 2 s; one robot per executor, as in its own process, 0 of 100")}))
 def test_a_blocking_call_with_a_timeout_is_answered_within_the_tick(run_in, mode):
     """``call(req, timeout_sec=2.0)`` from a scan callback, client and subscription in one
     reentrant group, the planner listed first. In its own process another thread of the
