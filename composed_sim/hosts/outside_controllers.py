@@ -101,7 +101,7 @@ class OutsideControllersHost(ControllersElsewhere):
 
     def _wait_for_controllers(self, interrupted: Callable[[], bool]) -> None:
         deadline = time.monotonic() + self.discovery_timeout_s
-        settled_since, seen = None, None
+        settled_since, seen = 0.0, None
         while not interrupted():
             try:
                 self.sim_node.detect_answer_types()
@@ -114,8 +114,8 @@ class OutsideControllersHost(ControllersElsewhere):
             waiting = self._waiting()
             now = time.monotonic()
             graph = self._graph()
-            if waiting or graph != seen:
-                settled_since, seen = None if waiting else now, graph
+            if waiting or graph != seen:         # the settling starts again
+                settled_since, seen = now, graph
             elif now - settled_since >= SETTLED_S:
                 self.sim_node.note_controllers({r: self._answer_gids(r) for r in self._answering()})
                 return
