@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from websockets.exceptions import ConnectionClosed
 
 from tests.conftest import importable
 from composed_sim.command_line import EXIT_INTERRUPTED
@@ -152,15 +153,19 @@ def test_a_viewer_gets_run_wide_topics_with_their_own_types(swarm_vote, tmp_path
             opinions_sub, _clock_sub = list(subscribe(ws, [found["/opinions"]["id"], found["/clock"]["id"]]))
             deadline = time.monotonic() + 60
             while len(by_tick) < 6 and time.monotonic() < deadline:
-                frame = ws.recv(timeout=deadline - time.monotonic())
+                try:
+                    frame = ws.recv(timeout=deadline - time.monotonic())
+                except ConnectionClosed:        # the run ended: its exit and its lines say why
+                    break
                 if isinstance(frame, bytes) and frame[0] == MESSAGE_DATA:
                     sub_id, log_time = struct.unpack_from("<IQ", frame, 1)
                     if sub_id == opinions_sub:
                         by_tick[log_time] = by_tick.get(log_time, 0) + 1
                     else:
                         clocks += 1
-        run.send_signal(signal.SIGINT)
-        assert run.wait(timeout=120) == EXIT_INTERRUPTED, run.stderr.read()[-2000:]
+        if run.poll() is None:
+            run.send_signal(signal.SIGINT)
+        assert run.wait(timeout=120) == EXIT_INTERRUPTED, (run.returncode, run.stderr.read()[-2000:])
     finally:
         if run.poll() is None:
             run.kill()
