@@ -67,7 +67,7 @@ _EXPORTS = {
     # DDS: participants, shared memory, matched endpoints
     "dds.participants": ("ignore_participants_of_this_process", "run_prefix", "use_worker_prefix"),
     "dds.shared_memory": ("remove_stale_shared_memory", "remove_own_shared_memory"),
-    "dds.matching": ("matched", "contract_endpoints", "poll_until"),
+    "dds.matching": ("matched", "matched_count", "publishes", "contract_endpoints", "poll_until"),
 }
 _MODULE_OF = {name: module for module, names in _EXPORTS.items() for name in names}
 __all__ = ["HostError", "ContractViolation", *_MODULE_OF]

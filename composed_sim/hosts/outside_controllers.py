@@ -9,7 +9,7 @@ The simulator node, its exchange (``NodesExchange``, spun by a LockstepExecutor 
 own) and the tick loop are those of the other hosts, so lockstep, the watchdog and the fallbacks
 are as on one machine. Before tick 0 it waits until every robot that answers has a controller,
 and every endpoint the ROS graph shows on the robot's topics is matched with the simulator's
-(``_connected``), for a moment: a controller's sensor subscriptions are discovered a little after
+(``_waiting``), for a moment: a controller's sensor subscriptions are discovered a little after
 its publisher, and a subscription matched after tick 0's sensors went out would miss them. During
 the run, a robot whose ``cmd_vel`` publisher is gone (its process ended, or DDS lost it after the
 participant lease) is marked failed: a violation, then the fallback every tick, never a stall.
@@ -24,7 +24,8 @@ from rclpy.context import Context
 
 from composed_sim.core.simulation import Simulation
 from composed_sim.hosts.base import ControllersElsewhere, SetupInfo
-from composed_sim.hosting import HostError, LockstepExecutor, NodesExchange, shut_down, Spinning
+from composed_sim.hosting import (HostError, LockstepExecutor, matched_count, NodesExchange, publishes, shut_down,
+                                  Spinning)
 from composed_sim.hosts.settings import DEFAULT_DISCOVERY_TIMEOUT_S
 from composed_sim.hosts.processes import InterruptWatch
 from composed_sim.ros import contract as c
@@ -134,21 +135,14 @@ class OutsideControllersHost(ControllersElsewhere):
 
     def _unmatched_topics(self, robot: str) -> list[str]:
         node = self.sim_node
-        unmatched = []
-        for endpoint in node.robot_endpoints(robot):
-            topic = endpoint.topic_name
-            if hasattr(endpoint, "get_subscription_count"):         # a sensor: the simulator publishes
-                shown, matched = node.count_subscribers(topic), endpoint.get_subscription_count()
-            else:                                                   # cmd_vel, leds, rab_tx
-                shown, matched = node.count_publishers(topic), endpoint.get_publisher_count()
-            if matched < shown:
-                unmatched.append(topic)
-        return unmatched
+        # The other side's endpoints the graph shows: a sensor's subscriptions (the simulator
+        # publishes it), the publishers of cmd_vel, leds and rab_tx.
+        return [e.topic_name for e in node.robot_endpoints(robot)
+                if matched_count(e) < (node.count_subscribers if publishes(e) else node.count_publishers)(e.topic_name)]
 
     def _graph(self) -> tuple:
         """What the simulator sees of the controllers: each robot's matched counts."""
-        return tuple(e.get_subscription_count() if hasattr(e, "get_subscription_count") else e.get_publisher_count()
-                     for r in self.sim.names for e in self.sim_node.robot_endpoints(r))
+        return tuple(matched_count(e) for r in self.sim.names for e in self.sim_node.robot_endpoints(r))
 
     def _discovery_error(self, waiting: list[str]) -> str:
         seen = "; ".join(self._connection_of(r) for r in waiting[:3])

@@ -385,7 +385,7 @@ class SimulatorNode(Node):
     def _answer(self, i: int, key: int, linear: float, angular: float, data: bytes) -> None:
         """Called with the ledger's lock held."""
         if not self._ledger.accepts(i, key, self._tick_ns):
-            if key != self._ledger.current_key:     # a closed tick's
+            if key != self._ledger.current_key and key <= self._ledger.tick_key:     # a closed tick's
                 self._ledger.hold(i, linear, angular)
             return
         self._taps.message(c.CMD_VEL, i, data, key, self._answer_types[i])

@@ -361,15 +361,15 @@ def run_in_processes_of_their_own(world, domain_id, tmp_path, processes, observe
     blocking calls' authors must), through ``run --external-controllers``: the result."""
     import os
     from tests.conftest import start
+    from tests.hosts.outside.controllers_of_their_own import command
     from composed_sim.hosts.outside_controllers import OutsideControllersHost
     from composed_sim.world.loader import dump_world
     path = tmp_path / "world.yaml"
     path.write_text(dump_world(world))
-    own = ROOT / "tests" / "hosts" / "outside" / "controllers_of_their_own.py"
     env = {**os.environ, "ROS_DOMAIN_ID": str(domain_id)}
     for i in range(world.robot_count):
-        processes.append(start([sys.executable, str(own), str(path), str(world.robot_count), str(world.seed), str(i),
-                                "multi-threaded"], tmp_path / f"bot{i}.log", env))
+        processes.append(start(command(path, world.robot_count, world.seed, i, threads=True), tmp_path / f"bot{i}.log",
+                               env))
     with OutsideControllersHost(world.model_copy(update={"nodes": []}), domain_id=domain_id,
                                 discovery_timeout_s=60.0) as host:
         return host.run(observers=observers)

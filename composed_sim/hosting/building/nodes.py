@@ -199,11 +199,11 @@ def _what(field: tuple, spec: NodeSpec) -> str:
     return f"controller {spec.node!r}" if field[-1] == "controller" else f"node {spec.node!r}"
 
 
-def _rejected_parameter(error: ParameterException, spec: NodeSpec) -> Optional[str]:
-    """The parameter of the world file's that rclpy refused (a declared type or range it does not
-    fit), if the refusal is of one: rclpy's message ends with the parameter's name."""
-    name = str(error).rsplit(": ", 1)[-1]
-    return name if name in spec.parameters else None
+def _rejected_parameter(error: ParameterException, spec: NodeSpec) -> Optional[tuple[str, str]]:
+    """(name, why) of the world file's parameter that rclpy refused (a declared type or range it
+    does not fit), if the refusal is of one: rclpy's message is ``why: name``."""
+    why, _, name = str(error).rpartition(": ")
+    return (name, why) if name in spec.parameters else None
 
 
 def construct_node(cls: type[Node], spec: NodeSpec, field: tuple, owner: str, options: HostedNodeOptions,
@@ -228,13 +228,14 @@ def construct_node(cls: type[Node], spec: NodeSpec, field: tuple, owner: str, op
         for half_built in made:
             if hasattr(half_built, "_Node__handle"):    # its Node.__init__ ran
                 half_built.destroy_node()
-        if isinstance(e, ParameterException) and (name := _rejected_parameter(e, spec)) is not None:
+        if isinstance(e, ParameterException) and (rejected := _rejected_parameter(e, spec)) is not None:
             # The world file's value, not the node's code: the field's line, no traceback. As in
             # ROS 2, a parameter keeps its declared type: 5 is no double.
+            name, why = rejected
             where, value = _parameters_field(field) + (name,), spec.parameters[name]
-            hint = f" (write {float(value)})" if type(value) is int and "'DOUBLE'" in str(e) else ""
-            raise plugins.PluginError(f"{format_path(where)}: {_what(field, spec)} refuses {value!r}: "
-                                      f"{str(e).rsplit(': ', 1)[0]}{hint}", where) from None
+            hint = f" (write {float(value)})" if type(value) is int and "'DOUBLE'" in why else ""
+            raise plugins.PluginError(f"{format_path(where)}: {_what(field, spec)} refuses {value!r}: {why}{hint}",
+                                      where) from None
         raise plugins.PluginError(f"{_describe(field, spec)} failed to construct for {owner}: "
                                   f"{type(e).__name__}: {e}", field, _own_frames(e)) from e
     if node.executor is not None:

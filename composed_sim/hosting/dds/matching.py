@@ -12,14 +12,21 @@ from composed_sim.ros import contract as c
 from composed_sim.ros.crazyflie.messages import SETPOINTS
 
 
+def publishes(endpoint) -> bool:
+    """Is ``endpoint`` a publisher (else a subscription)?"""
+    return hasattr(endpoint, "get_subscription_count")
+
+
+def matched_count(endpoint) -> int:
+    """How many endpoints of the other side DDS matched with ``endpoint``: a publisher's
+    subscriptions, a subscription's publishers."""
+    return endpoint.get_subscription_count() if publishes(endpoint) else endpoint.get_publisher_count()
+
+
 def matched(endpoint) -> bool:
     """A publisher with a matched subscription, a subscription with a matched publisher; True for
     None (a topic the caller does not serve, e.g. /clock, shared by all)."""
-    if endpoint is None:
-        return True
-    count = endpoint.get_subscription_count() if hasattr(endpoint, "get_subscription_count") \
-        else endpoint.get_publisher_count()
-    return count >= 1
+    return endpoint is None or matched_count(endpoint) >= 1
 
 
 def contract_endpoints(nodes: Sequence[Node], robot: str) -> list:

@@ -9,6 +9,7 @@ says which nodes and parameters (and which interface packages to build, as colco
 """
 import json
 import sys
+from pathlib import Path
 
 import rclpy
 from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor, SingleThreadedExecutor
@@ -17,6 +18,12 @@ from composed_sim import plugins
 from composed_sim.hosting.building.nodes import controller_parameters
 from composed_sim.interfaces import activate
 from composed_sim.world.loader import load_world
+
+
+def command(world_file, robots: int, seed: int, robot: int, threads: bool = False) -> list[str]:
+    """The command line that starts robot ``robot``'s nodes in a process of their own."""
+    return [sys.executable, str(Path(__file__)), str(world_file), str(robots), str(seed), str(robot),
+            *(["multi-threaded"] if threads else [])]
 
 
 def ros_args(namespace: str, parameters: dict, remappings: dict) -> list[str]:

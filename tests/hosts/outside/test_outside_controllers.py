@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from tests.conftest import network_namespaces, start
+from tests.hosts.outside.controllers_of_their_own import command
 from composed_sim.hosts.composed import ComposedHost
 from composed_sim.hosting import HostError
 from composed_sim.hosts.discovery import DiscoveryError, configure
@@ -20,7 +21,6 @@ from composed_sim.world.loader import load_world
 
 ROOT = Path(__file__).resolve().parents[3]
 FLOCKING = ROOT / "worlds" / "flocking.yaml"
-OF_THEIR_OWN = Path(__file__).with_name("controllers_of_their_own.py")
 ROBOTS, TICKS, SEED = 12, 60, 3
 
 
@@ -45,10 +45,9 @@ def world(robots=ROBOTS, ticks=TICKS, seed=SEED, watchdog_s=None):
     return w
 
 
-def of_their_own(robot: int, *, n=ROBOTS, seed=SEED, world_file=FLOCKING, threads=False) -> list[str]:
-    """The command that starts robot ``robot``'s nodes in a process of their own."""
-    return [sys.executable, str(OF_THEIR_OWN), str(world_file), str(n), str(seed), str(robot),
-            *(["multi-threaded"] if threads else [])]
+def of_their_own(robot: int, *, n=ROBOTS, seed=SEED) -> list[str]:
+    """The command that starts the flocking world's robot ``robot`` in a process of its own."""
+    return command(FLOCKING, n, seed, robot)
 
 
 def start_robots(robots, tmp_path, processes, env, **kwargs) -> list:
