@@ -51,8 +51,8 @@ _EXPORTS = {
     "executors.running": ("Spinning", "make_executor", "check_executor", "driven_by_caller", "run_until_idle",
                           "shut_down"),
     # calls between places, and their rounds across processes
-    "calls.between_places": ("CallRelay", "Request", "handover_order", "blocks_reached", "RUN_WIDE_ORIGIN"),
-    "calls.rounds": ("CallRounds", "replies", "routed"),
+    "calls.between_places": ("CallRelay", "Request", "handover_order", "RUN_WIDE_ORIGIN"),
+    "calls.rounds": ("Rounds", "PipeRounds", "replies", "routed", "send_to_live", "worker_places"),
     # run-wide topics
     "run_wide.relay": ("RunWideRelay", "Message", "is_run_wide"),
     "run_wide_nodes": ("RunWideNodes", "create_run_wide_nodes"),

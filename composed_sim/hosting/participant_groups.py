@@ -143,7 +143,7 @@ class ParticipantGroups(TickServing):
             self._build_group(self.first_group + k, range(first, min(self.stop, first + self.robots_per_participant)),
                               classes, warnings)
         self.exchange = NodesExchange(self.simulator_nodes, node_time=self.node_time)
-        self.wait_for_run_wide_timers(self.run_wide.first_timer_tick if self.run_wide is not None else 0)
+        self.wait_for_run_wide_timers(self.run_wide_timers)
         self.executor = make_executor(self.hosting.executor, self.contexts[0], robots=self.stop - self.start)
         if isinstance(self.executor, LockstepExecutor):
             self.executor.watcher = self.guard
@@ -218,14 +218,10 @@ class ParticipantGroups(TickServing):
                 sim_node.clocks.drive(node)
 
     def wait_for_run_wide_timers(self, tick: int) -> None:
-        """The run-wide nodes' first timer fires at tick ``tick`` (RunWideNodes.first_timer_tick, 0:
-        none; the run-wide nodes may be another process's): until then a robot may be waiting for
-        what they publish from it (a start command) and has had no chance to answer, as before its
-        own nodes' first timer. It keeps its last command without a violation until its first answer
-        or that tick (ros/answer_ledger.py)."""
-        if tick > 0:
-            for sim_node in self.simulator_nodes:
-                sim_node.answer_later(sim_node.robots, until_tick=tick)
+        """Until tick ``tick`` the robots may wait for the run-wide nodes' first timer (they may be
+        another process's): SimulatorNode.wait_for_run_wide_timers."""
+        for sim_node in self.simulator_nodes:
+            sim_node.wait_for_run_wide_timers(tick)
         self._quiet_robots = any(node.when_published.any() for node in self.simulator_nodes)
 
     def _host_entities(self) -> None:
@@ -368,6 +364,11 @@ class ParticipantGroups(TickServing):
                 self.logs.tick = next_tick
             self.run_wide.start_tick(next_tick)
         return self.relay.take_outbox()
+
+    @property
+    def run_wide_timers(self) -> int:
+        """The tick of the first timer of the run-wide nodes here (0: none, or none here)."""
+        return self.run_wide.first_timer_tick if self.run_wide is not None else 0
 
     @property
     def nodes(self) -> int:

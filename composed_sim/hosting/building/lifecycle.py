@@ -11,7 +11,7 @@ run-wide nodes' part of it (a lifecycle manager's transitions).
 """
 from __future__ import annotations
 
-from typing import Optional, Sequence
+from typing import Optional
 
 from lifecycle_msgs.msg import State
 from rclpy.lifecycle import LifecycleNode, TransitionCallbackReturn
@@ -51,8 +51,3 @@ def autostart(node: Node, described: str) -> None:
                                      f"(now {state_label(node)})")
     if not is_active(node):
         raise LifecycleError(f"{described}: not active after autostart (now {state_label(node)})")
-
-
-def inactive_nodes(nodes: Sequence[Node]) -> list[tuple[Node, str]]:
-    """The lifecycle nodes among ``nodes`` that are not active, with their states."""
-    return [(n, state_label(n)) for n in nodes if not is_active(n)]

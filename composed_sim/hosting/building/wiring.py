@@ -67,12 +67,6 @@ def answer_rule(world: World, group_index: int, name: str, nodes: Sequence[Node]
     return problem, False
 
 
-def robot_wiring_problem(world: World, group_index: int, name: str, nodes: Sequence[Node],
-                         relay: Optional[RunWideRelay]) -> Optional[str]:
-    """Why robot ``name``'s nodes cannot answer its ticks (``answer_rule``'s problem)."""
-    return answer_rule(world, group_index, name, nodes, relay)[0]
-
-
 def wiring_problem(nodes: Sequence[Node], robot: str, sensors: Sequence[str],
                    run_wide: Collection[str] = ()) -> tuple[Optional[str], bool]:
     """Why a robot's nodes cannot answer its ticks, found as soon as they are built: no node

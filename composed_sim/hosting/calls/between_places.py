@@ -25,7 +25,7 @@ from __future__ import annotations
 import itertools
 import threading
 from dataclasses import dataclass
-from typing import Callable, Collection, Optional, Sequence
+from typing import Callable, Collection, Optional
 
 from rclpy.serialization import deserialize_message, serialize_message
 
@@ -93,18 +93,6 @@ def handover_order(items: list) -> list:
     first, then responses, then requests, each by caller (run-wide nodes, then robot by robot) and
     the caller's order. An item's ``destination`` is the place it goes to; None: every process."""
     return sorted(items, key=lambda item: (item.rank, item.call))
-
-
-def blocks_reached(destination: Optional[int], blocks: Sequence[tuple[int, int]]) -> list[int]:
-    """Which of ``blocks`` (each a ``(start, stop)`` range of robot places, in robot order: a
-    machine's, a worker's) a call for ``destination`` goes to: every one (None: what every process
-    serves), the first (``RUN_WIDE_ORIGIN``: the run-wide nodes live with the first robots, in
-    participant group 0), or the one holding that robot. The one routing rule of the rounds."""
-    if destination is None:
-        return list(range(len(blocks)))
-    if destination == RUN_WIDE_ORIGIN:
-        return [0]
-    return [k for k, (start, stop) in enumerate(blocks) if start <= destination < stop][:1]
 
 
 class CallRelay:

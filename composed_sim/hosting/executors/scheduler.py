@@ -90,11 +90,6 @@ class Scheduler:
 
     # --- the walk's side ------------------------------------------------------------------------
 
-    @staticmethod
-    def of_caller() -> Optional["Scheduler"]:
-        """The scheduler whose walk runs the caller, or None."""
-        return getattr(getcurrent(), "scheduler", None)
-
     def in_walk(self) -> bool:
         """Is the caller a callback run by a walk (so that it can be set aside)?"""
         return getattr(getcurrent(), "scheduler", None) is self

@@ -22,7 +22,7 @@ from typing import Optional
 
 from composed_sim.core.senses import Senses
 from composed_sim.core.violations import FAILED
-from composed_sim.hosting import HostError, replies, routed
+from composed_sim.hosting import HostError, replies, routed, send_to_live, worker_places
 from composed_sim.hosts.processes import last_words
 from composed_sim.hosts.workers.exchange import ANSWER_GRACE_S
 from composed_sim.hosts.workers.worker_host import WorkerHost, auto_workers, plan_blocks
@@ -80,7 +80,7 @@ class MachineAgent:
         if kind == "calls":
             self._route_calls(message[1])
         else:
-            self._forward(lambda w: message)
+            self._forward(lambda k: message)
         return None if kind in ("clock", "tap") else self._collect()
 
     # --- set-up ------------------------------------------------------------------------------------
@@ -125,16 +125,12 @@ class MachineAgent:
         return [w for w in self.host.workers if w.dead is None]
 
     def _forward(self, message_for) -> None:
-        for w in self._live():
-            try:
-                w.conn.send(message_for(w))
-            except OSError:
-                self._lose(w, None)
+        send_to_live(self.host.workers, message_for, self._lose)
 
     def _route_calls(self, calls: list) -> None:
         """A round's calls for this machine, to the workers of their places, in the order given."""
-        shares = routed(calls, self.host.workers)
-        self._forward(lambda w: ("calls", shares[w.index]))
+        shares = routed(calls, *worker_places(self.host.workers))
+        self._forward(lambda k: ("calls", shares[k]))
 
     def _collect(self):
         """One message from each live worker: all idle (a round's calls) or all answers (the tick's)."""

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import os
 import subprocess
-import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Optional
@@ -22,7 +21,6 @@ class ControllerProcess:
     popen: subprocess.Popen
     log: Path                          # its stdout and stderr
     pipe: Optional[int]                # read end of its start-up pipe, until EOF
-    spawned: float = field(default_factory=time.perf_counter)
     created: bool = False                # its node exists: the CPU-heavy part of start-up is done
     answer_type: Optional[str] = None    # its cmd_vel publisher's type, as "created" reported it
     stopping_since: Optional[float] = None   # monotonic s of the SIGTERM that ends a failed robot
@@ -33,7 +31,6 @@ class ControllerProcess:
     served: list[tuple] = field(default_factory=list)  # (name, type) of the services its nodes serve
     answers_later: bool = False          # no cmd_vel publisher yet: quiet until its first answer
     first_timer_tick: int = 0            # … or its timers' first tick
-    startup_s: Optional[float] = None    # spawn → matched on both sides
     _buffer: bytes = b""
 
     def read_pipe(self) -> bool:

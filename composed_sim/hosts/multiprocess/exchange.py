@@ -5,8 +5,8 @@ from __future__ import annotations
 import time
 from typing import Callable, Optional
 
-from composed_sim.hosting import (CallRelay, handover_order, NodesExchange, RunWideNodes, RunWideRelay,
-                                  SimulatorLink)
+from composed_sim.hosting import (CallRelay, handover_order, NodesExchange, Rounds, routed, RUN_WIDE_ORIGIN,
+                                  RunWideNodes, RunWideRelay, SimulatorLink)
 from composed_sim.ros.simulator_node import AnswerTypeError, SimulatorNode
 from composed_sim.world.schema import World
 
@@ -58,8 +58,6 @@ class LinkedExchange(NodesExchange):
         drones' endpoints beside them (hosting/drones.py), served here."""
         super().__init__(list(nodes.values()), check)
         self._drones = drones
-        self._here = drones.places if drones is not None else frozenset()     # places served here
-        self._served_here = False     # calls were handed to the drones' services here: a round serves them
         self._published: dict[str, int] = {}     # setpoints the drones' processes sent so far, by topic
         self._by_domain, self._domains, self._names, self._tick_ns = nodes, domains, names, tick_ns
         self._run_wide = run_wide
@@ -67,6 +65,7 @@ class LinkedExchange(NodesExchange):
         self._batch: Optional[list] = None
         self._tick = 0
         self._stamp = 0
+        self._rounds = LinkRounds(self, drones.places if drones is not None else frozenset())
 
     def publish_tick(self, frame) -> None:
         run_wide = self._run_wide
@@ -82,69 +81,10 @@ class LinkedExchange(NodesExchange):
         # reply (and what that leads to) is handed over in rounds before the sensors.
         if self._drones is not None:
             self._drones.start_tick()         # other processes' calls to the drones' services
-        self._served_here = False
-        calls = self._route(run_wide.calls.take_outbox())
-        for domain, link in run_wide.links.items():
-            link.publish(self._stamp, self._batch, calls.get(domain))
-        self._rounds(calls)
+        self._rounds.batch = self._batch    # it goes with the first round's calls, to every domain
+        self._rounds.hand_over(routed(run_wide.calls.take_outbox(), *self._rounds.places()))
+        self._rounds.lead([])
         super().publish_tick(frame)
-
-    def _route(self, items: list) -> dict[int, dict[int, list]]:
-        """Calls for robots, by domain and robot index; the run-wide nodes' own delivered here."""
-        routed: dict[int, dict[Optional[int], list]] = {}
-        for item in handover_order(items):
-            place = item.destination
-            if place is None or place < 0 or place in self._here:
-                self._run_wide.calls.deliver([item])
-                self._served_here = self._served_here or place in self._here
-            if place is None:              # for every process: each domain's robots read it (key None)
-                for domain in self._run_wide.links:
-                    routed.setdefault(domain, {}).setdefault(None, []).append(item)
-            elif place >= 0 and place not in self._here:
-                routed.setdefault(self._domains[self._names[place]], {}).setdefault(place, []).append(item)
-        return routed
-
-    def _rounds(self, sent: dict[int, dict[int, list]]) -> None:
-        """Rounds of calls between the robots and the run-wide nodes (hosting/calls/between_places.py):
-        the robots ``sent`` calls reply once idle with the calls they made; those go to their
-        places (the run-wide nodes run until idle here), until no call is in flight."""
-        links = self._run_wide.links
-        while True:
-            deadline = time.monotonic() + self._round_timeout_s
-            for domain, calls in sent.items():
-                waiting = [i for i in calls if i is not None and not self._failed(i)]
-                while waiting and time.monotonic() < deadline:
-                    links[domain].take(self._stamp, waiting, replies=True)
-                    waiting = [i for i in waiting if i not in links[domain].replied]
-                    if waiting:
-                        time.sleep(0.0002)
-            made = [item for link in links.values() for item in link.calls]
-            for link in links.values():
-                link.calls = []
-                if link.notes:             # what a call made (a configure's subscriptions, say)
-                    self._take_notes(link)
-            self._route_run_wide(made)
-            sent = self._route(self._run_wide.calls.take_outbox() + [i for i in made if not self._run_wide_bound(i)])
-            if not sent:
-                if not self._served_here:
-                    return
-                self._served_here = False      # another round: they serve them, their callers hear
-                continue
-            for domain, calls in sent.items():
-                links[domain].publish_calls(self._stamp, calls)
-
-    def _run_wide_bound(self, item) -> bool:
-        return item.destination is not None and item.destination < 0
-
-    def _route_run_wide(self, made: list) -> None:
-        """The calls for the run-wide nodes, handed to them; they run until idle."""
-        bound = [item for item in handover_order(made) if self._run_wide_bound(item)]
-        if bound:
-            self._run_wide.calls.deliver(bound)
-        if self._run_wide.nodes is not None:
-            self._run_wide.nodes.run_until_idle()
-        if self._drones is not None:
-            self._drones.run_until_idle()
 
     def wait_for_answers(self, timeout_s: float) -> bool:
         """Every robot's answer, and the part of the tick that each robot using the link sent once
@@ -166,7 +106,7 @@ class LinkedExchange(NodesExchange):
                         name = self._names[i]
                         self._by_domain[self._domains[name]].settle_idle([name])
             if not waiting and any(link.calls for link in self._run_wide.links.values()):
-                self._rounds({})             # every part is in: the calls they carried, in rounds
+                self._rounds.lead([])        # every part is in: the calls they carried, in rounds
                 continue
             if (self.all_answered and not waiting) or time.monotonic() > deadline:
                 return self.all_answered
@@ -230,3 +170,65 @@ class LinkedExchange(NodesExchange):
         deadline = time.monotonic() + self._round_timeout_s * 5
         while subscription.get_publisher_count() < 1 and time.monotonic() < deadline:
             time.sleep(0.001)
+
+
+class LinkRounds(Rounds):
+    """The rounds of a multi-process run (hosting/calls/rounds.py): place 0 is this process (the
+    run-wide nodes, and the drones' services: ``here``), then each domain whose robots use the
+    link, its robots' controller processes. A robot handed calls replies once idle, with the
+    calls its nodes made; the calls for the run-wide nodes among them are served here at once."""
+
+    def __init__(self, exchange: LinkedExchange, here: frozenset):
+        self._x, self._here = exchange, here
+        self.batch: Optional[list] = None     # the tick's batch, sent with its first round
+        self._waiting: dict[int, list[int]] = {}     # per domain: the robots to reply to the last round
+        self._places: tuple = ((), ())
+
+    def places(self) -> tuple[list, range]:
+        domains = list(self._x._run_wide.links)
+        if len(self._places[1]) != len(domains) + 1:     # a domain's link is made as its robots start
+            x = self._x
+            robots = [{i for i, name in enumerate(x._names) if x._domains[name] == d} - self._here for d in domains]
+            self._places = ([self._here, *robots], range(len(domains) + 1))
+        return self._places
+
+    def made(self) -> list:
+        x, links = self._x, self._x._run_wide.links
+        deadline = time.monotonic() + x._round_timeout_s
+        for domain, robots in self._waiting.items():
+            waiting = [i for i in robots if not x._failed(i)]
+            while waiting and time.monotonic() < deadline:
+                links[domain].take(x._stamp, waiting, replies=True)
+                waiting = [i for i in waiting if i not in links[domain].replied]
+                if waiting:
+                    time.sleep(0.0002)
+        self._waiting = {}
+        made = [item for link in links.values() for item in link.calls]
+        for link in links.values():
+            link.calls = []
+            if link.notes:             # what a call made (a configure's subscriptions, say)
+                x._take_notes(link)
+        # The run-wide nodes live here: they serve the calls for them at once, until idle.
+        for_run_wide = [item for item in handover_order(made) if item.destination == RUN_WIDE_ORIGIN]
+        if for_run_wide:
+            x._run_wide.calls.deliver(for_run_wide)
+        if x._run_wide.nodes is not None:
+            x._run_wide.nodes.run_until_idle()
+        if x._drones is not None:
+            x._drones.run_until_idle()
+        return x._run_wide.calls.take_outbox() + [item for item in made if item.destination != RUN_WIDE_ORIGIN]
+
+    def hand_over(self, shares: dict[int, list]) -> None:
+        x = self._x
+        if shares.get(0):
+            x._run_wide.calls.deliver(shares[0])
+        for k, (domain, link) in enumerate(x._run_wide.links.items(), 1):
+            calls: dict[Optional[int], list] = {}
+            for item in shares.get(k, ()):
+                calls.setdefault(item.destination, []).append(item)     # None: every robot of the domain
+            if self.batch is not None:
+                link.publish(x._stamp, self.batch, calls)
+            elif calls:
+                link.publish_calls(x._stamp, calls)
+            self._waiting[domain] = [i for i in calls if i is not None]
+        self.batch = None

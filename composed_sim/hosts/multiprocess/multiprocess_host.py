@@ -187,7 +187,6 @@ class MultiProcessHost(ControllersElsewhere):
                     answers = p.answers_later or flying[self.sim.names.index(robot)] \
                         or self._nodes[p.domain].answer_subscription(robot) is not None
                     if p.topics is not None and answers and all(matched(endpoints[p.domain].get(t)) for t in p.topics):
-                        p.startup_s = time.perf_counter() - p.spawned
                         del unmatched[robot]
                         last_progress = time.monotonic()
                 if time.monotonic() - last_progress > STALL_TIMEOUT_S:
@@ -209,9 +208,8 @@ class MultiProcessHost(ControllersElsewhere):
         # Until the run-wide nodes' first timer fires, the robots may wait for it (a start command):
         # each process's run-wide link says when its nodes are idle (hosting/run_wide/link.py).
         run_wide_timers = self.run_wide.nodes.first_timer_tick if self.run_wide.nodes is not None else 0
-        if run_wide_timers:
-            for node in self._nodes.values():
-                node.answer_later(node.robots, until_tick=run_wide_timers)
+        for node in self._nodes.values():
+            node.wait_for_run_wide_timers(run_wide_timers)
         say_answers_later(sorted(later, key=self.sim.names.index))
         # What each robot's process serves: to the run-wide nodes here, and with tick 0's first
         # handover to every robot (their clients find it ready, hosting/calls/between_places.py).
@@ -271,10 +269,6 @@ class MultiProcessHost(ControllersElsewhere):
         p = ControllerProcess(robot, self.domains[robot], popen, log, read_fd)
         self.processes.append(p)
         return p
-
-    @property
-    def startup_times_s(self) -> list[float]:      # per child: spawn → its endpoints matched with the simulator's
-        return [p.startup_s for p in self.processes if p.startup_s is not None]
 
     # --- the run ----------------------------------------------------------------------------
 

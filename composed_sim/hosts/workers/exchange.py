@@ -9,7 +9,7 @@ import numpy as np
 
 from composed_sim.core.simulation import Simulation
 from composed_sim.core.violations import FAILED, Violation
-from composed_sim.hosting import CallRounds, replies
+from composed_sim.hosting import PipeRounds, replies
 from composed_sim.hosts.workers.shared_state import SharedState
 from composed_sim.hosts.processes import last_words
 
@@ -39,7 +39,7 @@ class WorkersExchange:
         self._gathering_s = 0.0
         self._sent: dict = {}        # the scene, floor and lights the workers have now
         self._grace_s = grace_s       # past the watchdog and a hung callback's interruption
-        self.rounds = CallRounds(workers, lockstep.watchdog_s + lockstep.unresponsive_s + grace_s, self._lost)
+        self.rounds = PipeRounds(workers, lockstep.watchdog_s + lockstep.unresponsive_s + grace_s, self._lost)
 
     def gathering_s(self) -> float:
         return self._gathering_s

@@ -51,9 +51,8 @@ def serve(fd: int, adopted: Callable[[], None]) -> int:
             logs.flush()
         conn.send(("error", type(e).__name__, str(e), getattr(e, "field", ()), getattr(e, "user_traceback", "")))
         return EXIT_SETUP
-    run_wide_timers = groups.run_wide.first_timer_tick if groups.run_wide is not None else 0
     conn.send(("ready", groups.nodes, groups.calls_leave, groups.calls.take_outbox(), groups.answers_later,
-               run_wide_timers))
+               groups.run_wide_timers))
     # What every place of the run serves, before the run-wide nodes' part of tick 0 (which may ask),
     # and when the run-wide nodes' first timer fires (they are worker 0's).
     try:
