@@ -81,12 +81,13 @@ class CallbackGuard(CallbackWatcher):
         self._started = 0.0
         self._cpu_started = 0.0                        # … and its thread's CPU clock then
         self._main = threading.main_thread()
-        self._workers: dict[str, int] = {}             # robot → worker thread running its callback
+        # Worker thread → the robots whose callbacks it runs, innermost last: two callbacks of one
+        # robot may run at once on two threads (a reentrant callback group).
+        self._workers: dict[int, list[str]] = {}
         self._workers_lock = threading.Lock()
         self.calls = 0                                 # callbacks run: lets a waiter see progress
         self.running = 0                               # callbacks running now on worker threads
         self.calls_of: dict[str, int] = {}             # per robot: its callbacks run so far
-        self._depth = threading.local()                # per worker thread: inside a guarded callback?
         self.on_exception: Optional[Callable[[str, Node, BaseException], None]] = None
         self._robots: dict[str, tuple[ServedRobots, Node]] = {}   # robot → who serves it, its first node
         self._robot_of: dict[int, str] = {}            # id(node) → its robot
@@ -153,7 +154,7 @@ class CallbackGuard(CallbackWatcher):
                     if in_main:
                         self._running = None
                     else:
-                        self._leave_thread(robot)
+                        self._leave_thread()
             except (ControllerHung, Exception, SystemExit) as e:    # sys.exit() fails its robot, not the host    # noqa: BLE001 - a user's callback may raise anything: it fails its robot
                 self._callback_failed(robot, node, sim_node, e, started)
                 return None
@@ -175,17 +176,19 @@ class CallbackGuard(CallbackWatcher):
     def _enter_thread(self, robot: str, own_time: bool) -> float:
         """A callback starts on one of a multi-threaded executor's threads: its CPU clock."""
         with self._workers_lock:
-            self._workers[robot] = threading.get_ident()
+            self._workers.setdefault(threading.get_ident(), []).append(robot)
             self.calls += 1
             self.running += 1
             self.calls_of[robot] = self.calls_of.get(robot, 0) + 1
-        self._depth.inside = True
         return time.thread_time() if own_time else 0.0
 
-    def _leave_thread(self, robot: str) -> None:
-        self._depth.inside = False
-        with self._workers_lock:   # after this, stop_worker cannot reach us
-            self._workers.pop(robot, None)
+    def _leave_thread(self) -> None:
+        ident = threading.get_ident()
+        with self._workers_lock:   # after this, stop_worker cannot reach this callback
+            robots = self._workers[ident]
+            robots.pop()
+            if not robots:
+                del self._workers[ident]
             self.running -= 1
 
     def _callback_failed(self, robot: str, node: Node, sim_node: ServedRobots, error: BaseException,
@@ -289,11 +292,9 @@ class CallbackGuard(CallbackWatcher):
         """The robot whose guarded callback (or task) runs in this thread now, if any."""
         if threading.get_ident() == self._main.ident:
             return self._running
-        if not getattr(self._depth, "inside", False):
-            return None
-        ident = threading.get_ident()
         with self._workers_lock:
-            return next((robot for robot, thread in self._workers.items() if thread == ident), None)
+            robots = self._workers.get(threading.get_ident())
+            return robots[-1] if robots else None
 
     def end_robot(self, robot: str, ending: BaseException) -> None:
         """A thread of ``robot``'s ended its process (``rclpy.shutdown()``): the robot is stopped,
@@ -306,15 +307,15 @@ class CallbackGuard(CallbackWatcher):
         """Is this thread running a guarded callback now?"""
         if threading.get_ident() == self._main.ident:
             return self._running is not None
-        return getattr(self._depth, "inside", False)
+        return threading.get_ident() in self._workers
 
     def stop_worker(self, robot: str) -> None:
         """Interrupt ``robot``'s callback if it runs on a worker thread (a SimulatorNode.on_failed
         hook: the robot has just been failed, e.g. as unresponsive)."""
         with self._workers_lock:
-            ident = self._workers.get(robot)
-            if ident is not None:
-                ctypes.pythonapi.PyThreadState_SetAsyncExc(ctypes.c_ulong(ident), ctypes.py_object(ControllerHung))
+            for ident, robots in self._workers.items():
+                if robot in robots:
+                    ctypes.pythonapi.PyThreadState_SetAsyncExc(ctypes.c_ulong(ident), ctypes.py_object(ControllerHung))
 
     # --- interrupting a hung callback in the main thread ---------------------------------------
 
