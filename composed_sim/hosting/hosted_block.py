@@ -1,5 +1,5 @@
 """One way to host a block of nodes: every place that hosts nodes uses it (a participant group's
-robots, a robot in a controller process of its own, a shard's robots, the run-wide nodes).
+robots, a robot in a controller process of its own, the run-wide nodes).
 
 A block is the nodes of one executor. Whatever a node makes, in its constructor, a lifecycle
 transition (``on_configure``) or any callback, is hosted the same way whenever it appears (the
@@ -40,7 +40,7 @@ from composed_sim.ros.simulator_node import AnswerTypeError
 class HostedBlock:
     """The nodes of one executor, hosted. ``calls``: the process's call relay
     (hosting/calls/between_places.py), through which calls to the other places of the run go, and which
-    hands this block the calls to ``places``; None: such calls go through DDS (a shard). ``relay``:
+    hands this block the calls to ``places``; None: such calls go through DDS. ``relay``:
     the process's run-wide relay (hosting/run_wide/relay.py), whose subscriptions of a node's the
     guard guards too. ``guard``: what makes a faulty callback its robot's fault (None: a failure
     ends the process, a controller process of its own)."""

@@ -4,7 +4,7 @@ A process's node with ``use_sim_time`` has its clock put on ROS time by rclpy's 
 which then sets the time of each /clock message it hears. The host does the
 same for the nodes it hosts, without a /clock subscription per node (N deliveries per tick): each
 place that hosts nodes (a worker's participant groups, the run-wide nodes, a controller process,
-a shard, the timers' clocks of hosting/sim_time/timers.py) calls ``follow_sim_time`` on a clock
+the timers' clocks of hosting/sim_time/timers.py) calls ``follow_sim_time`` on a clock
 once and ``set_sim_time`` as each tick opens. /clock is still published for everyone else."""
 from __future__ import annotations
 

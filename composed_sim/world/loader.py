@@ -244,7 +244,7 @@ def _raise(problems: list[tuple[FieldPath, str, str]], source: str, lines: dict[
 def check_has_robots(world: World, source: str, lines: Optional[dict[FieldPath, int]] = None) -> World:
     """The world, if it has a robot to run; else one WorldFileError at its robots field. The
     schema allows an empty world (the core places and senses empty scenes), but a run does not:
-    every host is made of its robots' participants, processes or shards. A group of count 0
+    every host is made of its robots' participants or processes. A group of count 0
     beside others is fine."""
     if world.robot_count > 0:
         return world

@@ -1,6 +1,6 @@
 """Building a robot's hosted nodes, and the world's run-wide nodes, checked against the topic
 contract: shared by the composed host, the worker processes, each controller process of the
-multi-process host and the shards (which therefore import no physics)."""
+multi-process host (which therefore import no physics)."""
 from __future__ import annotations
 
 import sys

@@ -6,7 +6,7 @@ participant costs O(E²) (a minute at 1280 robots: docs/speed.md). Participants 
 one another do the same work for each other's endpoints, so splitting the endpoints over
 participants does not help by itself. With Fast DDS's ``ignoreParticipantFlags =
 FILTER_SAME_PROCESS`` the participants of this process skip one another's discovery traffic: a
-composed host split into self-contained shards (a simulator node and its robots' controllers per
+composed host split into self-contained participant groups (a simulator node and its robots' controllers per
 participant) pays O(E²/K). Other processes still discover every participant, so ``ros2 topic
 echo /bot7/light`` or a recorder elsewhere sees every topic as before.
 
@@ -29,11 +29,11 @@ PROFILE_VARIABLES = ("FASTRTPS_DEFAULT_PROFILES_FILE", "FASTDDS_DEFAULT_PROFILES
 
 def ignore_participants_of_this_process() -> bool:
     """Make the participants this process creates from now on ignore one another, unless the user
-    gave Fast DDS a profile file of their own (it is respected; shards then discover one another,
+    gave Fast DDS a profile file of their own (it is respected; the groups then discover one another,
     which costs set-up time, not correctness). True when our profile is the one named.
 
     Effective only if called before the process's first participant (Fast DDS loads the profile
-    once); a shard's topics never overlap another's, so an earlier participant changes nothing
+    once); a group's topics never overlap another's, so an earlier participant changes nothing
     but the set-up time."""
     given = [os.environ[v] for v in PROFILE_VARIABLES if os.environ.get(v)]
     if not given:

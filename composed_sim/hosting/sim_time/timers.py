@@ -238,7 +238,7 @@ def clocks_to(clocks, stamp: int) -> None:
 def before_each_tick(subscriptions, on_tick: Callable[[int], None],
                      on_each: Optional[Callable[[int, object], None]] = None) -> None:
     """Call ``on_tick(stamp ns)`` before the first of these sensor subscriptions' callbacks of each
-    tick (a process whose node clocks follow /clock: multi-process mode, shards), e.g. to move the
+    tick (a process whose node clocks follow /clock: a controller process of multi-process mode), e.g. to move the
     timers of a robot's nodes that read no sensors to the tick's time; ``on_each(stamp ns,
     subscription)`` before every one."""
     last = [-1]
