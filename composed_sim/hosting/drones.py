@@ -167,7 +167,7 @@ class ProcessDrones:
         """Before the tick's sensors: the setpoint topics begun since, other processes' calls served."""
         self.refresh()
         for executor, block in self._alone:
-            block.take_outside_calls()
+            block.start_tick()
             run_until_idle(executor)
 
     def run_until_idle(self) -> None:

@@ -21,6 +21,7 @@ are served the same way (``serve``).
 """
 from __future__ import annotations
 
+import collections
 import functools
 from typing import Callable, Collection, Optional
 
@@ -60,7 +61,12 @@ class HostedBlock:
         # lifecycle node's, in a transition): where the simulator is in another process, it must
         # hear of a new cmd_vel publisher, or of a new reader of the robot's sensors.
         self.on_new_endpoints: Optional[Callable[[str, list, list], None]] = None
-        if hasattr(executor, "on_entities_changed"):      # the lockstep executor tells
+        # Nodes that made entities since the last look: the lockstep executor tells before its
+        # next walk; under rclpy's stock executors a node's own wake-up call notes it (a
+        # callback on one of their threads may make it), hosted as the next tick starts.
+        self._changed: collections.deque = collections.deque()
+        self._stock = not hasattr(executor, "on_entities_changed")
+        if not self._stock:
             executor.on_entities_changed = self.host_new
 
     # --- nodes ----------------------------------------------------------------------------------
@@ -76,6 +82,13 @@ class HostedBlock:
         self._host(node, place)
         HostedParameterServices(node, self.directory)      # kept by its services
         self._announce(node, place)
+        if self._stock:
+            wake = node._wake_executor          # rclpy's Node calls it after making an entity
+
+            def noting(node=node, wake=wake):
+                self._changed.append(node)
+                wake()
+            node._wake_executor = noting
 
     def host_new(self, node: Node) -> None:
         """``node`` created or destroyed entities since it was last looked at."""
@@ -163,7 +176,7 @@ class HostedBlock:
     def watch_outside_calls(self, robots: Collection[str], *, graph_changed: Optional[Callable[[], bool]] = None,
                             graph_of: Optional[Node] = None) -> None:
         """Take the requests other processes send to the block's services at each tick's start
-        (``take_outside_calls``). ``robots``: the run's, whose nodes are all the run's own. Whether
+        (``start_tick``). ``robots``: the run's, whose nodes are all the run's own. Whether
         the ROS graph changed comes from ``graph_changed``, the host's own watch where it has one
         (a second watch of one participant would take its triggers), else from a watch of
         ``graph_of``'s participant."""
@@ -172,7 +185,11 @@ class HostedBlock:
         elif graph_of is not None:
             self._outside = OutsideCalls.watching(self.directory, robots, graph_of)
 
-    def take_outside_calls(self) -> None:
+    def start_tick(self) -> None:
+        """As a tick starts: what nodes made since (under a stock executor), hosted; the requests
+        other processes sent, taken."""
+        while self._changed:
+            self.host_new(self._changed.popleft())
         if self._outside is not None:
             self._outside.take()
 

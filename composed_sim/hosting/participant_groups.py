@@ -315,7 +315,7 @@ class ParticipantGroups(TickServing):
                 self.simulator_nodes[0].mirror_run_wide(batch, now_ns)
         # What reached the robots at the tick's start is handled before its sensors: the run-wide
         # messages, the calls of the run-wide nodes' part of the tick, requests from other processes.
-        self.block.take_outside_calls()
+        self.block.start_tick()
         self._rounds_over = False
         for _ in range(SETTLE_ROUNDS):      # rounds: a manager's configure, then activate, say
             if lockstep:

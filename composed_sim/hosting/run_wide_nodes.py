@@ -79,7 +79,7 @@ class RunWideNodes:
         for timers in self._tick_timers:
             timers.advance_to(now_ns)
         if self._block is not None:
-            self._block.take_outside_calls()
+            self._block.start_tick()
         run_until_idle(self._executor)
 
     def destroy(self) -> None:

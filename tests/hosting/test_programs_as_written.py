@@ -281,9 +281,7 @@ def test_a_nodes_timer_steers_on_time_while_its_scan_callback_pauses(run_in, mod
 # --- lifecycle -----------------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("mode", cells({"multi-threaded": (
-    "under rclpy's own multi-threaded executor (kept for comparison) the answers of a cmd_vel publisher made after "
-    "tick 0 are not taken: the robots stand")}, default=("workers 1", "workers 2")))
+@pytest.mark.parametrize("mode", cells({}, default=("workers 1", "workers 2")))
 def test_a_lifecycle_node_that_activates_itself_later_is_waited_for(run_in, mode):
     """A ``LifecycleNode`` makes its ``cmd_vel`` lifecycle publisher in ``on_configure`` and
     configures and activates itself from a 0.3 s timer; its group says ``answers: when_published``.
@@ -299,9 +297,7 @@ def test_a_lifecycle_node_that_activates_itself_later_is_waited_for(run_in, mode
     assert (run.moved() > 0.005).all()
 
 
-@pytest.mark.parametrize("mode", cells({"multi-threaded": (
-    "under rclpy's own multi-threaded executor (kept for comparison) the answers of a cmd_vel publisher made after "
-    "tick 0 are not taken: the robots stand")}, default=("workers 1", "multi-process")))
+@pytest.mark.parametrize("mode", cells({}, default=("workers 1", "multi-process")))
 def test_what_an_inactive_lifecycle_publisher_drops_is_no_answer(run_in, mode):
     """A lifecycle node configured at 0.2 s and activated at 0.5 s publishes on its lifecycle
     ``cmd_vel`` publisher every 0.1 s from the configure on. Until the activation rclpy's lifecycle

@@ -197,7 +197,7 @@ class HostedRobot:
         if self.link is not None:
             self.link.before_tick(stamp)
         if self.block is not None:
-            self.block.take_outside_calls()
+            self.block.start_tick()
 
     def report(self, fd: int, stopped: Callable[[], bool]) -> Optional[int]:
         """Tell the host on the pipe ``fd`` that the nodes exist, then that their contract endpoints
