@@ -47,10 +47,15 @@ class RunWideLinks:
         self.links = {}
 
 
-class LinkedExchange(NodesExchange):
+class LinkedExchange(NodesExchange, Rounds):
     """The per-domain simulator nodes, and the run-wide relay between the controller processes:
     each tick's batch goes to every domain before the tick's sensors, and a tick closes once every
-    robot that publishes run-wide messages has sent its part."""
+    robot that publishes run-wide messages has sent its part.
+
+    It leads the rounds of calls between places (hosting/calls/rounds.py): place 0 is this process
+    (the run-wide nodes, and the drones' services: ``_here``), then each domain whose robots use
+    the link, its robots' controller processes. A robot handed calls replies once idle, with the
+    calls its nodes made; the calls for the run-wide nodes among them are served here at once."""
 
     def __init__(self, nodes: dict[int, SimulatorNode], domains: dict[str, int], names: list[str], tick_ns: int,
                  run_wide: RunWideLinks, check: Callable[[], None], round_timeout_s: float = 1.0, drones=None):
@@ -65,7 +70,10 @@ class LinkedExchange(NodesExchange):
         self._batch: Optional[list] = None
         self._tick = 0
         self._stamp = 0
-        self._rounds = LinkRounds(self, drones.places if drones is not None else frozenset())
+        self._here = drones.places if drones is not None else frozenset()     # places served here
+        self._round_batch: Optional[list] = None     # the tick's batch, sent with its first round
+        self._waiting: dict[int, list[int]] = {}     # per domain: the robots to reply to the last round
+        self._places: tuple = ((), ())
 
     def publish_tick(self, frame) -> None:
         run_wide = self._run_wide
@@ -81,10 +89,62 @@ class LinkedExchange(NodesExchange):
         # reply (and what that leads to) is handed over in rounds before the sensors.
         if self._drones is not None:
             self._drones.start_tick()         # other processes' calls to the drones' services
-        self._rounds.batch = self._batch    # it goes with the first round's calls, to every domain
-        self._rounds.hand_over(routed(run_wide.calls.take_outbox(), *self._rounds.places()))
-        self._rounds.lead([])
+        self._round_batch = self._batch    # it goes with the first round's calls, to every domain
+        self.hand_over(routed(run_wide.calls.take_outbox(), *self.places()))
+        self.lead([])
         super().publish_tick(frame)
+
+    # --- the rounds of calls between places (Rounds) ---------------------------------------------
+
+    def places(self) -> tuple[list, range]:
+        domains = list(self._run_wide.links)
+        if len(self._places[1]) != len(domains) + 1:     # a domain's link is made as its robots start
+            robots = [{i for i, name in enumerate(self._names) if self._domains[name] == d} - self._here
+                      for d in domains]
+            self._places = ([self._here, *robots], range(len(domains) + 1))
+        return self._places
+
+    def made(self) -> list:
+        links = self._run_wide.links
+        deadline = time.monotonic() + self._round_timeout_s
+        for domain, robots in self._waiting.items():
+            waiting = [i for i in robots if not self._failed(i)]
+            while waiting and time.monotonic() < deadline:
+                links[domain].take(self._stamp, waiting, replies=True)
+                waiting = [i for i in waiting if i not in links[domain].replied]
+                if waiting:
+                    time.sleep(0.0002)
+        self._waiting = {}
+        made = [item for link in links.values() for item in link.calls]
+        for link in links.values():
+            link.calls = []
+            if link.notes:             # what a call made (a configure's subscriptions, say)
+                self._take_notes(link)
+        # The run-wide nodes live here: they serve the calls for them at once, until idle.
+        for_run_wide = [item for item in handover_order(made) if item.destination == RUN_WIDE_ORIGIN]
+        if for_run_wide:
+            self._run_wide.calls.deliver(for_run_wide)
+        if self._run_wide.nodes is not None:
+            self._run_wide.nodes.run_until_idle()
+        if self._drones is not None:
+            self._drones.run_until_idle()
+        return self._run_wide.calls.take_outbox() + [item for item in made if item.destination != RUN_WIDE_ORIGIN]
+
+    def hand_over(self, shares: dict[int, list]) -> None:
+        if shares.get(0):
+            self._run_wide.calls.deliver(shares[0])
+        for k, (domain, link) in enumerate(self._run_wide.links.items(), 1):
+            calls: dict[Optional[int], list] = {}
+            for item in shares.get(k, ()):
+                calls.setdefault(item.destination, []).append(item)     # None: every robot of the domain
+            if self._round_batch is not None:
+                link.publish(self._stamp, self._round_batch, calls)
+            elif calls:
+                link.publish_calls(self._stamp, calls)
+            self._waiting[domain] = [i for i in calls if i is not None]
+        self._round_batch = None
+
+    # --- the tick's answers ---------------------------------------------------------------------
 
     def wait_for_answers(self, timeout_s: float) -> bool:
         """Every robot's answer, and the part of the tick that each robot using the link sent once
@@ -106,7 +166,7 @@ class LinkedExchange(NodesExchange):
                         name = self._names[i]
                         self._by_domain[self._domains[name]].settle_idle([name])
             if not waiting and any(link.calls for link in self._run_wide.links.values()):
-                self._rounds.lead([])        # every part is in: the calls they carried, in rounds
+                self.lead([])                # every part is in: the calls they carried, in rounds
                 continue
             if (self.all_answered and not waiting) or time.monotonic() > deadline:
                 return self.all_answered
@@ -171,64 +231,3 @@ class LinkedExchange(NodesExchange):
         while subscription.get_publisher_count() < 1 and time.monotonic() < deadline:
             time.sleep(0.001)
 
-
-class LinkRounds(Rounds):
-    """The rounds of a multi-process run (hosting/calls/rounds.py): place 0 is this process (the
-    run-wide nodes, and the drones' services: ``here``), then each domain whose robots use the
-    link, its robots' controller processes. A robot handed calls replies once idle, with the
-    calls its nodes made; the calls for the run-wide nodes among them are served here at once."""
-
-    def __init__(self, exchange: LinkedExchange, here: frozenset):
-        self._x, self._here = exchange, here
-        self.batch: Optional[list] = None     # the tick's batch, sent with its first round
-        self._waiting: dict[int, list[int]] = {}     # per domain: the robots to reply to the last round
-        self._places: tuple = ((), ())
-
-    def places(self) -> tuple[list, range]:
-        domains = list(self._x._run_wide.links)
-        if len(self._places[1]) != len(domains) + 1:     # a domain's link is made as its robots start
-            x = self._x
-            robots = [{i for i, name in enumerate(x._names) if x._domains[name] == d} - self._here for d in domains]
-            self._places = ([self._here, *robots], range(len(domains) + 1))
-        return self._places
-
-    def made(self) -> list:
-        x, links = self._x, self._x._run_wide.links
-        deadline = time.monotonic() + x._round_timeout_s
-        for domain, robots in self._waiting.items():
-            waiting = [i for i in robots if not x._failed(i)]
-            while waiting and time.monotonic() < deadline:
-                links[domain].take(x._stamp, waiting, replies=True)
-                waiting = [i for i in waiting if i not in links[domain].replied]
-                if waiting:
-                    time.sleep(0.0002)
-        self._waiting = {}
-        made = [item for link in links.values() for item in link.calls]
-        for link in links.values():
-            link.calls = []
-            if link.notes:             # what a call made (a configure's subscriptions, say)
-                x._take_notes(link)
-        # The run-wide nodes live here: they serve the calls for them at once, until idle.
-        for_run_wide = [item for item in handover_order(made) if item.destination == RUN_WIDE_ORIGIN]
-        if for_run_wide:
-            x._run_wide.calls.deliver(for_run_wide)
-        if x._run_wide.nodes is not None:
-            x._run_wide.nodes.run_until_idle()
-        if x._drones is not None:
-            x._drones.run_until_idle()
-        return x._run_wide.calls.take_outbox() + [item for item in made if item.destination != RUN_WIDE_ORIGIN]
-
-    def hand_over(self, shares: dict[int, list]) -> None:
-        x = self._x
-        if shares.get(0):
-            x._run_wide.calls.deliver(shares[0])
-        for k, (domain, link) in enumerate(x._run_wide.links.items(), 1):
-            calls: dict[Optional[int], list] = {}
-            for item in shares.get(k, ()):
-                calls.setdefault(item.destination, []).append(item)     # None: every robot of the domain
-            if self.batch is not None:
-                link.publish(x._stamp, self.batch, calls)
-            elif calls:
-                link.publish_calls(x._stamp, calls)
-            self._waiting[domain] = [i for i in calls if i is not None]
-        self.batch = None
