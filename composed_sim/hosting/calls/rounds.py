@@ -110,13 +110,10 @@ class PipeRounds(Rounds):
         return calls
 
     def hand_over(self, shares: dict[int, list]) -> None:
-        self._send(lambda k: ("calls", shares[k]))
+        send_to_live(self._workers, lambda k: ("calls", shares[k]), self._lost)
 
     def over(self) -> None:
-        self._send(lambda k: ("go",))
-
-    def _send(self, message: Callable[[int], tuple]) -> None:
-        send_to_live(self._workers, message, self._lost)
+        send_to_live(self._workers, lambda k: ("go",), self._lost)
 
 
 def send_to_live(workers: list, message: Callable[[int], tuple], lost: Callable[[object, Optional[str]], None]) -> None:
