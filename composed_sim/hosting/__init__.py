@@ -55,7 +55,7 @@ _EXPORTS = {
     "calls.rounds": ("Rounds", "PipeRounds", "replies", "routed", "send_to_live", "worker_places"),
     # run-wide topics
     "run_wide.relay": ("RunWideRelay", "Message", "is_run_wide"),
-    "run_wide_nodes": ("RunWideNodes", "create_run_wide_nodes"),
+    "run_wide_nodes": ("RunWideNodes", "create_run_wide_nodes", "first_timer_tick_of", "wait_for_run_wide_timers"),
     # the drones' Crazyswarm2 endpoints and the crazyflie_server
     "drones": ("ProcessDrones", "has_run_wide_nodes", "flying_robots"),
     "run_wide.link": ("RunWideLink", "SimulatorLink"),

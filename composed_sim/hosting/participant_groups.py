@@ -40,7 +40,7 @@ from composed_sim.hosting.executors.running import (SETTLE_ROUNDS, Spinning, che
 from composed_sim.hosting.guard.node_logs import NodeLogs
 from composed_sim.hosting.guard.node_time import NodeTime
 from composed_sim.hosting.nodes_exchange import NodesExchange
-from composed_sim.hosting.run_wide_nodes import RunWideNodes
+from composed_sim.hosting.run_wide_nodes import RunWideNodes, first_timer_tick_of, wait_for_run_wide_timers
 from composed_sim.ros import contract as c
 from composed_sim.ros.answer_subscription import cmd_vel_gids, publisher_gid
 from composed_sim.ros import in_process
@@ -143,7 +143,7 @@ class ParticipantGroups(TickServing):
             self._build_group(self.first_group + k, range(first, min(self.stop, first + self.robots_per_participant)),
                               classes, warnings)
         self.exchange = NodesExchange(self.simulator_nodes, node_time=self.node_time)
-        self.wait_for_run_wide_timers(self.run_wide_timers)
+        self.note_run_wide_timers(self.run_wide_timers)
         self.executor = make_executor(self.hosting.executor, self.contexts[0], robots=self.stop - self.start)
         if isinstance(self.executor, LockstepExecutor):
             self.executor.watcher = self.guard
@@ -217,11 +217,10 @@ class ParticipantGroups(TickServing):
             for node in nodes:
                 sim_node.clocks.drive(node)
 
-    def wait_for_run_wide_timers(self, tick: int) -> None:
+    def note_run_wide_timers(self, tick: int) -> None:
         """Until tick ``tick`` the robots may wait for the run-wide nodes' first timer (they may be
-        another process's): SimulatorNode.wait_for_run_wide_timers."""
-        for sim_node in self.simulator_nodes:
-            sim_node.wait_for_run_wide_timers(tick)
+        another process's): run_wide_nodes.wait_for_run_wide_timers."""
+        wait_for_run_wide_timers(self.simulator_nodes, tick)
         self._quiet_robots = any(node.when_published.any() for node in self.simulator_nodes)
 
     def _host_entities(self) -> None:
@@ -368,7 +367,7 @@ class ParticipantGroups(TickServing):
     @property
     def run_wide_timers(self) -> int:
         """The tick of the first timer of the run-wide nodes here (0: none, or none here)."""
-        return self.run_wide.first_timer_tick if self.run_wide is not None else 0
+        return first_timer_tick_of(self.run_wide)
 
     @property
     def nodes(self) -> int:

@@ -11,7 +11,7 @@ without a violation, as they do before their own nodes' first timer (ros/answer_
 """
 from __future__ import annotations
 
-from typing import Callable, Collection, Mapping, Optional
+from typing import Callable, Collection, Iterable, Mapping, Optional
 
 from rclpy.context import Context
 from rclpy.node import Node
@@ -88,6 +88,21 @@ class RunWideNodes:
         self._executor.shutdown()
         for node in self._nodes:
             node.destroy_node()
+
+
+def first_timer_tick_of(run_wide: Optional[RunWideNodes]) -> int:
+    """``RunWideNodes.first_timer_tick``, 0 where there are none (or none in this process)."""
+    return run_wide.first_timer_tick if run_wide is not None else 0
+
+
+def wait_for_run_wide_timers(simulator_nodes: Iterable, tick: int) -> None:
+    """The run-wide nodes' first timer fires at tick ``tick`` (0: none): until then a robot may be
+    waiting for what they publish from it (a start command) and has had no chance to answer, as
+    before its own nodes' first timer. Each robot of ``simulator_nodes`` keeps its last command
+    without a violation until its first answer or that tick (ros/answer_ledger.py)."""
+    if tick > 0:
+        for node in simulator_nodes:
+            node.answer_later(node.robots, until_tick=tick)
 
 
 def create_run_wide_nodes(world: World, context: Context, *, classes: Mapping[str, type[Node]],

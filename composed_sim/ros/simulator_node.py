@@ -265,14 +265,6 @@ class SimulatorNode(Node):
         ``until_tick`` (ros/answer_ledger.py)."""
         self._ledger.answer_later(robots, until_tick)
 
-    def wait_for_run_wide_timers(self, tick: int) -> None:
-        """The run-wide nodes' first timer fires at tick ``tick`` (0: none; RunWideNodes.first_timer_tick):
-        until then a robot may be waiting for what they publish from it (a start command) and has
-        had no chance to answer, as before its own nodes' first timer. It keeps its last command
-        without a violation until its first answer or that tick (ros/answer_ledger.py)."""
-        if tick > 0:
-            self.answer_later(self.robots, until_tick=tick)
-
     def settle_idle(self, robots: Optional[Collection[str]] = None) -> int:
         """The quiet robots whose nodes are done with the open tick keep their last command
         (ros/answer_ledger.py); how many."""

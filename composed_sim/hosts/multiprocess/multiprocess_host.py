@@ -33,8 +33,9 @@ from rclpy.context import Context
 from composed_sim.core.simulation import Simulation
 from composed_sim.hosts.base import ControllersElsewhere, SetupInfo, say_answers_later
 from composed_sim.hosting import (check_executor, create_run_wide_nodes, DEFAULT_EXECUTOR, failure_from_output,
-                                  flying_robots, has_run_wide_nodes, HostError, load_classes, LockstepExecutor, matched,
-                                  NodesExchange, ProcessDrones, ProcessHosting, Spinning)
+                                  first_timer_tick_of, flying_robots, has_run_wide_nodes, HostError, load_classes,
+                                  LockstepExecutor, matched, NodesExchange, ProcessDrones, ProcessHosting, Spinning,
+                                  wait_for_run_wide_timers)
 from composed_sim.hosts.multiprocess.domains import DomainError, assign_domains
 from composed_sim.hosts.multiprocess.children import ControllerProcess, died_reason
 from composed_sim.hosts.multiprocess.hosted_robot import plugin_error_from_output
@@ -207,9 +208,7 @@ class MultiProcessHost(ControllersElsewhere):
                 self._nodes[p.domain].answer_later([p.robot], None if p.answers_later else p.first_timer_tick)
         # Until the run-wide nodes' first timer fires, the robots may wait for it (a start command):
         # each process's run-wide link says when its nodes are idle (hosting/run_wide/link.py).
-        run_wide_timers = self.run_wide.nodes.first_timer_tick if self.run_wide.nodes is not None else 0
-        for node in self._nodes.values():
-            node.wait_for_run_wide_timers(run_wide_timers)
+        wait_for_run_wide_timers(self._nodes.values(), first_timer_tick_of(self.run_wide.nodes))
         say_answers_later(sorted(later, key=self.sim.names.index))
         # What each robot's process serves: to the run-wide nodes here, and with tick 0's first
         # handover to every robot (their clients find it ready, hosting/calls/between_places.py).

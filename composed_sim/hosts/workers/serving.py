@@ -63,7 +63,7 @@ def serve(fd: int, adopted: Callable[[], None]) -> int:
         return 0
     _, served, run_wide_timers = message
     groups.calls.deliver(served)
-    groups.wait_for_run_wide_timers(run_wide_timers)
+    groups.note_run_wide_timers(run_wide_timers)
     conn.send(("run_wide", groups.close_run_wide(0), groups.calls.take_outbox()))
     wait, interrupting_hangs = groups.start_serving()
     block = Block(setup, groups, logs, wait, conn)

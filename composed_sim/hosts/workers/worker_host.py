@@ -257,7 +257,7 @@ class WorkerHost(ControllersElsewhere):
     def _start_tick_0(self, calls: list, run_wide_timers: int) -> tuple[list[list], list]:
         """What every worker's places serve goes to every worker (a client elsewhere then finds it
         ready, hosting/calls/between_places.py), with the tick of the run-wide nodes' first timer
-        (until then the robots may wait for them: ParticipantGroups.wait_for_run_wide_timers); then
+        (until then the robots may wait for them: ParticipantGroups.note_run_wide_timers); then
         the run-wide nodes' part of tick 0 runs. Per worker what its nodes published on run-wide
         topics by then, and the calls made meanwhile."""
         served = [item for item in calls if item.destination is None]
