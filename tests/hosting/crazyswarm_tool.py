@@ -66,7 +66,8 @@ class Script:
     def client(self, srv_type, name: str, wait: float = 60.0):
         client = self.node.create_client(srv_type, name)
         if wait and not client.wait_for_service(timeout_sec=wait):
-            raise SystemExit(f"{name}: not served")
+            seen = sorted(f"{ns.rstrip('/')}/{n}" for n, ns in self.node.get_node_names_and_namespaces())
+            raise SystemExit(f"{name}: not served in {wait:.0f} s; the nodes this tool sees: {seen}")
         return client
 
     def call(self, srv_type, name: str, **fields):

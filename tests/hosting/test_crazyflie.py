@@ -61,13 +61,15 @@ def node_logs(tmp_path, world):
 
 def fly(scenario: str, world: World, domain: int, mode: str = "composed", logs=None):
     """The run, while the tool plays ``scenario`` against it: (result, what the tool reported)."""
-    tool = subprocess.Popen([sys.executable, str(TOOL), str(domain), scenario], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True)
-    try:
-        with host_for(mode, world, domain, logs) as host:
+    # Started once the host is set up, as a script is run once the crazyflie_server is up: its
+    # discovery wait then measures discovery, not the host's set-up on a loaded machine.
+    with host_for(mode, world, domain, logs) as host:
+        tool = subprocess.Popen([sys.executable, str(TOOL), str(domain), scenario], stdout=subprocess.PIPE,
+                                stderr=subprocess.PIPE, text=True)
+        try:
             result = host.run(should_stop=lambda: tool.poll() is not None)
-    finally:
-        out, err = tool.communicate(timeout=60)
+        finally:
+            out, err = tool.communicate(timeout=60)
     assert tool.returncode == 0, err[-3000:]
     # Its report is its last line: Fast DDS writes its own log lines on stdout too (a shared-memory
     # port that another participant of the machine held a moment, in a parallel test run).

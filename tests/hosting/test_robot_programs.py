@@ -337,15 +337,15 @@ def test_another_process_sets_a_hosted_nodes_parameter_through_its_parameter_ser
     world = world_of("fleet:SpeedFollower", robots=2, ticks=1_000_000,     # until the tool is done
                      run_wide=[("fleet:SpeedSetter", {"robots": ["bot1"], "speeds": [0.02]})])
     domain = domain_id if mode == "composed" else mp_domain
-    tool = subprocess.Popen([sys.executable, "-c", PARAM_TOOL, str(domain), node, name, str(value)],
-                            stdout=subprocess.PIPE, text=True)
-    try:
-        host = ComposedHost(world, domain_id=domain) if mode == "composed" else \
-            MultiProcessHost(world, domain_id=domain, robots_per_domain=2)
-        with host:
+    host = ComposedHost(world, domain_id=domain) if mode == "composed" else \
+        MultiProcessHost(world, domain_id=domain, robots_per_domain=2)
+    with host:      # the tool started once the host is set up, as a user runs ``ros2 param set``
+        tool = subprocess.Popen([sys.executable, "-c", PARAM_TOOL, str(domain), node, name, str(value)],
+                                stdout=subprocess.PIPE, text=True)
+        try:
             result = host.run(should_stop=lambda: tool.poll() is not None)
-    finally:
-        out, _ = tool.communicate(timeout=60)
+        finally:
+            out, _ = tool.communicate(timeout=60)
     assert out.split() == ["True", "True", "[True]", str(value)], out
     assert result.violations == []
     steps = np.linalg.norm(np.diff(result.trajectories.positions, axis=0), axis=2)
