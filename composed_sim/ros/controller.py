@@ -6,7 +6,6 @@ answers each tick with a ``cmd_vel`` stamped like the sensors it answers works t
 from __future__ import annotations
 
 import functools
-import time
 from typing import Callable, Optional
 
 import numpy as np
@@ -82,7 +81,7 @@ class SwarmController(Node):
     #: ``sensors``' order; ``_on_sensors`` as guarded). The lockstep executor then hands a tick's
     #: sensor messages to the node in one call where all of them wait in process.
     lockstep_batch: Optional[tuple[tuple, Callable[[list], None]]] = None
-    #: Set by that host too: where the CPU time of ``on_tick`` goes (an object with ``add(seconds)``,
+    #: Set by that host too: what times ``on_tick`` (``start()`` gives what ``stop(started)`` takes,
     #: hosting/guard/node_time.py); None: not counted.
     node_time = None
 
@@ -168,10 +167,11 @@ class SwarmController(Node):
         tick = Tick.at(sec, nanosec)
         for reader, data in readings:
             reader(data, tick)
-        started = time.thread_time()
+        node_time = self.node_time          # the node's own code; the rest is the host's
+        started = node_time.start() if node_time is not None else None
         linear, angular = self.on_tick(tick)
-        if self.node_time is not None:     # the node's own code; the rest is the host's
-            self.node_time.add(time.thread_time() - started)
+        if started is not None:
+            node_time.stop(started)
         if self._leds_dirty:   # before the answer, so the change lands on the same tick
             self._led_pub.publish(self._led_encoder.encode(self._leds.tobytes()))
             self._leds_dirty = False

@@ -21,3 +21,24 @@ def test_the_nodes_own_code_is_timed_where_they_run(world_file, workers, domain_
     with host:
         times = host.run().times
     assert 0.0 < times.node_code_s < times.cpu_s
+
+
+def test_a_sampled_count_adds_up_to_the_cpu_time_of_all_calls():
+    """After its first calls, one call in SAMPLED is timed and counts SAMPLED times: over many calls
+    the sum is the thread's CPU time spent in them, as one clock around them all reads it."""
+    import time
+
+    from composed_sim.hosting.guard.node_time import SAMPLED, TIMED_FIRST, NodeTime
+
+    node_time = NodeTime()
+    calls = TIMED_FIRST + 400 * SAMPLED
+    outside = 0.0
+    for i in range(calls):
+        began = time.thread_time()
+        started = node_time.start()
+        deadline = time.perf_counter() + (20e-6 if i % 2 else 60e-6)    # two costs, alternated
+        while time.perf_counter() < deadline:
+            pass
+        node_time.stop(started)
+        outside += time.thread_time() - began
+    assert abs(node_time.seconds - outside) < 0.15 * outside

@@ -79,7 +79,7 @@ class CallbackGuard(CallbackWatcher):
         self._unresponsive_s = unresponsive_s
         self._running: Optional[str] = None            # robot whose callback runs in the main thread
         self._started = 0.0
-        self._cpu_started = 0.0                        # … and its thread's CPU clock then
+        self._cpu_started = None                       # … and its thread's CPU clock then (NodeTime.start)
         self._main = threading.main_thread()
         # Worker thread → the robots whose callbacks it runs, innermost last: two callbacks of one
         # robot may run at once on two threads (a reentrant callback group).
@@ -144,7 +144,7 @@ class CallbackGuard(CallbackWatcher):
                 self._running, self._started = robot, started
                 self.calls += 1
                 calls_of[robot] = calls_of.get(robot, 0) + 1
-                self._cpu_started = time.thread_time() if own_time else 0.0
+                self._cpu_started = node_time.start() if own_time else None
             else:
                 cpu = self._enter_thread(robot, own_time)
             try:
@@ -163,7 +163,7 @@ class CallbackGuard(CallbackWatcher):
             took = monotonic() - (self._started if in_main else started)
             if own_time:
                 # (in the main thread ``take_back`` moved its start on past a wait, as ``_started``)
-                node_time.add(time.thread_time() - (self._cpu_started if in_main else cpu))
+                node_time.stop(self._cpu_started if in_main else cpu)
             # Worker threads (multi-threaded executor) meet the tick's wall-clock deadline instead.
             if in_main and took > self._watchdog_s:
                 sim_node.reject_answer(robot, f"late: a callback took {took:.2f} s, more than "
@@ -173,14 +173,14 @@ class CallbackGuard(CallbackWatcher):
         # (``run`` itself binds one argument, or none for a timer).
         return (lambda msg, info: run(msg, info)) if with_info else run
 
-    def _enter_thread(self, robot: str, own_time: bool) -> float:
+    def _enter_thread(self, robot: str, own_time: bool) -> Optional[tuple[float, int]]:
         """A callback starts on one of a multi-threaded executor's threads: its CPU clock."""
         with self._workers_lock:
             self._workers.setdefault(threading.get_ident(), []).append(robot)
             self.calls += 1
             self.running += 1
             self.calls_of[robot] = self.calls_of.get(robot, 0) + 1
-        return time.thread_time() if own_time else 0.0
+        return self.node_time.start() if own_time else None
 
     def _leave_thread(self) -> None:
         ident = threading.get_ident()
@@ -277,7 +277,8 @@ class CallbackGuard(CallbackWatcher):
         return True
 
     def set_aside(self) -> object:
-        state = (self._running, self._started, self._cpu_started, time.monotonic(), time.thread_time())
+        cpu_at = time.thread_time() if self._cpu_started is not None else None
+        state = (self._running, self._started, self._cpu_started, time.monotonic(), cpu_at)
         self._running = None
         return state
 
@@ -286,7 +287,10 @@ class CallbackGuard(CallbackWatcher):
         lateness nor its node's own time counts what ran meanwhile."""
         running, started, cpu_started, set_aside_at, cpu_at = state
         self._running, self._started = running, started + (time.monotonic() - set_aside_at)
-        self._cpu_started = cpu_started + (time.thread_time() - cpu_at)
+        self._cpu_started = cpu_started
+        if cpu_started is not None:
+            clock, counts = cpu_started
+            self._cpu_started = (clock + (time.thread_time() - cpu_at), counts)
 
     def caller_robot(self) -> Optional[str]:
         """The robot whose guarded callback (or task) runs in this thread now, if any."""
