@@ -19,7 +19,7 @@ import time
 from typing import Optional
 
 TIMED_FIRST = 1024
-SAMPLED = 8
+SAMPLED = 32
 
 
 class NodeTime:
