@@ -143,9 +143,9 @@ class ProcessDrones:
             self._graphs.append(graph)
             executor = LockstepExecutor(context=endpoints.node.context)
             executor.add_node(endpoints.node)
-            block = HostedBlock(executor, calls=calls, places=[d.robot for d in endpoints.drones])
+            block = HostedBlock(executor, robots=robots, graph_changed=graph.poll(0), calls=calls,
+                                places=[d.robot for d in endpoints.drones])
             block.serve(endpoints.node, endpoints.services())
-            block.watch_outside_calls(robots, graph_changed=graph.poll(0))
             self._alone.append((executor, block))
         self.watch([graph.poll(0) for graph in self._graphs])
 

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import collections
 import functools
-from typing import Callable, Collection, Optional
+from typing import Callable, Collection, Iterable, Optional
 
 from rclpy.node import Node
 
@@ -46,8 +46,19 @@ class HostedBlock:
     guard guards too. ``guard``: what makes a faulty callback its robot's fault (None: a failure
     ends the process, a controller process of its own)."""
 
-    def __init__(self, executor, *, calls=None, places: Collection[int] = (), relay=None,
-                 guard: Optional[CallbackGuard] = None):
+    def __init__(self, executor, nodes: Iterable[tuple[Node, Optional[str], int, object]] = (), *,
+                 robots: Collection[str], graph_changed: Optional[Callable[[], bool]] = None,
+                 calls=None, places: Collection[int] = (), relay=None, guard: Optional[CallbackGuard] = None,
+                 on_new_endpoints: Optional[Callable[[str, list, list], None]] = None):
+        """``nodes``: each built node, with its robot, place and simulator node (``adopt``).
+        ``robots``: the run's, whose nodes are all the run's own: requests from other processes
+        to the block's services are taken at each tick's start (``start_tick``); whether the ROS
+        graph changed comes from ``graph_changed``, the host's own watch where it has one (a second
+        watch of one participant would take its triggers), else from a watch of the first node's
+        participant. ``on_new_endpoints``: told of the publishers and subscriptions a robot's node
+        makes after it was adopted (a lifecycle node's, in a transition): where the simulator is in
+        another process, it must hear of a new cmd_vel publisher, or of a new reader of the robot's
+        sensors."""
         self.executor = executor
         self.directory = ServiceDirectory(executor, relay=calls)
         self._calls = calls
@@ -56,11 +67,7 @@ class HostedBlock:
         self._relay, self._guard = relay, guard
         self._node_info: dict[int, tuple[Optional[str], int, object]] = {}   # id(node) → robot, place, simulator
         self._seen: dict[int, set[int]] = {}              # id(node) → ids of its publishers and subscriptions seen
-        self._outside: Optional[OutsideCalls] = None
-        # Told of the publishers and subscriptions a robot's node makes after it was adopted (a
-        # lifecycle node's, in a transition): where the simulator is in another process, it must
-        # hear of a new cmd_vel publisher, or of a new reader of the robot's sensors.
-        self.on_new_endpoints: Optional[Callable[[str, list, list], None]] = None
+        self.on_new_endpoints = on_new_endpoints
         # Nodes that made entities since the last look: the lockstep executor tells before its
         # next walk; under rclpy's stock executors a node's own wake-up call notes it (a
         # callback on one of their threads may make it), hosted as the next tick starts.
@@ -68,6 +75,14 @@ class HostedBlock:
         self._stock = not hasattr(executor, "on_entities_changed")
         if not self._stock:
             executor.on_entities_changed = self.host_new
+        nodes = list(nodes)
+        for node, robot, place, simulator in nodes:
+            self.adopt(node, robot, place, simulator)
+        self._outside: Optional[OutsideCalls] = None
+        if graph_changed is not None:
+            self._outside = OutsideCalls(self.directory, robots, graph_changed)
+        elif nodes:
+            self._outside = OutsideCalls.watching(self.directory, robots, nodes[0][0])
 
     # --- nodes ----------------------------------------------------------------------------------
 
@@ -172,18 +187,6 @@ class HostedBlock:
         self._guard.node_failed(node, error)
 
     # --- calls from other processes -------------------------------------------------------------
-
-    def watch_outside_calls(self, robots: Collection[str], *, graph_changed: Optional[Callable[[], bool]] = None,
-                            graph_of: Optional[Node] = None) -> None:
-        """Take the requests other processes send to the block's services at each tick's start
-        (``start_tick``). ``robots``: the run's, whose nodes are all the run's own. Whether
-        the ROS graph changed comes from ``graph_changed``, the host's own watch where it has one
-        (a second watch of one participant would take its triggers), else from a watch of
-        ``graph_of``'s participant."""
-        if graph_changed is not None:
-            self._outside = OutsideCalls(self.directory, robots, graph_changed)
-        elif graph_of is not None:
-            self._outside = OutsideCalls.watching(self.directory, robots, graph_of)
 
     def start_tick(self) -> None:
         """As a tick starts: what nodes made since (under a stock executor), hosted; the requests

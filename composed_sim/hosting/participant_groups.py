@@ -234,14 +234,12 @@ class ParticipantGroups(TickServing):
                   "in worker processes a call to a run-wide node made after the tick's rounds completes as the "
                   "next tick opens). The default executor runs them within the tick, in one order", file=sys.stderr)
         names = self.world.robot_names()
-        self.block = HostedBlock(self.executor, calls=self.calls, places=range(self.start, self.stop),
-                                 relay=self.relay, guard=self.guard)
-        self.block.watch_outside_calls(names, graph_changed=lambda: any([changed() for changed in self._outside_watches]))
         robots = iter(range(self.start, self.stop))
-        for sim_node in self.simulator_nodes:
-            for robot, i in zip(sim_node.robots, robots):
-                for node in self.robot_nodes[i - self.start]:
-                    self.block.adopt(node, robot, i, sim_node)
+        self.block = HostedBlock(self.executor, [(node, robot, i, sim_node) for sim_node in self.simulator_nodes
+                                                 for robot, i in zip(sim_node.robots, robots)
+                                                 for node in self.robot_nodes[i - self.start]],
+                                 robots=names, graph_changed=lambda: any([changed() for changed in self._outside_watches]),
+                                 calls=self.calls, places=range(self.start, self.stop), relay=self.relay, guard=self.guard)
         if self.run_wide is not None:
             self.run_wide.host(self.relay, self.calls, names,
                                lambda: self._run_wide_graph is not None and self._run_wide_graph())

@@ -52,11 +52,9 @@ class RunWideNodes:
         the start of their part of each tick (``robots``: the run's). ``graph_changed``: has their
         participant's ROS graph changed, from the host's own watch where it has one (a second
         watch of the same participant would take its triggers); else they watch it themselves."""
-        self._block = HostedBlock(self._executor, calls=calls, places=[RUN_WIDE_ORIGIN], relay=relay)
-        for node in self._nodes:
-            self._block.adopt(node, None, RUN_WIDE_ORIGIN)
-        self._block.watch_outside_calls(robots, graph_changed=graph_changed,
-                                        graph_of=self._nodes[0] if self._nodes else None)
+        self._block = HostedBlock(self._executor, [(node, None, RUN_WIDE_ORIGIN, None) for node in self._nodes],
+                                  robots=robots, graph_changed=graph_changed, calls=calls,
+                                  places=[RUN_WIDE_ORIGIN], relay=relay)
 
     def run_until_idle(self) -> None:
         """Run what is ready (calls handed over to them) until nothing is."""

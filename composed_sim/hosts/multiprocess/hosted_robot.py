@@ -135,12 +135,9 @@ class HostedRobot:
         for node in ([self.link.node] if self.link is not None else []) + self.nodes:
             self.spinning.executor.add_node(node)
         # Its nodes hosted as in the composed host (hosting/hosted_block.py).
-        self.block = HostedBlock(self.spinning.executor, calls=self.calls, places=[place], relay=relay)
-        if self.link is not None:
-            self.block.on_new_endpoints = self._new_endpoints
-        for node in self.nodes:
-            self.block.adopt(node, robot, place)
-        self.block.watch_outside_calls(names, graph_of=self.nodes[0])
+        self.block = HostedBlock(self.spinning.executor, [(node, robot, place, None) for node in self.nodes],
+                                 robots=names, calls=self.calls, places=[place], relay=relay,
+                                 on_new_endpoints=self._new_endpoints if self.link is not None else None)
         return True
 
     def _link(self, built, relay: RunWideRelay, place: int, group) -> None:
