@@ -368,18 +368,27 @@ class SimulatorNode(Node):
         if not self._from_controller(i, gid):
             return
         linear, angular = decoding.decode_unstamped_answer_cdr(data)
+        self._on_arrival(i, linear, angular, data)
+
+    def _on_cmd_vel(self, i: int, data: bytes, gid: bytes) -> None:
+        """A TwistStamped answers the tick its stamp names; one never stamped (zero: ROS's unset
+        time, as a node written for a base that ignores stamps leaves it) answers as a Twist does."""
+        if not self._from_controller(i, gid):
+            return
+        key, linear, angular = decoding.decode_answer_cdr(data)
+        if key == 0:
+            self._on_arrival(i, linear, angular, data)
+            return
+        with self._ledger.lock:
+            self._answer(i, key, linear, angular, data)
+
+    def _on_arrival(self, i: int, linear: float, angular: float, data: bytes) -> None:
+        """An answer matched to a tick by its arrival: the open tick's, or, with none open, held."""
         with self._ledger.lock:
             key = self._ledger.current_key
             if key < 0:
                 self._ledger.hold(i, linear, angular)
                 return
-            self._answer(i, key, linear, angular, data)
-
-    def _on_cmd_vel(self, i: int, data: bytes, gid: bytes) -> None:
-        if not self._from_controller(i, gid):
-            return
-        key, linear, angular = decoding.decode_answer_cdr(data)
-        with self._ledger.lock:
             self._answer(i, key, linear, angular, data)
 
     def _answer(self, i: int, key: int, linear: float, angular: float, data: bytes) -> None:

@@ -22,6 +22,7 @@ sys.path.insert(0, str(ROOT / "tests"))
 from conftest import install_plugin  # noqa: E402 - after tests/ is put on sys.path
 
 STYLES = {"twist-on-scan": "TwistOnScan", "stamped-timer": "StampedTimer", "twist-timer": "TwistTimer",
+          "unstamped-timer": "UnstampedTimer",
           "no-options": "NoOptions", "string-commands": "StringCommands", "wrong-sensor": "WrongSensor",
           "no-answer": "NoAnswer", "every-third-tick": "EveryThirdTick", "asks-the-planner": "AsksThePlanner",
           "planner": "Planner"}
@@ -218,3 +219,23 @@ def test_a_service_between_a_robots_own_nodes_answers_within_the_tick(styles, do
     for name, result in runs.items():
         assert result.violations == [], (name, result.violations[:3])
         np.testing.assert_array_equal(result.trajectories.positions, reference.trajectories.positions, err_msg=name)
+
+
+@pytest.mark.parametrize("mode", ["composed", pytest.param("multi-process", marks=pytest.mark.slow)])
+def test_a_twist_stamped_left_unstamped_answers_as_a_twist_does(styles, domain_id, mp_domain, mode):
+    """A zero stamp is ROS's unset time, not a late answer to tick 0: such a TwistStamped is matched
+    to a tick by its arrival, as a Twist is (it was dropped as an answer to tick 0, and the robots
+    stood, booked as missing every tick after the first)."""
+    world = load_world(FLOCKING, robots=4, ticks=30, seed=3)
+
+    def run(style):
+        group = world.robots[0].model_copy(update={"controller": style, "params": {}})
+        w = world.model_copy(update={"robots": [group]})
+        host = ComposedHost(w, domain_id=domain_id) if mode == "composed" else \
+            MultiProcessHost(w, domain_id=mp_domain)
+        with host:
+            return host.run()
+
+    unstamped, twist = run("unstamped-timer"), run("twist-timer")
+    assert unstamped.violations == [] and twist.violations == []
+    np.testing.assert_array_equal(unstamped.trajectories.positions, twist.trajectories.positions)

@@ -66,6 +66,20 @@ class StampedTimer(_OnTimer):
         return out
 
 
+class UnstampedTimer(_OnTimer):
+    """TwistStamped with its header left as made (stamp zero), as a node written for a robot whose
+    base ignores the stamp publishes it."""
+    msg_type = TwistStamped
+
+    def __init__(self, **kwargs):
+        super().__init__("unstamped_timer", **kwargs)
+
+    def command(self, linear: float, angular: float) -> TwistStamped:
+        out = TwistStamped()
+        out.twist.linear.x, out.twist.angular.z = linear, angular
+        return out
+
+
 class TwistTimer(_OnTimer):
     """The usual ROS node: sensor-data QoS, latest reading kept, Twist from a timer."""
 
