@@ -7,6 +7,7 @@ import json
 import os
 import shutil
 import sys
+from pathlib import Path
 from typing import Optional
 
 
@@ -134,8 +135,11 @@ def _human_summary(s: dict, files: list[str], metric_lines: list[str] = ()) -> s
     ]
     if s.get("failed_robots"):      # one line: how many, why, where to look
         causes = "; ".join(f"{cause}: {n}" for cause, n in (s.get("failed_by") or {}).items())
+        # Controllers driven from outside the run (--external-controllers) log in their own processes.
+        logs = s.get("logs")
+        where = f"{logs}/<robot>.log and violations.csv" if logs and Path(logs).is_dir() else "violations.csv"
         lines.append(f"  controllers failed: {len(s['failed_robots'])} of {s['robots']} robots"
-                     f"{f' ({causes})' if causes else ''}; see {s.get('logs', 'logs')}/<robot>.log and violations.csv")
+                     f"{f' ({causes})' if causes else ''}; see {where}")
     lines += metric_lines
     if s.get("ended_by_loop_functions"):
         lines.append(f"  ended by the loop functions at tick {s['ticks']}")
