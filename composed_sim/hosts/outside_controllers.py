@@ -36,15 +36,25 @@ from composed_sim.world.schema import World
 GONE_REASON = "its controller is gone (no cmd_vel publisher left)"
 SETTLED_S = 0.5         # every robot connected and the graph unchanged this long: tick 0 may start
 POLL_S = 0.05
+QUIET_CHECK_S = 1.0     # how often robots that are never waited for are looked at for a controller gone
 
 
 class OutsideExchange(NodesExchange):
     """The exchange with processes outside the run. Whether such a process has anything left to
     do in a tick is its own business, so a robot that answers when published (``answers:
     when_published``) is never waited for: what it published by the tick's close is its answer,
-    else it keeps its last command."""
+    else it keeps its last command. Its controller being gone would then never show as a late
+    answer: ``check_quiet`` looks for it, at most once every QUIET_CHECK_S of wall time."""
+
+    def __init__(self, nodes, check: Callable[[], None], check_quiet: Callable[[], None]):
+        super().__init__(nodes, check)
+        self._check_quiet = check_quiet
+        self._quiet_checked = time.monotonic()
 
     def wait_for_answers(self, timeout_s: float) -> bool:
+        if time.monotonic() - self._quiet_checked >= QUIET_CHECK_S:
+            self._check_quiet()
+            self._quiet_checked = time.monotonic()
         self.settle_idle()
         return super().wait_for_answers(timeout_s)
 
@@ -84,7 +94,7 @@ class OutsideControllersHost(ControllersElsewhere):
             with InterruptWatch() as interrupts:
                 self._wait_for_controllers(lambda: interrupts.requested)
             self._startup_interrupted = interrupts.requested
-            self.exchange = OutsideExchange([self.sim_node], self._check_controllers)
+            self.exchange = OutsideExchange([self.sim_node], self._check_controllers, self._check_quiet_controllers)
             self._spinning = Spinning(LockstepExecutor(context=self._context))
             self._spinning.executor.add_node(self.sim_node)
             self._spinning.start_thread()
@@ -165,6 +175,13 @@ class OutsideControllersHost(ControllersElsewhere):
         node = self.sim_node
         waiting = ~node.answered & ~node.failed
         for i in waiting.nonzero()[0]:
+            if self._answer_publishers(self.sim.names[i]) == 0:
+                node.mark_failed(self.sim.names[i], GONE_REASON)
+
+    def _check_quiet_controllers(self) -> None:
+        """A robot that answers when published with no cmd_vel publisher left has lost its controller."""
+        node = self.sim_node
+        for i in (node.when_published & ~node.failed).nonzero()[0]:
             if self._answer_publishers(self.sim.names[i]) == 0:
                 node.mark_failed(self.sim.names[i], GONE_REASON)
 

@@ -233,3 +233,32 @@ def test_a_robot_that_answers_when_published_keeps_a_command_that_came_between_t
     steps = np.linalg.norm(np.diff(result.trajectories.positions[:, 0], axis=0), axis=1)
     moving = np.flatnonzero(steps > 0.004)          # 0.1 m/s over a 0.1 s tick: 0.01 m
     assert len(moving) and (steps[moving[0] + 1:] > 0.004).all(), np.round(steps, 4)
+
+
+def test_a_robot_that_answers_when_published_is_failed_once_its_controller_is_gone(tmp_path, processes, domain_id):
+    # Never waited for, such a robot's lost controller shows as no late answer: the graph says it
+    # (it once drove on its last command with no violation, its process long dead).
+    from composed_sim.live.pacing import Pacer
+    w = world(robots=1, ticks=100)
+    w = w.model_copy(update={"robots": [w.robots[0].model_copy(update={"answers": "when_published"})]})
+    env = {**os.environ, "ROS_DOMAIN_ID": str(domain_id)}
+    controller = start([sys.executable, "-c", DRIVES_ON_ITS_OWN_TIMER], tmp_path / "bot0.log", env)
+    processes.append(controller)
+    wait_until_spinning(tmp_path, [0], processes)
+    calls, stopped_at = [], []
+
+    def progress(n):
+        calls.append(n)
+        if len(calls) == 10:
+            controller.send_signal(signal.SIGTERM)
+            controller.wait(timeout=60)
+            stopped_at.append(len(calls))
+
+    with OutsideControllersHost(w, domain_id=domain_id, discovery_timeout_s=60) as host:
+        result = host.run(progress=progress, observers=[Pacer(2.0, w.tick_s)])
+    assert stopped_at and [(v.robot, v.reason) for v in result.violations] == [
+        ("bot0", f"controller failed: {GONE_REASON}")]
+    failed_at = result.violations[0].tick
+    assert 10 <= failed_at < 100
+    pos = result.trajectories.positions[failed_at + 1:, 0]
+    assert np.abs(pos - pos[0]).max() < 1e-9          # the fallback: it stands from then on
