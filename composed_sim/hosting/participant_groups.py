@@ -234,9 +234,9 @@ class ParticipantGroups(TickServing):
                   "in worker processes a call to a run-wide node made after the tick's rounds completes as the "
                   "next tick opens). The default executor runs them within the tick, in one order", file=sys.stderr)
         names = self.world.robot_names()
-        robots = iter(range(self.start, self.stop))
+        places = iter(range(self.start, self.stop))
         self.block = HostedBlock(self.executor, [(node, robot, i, sim_node) for sim_node in self.simulator_nodes
-                                                 for robot, i in zip(sim_node.robots, robots)
+                                                 for robot, i in zip(sim_node.robots, places)
                                                  for node in self.robot_nodes[i - self.start]],
                                  robots=names, graph_changed=lambda: any([changed() for changed in self._outside_watches]),
                                  calls=self.calls, places=range(self.start, self.stop), relay=self.relay, guard=self.guard)
