@@ -57,11 +57,23 @@ class Listener:
     def __init__(self, domain: int, topics: list[str]):
         self.process = subprocess.Popen([sys.executable, "-c", SCRIPT, str(domain), *topics], cwd=ROOT,
                                         stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
-        assert self.process.stdout.readline().strip() == "listening"
+        self._until("listening")
 
     def wait_matched(self) -> None:
         """Until each of the topics has a publisher matched with the listener."""
-        assert self.process.stdout.readline().strip() == "matched"
+        self._until("matched")
+
+    def _until(self, word: str) -> None:
+        """Until the script says ``word``. Fast DDS writes lines of its own on stdout too (a
+        shared-memory port another participant of the machine held a moment, in a parallel test
+        run): those are passed over."""
+        other = []
+        for line in self.process.stdout:
+            if line.strip() == word:
+                return
+            other.append(line)
+        raise AssertionError(f"the listener ended (exit {self.process.wait()}) before saying {word!r}; "
+                             f"it said: {''.join(other)[-2000:]!r}")
 
     def stop(self) -> dict:
         """{"got": {topic: [message, …]}, "seen": [topic, …]}"""
