@@ -170,20 +170,19 @@ class OutsideControllersHost(ControllersElsewhere):
     # --- the run ----------------------------------------------------------------------------
 
     def _check_controllers(self) -> None:
-        """Called while answers are late: a waited-for robot with no cmd_vel publisher left has
-        lost its controller. Matched counts are local to each endpoint (O(1) each)."""
-        node = self.sim_node
-        waiting = ~node.answered & ~node.failed
-        for i in waiting.nonzero()[0]:
-            if self._answer_publishers(self.sim.names[i]) == 0:
-                node.mark_failed(self.sim.names[i], GONE_REASON)
+        """Called while answers are late: the waited-for robots."""
+        self._fail_controllerless(~self.sim_node.answered & ~self.sim_node.failed)
 
     def _check_quiet_controllers(self) -> None:
-        """A robot that answers when published with no cmd_vel publisher left has lost its controller."""
-        node = self.sim_node
-        for i in (node.when_published & ~node.failed).nonzero()[0]:
+        """The robots that answer when published, never waited for."""
+        self._fail_controllerless(self.sim_node.when_published & ~self.sim_node.failed)
+
+    def _fail_controllerless(self, rows) -> None:
+        """Each robot of ``rows`` (a mask) with no cmd_vel publisher left has lost its controller.
+        Matched counts are local to each endpoint (O(1) each)."""
+        for i in rows.nonzero()[0]:
             if self._answer_publishers(self.sim.names[i]) == 0:
-                node.mark_failed(self.sim.names[i], GONE_REASON)
+                self.sim_node.mark_failed(self.sim.names[i], GONE_REASON)
 
     def _answer_publishers(self, robot: str) -> int:
         """Publishers matched on ``robot``'s cmd_vel (0 while its answer type is not known)."""

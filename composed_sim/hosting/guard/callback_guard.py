@@ -287,10 +287,8 @@ class CallbackGuard(CallbackWatcher):
         lateness nor its node's own time counts what ran meanwhile."""
         running, started, cpu_started, set_aside_at, cpu_at = state
         self._running, self._started = running, started + (time.monotonic() - set_aside_at)
-        self._cpu_started = cpu_started
-        if cpu_started is not None:
-            clock, counts = cpu_started
-            self._cpu_started = (clock + (time.thread_time() - cpu_at), counts)
+        self._cpu_started = cpu_started if cpu_started is None else \
+            (cpu_started[0] + (time.thread_time() - cpu_at), cpu_started[1])
 
     def caller_robot(self) -> Optional[str]:
         """The robot whose guarded callback (or task) runs in this thread now, if any."""
